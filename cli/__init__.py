@@ -1,0 +1,1 @@
+"""Command line of commission (typer).  The only layer that imports typer and matplotlib."""

@@ -1,0 +1,1 @@
+"""Command registry: one import per command module."""
