@@ -52,6 +52,10 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, overwrite: bool
     try:
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
+        # mkstemp creates 0600; artifacts are ordinary files (0666 less the umask).
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

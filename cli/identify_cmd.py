@@ -1,0 +1,132 @@
+"""``commission identify LOG``: least-squares identification and Assumption-1 bounds."""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from commission.cli.errors import cli_errors
+from commission.cli.main import app
+from commission.errors import UsageError
+from commission.identification import BoundsOptions, IdentifyOutcome, identify_log, payload_from_kg
+from commission.jsonio import write_json_atomic
+from commission.logs import parse_mapping
+
+
+class Friction(str, enum.Enum):
+    coulomb = "coulomb"
+    stribeck = "stribeck"
+
+
+def bounds_options(
+    k_sigma: float,
+    model_margin: float,
+    payload_min: Optional[float],
+    payload_max: Optional[float],
+    payload_min_kg: Optional[float],
+    payload_max_kg: Optional[float],
+    force_constant: Optional[float],
+    disturbance_bound: Optional[float],
+) -> BoundsOptions:
+    """Turn the bound flags into :class:`BoundsOptions` (kg converted with the force constant)."""
+    if (payload_min_kg is not None or payload_max_kg is not None) and force_constant is None:
+        raise UsageError("--payload-min-kg/--payload-max-kg need --force-constant (N per u-unit)")
+    if payload_min is not None and payload_min_kg is not None:
+        raise UsageError("give either --payload-min or --payload-min-kg, not both")
+    if payload_max is not None and payload_max_kg is not None:
+        raise UsageError("give either --payload-max or --payload-max-kg, not both")
+    if payload_min_kg is not None:
+        payload_min = payload_from_kg(payload_min_kg, force_constant)  # type: ignore[arg-type]
+    if payload_max_kg is not None:
+        payload_max = payload_from_kg(payload_max_kg, force_constant)  # type: ignore[arg-type]
+    for flag, v in (("--payload-min", payload_min), ("--payload-max", payload_max),
+                    ("--disturbance-bound", disturbance_bound), ("--k-sigma", k_sigma)):
+        if v is not None and v < 0:
+            raise UsageError(f"{flag} must be >= 0, got {v}")
+    if not 0 <= model_margin < 1:
+        raise UsageError(f"--model-margin must be in [0, 1), got {model_margin}")
+    return BoundsOptions(k_sigma=k_sigma, model_margin=model_margin, payload_min=payload_min or 0.0,
+                         payload_max=payload_max, disturbance_bound=disturbance_bound)
+
+
+def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
+    """One-screen summary: parameters +- std, fit, bounds, warnings."""
+    ident, fit = outcome.ident, outcome.fit
+    u = ident.units["u"]
+    units = {"M": f"{u}·s²/m", "B": f"{u}·s/m", "fc": u, "fs": u, "vs": "m/s", "xi": "-", "offset": u}
+    t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
+    for col in ("parameter", "value", "± std", "rel. std", "unit"):
+        t.add_column(col, justify="right" if col != "parameter" else "left")
+    for name, est in ident.parameters.items():
+        if est is None:
+            continue
+        rel = f"{abs(est.std / est.value) * 100:.2f} %" if est.value else "-"
+        t.add_row(name, f"{est.value:.6g}", f"{est.std:.3g}", rel, units[name])
+    ra = ident.extra.get("model", {}).get("ripple_amp")  # type: ignore[union-attr]
+    if ra:
+        t.add_row("ripple_amp", f"{ra['value']:.4g}", f"{ra['std']:.2g}", "", u)
+    console.print(t)
+    q = outcome.checks.quantization_step
+    lines = [
+        f"samples {outcome.log.t.size} at {outcome.log.sample_rate:.6g} Hz; encoder step "
+        + (f"{q:.3g} m" if q else f"not on a grid (smallest step {outcome.checks.apparent_resolution:.3g} m)"),
+        f"relative error {ident.relative_error:.4f}, condition number {ident.condition_number:.4g}"
+        + (f", validation relative error {ident.validation_relative_error:.4f}"
+           if ident.validation_relative_error is not None else ""),
+        "theta nominal [" + ", ".join(f"{x:.4g}" for x in ident.theta.nominal) + "]",
+        "theta min     [" + ", ".join(f"{x:.4g}" for x in ident.theta.min) + "]",
+        "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
+        f"delta_d {ident.delta_d:.4g} m/s²; friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}",
+    ]
+    for line in lines:
+        console.print(line)
+    for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
+        console.print(f"[yellow]warning:[/] {w}")
+
+
+@app.command("identify")
+@cli_errors
+def identify_command(
+    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv or .mat (CONTRACT §1)."),
+    out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
+    map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
+    input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
+    u_unit: Optional[str] = typer.Option(None, "--u-unit", help="Unit of u after --input-gain (V, N, A); default: the file's."),
+    sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
+    friction: Friction = typer.Option(Friction.stribeck, "--friction", help="Friction model."),
+    ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="Force-ripple pitch P in m: fits sin/cos(2πq/P)."),
+    validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="Second log for the cross-test relative error."),
+    k_sigma: float = typer.Option(3.0, "--k-sigma", help="Standard deviations covered by the theta box."),
+    model_margin: float = typer.Option(0.2, "--model-margin", help="Relative margin on M and B for model error."),
+    payload_min: Optional[float] = typer.Option(None, "--payload-min", help="Least added mass, u-unit·s²/m (default 0)."),
+    payload_max: Optional[float] = typer.Option(None, "--payload-max", help="Largest added mass, u-unit·s²/m (default 3 M)."),
+    payload_min_kg: Optional[float] = typer.Option(None, "--payload-min-kg", help="Least added mass in kg (needs --force-constant)."),
+    payload_max_kg: Optional[float] = typer.Option(None, "--payload-max-kg", help="Largest added mass in kg (needs --force-constant)."),
+    force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
+    disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals)."),
+) -> None:
+    """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""
+    bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
+                            payload_max_kg, force_constant, disturbance_bound)
+    mapping = parse_mapping(map_)
+    console = Console(stderr=False)
+    with console.status("identifying ...", spinner="dots"):
+        outcome = identify_log(
+            str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+            friction=friction.value, ripple_pitch=ripple_pitch,
+            validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
+        )
+    write_json_atomic(out, outcome.ident.to_dict())
+    print_summary(outcome, console)
+    console.print(f"wrote {out}")
+    if plot is not None:
+        from commission.cli.plots import identification_plots
+
+        for p in identification_plots(outcome, plot):
+            console.print(f"wrote {p}")

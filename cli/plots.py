@@ -1,0 +1,75 @@
+"""PNG plots of the identification (matplotlib, Agg backend).
+
+Called only from the CLI layer; the computation lives in
+:mod:`commission.identification` and :mod:`commission.identify`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from commission.identification import IdentifyOutcome, friction_curve  # noqa: E402
+
+
+def identification_plots(outcome: IdentifyOutcome, out_dir: str | Path) -> list[Path]:
+    """Write the three identification figures; return their paths.
+
+    * ``force_fit.png``: measured against fitted force over time;
+    * ``friction_curve.png``: identified friction curve over the friction map;
+    * ``residuals.png``: residual histogram.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fit, ident = outcome.fit, outcome.ident
+    unit = ident.units["u"]
+    paths = []
+
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, height_ratios=[3, 1])
+    ax.plot(fit.t_decimated, fit.force_measured, lw=0.8, label="measured (decimated command)")
+    ax.plot(fit.t_decimated, fit.force_fitted, lw=0.8, label="fitted model")
+    ax.set_ylabel(f"force [{unit}]")
+    ax.set_title(f"Inverse-dynamics fit: relative error {ident.relative_error:.4f}")
+    ax.legend(loc="upper right")
+    axr.plot(fit.t_decimated, fit.residuals, lw=0.6, color="C3")
+    axr.set_ylabel(f"residual [{unit}]")
+    axr.set_xlabel("t [s]")
+    fig.tight_layout()
+    paths.append(out / "force_fit.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(8, 5))
+    vmax = max(fit.v_max, 1e-6)
+    v = np.linspace(-vmax, vmax, 2001)
+    ax.plot(v, friction_curve(ident, v), color="k", lw=1.4, label="identified B v + Ff(v) + offset")
+    comp = ident.fric_level * (2 / np.pi) * np.arctan(ident.fric_slope * v) + ident.value("B") * v + ident.value("offset")
+    ax.plot(v, comp, "--", color="C2", lw=1.0, label="compensation (atan) + B v + offset")
+    if fit.steady_velocity.size:
+        ax.plot(fit.steady_velocity, fit.steady_force, "o", ms=4, color="C0", label="constant-velocity legs")
+    ax.set_xlabel("velocity [m/s]")
+    ax.set_ylabel(f"friction [{unit}]")
+    ax.set_title(f"Friction ({fit.friction}, {fit.method})")
+    ax.axhline(0, color="0.8", lw=0.5)
+    ax.axvline(0, color="0.8", lw=0.5)
+    ax.legend(loc="upper left")
+    fig.tight_layout()
+    paths.append(out / "friction_curve.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.hist(fit.residuals, bins=60, color="C0", alpha=0.85)
+    ax.set_xlabel(f"residual [{unit}]")
+    ax.set_ylabel("count")
+    ax.set_title(f"Residuals: std {fit.residual_std:.3g} {unit}")
+    fig.tight_layout()
+    paths.append(out / "residuals.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths

@@ -1,0 +1,166 @@
+"""Frozen dataclasses for the identification artifact (``ident.json``).
+
+The JSON keys of CONTRACT §2 are a stable external interface: fields may be
+added, never renamed or removed.  Saved with sorted keys via
+:func:`commission.jsonio.write_json_atomic`; loaded strictly via
+:class:`commission.jsonio.Reader`, which names the JSON path of a bad field.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from commission.jsonio import Reader, read_json
+
+IDENT_KIND = "identification"
+IDENT_SCHEMA_VERSION = 1
+
+#: Parameters of CONTRACT §2 in a stable order.
+PARAMETER_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A parameter value with its standard deviation (same unit as the value)."""
+
+    value: float
+    std: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {"value": self.value, "std": self.std}
+
+
+@dataclass(frozen=True)
+class ThetaBox:
+    """The paper's parameter vector theta = [1/M, B/M, d_n/M] with its Assumption-1 box.
+
+    Units: theta1 in m/(u-unit s^2), theta2 in 1/s, theta3 in m/s^2.
+    """
+
+    nominal: tuple[float, float, float]
+    min: tuple[float, float, float]
+    max: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        for i in range(3):
+            if not self.min[i] <= self.nominal[i] <= self.max[i]:
+                raise ValueError(
+                    f"theta[{i}]: nominal {self.nominal[i]:g} outside [{self.min[i]:g}, {self.max[i]:g}]"
+                )
+        if not self.min[0] > 0:
+            raise ValueError(f"theta_min[0] = {self.min[0]:g}: 1/M bound must be positive")
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"nominal": list(self.nominal), "min": list(self.min), "max": list(self.max)}
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Result of ``commission identify`` (CONTRACT §2).
+
+    Attributes
+    ----------
+    units : dict
+        ``{"u": u-unit, "q": "m"}``.
+    parameters : dict
+        Name -> :class:`Estimate`.  M in u-unit s^2/m, B in u-unit s/m,
+        fc, fs, offset in u-unit, vs in m/s, xi dimensionless.  ``fs``, ``vs``,
+        ``xi`` are ``None`` for the Coulomb model.
+    relative_error : float
+        ||y - y_hat|| / ||y|| on the identification data (fraction).
+    condition_number : float
+        Of the (column-scaled) regressor.
+    validation_relative_error : float or None
+        Same figure on the ``--validate-on`` log.
+    theta : ThetaBox
+        Nominal theta and the Assumption-1 box.
+    delta_d : float
+        Bound on |d~| = |d - d_n|/M, m/s^2.
+    fric_level, fric_slope : float
+        Friction compensation ``level*(2/pi)*atan(slope*v)``: level in u-unit,
+        slope in s/m.
+    extra : dict
+        Additive, non-contract details (provenance, ripple, quantization,
+        warnings, bound settings ...), stored under their own keys.
+    """
+
+    units: Mapping[str, str]
+    parameters: Mapping[str, Estimate | None]
+    relative_error: float
+    condition_number: float
+    validation_relative_error: float | None
+    theta: ThetaBox
+    delta_d: float
+    fric_level: float
+    fric_slope: float
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def value(self, name: str) -> float:
+        est = self.parameters.get(name)
+        if est is None:
+            raise KeyError(f"parameter {name!r} was not identified")
+        return est.value
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = dict(self.extra)
+        d.update(
+            {
+                "kind": IDENT_KIND,
+                "schema_version": IDENT_SCHEMA_VERSION,
+                "units": dict(self.units),
+                "parameters": {k: (v.to_dict() if v is not None else None) for k, v in self.parameters.items()},
+                "fit": {
+                    "relative_error": self.relative_error,
+                    "condition_number": self.condition_number,
+                    "validation_relative_error": self.validation_relative_error,
+                },
+                "theta": self.theta.to_dict(),
+                "delta_d": self.delta_d,
+                "friction_compensation": {"level": self.fric_level, "slope": self.fric_slope},
+            }
+        )
+        return d
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "ident.json") -> "Identification":
+        r = Reader(data, "$", source)
+        r.header(IDENT_KIND, IDENT_SCHEMA_VERSION)
+        units_r = r.obj("units")
+        units = {"u": units_r.str_("u"), "q": units_r.str_("q")}
+        pr = r.obj("parameters")
+        params: dict[str, Estimate | None] = {}
+        for name in PARAMETER_NAMES:
+            required = name in ("M", "B", "fc", "offset")
+            if not required and not pr.has(name):
+                params[name] = None
+                continue
+            er = pr.obj(name)
+            params[name] = Estimate(er.num("value"), er.num("std", nonneg=True))
+        if params["M"].value <= 0:  # type: ignore[union-attr]
+            raise r.fail(f"expected a positive mass, got {params['M'].value!r}", "$.parameters.M.value")  # type: ignore[union-attr]
+        fit = r.obj("fit")
+        th = r.obj("theta")
+        try:
+            theta = ThetaBox(th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3))  # type: ignore[arg-type]
+        except ValueError as exc:
+            raise r.fail(str(exc), "$.theta") from None
+        fcr = r.obj("friction_compensation")
+        known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}
+        extra = {k: v for k, v in data.items() if k not in known}
+        return cls(
+            units=units,
+            parameters=params,
+            relative_error=fit.num("relative_error", nonneg=True),  # type: ignore[arg-type]
+            condition_number=fit.num("condition_number", positive=True),  # type: ignore[arg-type]
+            validation_relative_error=fit.num("validation_relative_error", optional=True, nonneg=True),
+            theta=theta,
+            delta_d=r.num("delta_d", nonneg=True),  # type: ignore[arg-type]
+            fric_level=fcr.num("level", nonneg=True),  # type: ignore[arg-type]
+            fric_slope=fcr.num("slope", nonneg=True),  # type: ignore[arg-type]
+            extra=extra,
+        )
+
+    @classmethod
+    def load(cls, path: str) -> "Identification":
+        return cls.from_dict(read_json(path), source=str(path))

@@ -1,0 +1,311 @@
+"""Pre-fit data checks on an :class:`~commission.logs.ExcitationLog`.
+
+:func:`check_log` runs before any identification.  A log that cannot give a
+trustworthy fit is refused with a :class:`~commission.errors.DataError` whose
+one-line message names the file, the channel and the first bad sample; a log
+that passes yields a :class:`CheckReport` describing what the data show
+(sample rate, timing jitter, encoder resolution, command range) plus warnings.
+
+Checks, in order (the first failure is reported):
+
+1. every sample of t, q, u and q_ref is finite;
+2. ``t`` is strictly increasing (with finite steps), and uniformly sampled: every step
+   ``dt[k] = t[k] - t[k-1]`` is within ``dt_tolerance`` (1 %) of the median
+   step.  The identification filters (zero-phase Butterworth, central
+   differences, decimation) assume a fixed rate; a dropped sample doubles one
+   step and shows up here with its index;
+3. the log is long enough: ``min_samples`` (500) samples and ``min_duration``
+   (1 s).  The EMPS-style pipeline drops ~50 edge samples at each end and
+   decimates by 10, so 500 samples leave ~40 regression rows, a floor for a
+   4-7 parameter fit; one second covers at least one motion at the usual
+   0.5-5 kHz rates;
+4. the axis moves (``q`` not constant) and the command varies (``u`` not
+   constant);
+5. the command is not saturated: at most ``saturation_fraction`` (5 %) of the
+   samples sit exactly at max(u) or min(u) in runs of at least
+   ``saturation_min_run`` (3) consecutive samples.  A saturated drive does not
+   deliver the recorded command, so the fit would be biased.  Commands with
+   few distinct levels (steps, PRBS, square waves: at most 16 values) sit at
+   their extremes by design; for them this check is skipped with a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from commission.errors import DataError, UsageError
+from commission.logs import ExcitationLog
+
+__all__ = ["CheckReport", "check_log", "encoder_resolution"]
+
+#: A command with at most this many distinct values is a designed
+#: piecewise-constant excitation, exempt from the saturation check.
+FEW_LEVELS = 16
+
+#: Relative tolerance, in LSB, for q to count as lying on a grid.
+GRID_TOLERANCE = 0.01
+
+#: Candidate grid steps tried: the smallest |dq| divided by 1 .. this.
+GRID_MAX_DIVISOR = 10
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """What the pre-fit checks found in a log that passed them.
+
+    Parameters
+    ----------
+    source : str
+        The log's file name.
+    n : int
+        Number of samples.
+    sample_rate : float
+        ``1 / median(dt)`` [Hz].
+    duration : float
+        ``n / sample_rate`` [s], the span the samples cover.
+    dt_max_deviation : float
+        ``max |dt - median(dt)| / median(dt)`` (fraction; 0.01 is 1 %).
+    dt_relative_std : float
+        ``std(dt) / median(dt)`` (fraction).
+    quantization_step : float or None
+        Encoder step [m] if every ``q`` sample lies on a regular grid (within
+        1 % of a step), refined by least squares over all samples; None when
+        ``q`` is not on a grid (resampled, filtered or converted data).
+    apparent_resolution : float
+        Smallest nonzero ``|q[k] - q[k-1]|`` [m], reported in both cases.
+    q_range : tuple of float
+        ``(min q, max q)`` [m].
+    u_range : tuple of float
+        ``(min u, max u)`` in the log's command unit (after ``input_gain``).
+    u_rail_fraction : float
+        Fraction of samples sitting at max(u) or min(u) in runs of at least
+        ``saturation_min_run``; 0 when the saturation check was skipped.
+    warnings : tuple of str
+        Things to tell the user that do not stop the fit.
+    """
+
+    source: str
+    n: int
+    sample_rate: float
+    duration: float
+    dt_max_deviation: float
+    dt_relative_std: float
+    quantization_step: float | None
+    apparent_resolution: float
+    q_range: tuple[float, float]
+    u_range: tuple[float, float]
+    u_rail_fraction: float
+    warnings: tuple[str, ...]
+
+
+def check_log(
+    log: ExcitationLog,
+    *,
+    min_samples: int = 500,
+    min_duration: float = 1.0,
+    dt_tolerance: float = 0.01,
+    saturation_fraction: float = 0.05,
+    saturation_min_run: int = 3,
+) -> CheckReport:
+    """Refuse a log unfit for identification; describe one that is fit.
+
+    Parameters
+    ----------
+    log : ExcitationLog
+        The loaded log.
+    min_samples : int
+        Fewest samples accepted (>= 2).
+    min_duration : float
+        Shortest span accepted [s], measured as ``n / sample_rate``.
+    dt_tolerance : float
+        Largest accepted ``|dt - median(dt)| / median(dt)`` (fraction).
+    saturation_fraction : float
+        Largest accepted fraction of samples at the command's rails.
+    saturation_min_run : int
+        Consecutive samples at a rail needed to count as a flat top (>= 1).
+
+    Returns
+    -------
+    CheckReport
+
+    Raises
+    ------
+    DataError
+        One line naming the file, the channel and the first bad sample index
+        (see the module docstring for the list of checks).
+    UsageError
+        A threshold argument out of range.
+    """
+    if min_samples < 2:
+        raise UsageError(f"min_samples: expected at least 2, got {min_samples}")
+    if not (dt_tolerance > 0 and 0 < saturation_fraction < 1 and saturation_min_run >= 1):
+        raise UsageError(
+            "check thresholds: need dt_tolerance > 0, 0 < saturation_fraction < 1, "
+            f"saturation_min_run >= 1 (got {dt_tolerance}, {saturation_fraction}, {saturation_min_run})"
+        )
+    src = log.source
+    t, q, u = log.t, log.q, log.u
+    n = log.n
+
+    # 1. Finite samples.
+    for name, arr in (("t", t), ("q", q), ("u", u), ("q_ref", log.q_ref)):
+        if arr is None:
+            continue
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            k = int(bad[0])
+            what = "NaN" if math.isnan(arr[k]) else ("+inf" if arr[k] > 0 else "-inf")
+            more = f" ({bad.size} non-finite samples in all)" if bad.size > 1 else ""
+            raise DataError(f"{src}: channel {name}: sample {k} is {what}{more}")
+
+    # 2. Time base.
+    with np.errstate(over="ignore", invalid="ignore"):
+        dt = np.diff(t)
+    dt_max_dev = dt_rel_std = 0.0
+    rate = math.nan
+    if n >= 2:
+        nonpos = np.flatnonzero(dt <= 0)
+        if nonpos.size:
+            k = int(nonpos[0]) + 1
+            raise DataError(
+                f"{src}: channel t: not strictly increasing at index {k} "
+                f"(t[{k}]={float(t[k])!r} <= t[{k - 1}]={float(t[k - 1])!r})"
+            )
+        overflow = np.flatnonzero(~np.isfinite(dt))
+        if overflow.size:  # finite samples whose difference exceeds float64 (|t| ~ 1e308)
+            k = int(overflow[0]) + 1
+            raise DataError(f"{src}: channel t: step t[{k}]-t[{k - 1}] overflows (t[{k}]={float(t[k])!r})")
+        dt_med = float(np.median(dt))
+        rate = 1.0 / dt_med
+        dev = np.abs(dt - dt_med) / dt_med
+        dt_max_dev = float(dev.max())
+        dt_rel_std = float(np.std(dt) / dt_med)
+        if dt_max_dev > dt_tolerance:
+            k = int(np.flatnonzero(dev > dt_tolerance)[0]) + 1
+            raise DataError(
+                f"{src}: channel t: non-uniform sampling at index {k}: t[{k}]-t[{k - 1}] = "
+                f"{float(dt[k - 1]):.6g} s is {100 * float(dev[k - 1]):.3g} % off the median step "
+                f"{dt_med:.6g} s (tolerance {100 * dt_tolerance:g} %; max deviation "
+                f"{100 * dt_max_dev:.3g} %, relative std {100 * dt_rel_std:.3g} %)"
+            )
+
+    # 3. Length.
+    duration = n / rate if n >= 2 else 0.0
+    if n < min_samples or duration < min_duration:
+        raise DataError(
+            f"{src}: log too short: {n} samples over {duration:.4g} s; identification needs at "
+            f"least {min_samples} samples and {min_duration:g} s (the zero-phase filters and the "
+            "decimation lose samples at both ends)"
+        )
+
+    # 4. Motion and excitation.
+    q_min, q_max = float(q.min()), float(q.max())
+    if q_min == q_max:
+        raise DataError(f"{src}: channel q: constant (all {n} samples = {q_min!r} m); the axis never moved")
+    u_min, u_max = float(u.min()), float(u.max())
+    if u_min == u_max:
+        raise DataError(
+            f"{src}: channel u: constant command (all {n} samples = {u_min!r}); nothing excites the axis"
+        )
+
+    warns: list[str] = []
+    if log.q_ref is None:
+        warns.append("q_ref absent: tracking error cannot be reported")
+
+    # 5. Saturation.
+    rail_fraction = 0.0
+    levels = np.unique(u).size
+    if levels <= FEW_LEVELS:
+        warns.append(
+            f"u takes only {levels} distinct values (steps/PRBS-like command); saturation check skipped"
+        )
+    else:
+        rails = []
+        count = 0
+        for label, rail in (("max", u_max), ("min", u_min)):
+            c, first = _rail_runs(u, rail, saturation_min_run)
+            if c:
+                rails.append(f"{label} u = {rail!r}: {c} samples from index {first}")
+                count += c
+        rail_fraction = count / n
+        if rail_fraction > saturation_fraction:
+            raise DataError(
+                f"{src}: channel u: saturated: {count} samples ({100 * rail_fraction:.3g} %) sit at the rails "
+                f"in runs of >= {saturation_min_run} ({'; '.join(rails)}); limit "
+                f"{100 * saturation_fraction:g} %"
+            )
+        if rail_fraction > saturation_fraction / 5:
+            warns.append(
+                f"u near saturation: {100 * rail_fraction:.3g} % of samples at the rails ({'; '.join(rails)})"
+            )
+
+    step, resolution = encoder_resolution(q)
+    if step is None:
+        warns.append(
+            f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} m): the record may be "
+            "resampled or filtered, so the encoder resolution is unknown"
+        )
+
+    return CheckReport(
+        source=src, n=n, sample_rate=rate, duration=duration,
+        dt_max_deviation=dt_max_dev, dt_relative_std=dt_rel_std,
+        quantization_step=step, apparent_resolution=resolution,
+        q_range=(q_min, q_max), u_range=(u_min, u_max), u_rail_fraction=rail_fraction,
+        warnings=tuple(warns),
+    )
+
+
+def encoder_resolution(q: np.ndarray) -> tuple[float | None, float]:
+    """Estimate the position quantization step an encoder left in ``q``.
+
+    The candidate step is the smallest nonzero ``|dq|`` divided by 1, 2, ...
+    10 (the smallest step may be missing from the data when the axis never
+    moves by one count).  The first candidate on which every ``q - q[0]`` is
+    within 1 % of an integer multiple is refined by least squares over all
+    samples.
+
+    Parameters
+    ----------
+    q : numpy.ndarray, shape (n,)
+        Finite positions [m].
+
+    Returns
+    -------
+    step : float or None
+        The grid step [m], or None if ``q`` lies on no such grid (or its
+        smallest step is at floating-point resolution, i.e. rounding noise).
+    apparent_resolution : float
+        Smallest nonzero ``|dq|`` [m]; NaN when ``q`` is constant.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    dq = np.abs(np.diff(q))
+    nonzero = dq[dq > 0]
+    if nonzero.size == 0:
+        return None, math.nan
+    resolution = float(nonzero.min())
+    # Below ~1e3 ulp of the largest |q| a "step" is rounding noise, and any data would fit a grid.
+    if resolution < 1e3 * np.finfo(np.float64).eps * float(np.abs(q).max()):
+        return None, resolution
+    x = q - q[0]
+    for divisor in range(1, GRID_MAX_DIVISOR + 1):
+        step = resolution / divisor
+        counts = x / step
+        k = np.rint(counts)
+        if float(np.abs(counts - k).max()) <= GRID_TOLERANCE:
+            return float(np.dot(k, x) / np.dot(k, k)), resolution
+    return None, resolution
+
+
+def _rail_runs(u: np.ndarray, rail: float, min_run: int) -> tuple[int, int | None]:
+    """Samples of ``u`` equal to ``rail`` in runs of >= ``min_run``, and the first run's start."""
+    mask = np.concatenate(([0], (u == rail).astype(np.int8), [0]))
+    edges = np.diff(mask)
+    starts = np.flatnonzero(edges == 1)
+    lengths = np.flatnonzero(edges == -1) - starts
+    keep = lengths >= min_run
+    if not keep.any():
+        return 0, None
+    return int(lengths[keep].sum()), int(starts[keep][0])

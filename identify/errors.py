@@ -1,0 +1,16 @@
+"""Errors raised by the identification numerics.
+
+Both subclass :class:`ValueError` so that callers who only know the builtin
+still catch them; the pipeline layer (``commission``) re-raises them as its own
+``DataError``/``IdentifiabilityError`` with the file name attached.
+"""
+
+from __future__ import annotations
+
+
+class SignalError(ValueError):
+    """An input array is malformed: wrong shape, non-finite sample, bad time base."""
+
+
+class NotIdentifiableError(ValueError):
+    """The excitation in the log cannot identify a parameter of the requested model."""

@@ -1,0 +1,606 @@
+"""Identification of one axis from an excitation log: :func:`fit_axis` and :func:`evaluate`.
+
+Model (contract §2), in command units (u-unit), ``u`` already multiplied by any input gain::
+
+    u = M qdd + B qd + Ff(qd) + offset [+ A sin(2 pi q / P + phase)]
+    Ff(v) = [fc + (fs - fc) exp(-|v/vs|^xi)] sign(v)      (Coulomb model: fc sign(v))
+
+Two methods, chosen from the data:
+
+``"dynamic"`` — the EMPS reference method (IDIM-LS), used when the log has no
+usable constant-velocity legs (or ``use_steady=False``).  Filter and
+differentiate the position, build the regressor ``[qdd, qd, sign(qd), 1]``
+(plus the Stribeck column and ripple columns), decimate every column and the
+command with the anti-alias filter, solve by least squares; for the Stribeck
+model by separable nonlinear least squares over ``(vs, xi)``.  It reproduces the
+published EMPS numbers exactly.  Its weakness: ``sign(qd)`` is discontinuous, the
+filtered velocity crosses zero at slightly different times than the true one and
+the axis sticks at reversals, so on logs with many slow reversals the filtered
+friction columns do not match the filtered force.  On simulated closed-loop logs
+with known truth the whole-log fit is off by up to ~9 % in ``B``, ~6 % in ``fc``
+and ~60 % in ``fs``, or finds a negative Stribeck hump and is refused, where the
+method below is within 0.5 %.
+
+``"steady+dynamic"`` — used when the log contains a friction ladder:
+constant-velocity legs at 3 (Coulomb) or 4 (Stribeck) distinct speeds in each
+direction.  Fewer levels (EMPS's trapezoids cruise at two speeds) give a map
+without redundancy, and the dynamic method is used.  Friction is taken from the
+legs, mass from the dynamics:
+
+1. **Friction map.**  :func:`commission.identify.steady.find_steady_segments`
+   finds the legs; each gives one point ``(v_k, F_k)`` with ``v_k`` the position
+   change over the leg divided by its duration and ``F_k`` the mean command minus
+   ``M`` times the mean acceleration and minus the mean ripple force over the leg.
+   No filter touches ``F_k``, so these points are unbiased.  ``B, fc, offset``
+   (Coulomb) or ``B, fc, fs, vs, xi, offset`` (Stribeck, separable least squares)
+   are fitted to them, with standard deviations from the map residuals.
+2. **Mass.**  With the friction curve fixed, ``M`` (and the ripple ``sin``/``cos``
+   coefficients) are fitted to the decimated dynamic rows
+   ``D[u - B qd - Ff(qd) - offset] = M D[qdd] (+ ripple)``, leaving out every row
+   whose anti-alias window saw a speed below ``reversal_speed`` (default ``3 vs``
+   of the map's Stribeck curve, or 5 % of the fastest leg when the map shows no
+   Stribeck hump), i.e. the reversals and stiction phases where the filtered
+   friction column is wrong.  (Coulomb model: when the map shows a clear Stribeck
+   hump, the legs slower than ``3 vs`` are left out of the Coulomb line, which
+   would otherwise trade ~20 % of ``B`` for ~10 % of ``fc``.)
+3. Steps 1-2 alternate: a first pass with a Coulomb map gives provisional ``M``
+   and ripple, then three passes with the requested model (``M`` and the ripple
+   enter the map points; the ripple matters on the slow legs, which cover a short
+   stretch of travel where it does not average out).
+
+Standard deviations: friction parameters from the map fit (its residuals), ``M``
+and the ripple from the mass regression with the friction curve held fixed (the
+cross-covariance between the two steps is neglected).
+
+The figures of merit (relative error, condition number, residuals) are always
+those of the full model on all decimated rows, as in the EMPS benchmark; the
+condition number is that of the full decimated regressor at the fitted
+``(vs, xi)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from scipy import ndimage
+
+from commission.identify.errors import NotIdentifiableError
+from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
+                                          stribeck_shape_derivatives)
+from commission.identify.ls import FrictionModel, regressor, solve, stribeck_shape
+from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, check_signals, default_settings,
+                                         preprocess, quantization_step)
+from commission.identify.steady import SteadySegments, find_steady_segments
+
+Method = Literal["dynamic", "steady+dynamic"]
+
+#: Order of the parameters in :attr:`AxisFit.parameters`.
+PARAMETER_ORDER = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_phase")
+
+#: Least number of decimated rows on each side of zero velocity for the Coulomb level.
+MIN_ROWS_PER_DIRECTION = 5
+#: Least number of map points (Stribeck) / decimated rows below 3 vs for the Stribeck curve.
+MIN_STRIBECK_POINTS = 4
+MIN_STRIBECK_ROWS = 20
+#: Refuse M when its relative standard deviation exceeds this.
+MAX_REL_STD_M = 0.25
+#: Alternations of the friction-map / mass steps.
+N_ALTERNATIONS = 3
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=np.float64, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class AxisFit:
+    """Identified model of one axis.
+
+    Attributes
+    ----------
+    friction : {"coulomb", "stribeck"}
+        Friction model fitted.
+    method : {"dynamic", "steady+dynamic"}
+        How it was fitted (see the module docstring).
+    parameters : dict of str to (float, float)
+        ``name -> (value, std)``: ``M`` (u-unit s^2/m), ``B`` (u-unit s/m),
+        ``fc`` (u-unit), Stribeck only ``fs`` (u-unit), ``vs`` (m/s), ``xi`` (-),
+        ``offset`` (u-unit), with a ripple pitch ``ripple_amp`` (u-unit) and
+        ``ripple_phase`` (rad, ripple = ``ripple_amp sin(2 pi q / P + ripple_phase)``).
+    relative_error : float
+        ``||y - y_hat|| / ||y||`` on all decimated rows, fraction.
+    condition_number : float
+        2-norm condition number of the decimated full-model regressor.
+    residual_std : float
+        Sample standard deviation of the residuals, u-unit.
+    residuals : ndarray
+        ``y - y_hat`` at the decimated rows, u-unit.
+    t_decimated : ndarray
+        Times of the decimated rows, s.
+    force_measured : ndarray
+        Decimated command ``y``, u-unit.
+    force_fitted : ndarray
+        Decimated model force ``y_hat``, u-unit.
+    steady_velocity, steady_force : ndarray
+        Friction-map points (mean velocity m/s, mean command corrected for
+        inertia and ripple, u-unit); empty when no constant-velocity legs were used.
+    quantization : float or None
+        Encoder step the position data show, m (None: not on a grid).
+    velocity_resolution : float
+        Half-width of the velocity error of a backward-difference estimate, m/s:
+        ``quantization * sample_rate``, else ``sqrt(6)`` times the RMS of the
+        backward-difference velocity about the filtered velocity.
+    v_max : float
+        Largest filtered speed in the log, m/s.
+    sample_rate : float
+        Hz.
+    bandwidth_hz, cutoff_hz : float
+        Preprocessing bandwidth and Butterworth cut-off, Hz.
+    decimation, trim_start : int
+        Preprocessing decimation factor and samples trimmed at the start.
+    ripple_pitch : float or None
+        Force-ripple pitch used, m.
+    reversal_speed : float
+        Speed below which rows were left out of the mass fit, m/s (0 for ``"dynamic"``).
+    warnings : tuple of str
+        Human-readable caveats.
+    """
+
+    friction: FrictionModel
+    method: Method
+    parameters: dict[str, tuple[float, float]]
+    relative_error: float
+    condition_number: float
+    residual_std: float
+    residuals: np.ndarray = field(repr=False)
+    t_decimated: np.ndarray = field(repr=False)
+    force_measured: np.ndarray = field(repr=False)
+    force_fitted: np.ndarray = field(repr=False)
+    steady_velocity: np.ndarray = field(repr=False)
+    steady_force: np.ndarray = field(repr=False)
+    quantization: float | None
+    velocity_resolution: float
+    v_max: float
+    sample_rate: float
+    bandwidth_hz: float
+    cutoff_hz: float
+    decimation: int
+    trim_start: int
+    ripple_pitch: float | None
+    reversal_speed: float
+    warnings: tuple[str, ...]
+
+    def value(self, name: str) -> float:
+        """Value of a parameter."""
+        return self.parameters[name][0]
+
+
+# ----------------------------------------------------------------------------- model evaluation
+
+def _param_values(params: dict[str, tuple[float, float]]) -> dict[str, float]:
+    return {k: v[0] for k, v in params.items()}
+
+
+def model_force(p: dict[str, float], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                ripple_pitch: float | None) -> np.ndarray:
+    """Full-rate model force ``M qdd + B qd + Ff(qd) + offset + ripple(q)``, u-unit."""
+    y = p["M"] * qdd + p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi"))
+    y = y + p["offset"]
+    if ripple_pitch is not None and "ripple_amp" in p:
+        y = y + p["ripple_amp"] * np.sin(2.0 * np.pi * q / ripple_pitch + p["ripple_phase"])
+    return y
+
+
+def _friction_force(p: dict[str, float], qd: np.ndarray) -> np.ndarray:
+    return p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi")) + p["offset"]
+
+
+def _ripple_params(a: float, b: float, cov: np.ndarray) -> dict[str, tuple[float, float]]:
+    """Amplitude and phase of ``a sin x + b cos x = A sin(x + phase)`` with delta-method std."""
+    A = math.hypot(a, b)
+    if A == 0:
+        return {"ripple_amp": (0.0, float(math.sqrt(max(cov[0, 0], 0.0)))), "ripple_phase": (0.0, float("inf"))}
+    g_amp = np.array([a / A, b / A])
+    g_ph = np.array([-b / A**2, a / A**2])
+    return {"ripple_amp": (A, float(math.sqrt(max(g_amp @ cov @ g_amp, 0.0)))),
+            "ripple_phase": (math.atan2(b, a), float(math.sqrt(max(g_ph @ cov @ g_ph, 0.0))))}
+
+
+# ----------------------------------------------------------------------------- checks
+
+def _check_excitation(q: np.ndarray, u: np.ndarray) -> None:
+    scale_u = max(float(np.max(np.abs(u))), 1e-300)
+    if np.ptp(u) <= 1e-12 * scale_u:
+        raise NotIdentifiableError(f"u: the command is constant ({float(u[0])!r} in all {u.size} samples); "
+                                   "no parameter is identifiable")
+    if np.ptp(q) == 0:
+        raise NotIdentifiableError(f"q: the axis never moves (q = {float(q[0])!r} in all {q.size} samples)")
+
+
+def _check_reversals(v_dec: np.ndarray, v_noise: float, cond: float) -> None:
+    n_pos = int(np.sum(v_dec > v_noise))
+    n_neg = int(np.sum(v_dec < -v_noise))
+    if min(n_pos, n_neg) < MIN_ROWS_PER_DIRECTION:
+        raise NotIdentifiableError(
+            f"no velocity reversals: the Coulomb level is not identifiable (it is collinear with the offset); "
+            f"{n_pos} decimated rows move forward and {n_neg} backward (need {MIN_ROWS_PER_DIRECTION} each); "
+            f"condition number {cond:.3g}")
+
+
+def _check_mass(M: float, std: float, cond: float) -> None:
+    if not (M > 0 and std <= MAX_REL_STD_M * M):
+        raise NotIdentifiableError(
+            f"M: no usable acceleration content (M = {M:.4g} +- {std:.2g}, need M > 0 and a relative std "
+            f"below {MAX_REL_STD_M:.0%}); condition number {cond:.3g}")
+
+
+def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: str, hint: str,
+                    warnings: list[str]) -> None:
+    """Refuse a Stribeck fit the data cannot support; warn about softer issues.
+
+    Refused: fewer than ``n_need`` of ``speeds`` below ``3 vs``; no significant hump
+    (``|fs - fc|`` under three of its standard deviations: ``vs`` and ``xi`` are then
+    arbitrary); ``vs`` on the search box (the hump lies outside the speeds seen).
+    """
+    i = {nm: k for k, nm in enumerate(sep.names)}
+    fc, fs, vs = sep.value[i["fc"]], sep.value[i["fs"]], sep.value[i["vs"]]
+    g = np.zeros(len(sep.names))
+    g[i["fs"]], g[i["fc"]] = 1.0, -1.0
+    sd_hump = float(np.sqrt(max(g @ sep.cov @ g, 0.0)))
+    n_low = int(np.sum(speeds < 3.0 * vs))
+    head = f"too few samples below 3*vs for the Stribeck curve ({what}): "
+    if n_low < n_need:
+        raise NotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} m/s, need {n_need}; {hint}")
+    if not abs(fs - fc) > 3.0 * sd_hump:
+        raise NotIdentifiableError(head + f"no Stribeck hump shows (fs - fc = {fs - fc:.3g} +- {sd_hump:.2g}); {hint}")
+    if "vs" in sep.at_bound:
+        raise NotIdentifiableError(head + f"vs = {vs:.3g} m/s lies on the edge of the speeds seen; {hint}")
+    if "xi" in sep.at_bound:
+        warnings.append(f"stribeck: xi = {sep.value[i['xi']]:.3g} at the edge of its search box {XI_BOUNDS}; "
+                        "the shape of the curve is poorly determined")
+    if fs < fc:
+        warnings.append("stribeck: fs < fc (friction rises at low speed), which the model does not expect")
+
+
+# ----------------------------------------------------------------------------- dynamic (EMPS) method
+
+def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float | None, v_noise: float,
+                 warnings: list[str]) -> tuple[dict[str, tuple[float, float]], float]:
+    base = regressor(pp.qd, pp.qdd, q=pp.q, model="coulomb", ripple_pitch=ripple_pitch)
+    Phi = pp.decimate(base.Phi)
+    y = pp.decimate(pp.u)
+    v_dec = pp.decimate(pp.qd)
+    cond = float(np.linalg.cond(Phi))
+    _check_reversals(v_dec, v_noise, cond)
+    names = base.names
+    if friction == "coulomb":
+        res = solve(Phi, y)
+        params = {nm: (float(th), float(sd)) for nm, th, sd in zip(names, res.theta, res.std)}
+        cov, cond = res.cov, res.condition_number
+        idx = {nm: i for i, nm in enumerate(names)}
+    else:
+        speed = np.abs(pp.qd)
+        vmax = float(speed.max())
+        vs_lo = max(float(np.percentile(speed, 1.0)), 1e-4 * vmax, v_noise)
+        vs_hi = 0.5 * vmax
+
+        def column(vs: float, xi: float) -> np.ndarray:
+            return pp.decimate(stribeck_shape(pp.qd, vs, xi))
+
+        def jacobian(vs: float, xi: float) -> tuple[np.ndarray, np.ndarray]:
+            _, dvs, dxi = stribeck_shape_derivatives(pp.qd, vs, xi)
+            d = pp.decimate(np.column_stack([dvs, dxi]))
+            return d[:, 0], d[:, 1]
+
+        sep = fit_separable(Phi, names, column, jacobian, y, vs_bounds=(vs_lo, vs_hi),
+                            grid_column=lambda vs, xi: stribeck_shape(v_dec, vs, xi))
+        params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
+        _check_stribeck(sep, np.abs(v_dec), MIN_STRIBECK_ROWS, "decimated rows",
+                        "excite slow motion or use friction='coulomb'", warnings)
+        cov, cond = sep.cov, sep.condition_number
+        idx = {nm: i for i, nm in enumerate(sep.names)}
+    if ripple_pitch is not None:
+        i, j = idx["ripple_sin"], idx["ripple_cos"]
+        params.update(_ripple_params(params["ripple_sin"][0], params["ripple_cos"][0], cov[np.ix_([i, j], [i, j])]))
+        del params["ripple_sin"], params["ripple_cos"]
+    _check_mass(params["M"][0], params["M"][1], cond)
+    return params, cond
+
+
+# ----------------------------------------------------------------------------- steady + dynamic method
+
+def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[str, tuple[float, float]]:
+    """Fit ``F = B v + Ff(v) + offset`` (Stribeck ``Ff``) to friction-map points."""
+    Phi0 = np.column_stack([v, np.sign(v), np.ones_like(v)])
+    speed = np.abs(v)
+
+    def jacobian(vs: float, xi: float) -> tuple[np.ndarray, np.ndarray]:
+        return stribeck_shape_derivatives(v, vs, xi)[1:]
+
+    sep = fit_separable(Phi0, ("B", "fc", "offset"), lambda vs, xi: stribeck_shape(v, vs, xi), jacobian, F,
+                        vs_bounds=(0.3 * speed.min(), 0.5 * speed.max()))
+    params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
+    _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
+                    f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} m/s",
+                    "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
+                    "(it does not average out on slow legs), or use friction='coulomb'", warnings)
+    return params
+
+
+def _stribeck_knee(v: np.ndarray, F: np.ndarray) -> float | None:
+    """``3 vs`` of the map if it shows a clear Stribeck hump (fs > 1.05 fc, vs inside the box), else None."""
+    if min(_distinct_speeds(v[v > 0]), _distinct_speeds(-v[v < 0])) < MIN_LADDER_SPEEDS["stribeck"]:
+        return None
+    try:
+        w: list[str] = []
+        p = _map_fit_stribeck(v, F, w)
+    except (NotIdentifiableError, np.linalg.LinAlgError):
+        return None
+    if w or not p["fs"][0] > 1.05 * p["fc"][0]:
+        return None
+    return 3.0 * p["vs"][0]
+
+
+def _map_fit_coulomb(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[str, tuple[float, float]]:
+    """Fit ``F = B v + fc sign(v) + offset`` to the friction-map points above the Stribeck knee.
+
+    A Coulomb line through legs inside the Stribeck hump would trade a too-low
+    ``B`` for a too-high ``fc`` (about -20 % / +10 % on the paper's friction), so when
+    the map shows a clear hump the legs slower than ``3 vs`` are left out, provided
+    two distinct speeds remain each way.
+    """
+    keep = np.ones(v.size, dtype=bool)
+    knee = _stribeck_knee(v, F)
+    if knee is not None:
+        fast = np.abs(v) > knee
+        if min(_distinct_speeds(v[fast & (v > 0)]), _distinct_speeds(-v[fast & (v < 0)])) >= 2:
+            keep = fast
+            warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} m/s "
+                            "(3 vs of the map's Stribeck hump) left out of the Coulomb fit")
+    res = solve(np.column_stack([v[keep], np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
+    return {nm: (float(th), float(sd)) for nm, th, sd in zip(("B", "fc", "offset"), res.theta, res.std)}
+
+
+def _map_fit(v: np.ndarray, F: np.ndarray, friction: FrictionModel,
+             warnings: list[str]) -> dict[str, tuple[float, float]]:
+    """Fit the friction curve of ``friction`` to the map points ``(v, F)``."""
+    if friction == "coulomb":
+        return _map_fit_coulomb(v, F, warnings)
+    return _map_fit_stribeck(v, F, warnings)
+
+
+def _distinct_speeds(speeds: np.ndarray, rel: float = 0.1) -> int:
+    """Number of speed levels, levels closer than ``rel`` (relative) counting as one."""
+    if speeds.size == 0:
+        return 0
+    s = np.sort(speeds)
+    return 1 + int(np.sum(s[1:] > (1.0 + rel) * s[:-1]))
+
+
+#: Least number of distinct leg speeds per direction for a friction ladder.
+MIN_LADDER_SPEEDS = {"coulomb": 3, "stribeck": 4}
+
+
+def _usable_map(segs: SteadySegments, friction: FrictionModel) -> str | None:
+    """None if the legs form a friction ladder that can carry the friction fit, else why not.
+
+    A ladder needs legs at ``MIN_LADDER_SPEEDS`` distinct speeds in each direction:
+    with fewer, the map has no redundancy (two levels always fit a line exactly), so
+    the legs are a by-product of the trajectory (e.g. the EMPS trapezoids), not a
+    friction test, and the whole-log regression is used.
+    """
+    v = segs.velocity
+    need = MIN_LADDER_SPEEDS[friction]
+    n_pos, n_neg = _distinct_speeds(v[v > 0]), _distinct_speeds(-v[v < 0])
+    if min(n_pos, n_neg) < need:
+        return (f"constant-velocity legs at {n_pos} distinct speeds forward and {n_neg} backward "
+                f"(a friction ladder for the {friction} map needs {need} each way)")
+    return None
+
+
+def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel, ripple_pitch: float | None,
+                reversal_speed: float | None,
+                warnings: list[str]) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
+    M = 0.0  # the legs' mean acceleration is ~0; the first map fit needs no mass
+    ripple_ab = np.zeros(2)
+    if ripple_pitch is not None:
+        ph = 2.0 * np.pi * pp.q / ripple_pitch
+        seg_sc = np.column_stack([segs.mean_over(np.sin(ph)), segs.mean_over(np.cos(ph))])
+        X_rip = pp.decimate(np.column_stack([pp.qdd, np.sin(ph), np.cos(ph)]))
+    else:
+        seg_sc = np.zeros((len(segs), 2))
+        X_rip = pp.decimate(pp.qdd[:, None])
+    y_u = pp.decimate(pp.u)
+    speed = np.abs(pp.qd)
+    reach = 4 * pp.decimation + 1
+
+    def usable_rows(v_ex: float) -> np.ndarray:
+        # A row is unusable if any sample within the anti-alias filter's reach was slow.
+        low = ndimage.maximum_filter1d((speed < v_ex).astype(np.uint8), reach, mode="nearest").astype(bool)
+        rows = ~pp.decimate_mask(low)
+        n_rows = int(rows.sum())
+        if n_rows < 10 * X_rip.shape[1]:
+            raise NotIdentifiableError(
+                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} m/s away from reversals "
+                "(need dynamic motion at speed for the mass)")
+        return rows
+
+    # Pass 0 fits a Coulomb line (robust, never refused) to get provisional M and ripple:
+    # a requested Stribeck fit needs the ripple removed from the slow legs first, which
+    # sit on a short stretch of travel where the ripple does not average out.
+    # Passes 1..N fit the requested model.
+    for it in range(N_ALTERNATIONS + 1):
+        F = segs.command - M * segs.acceleration - seg_sc @ ripple_ab
+        model: FrictionModel = "coulomb" if it == 0 else friction
+        # Keep the warnings of the last pass only: the earlier ones saw a provisional M.
+        fr = _map_fit(segs.velocity, F, model, warnings if it == N_ALTERNATIONS else [])
+        p = {k: v[0] for k, v in fr.items()}
+        if it <= 1:
+            v_ex = reversal_speed
+            if v_ex is None:
+                if "vs" in p:
+                    v_ex = 3.0 * p["vs"]
+                else:
+                    knee = _stribeck_knee(segs.velocity, F)
+                    v_ex = knee if knee is not None else 0.05 * float(np.max(np.abs(segs.velocity)))
+            rows = usable_rows(v_ex)
+            reversal = float(v_ex)
+        y = y_u - pp.decimate(_friction_force(p, pp.qd))
+        res = solve(X_rip[rows], y[rows])
+        M = float(res.theta[0])
+        _check_mass(M, float(res.std[0]), res.condition_number)
+        if ripple_pitch is not None:
+            ripple_ab = np.asarray(res.theta[1:3])
+    params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0]))}
+    params.update(fr)
+    if ripple_pitch is not None:
+        params.update(_ripple_params(ripple_ab[0], ripple_ab[1], np.asarray(res.cov)[1:3, 1:3]))
+    # The map points as the final friction fit saw them.
+    return params, np.column_stack([segs.velocity, F]), reversal
+
+
+# ----------------------------------------------------------------------------- public API
+
+def _velocity_resolution(q_raw: np.ndarray, pp: Preprocessed, quant: float | None) -> float:
+    if quant is not None:
+        return quant * pp.sample_rate
+    k0 = pp.trim_start
+    vb = np.diff(q_raw[k0:]) * pp.sample_rate  # backward difference at samples k0+1 ...
+    vf = 0.5 * (pp.qd[1:] + pp.qd[:-1])
+    return float(math.sqrt(6.0) * np.sqrt(np.mean((vb - vf) ** 2)))
+
+
+def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionModel,
+             ripple_pitch: float | None = None, use_steady: bool = True,
+             bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
+             decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
+             reversal_speed: float | None = None) -> AxisFit:
+    """Identify ``M, B``, friction, offset (and ripple) of one axis from a log.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Sample times, s (uniform).
+    q : array_like, shape (N,)
+        Encoder position, m.
+    u : array_like, shape (N,)
+        Command, u-unit (input gain already applied).
+    friction : {"coulomb", "stribeck"}
+        Friction model.
+    ripple_pitch : float, optional
+        Force-ripple pitch, m; fits a sinusoidal ripple of that pitch.
+    use_steady : bool
+        Use constant-velocity legs for the friction curve when the log has them.
+    bandwidth_hz : float
+        Dynamic bandwidth of the excitation, Hz (EMPS: 20); sets the defaults of
+        the three preprocessing settings below (:mod:`commission.identify.signals`).
+    cutoff_hz : float, optional
+        Butterworth cut-off of the position pre-filter, Hz (default ``5 * bandwidth_hz``).
+    decimation : int, optional
+        Decimation factor (default ``round(0.8 * (fs/2) / (2 * bandwidth_hz))``).
+    trim_start : int, optional
+        Samples dropped at the start (default ``round(4.9 * fs / cutoff_hz)``).
+    min_segment_s : float
+        Shortest constant-velocity leg used, s.
+    reversal_speed : float, optional
+        Rows that come near speeds below this are left out of the mass fit of the
+        ``"steady+dynamic"`` method, m/s (default ``3 vs`` of the map's Stribeck
+        curve, else 5 % of the fastest constant-velocity leg).
+
+    Returns
+    -------
+    AxisFit
+
+    Raises
+    ------
+    SignalError
+        Malformed arrays.
+    NotIdentifiableError
+        The log cannot identify the requested model (constant command, no
+        reversals, no acceleration content, too little slow motion for Stribeck).
+    """
+    if friction not in ("coulomb", "stribeck"):
+        raise ValueError(f"friction must be 'coulomb' or 'stribeck', got {friction!r}")
+    t, q, u, fs_ = check_signals(t, q, u)
+    _check_excitation(q, u)
+    pp = preprocess(t, q, u, bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff_hz, decimation=decimation,
+                    trim_start=trim_start)
+    warnings: list[str] = []
+    quant = quantization_step(q)
+    if quant is None:
+        warnings.append("q: the positions are not on an encoder grid (resampled or processed data?)")
+    v_res = _velocity_resolution(q, pp, quant)
+    # Velocity noise floor of the decimated velocity: one encoder count per anti-alias window.
+    v_noise = (quant if quant is not None else 0.0) * pp.sample_rate / max(pp.decimation, 1)
+
+    segs = None
+    if use_steady:
+        v_tol = (quant / 0.02) if quant is not None else 0.0
+        segs = find_steady_segments(pp.t, pp.q, pp.qd, pp.u, min_duration_s=min_segment_s, v_tol=v_tol)
+        reason = _usable_map(segs, friction) if len(segs) else "the log has no constant-velocity legs"
+        if reason is not None:
+            warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "
+                            "discontinuity can bias B, fc and fs (a friction ladder avoids it)")
+            segs = None
+    if segs is not None:
+        method: Method = "steady+dynamic"
+        params, fmap, rev = _steady_fit(pp, segs, friction, ripple_pitch, reversal_speed, warnings)
+    else:
+        method = "dynamic"
+        params, _ = _dynamic_fit(pp, friction, ripple_pitch, v_noise, warnings)
+        fmap, rev = np.zeros((0, 2)), 0.0
+    params = {k: params[k] for k in PARAMETER_ORDER if k in params}
+
+    p = _param_values(params)
+    y = pp.decimate(pp.u)
+    y_hat = pp.decimate(model_force(p, pp.q, pp.qd, pp.qdd, ripple_pitch))
+    r = y - y_hat
+    full = regressor(pp.qd, pp.qdd, q=pp.q, model=friction, vs=p.get("vs"), xi=p.get("xi"),
+                     ripple_pitch=ripple_pitch)
+    cond = float(np.linalg.cond(pp.decimate(full.Phi)))
+    return AxisFit(friction=friction, method=method, parameters=params,
+                   relative_error=float(np.linalg.norm(r) / np.linalg.norm(y)), condition_number=cond,
+                   residual_std=float(np.std(r, ddof=1)), residuals=_ro(r), t_decimated=_ro(pp.t_dec),
+                   force_measured=_ro(y), force_fitted=_ro(y_hat), steady_velocity=_ro(fmap[:, 0]),
+                   steady_force=_ro(fmap[:, 1]), quantization=quant, velocity_resolution=v_res,
+                   v_max=float(np.max(np.abs(pp.qd))), sample_rate=pp.sample_rate, bandwidth_hz=float(bandwidth_hz),
+                   cutoff_hz=pp.cutoff_hz, decimation=pp.decimation, trim_start=pp.trim_start,
+                   ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings))
+
+
+def evaluate(fit: AxisFit, t: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:
+    """Relative error ``||y - y_hat|| / ||y||`` of a fitted model on another log.
+
+    The log goes through the same preprocessing as the identification log (same
+    cut-off, decimation and trim when the sample rates agree; otherwise the
+    defaults for its own sample rate and the fit's bandwidth) and the error is
+    taken over all decimated rows: the EMPS cross-test.
+
+    Parameters
+    ----------
+    fit : AxisFit
+    t, q, u : array_like, shape (N,)
+        s, m, u-unit.
+
+    Returns
+    -------
+    float
+        Fraction.
+    """
+    t, q, u, fs_ = check_signals(t, q, u)
+    if math.isclose(fs_, fit.sample_rate, rel_tol=1e-6):
+        pp = preprocess(t, q, u, cutoff_hz=fit.cutoff_hz, decimation=fit.decimation, trim_start=fit.trim_start)
+    else:
+        cutoff, _, _ = default_settings(fs_, fit.bandwidth_hz)
+        pp = preprocess(t, q, u, bandwidth_hz=fit.bandwidth_hz, cutoff_hz=cutoff)
+    y = pp.decimate(pp.u)
+    y_hat = pp.decimate(model_force(_param_values(fit.parameters), pp.q, pp.qd, pp.qdd, fit.ripple_pitch))
+    ny = float(np.linalg.norm(y))
+    if ny == 0:
+        raise NotIdentifiableError("u: the validation command is zero; the relative error is undefined")
+    return float(np.linalg.norm(y - y_hat) / ny)

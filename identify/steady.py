@@ -1,0 +1,134 @@
+"""Constant-velocity (friction-test) segments of a log and their friction map.
+
+Commissioning logs contain legs at a ladder of constant speeds in both
+directions.  On such a leg ``qdd ~ 0``, so the mean command over the leg is the
+friction force at that speed (plus offset and the mean force ripple) with no
+filtering bias: the mean velocity is the position change over the leg divided by
+its duration, exact up to one encoder count, and the mean command needs no filter
+at all.  This is why :func:`commission.identify.fit.fit_axis` takes the friction
+curve from these points.
+
+Detection (all on the filtered full-rate velocity ``v``):
+
+1. ``vm`` = ``v`` averaged over ``smooth_s`` (20 ms);
+2. a sample is steady if, over the centred window of ``window_s`` (0.1 s), the
+   range of ``vm`` is at most ``rel_tol * |vm| + v_tol`` and ``|vm| > 3 v_tol``;
+3. steady samples of one sign form runs; each run loses ``edge_s`` (0.05 s) at
+   both ends (acceleration transients) and is kept if it still lasts
+   ``min_duration_s`` (0.2 s) and its whole velocity range passes step 2's test
+   at three times the tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+
+@dataclass(frozen=True)
+class SteadySegments:
+    """Constant-velocity segments found in a (preprocessed, full-rate) log.
+
+    Attributes
+    ----------
+    start, stop : ndarray of int
+        Index ranges ``[start, stop)`` into the arrays given to :func:`find_steady_segments`.
+    velocity : ndarray
+        Mean velocity, ``(q[stop-1] - q[start]) / (t[stop-1] - t[start])``, m/s.
+    command : ndarray
+        Mean command over the segment, u-unit.
+    acceleration : ndarray
+        Mean acceleration, ``(v[stop-1] - v[start]) / duration``, m/s^2.
+    duration : ndarray
+        s.
+    """
+
+    start: np.ndarray = field(repr=False)
+    stop: np.ndarray = field(repr=False)
+    velocity: np.ndarray
+    command: np.ndarray
+    acceleration: np.ndarray = field(repr=False)
+    duration: np.ndarray = field(repr=False)
+
+    def __len__(self) -> int:
+        return int(self.start.size)
+
+    def mean_over(self, x: np.ndarray) -> np.ndarray:
+        """Mean of a full-rate signal over every segment."""
+        return _segment_means(x, self.start, self.stop)
+
+
+def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray, *,
+                         min_duration_s: float = 0.2, rel_tol: float = 0.05, v_tol: float = 0.0,
+                         smooth_s: float = 0.02, window_s: float = 0.1, edge_s: float = 0.05) -> SteadySegments:
+    """Find constant-velocity segments and their mean velocity and command.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Uniform time, s.
+    q : ndarray, shape (N,)
+        Filtered position, m.
+    v : ndarray, shape (N,)
+        Filtered velocity, m/s.
+    u : ndarray, shape (N,)
+        Command, u-unit.
+    min_duration_s : float
+        Shortest segment kept after edge removal, s.
+    rel_tol : float
+        Allowed velocity variation relative to the speed.
+    v_tol : float
+        Allowed absolute velocity variation, m/s (e.g. the velocity resolution of
+        the encoder over ``smooth_s``); also ``3 v_tol`` is the least speed.
+    smooth_s, window_s, edge_s : float
+        Averaging window, steadiness window and trimmed edge, s.
+
+    Returns
+    -------
+    SteadySegments
+    """
+    n = t.size
+    h = (t[-1] - t[0]) / (n - 1)
+    w = max(1, int(round(smooth_s / h)))
+    vm = ndimage.uniform_filter1d(v, w, mode="nearest")
+    L = max(3, int(round(window_s / h)))
+    rng = ndimage.maximum_filter1d(vm, L, mode="nearest") - ndimage.minimum_filter1d(vm, L, mode="nearest")
+    speed = np.abs(vm)
+    tol = rel_tol * speed + v_tol
+    steady = (rng <= tol) & (speed > 3.0 * v_tol) & (speed > 0)
+    sgn = np.where(steady, np.sign(vm), 0).astype(np.int8)
+    # Run boundaries: wherever the (sign-labelled) steady flag changes.
+    change = np.flatnonzero(np.diff(sgn) != 0) + 1
+    bounds = np.concatenate([[0], change, [n]])
+    edge = int(round(edge_s / h))
+    nmin = int(np.ceil(min_duration_s / h))
+    starts, stops = [], []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if sgn[a] == 0:
+            continue
+        a2, b2 = a + edge, b - edge
+        if b2 - a2 < max(nmin, 2):
+            continue
+        seg = vm[a2:b2]
+        mean = float(np.mean(seg))
+        if np.ptp(seg) > 3.0 * (rel_tol * abs(mean) + v_tol):
+            continue
+        starts.append(a2)
+        stops.append(b2)
+    start = np.asarray(starts, dtype=np.int64)
+    stop = np.asarray(stops, dtype=np.int64)
+    if start.size == 0:
+        empty = np.zeros(0)
+        return SteadySegments(start=start, stop=stop, velocity=empty, command=empty, acceleration=empty,
+                              duration=empty)
+    dur = t[stop - 1] - t[start]
+    return SteadySegments(start=start, stop=stop, velocity=(q[stop - 1] - q[start]) / dur,
+                          command=_segment_means(u, start, stop), acceleration=(v[stop - 1] - v[start]) / dur,
+                          duration=dur)
+
+
+def _segment_means(x: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    return (c[stop] - c[start]) / (stop - start)

@@ -1,0 +1,161 @@
+"""End-to-end `commission identify` through typer's CliRunner: EMPS, sample data, bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from commission.cli.main import app
+
+EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
+EMPS_ARGS = ["--map", "q=qm", "--map", "u=vir", "--input-gain", "35.15065188248547", "--u-unit", "N"]
+
+runner = CliRunner()
+
+
+def invoke(args: list[str]):
+    return runner.invoke(app, args, catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def emps_json(tmp_path_factory) -> dict:
+    if not (EMPS / "DATA_EMPS.mat").is_file():
+        pytest.fail(f"EMPS data missing at {EMPS}")
+    out = tmp_path_factory.mktemp("emps") / "emps.json"
+    r = invoke(["identify", str(EMPS / "DATA_EMPS.mat"), *EMPS_ARGS, "--friction", "coulomb",
+                "--validate-on", str(EMPS / "DATA_EMPS_PULSES.mat"), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    return json.loads(out.read_text())
+
+
+def test_emps_reproduces_published_parameters(emps_json):
+    # Published IDIM-LS values (EMPS_Description.pdf §3.4), not numbers this tool produced.
+    p = emps_json["parameters"]
+    assert p["M"]["value"] == pytest.approx(95.1089, rel=0.005)
+    assert p["B"]["value"] == pytest.approx(203.5034, rel=0.02)
+    assert p["fc"]["value"] == pytest.approx(20.3935, rel=0.03)
+    assert abs(p["offset"]["value"] - (-3.1648)) <= 0.15
+    assert emps_json["fit"]["relative_error"] <= 0.045
+    assert emps_json["fit"]["validation_relative_error"] <= 0.065
+    assert emps_json["units"] == {"u": "N", "q": "m"}
+    assert p["fs"] is None and p["vs"] is None and p["xi"] is None
+
+
+def test_emps_json_has_contract_shape(emps_json):
+    assert emps_json["kind"] == "identification" and emps_json["schema_version"] == 1
+    assert set(emps_json["fit"]) >= {"relative_error", "condition_number", "validation_relative_error"}
+    th = emps_json["theta"]
+    M = emps_json["parameters"]["M"]["value"]
+    assert th["nominal"][0] == pytest.approx(1.0 / M)
+    assert th["nominal"][1] == pytest.approx(emps_json["parameters"]["B"]["value"] / M)
+    assert th["nominal"][2] == pytest.approx(-emps_json["parameters"]["offset"]["value"] / M)
+    for lo, nom, hi in zip(th["min"], th["nominal"], th["max"]):
+        assert lo <= nom <= hi
+    assert emps_json["delta_d"] > 0
+    assert set(emps_json["friction_compensation"]) == {"level", "slope"}
+    assert emps_json["encoder"]["quantization"] == pytest.approx(5e-8, rel=1e-3)
+
+
+def test_sample_data_recovers_truth_with_plots(tmp_path):
+    truth = json.loads((SAMPLE / "truth.json").read_text())["axis"]["parameters"]
+    out = tmp_path / "ident.json"
+    r = invoke(["identify", str(SAMPLE / "axis_excitation.h5"), "--friction", "stribeck",
+                "--ripple-pitch", "0.03", "--out", str(out), "--plot", str(tmp_path / "plots")])
+    assert r.exit_code == 0, r.output
+    p = json.loads(out.read_text())["parameters"]
+    assert p["M"]["value"] == pytest.approx(truth["M"]["value"], rel=0.02)
+    assert p["B"]["value"] == pytest.approx(truth["B"]["value"], rel=0.02)
+    assert p["fc"]["value"] == pytest.approx(truth["fc"]["value"], rel=0.05)
+    assert p["fs"]["value"] == pytest.approx(truth["fs"]["value"], rel=0.10)
+    for name in ("force_fit.png", "friction_curve.png", "residuals.png"):
+        png = tmp_path / "plots" / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _write_h5(path: Path, t, q, u) -> Path:
+    with h5py.File(path, "w") as f:
+        f["t"], f["q"], f["u"] = t, q, u
+    return path
+
+
+def _good_arrays(n: int = 5000, fs: float = 1000.0):
+    t = np.arange(n) / fs
+    q = 0.01 * np.sin(2 * np.pi * 1.0 * t)
+    u = 0.2 * np.sin(2 * np.pi * 1.0 * t + 0.3)
+    return t, q, u
+
+
+def _bad_log(kind: str, tmp: Path) -> Path:
+    t, q, u = _good_arrays()
+    if kind == "missing":
+        return tmp / "nope.h5"
+    if kind == "not_a_log":
+        p = tmp / "junk.h5"
+        p.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 4)
+        return p
+    if kind == "missing_channel":
+        p = tmp / "noq.h5"
+        with h5py.File(p, "w") as f:
+            f["t"], f["u"] = t, u
+        return p
+    if kind == "nan":
+        q = q.copy()
+        q[1234] = np.nan
+    elif kind == "backwards":
+        t = t.copy()
+        t[777] = t[775]
+    elif kind == "short":
+        t, q, u = t[:50], q[:50], u[:50]
+    elif kind == "constant":
+        u = np.full_like(u, 0.3)
+    return _write_h5(tmp / f"{kind}.h5", t, q, u)
+
+
+@pytest.mark.parametrize(
+    "kind, pattern",
+    [
+        ("missing", r"nope\.h5: no such file"),
+        ("not_a_log", r"junk\.h5"),
+        ("missing_channel", r"channel 'q' not found"),
+        ("nan", r"q.*1234.*NaN|q.*NaN.*1234"),
+        ("backwards", r"t.*not strictly increasing.*777"),
+        ("short", r"too short"),
+        ("constant", r"u.*constant"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_and_no_output(kind, pattern, tmp_path):
+    import re
+
+    log = _bad_log(kind, tmp_path)
+    out = tmp_path / "ident.json"
+    r = runner.invoke(app, ["identify", str(log), "--out", str(out), "--plot", str(tmp_path / "p")])
+    assert r.exit_code == 2, r.output
+    err = r.stderr.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("error: ")
+    assert re.search(pattern, err), err
+    assert "Traceback" not in r.output
+    assert not out.exists() and not (tmp_path / "p").exists()
+
+
+def test_bad_flags_exit_2(tmp_path):
+    log = SAMPLE / "axis_excitation.h5"
+    for args, pattern in [
+        (["--map", "qm"], r"--map|NAME=SOURCE"),
+        (["--input-gain", "-1"], r"--input-gain"),
+        (["--payload-max-kg", "5"], r"--force-constant"),
+        (["--ripple-pitch", "0"], r"--ripple-pitch"),
+        (["--u-unit", "furlong"], r"--u-unit"),
+    ]:
+        r = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "x.json"), *args])
+        assert r.exit_code == 2, (args, r.output)
+        import re
+
+        assert re.search(pattern, r.stderr), (args, r.stderr)
+        assert not (tmp_path / "x.json").exists()

@@ -1,0 +1,325 @@
+"""Synthetic excitation logs (commission.synth) and the bundled sample data."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from commission.errors import DataError, UsageError
+from commission.jsonio import sha256_file
+from commission.synth import (
+    AxisTruth,
+    ExcitationPlan,
+    loop_gains,
+    random_axis,
+    simulate_excitation,
+    write_log_csv,
+    write_log_h5,
+)
+
+SAMPLE_DIR = Path(__file__).resolve().parents[1] / "sample_data"
+
+# Close to the paper's Y axis (V units); 0.5 um encoder with a little noise.
+AXIS = AxisTruth(M=0.032, B=0.25, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.01,
+                 ripple_amp=0.01, ripple_pitch=0.03, lsb=0.5e-6, sample_rate=2500.0,
+                 noise_std=0.1e-6)
+PLAN = ExcitationPlan()
+
+
+@pytest.fixture(scope="module")
+def log() -> dict[str, np.ndarray]:
+    return simulate_excitation(AXIS, PLAN, np.random.default_rng(7))
+
+
+def _load_generator():
+    spec = importlib.util.spec_from_file_location("make_sample_data", SAMPLE_DIR / "make_sample_data.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _leg_velocities(t: np.ndarray, q: np.ndarray, leg, settle: float = 0.1, chunk: float = 0.1):
+    """Mean velocity of a leg after ``settle`` s, and the velocities of its ``chunk``-s pieces (m/s)."""
+    m = (t >= leg.start + settle) & (t <= leg.stop)
+    tt, qq = t[m], q[m]
+    mean = (qq[-1] - qq[0]) / (tt[-1] - tt[0])
+    k = int(round(chunk / (tt[1] - tt[0])))
+    pieces = (qq[k::k] - qq[:-k:k][: qq[k::k].size]) / (tt[k::k] - tt[:-k:k][: tt[k::k].size])
+    return mean, pieces
+
+
+# --------------------------------------------------------------------------- truth
+
+
+def test_truth_dict_round_trip_and_units():
+    d = AXIS.to_dict()
+    assert AxisTruth.from_dict(json.loads(json.dumps(d))) == AXIS
+    assert d["parameters"]["M"] == {"value": 0.032, "unit": "V s^2/m"}
+    assert d["parameters"]["vs"]["unit"] == "m/s"
+    n = AxisTruth(M=1.0, B=0.0, fc=0.0, fs=0.0, vs=0.01, xi=2.0, u_unit="N")
+    assert n.to_dict()["parameters"]["B"]["unit"] == "N s/m"
+
+
+@pytest.mark.parametrize("bad, field", [({"M": 0.0}, "M"), ({"lsb": -1e-6}, "lsb"),
+                                        ({"vs": float("nan")}, "vs"), ({"u_unit": "W"}, "u_unit")])
+def test_truth_rejects_bad_values_naming_the_field(bad, field):
+    kw = dict(M=0.03, B=0.2, fc=0.1, fs=0.12, vs=0.01, xi=2.0) | bad
+    with pytest.raises(ValueError, match=field):
+        AxisTruth(**kw)
+
+
+def test_random_axis_is_reproducible_and_in_range():
+    a = [random_axis(np.random.default_rng(s)) for s in range(40)]
+    assert a[3] == random_axis(np.random.default_rng(3))
+    assert len({x.M for x in a}) == 40  # really random
+    for x in a:
+        assert 0.01 <= x.M <= 0.2 and 3 <= x.B / x.M <= 30
+        assert 1.0 <= x.fc / x.M <= 6.0 and 1.1 <= x.fs / x.fc <= 1.6
+        assert 0.003 <= x.vs <= 0.03 and 0.05e-6 <= x.lsb <= 1e-6
+        assert x.sample_rate in (1000.0, 2000.0, 2500.0, 4000.0, 5000.0)
+        assert x.noise_std <= 0.3 * x.lsb
+    assert {x.sample_rate for x in a} == {1000.0, 2000.0, 2500.0, 4000.0, 5000.0}
+    assert random_axis(np.random.default_rng(0), sample_rate=3000.0).sample_rate == 3000.0
+
+
+# --------------------------------------------------------------------------- plan / reference
+
+
+def test_plan_ladder_design():
+    speeds = PLAN.speeds
+    assert speeds[0] == pytest.approx(0.001) and speeds[-1] == pytest.approx(0.25)
+    assert np.allclose(speeds[1:] / speeds[:-1], (0.25 / 0.001) ** (1 / 8))
+    legs = PLAN.reference(2500.0).legs
+    assert len(legs) == 2 * speeds.size
+    for fwd, back, v in zip(legs[::2], legs[1::2], speeds):
+        # Each speed runs forward, then back over the same stretch of travel
+        # (ripple and offset cancel between the two directions).
+        assert fwd.velocity == pytest.approx(v) and back.velocity == pytest.approx(-v)
+        T = fwd.stop - fwd.start
+        assert back.stop - back.start == pytest.approx(T)
+        assert back.x_start == pytest.approx(fwd.x_start + v * T)
+        assert T >= PLAN.leg_min_time
+    # Plenty of legs below 3 vs (Stribeck region of the sample axis) and above.
+    assert sum(v < 3 * AXIS.vs for v in speeds) >= 4 and sum(v > 3 * AXIS.vs for v in speeds) >= 3
+
+
+def test_reference_is_smooth_and_its_derivatives_are_consistent():
+    fs = 10_000.0
+    r = PLAN.reference(fs)
+    T = 1.0 / fs
+    assert r.t[-1] == pytest.approx(PLAN.duration, abs=T)
+    assert r.q.min() >= -1e-12 and r.q.max() <= PLAN.travel
+    # Analytic velocity/acceleration against finite differences of the position.
+    assert np.max(np.abs(np.gradient(r.q, T) - r.qd)) < 1e-3
+    assert np.max(np.abs(np.gradient(r.qd, T) - r.qdd)) < 0.05
+    # Acceleration is continuous (cosine ramps, quintic multisine fade): its
+    # largest sample-to-sample step halves when the rate doubles; a jump would not.
+    r2 = PLAN.reference(2 * fs)
+    ratio = np.max(np.abs(np.diff(r.qdd))) / np.max(np.abs(np.diff(r2.qdd)))
+    assert ratio == pytest.approx(2.0, rel=0.05)
+    assert r.q[0] == 0.0 and r.q[-1] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_multisine_reaches_its_design_acceleration_with_reversals():
+    r = PLAN.reference(5000.0)
+    m = (r.t >= r.multisine[0]) & (r.t <= r.multisine[1])
+    assert np.max(np.abs(r.qdd[m])) == pytest.approx(PLAN.ms_accel, rel=0.01)
+    assert np.max(np.abs(r.q[m] - PLAN.travel / 2)) <= PLAN.ms_amplitude
+    reversals = np.count_nonzero(np.diff(np.sign(r.qd[m][np.abs(r.qd[m]) > 1e-4])) != 0)
+    assert reversals > 50
+
+
+def test_plan_rejects_a_leg_that_does_not_fit_the_travel():
+    with pytest.raises(ValueError, match=r"ladder speed 0.773395 m/s needs 0.856475 m of travel for a 0.5 s leg; travel is 0.3 m"):
+        ExcitationPlan(v_max=2.0)
+    with pytest.raises(ValueError, match="v_max"):
+        ExcitationPlan(v_min=0.01, v_max=0.005)
+
+
+# --------------------------------------------------------------------------- simulation
+
+
+def test_same_seed_same_log_and_the_seed_matters(log):
+    again = simulate_excitation(AXIS, PLAN, np.random.default_rng(7))
+    for k in log:
+        assert np.array_equal(log[k], again[k]), k
+    other = simulate_excitation(AXIS, PLAN, np.random.default_rng(8))
+    assert not np.array_equal(log["q"], other["q"])
+
+
+def test_log_satisfies_the_contract(log):
+    assert list(log) == ["t", "q", "u", "q_ref"]
+    n = log["t"].size
+    assert n == int(math.floor(PLAN.duration * AXIS.sample_rate + 1e-9)) + 1
+    for k, a in log.items():
+        assert a.dtype == np.float64 and a.shape == (n,) and np.all(np.isfinite(a)), k
+    dt = np.diff(log["t"])
+    assert log["t"][0] == 0.0 and np.all(dt > 0)
+    assert np.allclose(dt, 1.0 / AXIS.sample_rate, rtol=1e-9, atol=0)
+    counts = log["q"] / AXIS.lsb
+    assert np.max(np.abs(counts - np.round(counts))) < 1e-6
+    assert np.max(np.abs(log["u"])) < AXIS.u_max
+
+
+def test_command_is_clipped_at_the_rail():
+    tight = AxisTruth(**{**AXIS.__dict__, "u_max": 0.3})
+    d = simulate_excitation(tight, PLAN, np.random.default_rng(0))
+    assert np.max(np.abs(d["u"])) == 0.3  # the 20 m/s^2 multisine needs more than 0.3 V
+
+
+def test_pid_tracks_the_reference(log):
+    e = log["q"] - log["q_ref"]
+    # 40 Hz loop with feedforward: ~10 um rms, < 0.1 mm peak (at the fast multisine
+    # and at break-away); a loop that lost track would be off by millimetres.
+    assert np.sqrt(np.mean(e**2)) < 30e-6
+    assert np.max(np.abs(e)) < 0.3e-3
+
+
+def test_ladder_legs_are_steady_at_the_planned_speeds(log):
+    legs = PLAN.reference(AXIS.sample_rate).legs
+    for leg in legs:
+        mean, pieces = _leg_velocities(log["t"], log["q"], leg)
+        # Measured mean within 2 % of the plan, and no stick-slip: every
+        # 0.1-s piece within 10 % (the slowest leg is 1 mm/s = 200 counts / 0.1 s).
+        assert mean == pytest.approx(leg.velocity, rel=0.02), leg
+        assert np.all(np.abs(pieces / leg.velocity - 1.0) < 0.10), leg
+    # The command on the two legs of a speed differs by twice the friction at
+    # that speed (offset and ripple cancel): the Stribeck curve is in the data.
+    for fwd, back in zip(legs[::2], legs[1::2]):
+        v = fwd.velocity
+        uf = log["u"][(log["t"] >= fwd.start + 0.1) & (log["t"] <= fwd.stop)].mean()
+        ub = log["u"][(log["t"] >= back.start + 0.1) & (log["t"] <= back.stop)].mean()
+        friction = AXIS.B * v + AXIS.fc + (AXIS.fs - AXIS.fc) * math.exp(-abs(v / AXIS.vs) ** AXIS.xi)
+        assert (uf - ub) / 2 == pytest.approx(friction, rel=0.03), v
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_random_axes_run_cleanly(seed):
+    truth = random_axis(np.random.default_rng(seed))
+    d = simulate_excitation(truth, PLAN, np.random.default_rng(seed))
+    assert np.max(np.abs(d["u"])) < truth.u_max
+    assert np.max(np.abs(d["q"] - d["q_ref"])) < 0.5e-3
+    for leg in PLAN.reference(truth.sample_rate).legs:
+        mean, _ = _leg_velocities(d["t"], d["q"], leg)
+        assert mean == pytest.approx(leg.velocity, rel=0.03), (truth, leg)
+
+
+def test_loop_gains_follow_the_design():
+    kp, kd, ki = loop_gains(AXIS, PLAN)
+    w = 2 * math.pi * PLAN.bandwidth_hz
+    Mg = PLAN.guess_factor * AXIS.M
+    assert kp == pytest.approx(Mg * w**2) and kd == pytest.approx(2 * PLAN.damping * Mg * w)
+    assert ki == pytest.approx(kp * 2 * math.pi * PLAN.integral_hz)
+
+
+# --------------------------------------------------------------------------- writers
+
+
+def test_h5_writer_round_trips(tmp_path, log):
+    p = tmp_path / "log.h5"
+    write_log_h5(p, log, q_unit="m", u_unit="V")
+    with h5py.File(p, "r") as f:
+        assert sorted(f.keys()) == ["q", "q_ref", "t", "u"]
+        assert f.attrs["q_unit"] == "m" and f.attrs["u_unit"] == "V"
+        for k in log:
+            assert f[k].ndim == 1 and f[k].dtype == np.float64
+            assert np.array_equal(f[k][()], log[k]), k
+    # Deterministic bytes: the same data written twice gives the same file.
+    p2 = tmp_path / "log2.h5"
+    write_log_h5(p2, log)
+    assert sha256_file(p) == sha256_file(p2)
+
+
+def test_csv_writer_round_trips(tmp_path, log):
+    p = tmp_path / "log.csv"
+    write_log_csv(p, log)
+    with open(p) as fh:
+        assert fh.readline().strip() == "t,q,u,q_ref"
+    cols = np.loadtxt(p, delimiter=",", skiprows=1)
+    for i, k in enumerate(log):
+        assert np.allclose(cols[:, i], log[k], rtol=1e-11, atol=1e-15), k
+    assert np.array_equal(cols[:, 0], log["t"])  # k / fs prints and parses exactly
+    p2 = tmp_path / "short.csv"
+    write_log_csv(p2, {"t": [0.0, 0.001], "q": [0.0, 1e-6], "u": [0.5, -0.25]})
+    assert p2.read_text() == "t,q,u\n0,0,0.5\n0.001,1e-06,-0.25\n"
+
+
+@pytest.mark.parametrize("writer", [write_log_h5, write_log_csv])
+@pytest.mark.parametrize("data, msg", [
+    ({"t": [0.0, 1.0, 1.0], "q": [0, 0, 0], "u": [0, 0, 0]},
+     r"t: not strictly increasing at index 2 \(t\[2\]=1.0 <= t\[1\]=1.0\)"),
+    ({"t": [0.0, 1.0, 2.0], "q": [0, np.nan, 0], "u": [0, 0, 0]}, r"q: sample 1 is nan"),
+    ({"t": [0.0, 1.0], "q": [0, 0]}, r"required channel 'u'"),
+    ({"t": [0.0, 1.0], "q": [0, 0], "u": [0, 0], "v": [0, 0]}, r"unknown channel 'v'"),
+    ({"t": [0.0, 1.0], "q": [0, 0, 0], "u": [0, 0]}, r"q: 3 samples, but t has 2"),
+    ({"t": [0.0, 1.0], "q": [[0, 0]], "u": [0, 0]}, r"q: expected a 1-D array, got shape \(1, 2\)"),
+])
+def test_writers_reject_bad_logs_and_write_nothing(tmp_path, writer, data, msg):
+    p = tmp_path / ("bad.h5" if writer is write_log_h5 else "bad.csv")
+    with pytest.raises(DataError, match=msg):
+        writer(p, data)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_h5_writer_rejects_unknown_units(tmp_path, log):
+    with pytest.raises(UsageError, match="q_unit"):
+        write_log_h5(tmp_path / "x.h5", log, q_unit="inch")
+    with pytest.raises(UsageError, match="u_unit"):
+        write_log_h5(tmp_path / "x.h5", log, u_unit="W")
+    assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- bundled sample data
+
+
+def test_sample_files_match_their_recorded_checksums():
+    truth = json.loads((SAMPLE_DIR / "truth.json").read_text())
+    assert set(truth["files"]) == {"axis_excitation.h5", "axis_excitation.csv"}
+    for name, info in truth["files"].items():
+        p = SAMPLE_DIR / name
+        assert p.stat().st_size == info["bytes"], name
+        assert sha256_file(p) == info["sha256"], name
+    assert (SAMPLE_DIR / "axis_excitation.h5").stat().st_size < 3_000_000
+
+
+def test_sample_truth_matches_the_generator_and_the_files_agree():
+    gen = _load_generator()
+    truth = json.loads((SAMPLE_DIR / "truth.json").read_text())
+    assert AxisTruth.from_dict(truth["axis"]) == gen.TRUTH
+    assert truth["plan"] == json.loads(json.dumps(gen.PLAN.to_dict()))
+    with h5py.File(SAMPLE_DIR / "axis_excitation.h5", "r") as f:
+        h5 = {k: f[k][()] for k in ("t", "q", "u", "q_ref")}
+        assert f.attrs["u_unit"] == truth["axis"]["u_unit"] and f.attrs["q_unit"] == "m"
+    cols = np.loadtxt(SAMPLE_DIR / "axis_excitation.csv", delimiter=",", skiprows=1)
+    for i, k in enumerate(("t", "q", "u", "q_ref")):
+        assert np.array_equal(cols[:, i], h5[k]), k  # the same numbers in both files
+    assert h5["t"].size == truth["log"]["samples"]
+    assert h5["t"][-1] == pytest.approx(truth["log"]["duration_s"])
+    lsb = gen.TRUTH.lsb
+    assert np.max(np.abs(h5["q"] / lsb - np.round(h5["q"] / lsb))) < 1e-6
+
+
+def test_sample_data_regenerates(tmp_path):
+    # Rebuild from the script and compare with the committed files, so they
+    # cannot drift from the generator.  Bit-identical on one platform; the
+    # tolerances allow a libm last-bit difference elsewhere flipping a few
+    # encoder counts (a change of parameters or plan moves far more).
+    gen = _load_generator()
+    new = gen.build(tmp_path)
+    old = json.loads((SAMPLE_DIR / "truth.json").read_text())
+    assert {k: v for k, v in new.items() if k != "files"} == {k: v for k, v in old.items() if k != "files"}
+    with h5py.File(SAMPLE_DIR / "axis_excitation.h5", "r") as f_old, \
+            h5py.File(tmp_path / "axis_excitation.h5", "r") as f_new:
+        a = {k: f_old[k][()] for k in f_old}
+        b = {k: f_new[k][()] for k in f_new}
+    assert sorted(a) == sorted(b) == ["q", "q_ref", "t", "u"]
+    assert np.array_equal(a["t"], b["t"])
+    assert np.max(np.abs(a["q_ref"] - b["q_ref"])) < 1e-12
+    assert np.max(np.abs(a["q"] - b["q"])) <= 4 * gen.TRUTH.lsb
+    assert np.sqrt(np.mean((a["u"] - b["u"]) ** 2)) < 5e-3
