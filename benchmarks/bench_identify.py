@@ -4,7 +4,7 @@ Target: at most 5 s (median) on 2 cores for the default path (friction ladder
 present, ``friction="stribeck"``, with a ripple pitch).  Also prints the Coulomb
 fit and, for information, the whole-log Stribeck fallback (``use_steady=False``).
 
-Run: ``/work/venv/bin/python benchmarks/bench_identify.py [--runs 3]``
+Run: ``python benchmarks/bench_identify.py [--runs 3]``
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ import tempfile
 import h5py
 import numpy as np
 import pytest
+from shared_paths import EMPS_DIR
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,7 +18,7 @@ from commission.checks import check_log, encoder_resolution
 from commission.errors import DataError, UsageError
 from commission.logs import ExcitationLog, load_log
 
-EMPS = pathlib.Path("/work/shared/data/emps")
+EMPS = EMPS_DIR
 EMPS_GAIN = 35.15065188248547
 needs_emps = pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="EMPS data not present")
 

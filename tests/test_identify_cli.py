@@ -11,8 +11,9 @@ import pytest
 from typer.testing import CliRunner
 
 from commission.cli.main import app
+from shared_paths import EMPS_DIR
 
-EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
+EMPS = EMPS_DIR
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
 EMPS_ARGS = ["--map", "q=qm", "--map", "u=vir", "--input-gain", "35.15065188248547", "--u-unit", "N"]
 

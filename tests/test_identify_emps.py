@@ -12,11 +12,12 @@ import pathlib
 
 import numpy as np
 import pytest
+from shared_paths import EMPS_DIR
 import scipy.io
 
 from commission.identify import evaluate, fit_axis, quantization_step
 
-DATA = pathlib.Path("/work/shared/data/emps")
+DATA = EMPS_DIR
 GTAU = 35.15065188248547
 
 pytestmark = pytest.mark.skipif(not (DATA / "DATA_EMPS.mat").exists(), reason="EMPS data not present")

@@ -10,6 +10,7 @@ import tempfile
 import h5py
 import numpy as np
 import pytest
+from shared_paths import EMPS_DIR
 import scipy.io
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -18,7 +19,7 @@ from hypothesis.extra import numpy as hnp
 from commission.errors import CommissionError, DataError, InputFileError, UsageError
 from commission.logs import ExcitationLog, load_log, parse_mapping
 
-EMPS = pathlib.Path("/work/shared/data/emps")
+EMPS = EMPS_DIR
 EMPS_GAIN = 35.15065188248547
 EMPS_MAP = {"q": "qm", "u": "vir"}
 needs_emps = pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="EMPS data not present")
