@@ -1,2 +1,3 @@
 """Command registry: one import per command module."""
 from commission.cli import identify_cmd  # noqa: F401
+from commission.cli import paper_cmd  # noqa: F401

@@ -1,0 +1,230 @@
+"""The sampled-data loop against an independent discretisation, and its bookkeeping."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import cont2discrete, dlsim
+
+from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
+from commission.controllers.plant import plant_vector
+from commission.controllers.simulate import (
+    KIND_PID,
+    SimulationError,
+    simulate,
+    simulate_batch,
+    step_disturbance,
+)
+from commission.controllers.trajectory import back_and_forth, sinusoid
+
+TS = 1 / 2500
+M, B = 0.027, 0.273
+LIN_GAINS = PidGains(Ts=TS, M_hat=0.05, B_hat=0.24, Kp=5400.0, Ki=5.4e5, Kd=18.0)
+
+
+def exact_zoh_loop(g, traj, d, delay):
+    """The same loop built as one linear discrete system and run by scipy's dlsim.
+
+    Plant M qdd = u + d - B qd discretised exactly under ZOH; controller (57)
+    without friction compensation.  State X = [q, v, y_prev, I (, c_prev)],
+    inputs [qd, dqd, ddqd, d], outputs [q, u].
+    """
+    Ts = traj.Ts
+    Ad, Bd, *_ = cont2discrete((np.array([[0, 1], [0, -B / M]]), np.array([[0], [1 / M]]),
+                                np.eye(2), np.zeros((2, 1))), Ts, method="zoh")
+    Bd = Bd[:, 0]
+    a = np.array([(g.B_hat - g.Kd) / Ts - g.Kp - g.Ki * Ts, 0.0, -(g.B_hat - g.Kd) / Ts, -g.Ki])
+    b = np.array([g.Kp + g.Ki * Ts, g.Kd, g.M_hat, 0.0])
+    nx = 5 if delay else 4
+    A = np.zeros((nx, nx))
+    Bm = np.zeros((nx, 4))
+    C = np.zeros((2, nx))
+    D = np.zeros((2, 4))
+    A[:2, :2] = Ad
+    if delay:
+        A[:2, 4] += Bd
+        A[4, :4] = a
+        Bm[4] = b
+        C[1, 4] = 1.0
+    else:
+        A[:2, :4] += np.outer(Bd, a)
+        Bm[:2] += np.outer(Bd, b)
+        C[1, :4] = a
+        D[1] = b
+    Bm[:2, 3] += Bd
+    A[2, 0] = 1.0
+    A[3, 0] += Ts
+    A[3, 3] = 1.0
+    Bm[3, 0] = -Ts
+    C[0, 0] = 1.0
+    w = np.column_stack([traj.qd, traj.dqd, traj.ddqd, d])
+    _, yout, _ = dlsim((A, Bm, C, D, Ts), w, x0=np.zeros(nx))
+    return yout[:, 0], yout[:, 1]
+
+
+@pytest.mark.parametrize("delay", [False, True])
+def test_linear_loop_converges_to_exact_zoh_discretisation(delay):
+    traj = sinusoid(2.0, TS)
+    d = step_disturbance(traj.t, [(0.5, 1.5, 0.5)])
+    q_ref, u_ref = exact_zoh_loop(LIN_GAINS, traj, d, delay)
+    e_scale = np.abs(q_ref - traj.qd).max()
+    p = plant_vector(M, B, fc=0.0)
+    errs = []
+    for n in (10, 100):
+        r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, quant=0.0, disturbance=d,
+                     substeps=n, delay=delay)
+        assert not r.diverged and r.n_steps == traj.n
+        errs.append(np.abs(r.q - q_ref).max())
+        np.testing.assert_allclose(r.u, u_ref, atol=0.3 / n)
+    # The plant kernel is first order in the sub-step: 10x the sub-steps, 1/10 the error.
+    assert errs[0] < 0.02 * e_scale
+    assert errs[1] < 0.002 * e_scale
+    assert 8.0 < errs[0] / errs[1] < 12.0
+
+
+def test_encoder_quantization_and_noise():
+    traj = sinusoid(1.0, TS)
+    p = plant_vector(M, B, fc=0.1, fs=0.12, ripple_amp=0.01, ripple_pitch=0.03)
+    q_res = 1e-6
+    r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, quant=q_res)
+    k = r.y / q_res
+    np.testing.assert_allclose(k, np.round(k), atol=1e-6)
+    assert np.abs(r.y - r.q).max() <= q_res / 2 * (1 + 1e-9)
+    # Noise is added to the true position before the encoder; without quantization y = q + n.
+    noise = np.random.default_rng(3).normal(0.0, 2e-7, traj.n)
+    r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, quant=0.0, noise=noise)
+    np.testing.assert_array_equal(r.y, r.q + noise)
+
+
+def test_saturation_limits_the_applied_input():
+    traj = back_and_forth(8.0, TS)
+    p = plant_vector(M, B, fc=0.1, fs=0.12)
+    r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, u_sat=0.5)
+    free = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj)
+    assert np.abs(free.u).max() > 0.5
+    assert np.abs(r.u).max() == 0.5
+
+
+def test_delay_shifts_the_command_by_one_sample():
+    # A pure feedforward law (no feedback gains) makes the command independent of
+    # the plant, so the delayed run must apply exactly the same sequence one sample late.
+    traj = sinusoid(0.2, TS)
+    p = plant_vector(M, B, fc=0.1, fs=0.12)
+    ff = pid_pack(PidGains(Ts=TS, M_hat=0.05, B_hat=0.0, Kp=0.0, Ki=0.0, Kd=0.0))
+    a = simulate(p, KIND_PID, ff, traj)
+    b = simulate(p, KIND_PID, ff, traj, delay=True)
+    np.testing.assert_array_equal(a.u, 0.05 * traj.ddqd)
+    assert b.u[0] == 0.0
+    np.testing.assert_array_equal(b.u[1:], a.u[:-1])
+    assert not np.array_equal(a.q, b.q)
+
+
+def unstable_gains():
+    # Poles designed at -1600 rad/s: far beyond what 2.5 kHz sampling supports.
+    Kp, Ki, Kd = pid_place_poles(0.02, -1600.0)
+    return dataclasses.replace(LIN_GAINS, Kp=Kp, Ki=Ki, Kd=Kd, fric_level=0.1, fric_slope=900.0)
+
+
+def test_divergence_is_reported_not_raised():
+    traj = sinusoid(10.0, TS)
+    p = plant_vector(M, B, fc=0.1, fs=0.12)
+    r = simulate(p, KIND_PID, pid_pack(unstable_gains()), traj)
+    assert r.diverged
+    assert 0 < r.n_steps < traj.n
+    assert r.indexes is None
+    assert r.y.shape == (r.n_steps,) and np.all(np.isfinite(r.y)) and np.all(np.isfinite(r.u))
+    # Stable gains on the same plant do not abort.
+    ok = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj)
+    assert not ok.diverged and ok.indexes is not None
+
+
+def test_abort_thresholds():
+    traj = sinusoid(1.0, TS)
+    p = plant_vector(M, B, fc=0.1, fs=0.12)
+    r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, e_abort=1e-6)
+    assert r.diverged and r.n_steps > 0
+    assert abs(r.q[-1] - r.qd[-1]) <= 1e-6
+    r = simulate(p, KIND_PID, pid_pack(LIN_GAINS), traj, u_abort=1e-3)
+    assert r.diverged
+
+
+def plants_grid(n):
+    Ms = np.linspace(0.02, 0.12, n)
+    return np.stack([plant_vector(m, B * (1 + 0.5 * i / n), fc=0.1, fs=0.12, ripple_amp=0.01,
+                                  ripple_pitch=0.03) for i, m in enumerate(Ms)])
+
+
+def test_batch_equals_single_runs_and_is_thread_independent():
+    traj = sinusoid(2.0, TS)
+    plants = plants_grid(5)
+    g = pid_pack(LIN_GAINS)
+    rng = np.random.default_rng(1)
+    noise = rng.normal(0, 1e-7, (5, traj.n))
+    d = step_disturbance(traj.t, [(0.3, 1.2, 0.4)])
+    b1 = simulate_batch(plants, KIND_PID, g, traj, noise=noise, disturbance=d, workers=1,
+                        return_traces=True)
+    b2 = simulate_batch(plants, KIND_PID, np.tile(g, (5, 1)), traj, noise=noise, disturbance=d, workers=2)
+    assert b2.y is None
+    for i in range(5):
+        r = simulate(plants[i], KIND_PID, g, traj, noise=noise[i], disturbance=d)
+        assert r.indexes == b1.indexes(i) == b2.indexes(i)
+        np.testing.assert_array_equal(b1.y[i], r.y)
+        np.testing.assert_array_equal(b1.u[i], r.u)
+        assert b2.u_peak[i] == np.abs(r.u).max()
+    assert not b1.diverged.any()
+    assert np.all(np.isnan(b1.theta_final))  # PID has no estimates
+
+
+def test_batch_marks_diverged_scenarios():
+    traj = sinusoid(2.0, TS)
+    plants = plants_grid(3)
+    ctrl = np.stack([pid_pack(unstable_gains()), pid_pack(LIN_GAINS), pid_pack(LIN_GAINS)])
+    b = simulate_batch(plants, KIND_PID, ctrl, traj, return_traces=True)
+    assert b.diverged.tolist() == [True, False, False]
+    assert b.indexes(0) is None and math.isnan(b.e_M[0]) and math.isnan(b.c_u[0])
+    assert 0 < b.n_steps[0] < traj.n and b.n_steps[1] == traj.n
+    assert np.all(np.isfinite(b.y[0, : b.n_steps[0]])) and np.all(np.isnan(b.y[0, b.n_steps[0]:]))
+    assert np.isfinite(b.e_M[1:]).all()
+    assert b.u_peak[0] == np.abs(b.u[0, : b.n_steps[0]]).max()
+
+
+def test_input_errors_name_field_and_shape():
+    traj = sinusoid(1.0, TS)
+    p = plant_vector(M, B)
+    g = pid_pack(LIN_GAINS)
+    with pytest.raises(SimulationError, match=r"plant_p: expected shape \(9,\), got \(8,\)"):
+        simulate(p[:8], KIND_PID, g, traj)
+    with pytest.raises(SimulationError, match=r"disturbance: expected shape \(2500,\), got \(2499,\)"):
+        simulate(p, KIND_PID, g, traj, disturbance=np.zeros(2499))
+    bad = np.zeros(traj.n)
+    bad[12] = np.nan
+    with pytest.raises(SimulationError, match="noise: element 12 is nan"):
+        simulate(p, KIND_PID, g, traj, noise=bad)
+    with pytest.raises(SimulationError, match="packed for Ts=0.001 s"):
+        simulate(p, KIND_PID, pid_pack(dataclasses.replace(LIN_GAINS, Ts=1e-3)), traj)
+    with pytest.raises(SimulationError, match="kind"):
+        simulate(p, 7, g, traj)
+    with pytest.raises(SimulationError, match=r"plants: expected shape \(m, 9\)"):
+        simulate_batch(p, KIND_PID, g, traj)
+    with pytest.raises(SimulationError, match=r"noise: expected shape \(2500,\) or \(2, 2500\)"):
+        simulate_batch(np.stack([p, p]), KIND_PID, g, traj, noise=np.zeros((3, traj.n)))
+
+
+def test_arc_path_records_estimates_and_batches_like_single_runs():
+    from commission.controllers.arc import arc_pack, paper_gains_implementable
+    from commission.controllers.simulate import KIND_ARC
+
+    traj = sinusoid(2.0, TS)
+    g = paper_gains_implementable(TS)
+    ctrl = arc_pack(g)
+    plants = plants_grid(3)
+    b = simulate_batch(plants, KIND_ARC, ctrl, traj, workers=2)
+    for i in range(3):
+        r = simulate(plants[i], KIND_ARC, ctrl, traj)
+        assert r.theta_hat.shape == (traj.n, 3)
+        lo, hi = np.array(g.theta_min), np.array(g.theta_max)
+        assert np.all(r.theta_hat >= lo) and np.all(r.theta_hat <= hi)  # projection (20)
+        assert not np.array_equal(r.theta_hat[-1], np.array(g.theta0))  # it adapts
+        np.testing.assert_array_equal(b.theta_final[i], r.theta_hat[-1])
+        assert b.indexes(i) == r.indexes
