@@ -141,9 +141,10 @@ class Identification:
             raise r.fail(f"expected a positive mass, got {params['M'].value!r}", "$.parameters.M.value")  # type: ignore[union-attr]
         fit = r.obj("fit")
         th = r.obj("theta")
+        nominal, lo, hi = th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3)
         try:
-            theta = ThetaBox(th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3))  # type: ignore[arg-type]
-        except ValueError as exc:
+            theta = ThetaBox(nominal, lo, hi)  # type: ignore[arg-type]
+        except ValueError as exc:  # only the box's own consistency checks land here
             raise r.fail(str(exc), "$.theta") from None
         fcr = r.obj("friction_compensation")
         known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}

@@ -14,7 +14,7 @@ import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from commission.errors import InputFileError, SchemaError, UsageError
 
@@ -38,20 +38,18 @@ def sha256_json(obj: Any) -> str:
     return hashlib.sha256(canonical_json(obj).encode()).hexdigest()
 
 
-def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True) -> None:
-    """Write ``obj`` as canonical JSON via a temp file and an atomic rename.
+def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> None:
+    """Run ``write(tmp)`` on a temp file beside ``path``, then rename it over ``path``.
 
-    Nothing is left half-written: on any failure the temp file is removed.
+    Readers never see a half-written file; on any failure the temp file is
+    removed and ``path`` is untouched.
     """
     path = Path(path)
-    if not overwrite and path.exists():
-        raise UsageError(f"{path}: exists; pass --force to overwrite")
-    text = canonical_json(obj)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
+        write(tmp)
         # mkstemp creates 0600; artifacts are ordinary files (0666 less the umask).
         umask = os.umask(0)
         os.umask(umask)
@@ -61,6 +59,22 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, overwrite: bool
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` atomically (:func:`write_atomic`)."""
+    write_atomic(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, overwrite: bool = True) -> None:
+    """Write ``obj`` as canonical JSON via a temp file and an atomic rename.
+
+    Nothing is left half-written: on any failure the temp file is removed.
+    """
+    path = Path(path)
+    if not overwrite and path.exists():
+        raise UsageError(f"{path}: exists; pass --force to overwrite")
+    write_text_atomic(path, canonical_json(obj))
 
 
 def read_json(path: str | os.PathLike[str]) -> Any:

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -34,6 +33,7 @@ from numba import njit
 
 from commission.controllers.plant import plant_advance, plant_vector
 from commission.errors import DataError, UsageError
+from commission.jsonio import write_atomic
 
 #: Channel names of an excitation log, in file order (CONTRACT section 1).
 LOG_CHANNELS = ("t", "q", "u", "q_ref")
@@ -682,24 +682,6 @@ def _checked_channels(data: Mapping[str, Any]) -> dict[str, np.ndarray]:
     return out
 
 
-def _atomic(path: Path, write: Callable[[str], None]) -> None:
-    """Run ``write(tmp)`` on a temp file next to ``path``, then rename it over ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        # mkstemp makes the file private (0600); give it the mode a plain open() would.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def write_log_h5(path: str | os.PathLike[str], data: Mapping[str, Any], *,
                  q_unit: str = "m", u_unit: str = "V") -> None:
     """Write an excitation log as HDF5 (CONTRACT section 1).
@@ -744,7 +726,7 @@ def write_log_h5(path: str | os.PathLike[str], data: Mapping[str, Any], *,
             f.attrs["q_unit"] = q_unit
             f.attrs["u_unit"] = u_unit
 
-    _atomic(Path(path), write)
+    write_atomic(path, write)
 
 
 def write_log_csv(path: str | os.PathLike[str], data: Mapping[str, Any], *, digits: int = 12) -> None:
@@ -780,4 +762,4 @@ def write_log_csv(path: str | os.PathLike[str], data: Mapping[str, Any], *, digi
             np.savetxt(fh, cols, fmt=f"%.{digits}g", delimiter=",",
                        header=",".join(chans), comments="")
 
-    _atomic(Path(path), write)
+    write_atomic(path, write)
