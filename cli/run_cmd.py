@@ -1,0 +1,58 @@
+"""``commission run LOG --out-dir DIR``: identify, tune and validate in one command."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+
+from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
+from commission.cli.identify_cmd import Friction
+from commission.cli.main import app
+from commission.cli.validate_cmd import print_summary, progress_bar
+from commission.logs import parse_mapping
+from commission.validate import DEFAULT_MONTE_CARLO, run_all
+
+
+@app.command("run")
+@cli_errors
+def run_command(
+    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv or .mat (CONTRACT §1)."),
+    out_dir: Path = typer.Option(..., "--out-dir", help="Folder for ident.json, tuning.json, report.md, figures, controller.json."),
+    map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
+    input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
+    sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
+    friction: Friction = typer.Option(Friction.stribeck, "--friction", help="Friction model."),
+    spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
+    gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the tuning search and of the Monte-Carlo plants."),
+    monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+) -> None:
+    """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
+    from commission.cli.plots_validate import validation_plots
+
+    err = Console(stderr=True)
+    mapping = parse_mapping(map_)
+    with progress_bar(err) as bar:
+        tasks: dict[str, object] = {}
+
+        def cb(stage: str, done: int, total: int) -> None:
+            if stage not in tasks:
+                tasks[stage] = bar.add_task({"identify": "identifying", "tune": "tuning",
+                                             "validate": "validating"}.get(stage, stage), total=None)
+            bar.update(tasks[stage], completed=done, total=total)  # type: ignore[arg-type]
+
+        outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+                          friction=friction.value, spec_path=spec, gate_path=gate, force=force, seed=seed,
+                          n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
+    v = outcome.validation
+    print_summary(v.result)
+    for p in (outcome.ident, outcome.tuning, *v.written):
+        typer.echo(f"wrote {p}")
+    if not v.result.passed:
+        typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
+        raise typer.Exit(EXIT_GATE_FAILED)

@@ -1,0 +1,73 @@
+"""``commission validate TUNING --out-dir DIR``: simulate the scenario matrix, check the gate,
+write the report and (gate passed) controller.json."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
+from commission.cli.main import app
+from commission.report import summary_text
+from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
+
+
+def progress_bar(console: Console) -> Progress:
+    """The progress bar of the long stages (on stderr, so stdout keeps only the results)."""
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    console=console, transient=False)
+
+
+def bar_callback(bar: Progress, description: str) -> Callable[[int, int], None]:
+    """A ``progress(done, total)`` callback that drives one task of ``bar``."""
+    task = bar.add_task(description, total=None)
+
+    def cb(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return cb
+
+
+def print_summary(result: ValidationResult) -> None:
+    """The scenario table (errors in um), the verdict and every failed criterion, on stdout.
+
+    Plain fixed-width text rather than a rich table: it is never truncated or
+    wrapped, whatever the terminal width, so every failure line stays whole.
+    """
+    typer.echo(f"Validation: ARC vs PID baseline on {len(result.runs)} scenarios "
+               f"({result.elapsed:.1f} s on {result.workers} threads)")
+    typer.echo(summary_text(result))
+
+
+@app.command("validate")
+@cli_errors
+def validate_command(
+    tuning: Path = typer.Argument(..., help="tuning.json written by `commission tune`."),
+    out_dir: Path = typer.Option(..., "--out-dir", help="Folder for report.md, the figures, validation.json and controller.json."),
+    gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults; see commission.gate)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the Monte-Carlo plants."),
+    monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+) -> None:
+    """Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
+
+    Gate TOML (--gate): one table named "gate"; every key optional; checked for the ARC on every scenario. e_F default max(30 LSB, 0.01 %travel); e_M max(200 LSB, 0.2 %travel); e_rms max(15 LSB, 0.005 %travel) -- numbers in m, or strings such as "20 um", "30 lsb", "0.01 %travel"; c_u 1.0; u_max the spec's (reaching it fails); no_divergence true; arc_vs_pid_e_rms 1.0 (ARC e_rms no worse than PID).
+    """
+    from commission.cli.plots_validate import validation_plots
+
+    err = Console(stderr=True)
+    with progress_bar(err) as bar:
+        cb = bar_callback(bar, "simulating")
+        outcome = run_validate(tuning, out_dir, gate_path=gate, force=force, seed=seed, n_monte_carlo=monte_carlo,
+                               progress=cb, workers=workers, figures=validation_plots)
+    print_summary(outcome.result)
+    for p in outcome.written:
+        typer.echo(f"wrote {p}")
+    if not outcome.result.passed:
+        typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
+        raise typer.Exit(EXIT_GATE_FAILED)

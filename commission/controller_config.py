@@ -1,0 +1,249 @@
+"""The deployable controller artifact (``controller.json``, CONTRACT §3).
+
+Written by ``commission validate`` only when every gate passes; read by
+:func:`commission.runtime.load_controller`.  It holds every number the
+discrete ARC needs, grouped the way the paper states them, plus what it was
+validated against and where it came from::
+
+    kind               "controller"
+    schema_version     1
+    controller         "arc-output-feedback" (Xu & Yao 2001, §3)
+    sample_rate        Hz
+    sample_period      s (the exact period simulated; 1/sample_rate up to rounding)
+    units              {"u": command unit, "q": "m"}
+    observer           k1 (1/s), k2 (1/s^2): A0 of (10)
+    gains              w1, w2, g1, g2 (1/s), eps11, eps12, eps21, eps22,
+                       C_phi1, C_phi2, C_theta2 (3 each)
+    bounds             theta_min, theta_max (the Assumption-1 box), u_max (u-unit),
+                       k1s_max, k2s_max (1/s): caps of the nonlinear gains
+    adaptation         Gamma (3): the diagonal adaptation rate of (19)
+    initial_estimates  theta0 (3)
+    friction_compensation  level (u-unit), slope (s/m): F_hat(v) = level (2/pi) atan(slope v)
+    validated          what validate checked: the resolved gate, the worst value of
+                       each criterion with its scenario, the ARC's indexes on the
+                       identified plant (nominal, per trajectory), scenario count, seed
+    provenance         log_sha256, ident_sha256, tuning_sha256, tool_version, created_utc
+    checksum           {"algorithm": "sha256", "value": hex}: sha256 of the canonical JSON
+                       (sorted keys, 2-space indent) of every other field
+
+``null`` stands for infinity where a limit may be absent (eps: term off;
+k1s_max, k2s_max, u_max: no cap).  Numbers round-trip exactly through JSON
+(shortest repr), so the loaded controller packs to the very vector validate
+simulated.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from commission.controllers.arc import ArcGains
+from commission.errors import SchemaError
+from commission.jsonio import Reader, read_json, sha256_json
+
+CONTROLLER_KIND = "controller"
+CONTROLLER_SCHEMA_VERSION = 1
+CONTROLLER_TYPE = "arc-output-feedback"
+CHECKSUM_ALGORITHM = "sha256"
+
+#: ArcGains fields by section of controller.json (every field exactly once, Ts aside).
+SECTIONS: dict[str, tuple[str, ...]] = {
+    "observer": ("k1", "k2"),
+    "gains": ("w1", "w2", "g1", "g2", "eps11", "eps12", "eps21", "eps22", "C_phi1", "C_phi2", "C_theta2"),
+    "bounds": ("theta_min", "theta_max", "u_max", "k1s_max", "k2s_max"),
+    "adaptation": ("Gamma",),
+    "initial_estimates": ("theta0",),
+}
+_FRICTION = {"level": "fric_level", "slope": "fric_slope"}
+_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
+_VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
+#: Allowed relative mismatch between sample_period and 1/sample_rate.
+_PERIOD_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class ControllerProvenance:
+    """Where a controller came from.
+
+    Attributes
+    ----------
+    log_sha256 : str or None
+        sha256 of the excitation log (null when ident.json did not record it).
+    ident_sha256 : str
+        sha256 of ident.json.
+    tuning_sha256 : str
+        sha256 of the tuning.json validated.
+    tool_version : str
+    created_utc : str
+        ISO-8601 UTC time of the validation.
+    """
+
+    log_sha256: str | None
+    ident_sha256: str
+    tuning_sha256: str
+    tool_version: str
+    created_utc: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Content of ``controller.json`` (module docstring).
+
+    Attributes
+    ----------
+    gains : ArcGains
+        The discrete ARC exactly as validated (``gains.Ts`` is the sample period, s).
+    sample_rate : float
+        Hz.
+    units : dict
+        ``{"u": command unit, "q": "m"}``.
+    validated : dict
+        JSON-ready record of the gate and the worst values (see :mod:`commission.validate`).
+    provenance : ControllerProvenance
+    """
+
+    gains: ArcGains
+    sample_rate: float
+    units: Mapping[str, str]
+    validated: Mapping[str, Any]
+    provenance: ControllerProvenance
+
+    def body(self) -> dict[str, Any]:
+        """Every field but the checksum, JSON-ready."""
+        g = self.gains
+        doc: dict[str, Any] = {
+            "kind": CONTROLLER_KIND,
+            "schema_version": CONTROLLER_SCHEMA_VERSION,
+            "controller": CONTROLLER_TYPE,
+            "sample_rate": self.sample_rate,
+            "sample_period": g.Ts,
+            "units": dict(self.units),
+        }
+        for section, names in SECTIONS.items():
+            doc[section] = {n: _out(getattr(g, n)) for n in names}
+        doc["friction_compensation"] = {k: getattr(g, a) for k, a in _FRICTION.items()}
+        doc["validated"] = dict(self.validated)
+        doc["provenance"] = self.provenance.to_dict()
+        return doc
+
+    def to_dict(self) -> dict[str, Any]:
+        """The document written to disk: :meth:`body` plus its checksum."""
+        doc = self.body()
+        doc["checksum"] = {"algorithm": CHECKSUM_ALGORITHM, "value": sha256_json(doc)}
+        return doc
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "controller.json") -> "ControllerConfig":
+        """Strict load: the schema, then the checksum; errors name the JSON path.
+
+        Raises
+        ------
+        SchemaError
+            ``controller.json: $.gains.g1: ...`` naming the first field that is
+            missing, mistyped or out of range, or ``controller.json: $.checksum:
+            ...`` when the content does not match its checksum (edited or corrupted).
+        """
+        r = Reader(data, "$", source)
+        r.header(CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION)
+        ctype = r.str_("controller")
+        if ctype != CONTROLLER_TYPE:
+            raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
+        known = {"kind", "schema_version", "controller", "sample_rate", "sample_period", "units",
+                 "friction_compensation", "validated", "provenance", "checksum", *SECTIONS}
+        for k in r.keys():
+            if k not in known:
+                raise r.fail("unknown field", f"$.{k}")
+        rate = r.num("sample_rate", positive=True)
+        Ts = r.num("sample_period", positive=True)
+        assert rate is not None and Ts is not None
+        if abs(Ts * rate - 1.0) > _PERIOD_RTOL:
+            raise r.fail(f"{Ts!r} s does not match sample_rate {rate!r} Hz", "$.sample_period")
+        ur = r.obj("units")
+        units = {"u": ur.str_("u"), "q": ur.str_("q")}
+        kw: dict[str, Any] = {"Ts": Ts}
+        for section, names in SECTIONS.items():
+            sr = r.obj(section)
+            for k in sr.keys():
+                if k not in names:
+                    raise sr.fail("unknown field", f"{sr.path}.{k}")
+            for n in names:
+                if n in _VECTORS:
+                    kw[n] = sr.vec(n, 3)
+                elif n in _INF_OK and sr.child(n).data is None:
+                    kw[n] = math.inf
+                else:
+                    kw[n] = sr.num(n)
+        fr = r.obj("friction_compensation")
+        for k, attr in _FRICTION.items():
+            kw[attr] = fr.num(k, nonneg=True)
+        try:
+            gains = ArcGains(**kw)
+        except ValueError as exc:
+            raise r.fail(str(exc), _gain_path(str(exc))) from None
+        validated = r.obj("validated").data
+        pr = r.obj("provenance")
+        prov = ControllerProvenance(
+            log_sha256=pr.str_("log_sha256", optional=True),
+            ident_sha256=pr.str_("ident_sha256"),  # type: ignore[arg-type]
+            tuning_sha256=pr.str_("tuning_sha256"),  # type: ignore[arg-type]
+            tool_version=pr.str_("tool_version"),  # type: ignore[arg-type]
+            created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
+        )
+        verify_checksum(data, source)
+        return cls(gains=gains, sample_rate=rate, units=units, validated=validated, provenance=prov)
+
+    @classmethod
+    def load(cls, path: str) -> "ControllerConfig":
+        """Read and strictly validate ``controller.json``."""
+        return cls.from_dict(read_json(path), source=str(path))
+
+
+def _out(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return [float(x) for x in v]
+    return None if not math.isfinite(v) else float(v)
+
+
+def _gain_path(msg: str) -> str:
+    """JSON path of the ArcGains field an ArcGainsError message names (``ArcGains.g1: ...``)."""
+    if msg.startswith("ArcGains."):
+        name = msg[len("ArcGains."):].split(":")[0].split("/")[0].split("[")[0]
+        for section, names in SECTIONS.items():
+            if name in names:
+                return f"$.{section}.{name}"
+        if name in ("fric_level", "fric_slope"):
+            return f"$.friction_compensation.{'level' if name == 'fric_level' else 'slope'}"
+        if name == "Ts":
+            return "$.sample_period"
+    return "$"
+
+
+def verify_checksum(data: Any, source: str = "controller.json") -> None:
+    """Check ``$.checksum`` against the canonical JSON of every other field.
+
+    Raises
+    ------
+    SchemaError
+        Missing or malformed checksum, unknown algorithm, or a mismatch.
+    """
+    r = Reader(data, "$", source)
+    cr = r.obj("checksum")
+    algo = cr.str_("algorithm")
+    if algo != CHECKSUM_ALGORITHM:
+        raise cr.fail(f"unsupported algorithm {algo!r} (expected {CHECKSUM_ALGORITHM!r})", "$.checksum.algorithm")
+    value = cr.str_("value")
+    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
+        raise cr.fail(f"expected 64 lowercase hex digits, got {value!r}", "$.checksum.value")
+    body = {k: v for k, v in data.items() if k != "checksum"}
+    try:
+        actual = sha256_json(body)
+    except ValueError as exc:  # NaN or inf smuggled into the file
+        raise r.fail(f"content is not canonical JSON ({exc})", "$") from None
+    if actual != value:
+        raise cr.fail(f"mismatch: the file says {value!s:.16}..., its content hashes to {actual[:16]}...; "
+                      f"the file was edited or corrupted after validation", "$.checksum")

@@ -1,0 +1,474 @@
+"""The validation gate of ``commission validate`` (``gate.toml``).
+
+The gate decides whether a tuned ARC may be deployed.  Every criterion is
+checked for the ARC on **every** scenario of the validation matrix (the
+fixed scenarios and every Monte-Carlo plant); the PID baseline enters only
+through the comparison criterion.  A criterion that fails is reported with
+its scenario, its value and its limit; all failures are listed, not only the
+first.
+
+``gate.toml`` (every key optional; an absent key takes its default)::
+
+    [gate]
+    e_F   = "20 um"      # final accuracy: max |e| over the last 2 s
+    e_M   = 8e-4         # transient: max |e| over the whole run (a bare number is metres)
+    e_rms = "15 lsb"     # average: rms of e
+    c_u   = 1.0          # chattering: ||du||_rms / ||u||_rms
+    u_max = 10.0         # peak |u|, u-unit
+    no_divergence = true # no scenario may abort (non-finite, |q - q_d| > travel, |u| > 1e6)
+    arc_vs_pid_e_rms = 1.0  # ARC e_rms <= this factor x PID e_rms, scenario by scenario
+
+Errors are measured on the encoder (``e = y - q_d``, as in the paper).
+Error limits take a number (metres) or a string ``"<number> <unit>"`` with
+unit ``m``, ``mm``, ``um`` (or ``µm``), ``nm``, ``lsb`` (encoder steps of the
+tuning's quantization) or ``%travel`` (percent of the envelope's
+``trajectory.travel``).
+
+Defaults (LSB = encoder resolution, travel = the spec's envelope stroke)
+-------------------------------------------------------------------------
+``e_F``    max(:data:`DEFAULT_E_F_LSB` LSB, :data:`DEFAULT_E_F_TRAVEL` x travel)
+           = max(30 LSB, 0.01 % travel): 40 um for the paper's envelope (0.4 m);
+           the paper's ARC reached 6.3-6.9 um, its PID 15-21 um (Table 1).
+``e_M``    max(:data:`DEFAULT_E_M_LSB` LSB, :data:`DEFAULT_E_M_TRAVEL` x travel)
+           = max(200 LSB, 0.2 % travel): 800 um (paper: ARC 14-113 um, PID 51-156 um).
+           e_M is the start-up transient of a plant at a corner of the theta box
+           (heavy payload, large offset) that the estimates have not yet learnt.
+``e_rms``  max(:data:`DEFAULT_E_RMS_LSB` LSB, :data:`DEFAULT_E_RMS_TRAVEL` x travel)
+           = max(15 LSB, 0.005 % travel): 20 um (paper: ARC 1.9-4.3 um, PID 3-8 um).
+``c_u``    :data:`DEFAULT_C_U` = 1.0: input increments as large as the input
+           itself mean a chattering command (paper: 0.11-0.32).
+``u_max``  the tuning spec's ``controller.u_max``.  A command that *reaches*
+           the limit counts as a violation: the controller then relied on
+           clipping, i.e. its demand exceeded the actuator.
+``no_divergence``     true.
+``arc_vs_pid_e_rms``  1.0: the ARC must be no worse than the PID baseline, on
+           every scenario.
+
+Why these: the quantization floor of any encoder-fed loop is a few LSB, so
+each error limit allows a fixed number of encoder steps; and the tracking
+error of a sampled loop grows with the speed and acceleration demanded, which
+the envelope's stroke carries (the spec scales Case 1 and Case 2 to it), so
+each limit also allows a fixed fraction of the stroke.  The larger of the two
+applies.  The fractions sit 1.3-2.4x above the worst values that sound
+tunings reached over the whole matrix (12 fixed scenarios and 64
+Monte-Carlo plants, runs that neither diverged nor saturated) on the paper's
+axis, the bundled sample axis and a random axis of
+:func:`commission.synth.random_axis`, all on the 0.4 m default envelope:
+e_F <= 17 um, e_rms <= 15 um, e_M <= 470 um, c_u <= 0.65.  Broken
+controllers exceed them on the identified plant itself: a controller whose
+theta_1 bounds make it believe the axis 3-8x lighter by 3-13x in e_rms, and
+destabilised gains (x3, x10) or adaptation rates (x100), which limit-cycle at
+the input limit, by about 300x.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+from commission.errors import InputFileError, SpecError
+from commission.tuning import Score
+
+try:  # Python >= 3.11
+    import tomllib as _toml
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as _toml  # type: ignore[no-redef]
+
+DEFAULT_E_F_LSB = 30.0
+DEFAULT_E_F_TRAVEL = 1e-4
+DEFAULT_E_M_LSB = 200.0
+DEFAULT_E_M_TRAVEL = 2e-3
+DEFAULT_E_RMS_LSB = 15.0
+DEFAULT_E_RMS_TRAVEL = 5e-5
+DEFAULT_C_U = 1.0
+DEFAULT_ARC_VS_PID = 1.0
+#: Relative tolerance below u_max at which a command counts as having reached the limit.
+SATURATION_TOL = 1e-9
+
+#: Criterion names, in report order.
+CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms")
+_ERROR_KEYS = ("e_F", "e_M", "e_rms")
+_KEYS = ("e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms")
+_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
+_LIMIT_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|um|µm|nm|lsb|%travel)\s*$")
+
+
+@dataclass(frozen=True)
+class ErrorLimit:
+    """An error limit as written: ``value`` in ``unit`` (``m``, ``lsb`` or ``%travel``).
+
+    Attributes
+    ----------
+    value : float
+        In metres for ``unit == "m"``, in encoder steps for ``"lsb"``, in
+        percent of the travel for ``"%travel"``.
+    unit : str
+    text : str
+        The TOML value as written (for reports).
+    """
+
+    value: float
+    unit: str
+    text: str
+
+    def metres(self, lsb: float, travel: float) -> float:
+        """The limit in metres for an encoder of ``lsb`` m and an envelope stroke ``travel`` m."""
+        if self.unit == "lsb":
+            return self.value * lsb
+        if self.unit == "%travel":
+            return self.value * 1e-2 * travel
+        return self.value
+
+
+@dataclass(frozen=True)
+class GateSpec:
+    """A parsed ``gate.toml``; ``None`` marks a key left at its default (module docstring).
+
+    Attributes
+    ----------
+    e_F, e_M, e_rms : ErrorLimit or None
+        Error limits.
+    c_u : float or None
+        Chattering limit, dimensionless.
+    u_max : float or None
+        Input limit, u-unit (default: the tuning spec's).
+    no_divergence : bool
+        Fail on any aborted scenario.
+    arc_vs_pid_e_rms : float
+        ARC e_rms <= factor x PID e_rms in every scenario.
+    source : str
+        File name (or ``"defaults"``).
+    """
+
+    e_F: ErrorLimit | None = None
+    e_M: ErrorLimit | None = None
+    e_rms: ErrorLimit | None = None
+    c_u: float | None = None
+    u_max: float | None = None
+    no_divergence: bool = True
+    arc_vs_pid_e_rms: float = DEFAULT_ARC_VS_PID
+    source: str = "defaults"
+
+
+@dataclass(frozen=True)
+class GateLimits:
+    """The gate resolved for one axis: every limit in SI units.
+
+    Attributes
+    ----------
+    e_F, e_M, e_rms : float
+        Error limits, m.
+    c_u : float
+        Chattering limit.
+    u_max : float
+        Input limit, u-unit.
+    no_divergence : bool
+    arc_vs_pid_e_rms : float
+    basis : dict
+        Criterion -> how its limit was set (e.g. ``"default max(30 LSB, 0.01 % travel)"``).
+    lsb, travel : float
+        The encoder resolution and the envelope stroke the limits were resolved with, m.
+    """
+
+    e_F: float
+    e_M: float
+    e_rms: float
+    c_u: float
+    u_max: float
+    no_divergence: bool
+    arc_vs_pid_e_rms: float
+    basis: Mapping[str, str]
+    lsb: float
+    travel: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"e_F": self.e_F, "e_M": self.e_M, "e_rms": self.e_rms, "c_u": self.c_u, "u_max": self.u_max,
+                "no_divergence": self.no_divergence, "arc_vs_pid_e_rms": self.arc_vs_pid_e_rms,
+                "basis": dict(self.basis), "lsb": self.lsb, "travel": self.travel}
+
+
+def _fail(source: str, key: str, msg: str) -> SpecError:
+    return SpecError(f"{source}: gate.{key}{msg}")
+
+
+def _parse_error_limit(source: str, key: str, raw: Any) -> ErrorLimit:
+    if isinstance(raw, bool):
+        raise _fail(source, key, f" = {raw!r}: expected a length (metres, or a string like \"20 um\", \"30 lsb\", \"0.01 %travel\")")
+    if isinstance(raw, (int, float)):
+        if not (math.isfinite(raw) and raw > 0):
+            raise _fail(source, key, f" = {raw!r}: must be a positive finite length in m")
+        return ErrorLimit(float(raw), "m", repr(raw))
+    if isinstance(raw, str):
+        m = _LIMIT_RE.match(raw)
+        if not m:
+            raise _fail(source, key, f" = {raw!r}: expected \"<number> <unit>\" with unit m, mm, um, nm, lsb or %travel")
+        val, unit = float(m.group(1)), m.group(2)
+        if not (math.isfinite(val) and val > 0):
+            raise _fail(source, key, f" = {raw!r}: must be positive")
+        if unit in _UNITS:
+            return ErrorLimit(val * _UNITS[unit], "m", raw.strip())
+        return ErrorLimit(val, unit, raw.strip())
+    raise _fail(source, key, f" = {raw!r}: expected a number (m) or a string like \"20 um\"")
+
+
+def _positive(source: str, key: str, raw: Any, unit: str = "") -> float:
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw) or not raw > 0:
+        raise _fail(source, key, f" = {raw!r}: expected a positive finite number{(' in ' + unit) if unit else ''}")
+    return float(raw)
+
+
+def gate_from_mapping(data: Mapping[str, Any], source: str = "gate.toml") -> GateSpec:
+    """Validate a parsed gate TOML.
+
+    Parameters
+    ----------
+    data : mapping
+        Parsed TOML: an optional ``[gate]`` table and nothing else.
+    source : str
+        File name, the first word of every error.
+
+    Returns
+    -------
+    GateSpec
+
+    Raises
+    ------
+    SpecError
+        Naming the key (``gate.toml: gate.e_F = -1: ...``): an unknown section
+        or key, a wrong type, a non-positive limit or an unknown unit.
+    """
+    if not isinstance(data, Mapping):
+        raise SpecError(f"{source}: expected a table, got {type(data).__name__}")
+    for section in data:
+        if section != "gate":
+            raise SpecError(f"{source}: {section}: unknown section (expected only [gate])")
+    table = data.get("gate", {})
+    if not isinstance(table, Mapping):
+        raise SpecError(f"{source}: gate: expected a table, got {table!r}")
+    for key in table:
+        if key not in _KEYS:
+            raise _fail(source, key, f": unknown key (known: {', '.join(_KEYS)})")
+    kw: dict[str, Any] = {"source": source}
+    for key in _ERROR_KEYS:
+        if key in table:
+            kw[key] = _parse_error_limit(source, key, table[key])
+    if "c_u" in table:
+        kw["c_u"] = _positive(source, "c_u", table["c_u"])
+    if "u_max" in table:
+        kw["u_max"] = _positive(source, "u_max", table["u_max"], "u-unit")
+    if "no_divergence" in table:
+        v = table["no_divergence"]
+        if not isinstance(v, bool):
+            raise _fail(source, "no_divergence", f" = {v!r}: expected true or false")
+        kw["no_divergence"] = v
+    if "arc_vs_pid_e_rms" in table:
+        kw["arc_vs_pid_e_rms"] = _positive(source, "arc_vs_pid_e_rms", table["arc_vs_pid_e_rms"])
+    return GateSpec(**kw)
+
+
+def load_gate(path: str | os.PathLike[str] | None) -> GateSpec:
+    """Read and validate ``gate.toml``; ``None`` gives the defaults.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing.
+    SpecError
+        The TOML does not parse, or a key is bad (:func:`gate_from_mapping`).
+    """
+    if path is None:
+        return GateSpec()
+    name = os.fspath(path)
+    if not os.path.isfile(name):
+        raise InputFileError(f"{name}: no such file")
+    try:
+        with open(name, "rb") as fh:
+            data = _toml.load(fh)
+    except _toml.TOMLDecodeError as exc:
+        raise SpecError(f"{name}: not valid TOML ({exc})") from None
+    return gate_from_mapping(data, name)
+
+
+_DEFAULT_ERR = {
+    "e_F": (DEFAULT_E_F_LSB, DEFAULT_E_F_TRAVEL),
+    "e_M": (DEFAULT_E_M_LSB, DEFAULT_E_M_TRAVEL),
+    "e_rms": (DEFAULT_E_RMS_LSB, DEFAULT_E_RMS_TRAVEL),
+}
+
+
+def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float) -> GateLimits:
+    """Resolve a gate for one axis.
+
+    Parameters
+    ----------
+    gate : GateSpec
+    lsb : float
+        Encoder resolution used in validation, m (0: none; LSB terms vanish).
+    travel : float
+        Envelope stroke (the spec's ``trajectory.travel``), m.
+    u_max : float
+        The tuning spec's input limit, u-unit (used unless the gate sets one).
+
+    Returns
+    -------
+    GateLimits
+    """
+    if not (lsb >= 0 and math.isfinite(lsb)):
+        raise ValueError(f"lsb: must be >= 0 m, got {lsb}")
+    if not (travel > 0 and math.isfinite(travel)):
+        raise ValueError(f"travel: must be > 0 m, got {travel}")
+    limits: dict[str, float] = {}
+    basis: dict[str, str] = {}
+    for key in _ERROR_KEYS:
+        given: ErrorLimit | None = getattr(gate, key)
+        if given is None:
+            k_lsb, k_tr = _DEFAULT_ERR[key]
+            limits[key] = max(k_lsb * lsb, k_tr * travel)
+            basis[key] = f"default: max({k_lsb:g} LSB, {k_tr * 100:g} % travel)"
+        else:
+            if given.unit == "lsb" and lsb <= 0:
+                raise SpecError(f"{gate.source}: gate.{key} = {given.text!r}: the tuning has no encoder "
+                                f"quantization, so an LSB-relative limit is undefined")
+            limits[key] = given.metres(lsb, travel)
+            basis[key] = f"{gate.source}: {given.text}"
+    c_u = DEFAULT_C_U if gate.c_u is None else gate.c_u
+    basis["c_u"] = f"default: {DEFAULT_C_U:g}" if gate.c_u is None else f"{gate.source}: {gate.c_u:g}"
+    um = u_max if gate.u_max is None else gate.u_max
+    basis["u_max"] = "default: the tuning spec's controller.u_max" if gate.u_max is None else f"{gate.source}: {um:g}"
+    basis["no_divergence"] = f"{'default' if gate.source == 'defaults' else gate.source}: {str(gate.no_divergence).lower()}"
+    basis["arc_vs_pid_e_rms"] = f"{'default' if gate.arc_vs_pid_e_rms == DEFAULT_ARC_VS_PID and gate.source == 'defaults' else gate.source}: {gate.arc_vs_pid_e_rms:g}"
+    return GateLimits(e_F=limits["e_F"], e_M=limits["e_M"], e_rms=limits["e_rms"], c_u=c_u, u_max=um,
+                      no_divergence=gate.no_divergence, arc_vs_pid_e_rms=gate.arc_vs_pid_e_rms, basis=basis,
+                      lsb=lsb, travel=travel)
+
+
+@dataclass(frozen=True)
+class Check:
+    """One criterion on one scenario.
+
+    Attributes
+    ----------
+    criterion : str
+        One of :data:`CRITERIA`.
+    scenario : str
+    value : float
+        Measured value (SI units; for ``divergence`` the abort time in s, NaN if none;
+        for ``arc_vs_pid_e_rms`` the ratio ARC/PID).
+    limit : float
+        The limit it was compared with (NaN for ``divergence``).
+    passed : bool
+    detail : str
+        One readable line (value and limit with units).
+    """
+
+    criterion: str
+    scenario: str
+    value: float
+    limit: float
+    passed: bool
+    detail: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"criterion": self.criterion, "scenario": self.scenario,
+                "value": self.value if math.isfinite(self.value) else None,
+                "limit": self.limit if math.isfinite(self.limit) else None,
+                "passed": self.passed, "detail": self.detail}
+
+
+@dataclass(frozen=True)
+class GateVerdict:
+    """Every check of the gate.
+
+    Attributes
+    ----------
+    checks : tuple of Check
+        Every (criterion, scenario) evaluated, in scenario order.
+    limits : GateLimits
+    """
+
+    checks: tuple[Check, ...]
+    limits: GateLimits
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks)
+
+    @property
+    def failures(self) -> tuple[Check, ...]:
+        return tuple(c for c in self.checks if not c.passed)
+
+    def worst(self) -> dict[str, Check]:
+        """Per criterion, the check closest to (or furthest beyond) its limit."""
+        out: dict[str, Check] = {}
+        for c in self.checks:
+            if c.criterion == "divergence":
+                if c.criterion not in out or (out[c.criterion].passed and not c.passed):
+                    out[c.criterion] = c
+                continue
+            ratio = c.value / c.limit if (math.isfinite(c.value) and c.limit > 0) else math.inf
+            prev = out.get(c.criterion)
+            if prev is None:
+                out[c.criterion] = c
+                continue
+            pr = prev.value / prev.limit if (math.isfinite(prev.value) and prev.limit > 0) else math.inf
+            if ratio > pr:
+                out[c.criterion] = c
+        return out
+
+
+def _um(x: float) -> str:
+    return f"{x * 1e6:.3g} um" if math.isfinite(x) else "n/a"
+
+
+def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> GateVerdict:
+    """Check every criterion on every scenario.
+
+    Parameters
+    ----------
+    limits : GateLimits
+    runs : sequence of (scenario, arc, pid, t_abort)
+        Scores of the ARC and the PID on each scenario, and the time (s) at
+        which the ARC run aborted (NaN if it did not).
+
+    Returns
+    -------
+    GateVerdict
+        A diverged ARC run fails ``divergence`` (when required) and every
+        index criterion of that scenario (its indexes are undefined).
+    """
+    checks: list[Check] = []
+    for name, arc, pid, t_abort in runs:
+        if limits.no_divergence:
+            checks.append(Check("divergence", name, t_abort if arc.diverged else math.nan, math.nan,
+                                not arc.diverged,
+                                f"ARC aborted at t = {t_abort:.4g} s" if arc.diverged else "ARC stayed bounded"))
+        for key, value, limit in (("e_F", arc.e_F, limits.e_F), ("e_M", arc.e_M, limits.e_M),
+                                  ("e_rms", arc.e_rms, limits.e_rms)):
+            ok = (not arc.diverged) and math.isfinite(value) and value <= limit
+            detail = "ARC diverged" if arc.diverged else f"{_um(value)} (limit {_um(limit)})"
+            checks.append(Check(key, name, value, limit, ok, detail))
+        ok = (not arc.diverged) and math.isfinite(arc.c_u) and arc.c_u <= limits.c_u
+        checks.append(Check("c_u", name, arc.c_u, limits.c_u, ok,
+                            "ARC diverged" if arc.diverged else f"{arc.c_u:.3g} (limit {limits.c_u:.3g})"))
+        reached = arc.u_peak >= limits.u_max * (1.0 - SATURATION_TOL)
+        ok = math.isfinite(arc.u_peak) and not reached
+        checks.append(Check("u_peak", name, arc.u_peak, limits.u_max, ok,
+                            f"peak |u| {arc.u_peak:.4g} (limit {limits.u_max:.4g}"
+                            f"{'; reached: the command was clipped' if reached else ''})"))
+        if arc.diverged:
+            ratio = math.inf
+            ok = False
+            detail = "ARC diverged"
+        elif pid.diverged or not math.isfinite(pid.e_rms):
+            ratio = 0.0
+            ok = True
+            detail = f"ARC {_um(arc.e_rms)}, PID diverged"
+        else:
+            ratio = arc.e_rms / pid.e_rms if pid.e_rms > 0 else math.inf
+            ok = arc.e_rms <= limits.arc_vs_pid_e_rms * pid.e_rms
+            detail = f"ARC {_um(arc.e_rms)} vs PID {_um(pid.e_rms)}: ratio {ratio:.3g} (limit {limits.arc_vs_pid_e_rms:.3g})"
+        checks.append(Check("arc_vs_pid_e_rms", name, ratio, limits.arc_vs_pid_e_rms, ok, detail))
+    return GateVerdict(tuple(checks), limits)

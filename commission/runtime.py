@@ -1,0 +1,101 @@
+"""Run a validated ``controller.json`` in Python (CONTRACT §3).
+
+::
+
+    from commission.runtime import load_controller
+    ctrl = load_controller("controller.json")   # refuses a file whose checksum or schema fails
+    ctrl.reset(y0)                              # initial measured position, m
+    u = ctrl.step(y, qd, dqd, ddqd)             # one sample
+
+:class:`Controller` packs the gains once with
+:func:`commission.controllers.arc.arc_pack` and calls the compiled
+:func:`commission.controllers.arc.arc_step` -- the very kernel ``commission
+validate`` simulated -- so the same inputs give the same command bit for bit.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from commission.controller_config import ControllerConfig
+from commission.controllers.arc import S_THETA, arc_new_state, arc_pack, arc_reset, arc_step
+from commission.errors import UsageError
+
+
+class Controller:
+    """A discrete output-feedback ARC, ready to run at ``sample_rate``.
+
+    Call :meth:`reset` once with the measured position at start (the axis at
+    rest, q_d(0) = y0), then :meth:`step` once per sample, exactly every
+    ``sample_period`` seconds; hold the returned command until the next sample.
+
+    Parameters
+    ----------
+    config : ControllerConfig
+        A validated controller (see :func:`load_controller`).
+    """
+
+    def __init__(self, config: ControllerConfig) -> None:
+        self.config = config
+        self._p = arc_pack(config.gains)
+        self._s = arc_new_state(self._p)
+        self._ready = False
+
+    @property
+    def sample_rate(self) -> float:
+        """Controller rate, Hz."""
+        return self.config.sample_rate
+
+    @property
+    def sample_period(self) -> float:
+        """Sample period, s."""
+        return self.config.gains.Ts
+
+    @property
+    def theta_hat(self) -> np.ndarray:
+        """Current parameter estimates [1/M, B/M, d_n/M] (a copy)."""
+        return self._s[S_THETA:S_THETA + 3].copy()
+
+    def reset(self, y0: float) -> None:
+        """Start at rest at the measured position ``y0`` (m): filters at rest, theta_hat = theta0."""
+        y0 = float(y0)
+        if not np.isfinite(y0):
+            raise UsageError(f"reset: y0 must be a finite position in m, got {y0}")
+        arc_reset(self._p, self._s, y0)
+        self._ready = True
+
+    def step(self, y: float, qd: float, dqd: float, ddqd: float) -> float:
+        """One sample: the command to hold until the next sample.
+
+        Parameters
+        ----------
+        y : float
+            Measured position, m.
+        qd, dqd, ddqd : float
+            Desired position (m), velocity (m/s) and acceleration (m/s^2).
+
+        Returns
+        -------
+        float
+            Command, u-unit (``config.units["u"]``), within ``+-u_max``.  A
+            non-finite input latches a fault and the command is 0 until :meth:`reset`.
+        """
+        if not self._ready:
+            raise UsageError("step: call reset(y0) first")
+        return float(arc_step(self._p, self._s, float(y), float(qd), float(dqd), float(ddqd)))
+
+
+def load_controller(path: str | os.PathLike[str]) -> Controller:
+    """Load ``controller.json`` and return a runnable :class:`Controller`.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing.
+    SchemaError
+        The file is not valid JSON, a field is missing or out of range (the
+        message names its JSON path), or the checksum does not match.
+    """
+    return Controller(ControllerConfig.load(os.fspath(path)))

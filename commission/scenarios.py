@@ -1,0 +1,442 @@
+"""The scenario matrix shared by ``commission tune`` and ``commission validate``.
+
+A :class:`Scenario` is one closed-loop run: a plant (the
+:mod:`commission.controllers.plant` vector), a desired trajectory, an input
+disturbance, the initial position and the encoder resolution.  It is defined
+only from an :class:`~commission.artifacts.Identification` and a
+:class:`~commission.spec.Spec`, so that ``validate`` re-creates exactly the
+plants ``tune`` optimised on, plus the Monte-Carlo sample.
+
+Full matrix of :func:`scenario_matrix` (validate), for each trajectory
+``case1`` (sinusoid through filter (58)) and ``case2`` (trapezoidal
+back-and-forth moves), both scaled to the spec's envelope:
+
+``<case>/nominal``
+    The identified plant.
+``<case>/payload_light``, ``<case>/payload_heavy``
+    Mass at the theta_1 bounds: M = 1/theta_max[0] and M = 1/theta_min[0]
+    (viscous B, friction and offset unchanged: a payload changes the mass only).
+``<case>/friction_low``, ``<case>/friction_high``
+    The identified friction curve B v + Ff(v) scaled by 0.8 and 1.2
+    (B, fc, fs scaled; vs, xi kept).
+``<case>/disturbance``
+    The identified plant with an input step of ``delta_d * M`` u-unit (the
+    Assumption-1 bound, as an input) on from 22 % to 72 % of the run (the
+    paper's 2.2 s to 7.2 s of 10 s).
+``mc/NNN``
+    ``n_monte_carlo`` plants from the theta box, alternating case1 and case2,
+    drawn from the passed Generator: theta1, theta2 uniform in the box
+    (M = 1/theta1, B = theta2 M), the disturbance force d_n = -offset uniform in
+    the range the box admits at every mass (:func:`force_range`), the
+    identified friction curve.  Every drawn theta lies in the box.
+
+Every non-Monte-Carlo scenario carries the tag ``"tune"``.  :func:`tuning_scenarios`
+(what ``tune`` optimises on) is these 12, plus the 16 corners of the theta box
+on both trajectories (``corner/<case>/<bits>``, tune-only: the deterministic
+extremes of the box the Monte-Carlo sample draws from), plus the identified
+plant with the largest force of :func:`force_range` of either sign
+(``offset/<case>/lo|hi``, tune-only), plus ``spec.monte_carlo`` Monte-Carlo plants.
+
+Trajectory scaling (paper: travel 0.4 m, v_max 1 m/s, a_max 12 m/s^2)
+---------------------------------------------------------------------
+Case 1: amplitude A = travel/8 and omega = min(0.2 v_max / A, sqrt(a_max / (15 A)))
+(both 4 rad/s for the paper's envelope, A = 0.05 m), 10 s or four periods,
+whichever is longer.  Case 2: ``moves`` moves of ``travel`` at v_max, a_max
+with ``dwell`` rests, then 2.1 s at rest (8 s for the paper's envelope), so
+that e_F measures the standstill accuracy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from commission.artifacts import Identification
+from commission.controllers import trajectory as _traj
+from commission.controllers.plant import (
+    P_B,
+    P_FC,
+    P_FS,
+    P_M,
+    P_OFFSET,
+    plant_vector,
+)
+from commission.spec import DEFAULT_QUANTIZATION, Spec
+
+#: Fraction of the run at which the disturbance step switches on / off (paper: 2.2 s, 7.2 s of 10 s).
+DISTURBANCE_ON = 0.22
+DISTURBANCE_OFF = 0.72
+#: Friction scaling of the friction scenarios (+-20 % of the identified curve).
+FRICTION_SCALE = 0.2
+#: Rest after the last Case-2 move, s (the paper: 8 s - 5.9 s).
+CASE2_TAIL = 2.1
+#: Case-1 minimum duration, s (paper: 10 s).
+CASE1_DURATION = 10.0
+
+CASES = ("case1", "case2")
+VARIANTS = ("nominal", "payload_light", "payload_heavy", "friction_low", "friction_high", "disturbance")
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """A desired trajectory, rendered at the controller rate by :meth:`render`.
+
+    Attributes
+    ----------
+    kind : str
+        ``"case1"`` (sinusoid through (58)) or ``"case2"`` (back-and-forth trapezoids).
+    duration : float
+        Length of the run, s.
+    amplitude, omega : float
+        Case 1: reference ``amplitude sin(omega t)``, m and rad/s (0 for case2).
+    travel, v_max, a_max, dwell : float
+        Case 2: move length (m), speed (m/s), acceleration (m/s^2), rest (s).
+    moves : int
+        Case 2: number of moves.
+    beta1, beta2 : float
+        Filter (58) / smoothing coefficients, 1/s and 1/s^2.
+    """
+
+    kind: str
+    duration: float
+    amplitude: float = 0.0
+    omega: float = 0.0
+    travel: float = 0.0
+    v_max: float = 0.0
+    a_max: float = 0.0
+    dwell: float = 0.0
+    moves: int = 0
+    beta1: float = 100.0
+    beta2: float = 2500.0
+
+    def render(self, Ts: float, y0: float = 0.0) -> _traj.Trajectory:
+        """Sample q_d, dq_d, ddq_d every ``Ts`` s starting with q_d(0) = ``y0`` (m)."""
+        if self.kind == "case1":
+            return _traj.sinusoid(self.duration, Ts, amplitude=self.amplitude, omega=self.omega,
+                                  beta1=self.beta1, beta2=self.beta2, y0=y0)
+        if self.kind == "case2":
+            return _traj.back_and_forth(self.duration, Ts, travel=self.travel, v_max=self.v_max,
+                                        a_max=self.a_max, dwell=self.dwell, n_moves=self.moves,
+                                        b1=self.beta1, b2=self.beta2, start=y0)
+        raise ValueError(f"TrajectorySpec.kind: expected 'case1' or 'case2', got {self.kind!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class StepDisturbance:
+    """An input disturbance ``amplitude`` (u-unit) added to u for ``t_on <= t < t_off`` (s)."""
+
+    amplitude: float = 0.0
+    t_on: float = 0.0
+    t_off: float = 0.0
+
+    def samples(self, t: np.ndarray) -> np.ndarray:
+        """The disturbance held over each sample period starting at ``t`` (s), u-unit."""
+        t = np.asarray(t, dtype=np.float64)
+        return np.where((t >= self.t_on) & (t < self.t_off), self.amplitude, 0.0)
+
+    def to_dict(self) -> dict[str, float]:
+        return {"amplitude": self.amplitude, "t_on": self.t_on, "t_off": self.t_off}
+
+
+NO_DISTURBANCE = StepDisturbance()
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One closed-loop run of the matrix.
+
+    Attributes
+    ----------
+    name : str
+        Unique name, e.g. ``"case1/payload_heavy"`` or ``"mc/007"``.
+    plant : numpy.ndarray
+        float64[9] plant vector (:func:`commission.controllers.plant.plant_vector`
+        layout), read-only.
+    trajectory : TrajectorySpec
+        Desired motion.
+    disturbance : StepDisturbance
+        Input disturbance, u-unit.
+    y0 : float
+        Initial position (and q_d(0)), m.
+    tags : tuple of str
+        ``case1``/``case2``, the variant, ``"tune"`` (in the tuning subset),
+        ``"monte_carlo"``.
+    quantization : float
+        Encoder resolution, m (0: none).
+    """
+
+    name: str
+    plant: np.ndarray
+    trajectory: TrajectorySpec
+    disturbance: StepDisturbance = NO_DISTURBANCE
+    y0: float = 0.0
+    tags: tuple[str, ...] = ()
+    quantization: float = DEFAULT_QUANTIZATION
+
+    def __post_init__(self) -> None:
+        p = np.array(self.plant, dtype=np.float64)
+        if p.shape != (9,):
+            raise ValueError(f"Scenario {self.name}: plant must have 9 entries, got shape {p.shape}")
+        p.setflags(write=False)
+        object.__setattr__(self, "plant", p)
+        object.__setattr__(self, "tags", tuple(self.tags))
+
+    def reference(self, Ts: float):
+        """The desired trajectory sampled every ``Ts`` s (:class:`controllers.trajectory.Trajectory`)."""
+        return self.trajectory.render(Ts, self.y0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (for reports)."""
+        return {
+            "name": self.name,
+            "plant": [float(x) for x in self.plant],
+            "trajectory": self.trajectory.to_dict(),
+            "disturbance": self.disturbance.to_dict(),
+            "y0": self.y0,
+            "tags": list(self.tags),
+            "quantization": self.quantization,
+        }
+
+
+def _num(x: Any) -> float | None:
+    if isinstance(x, dict):  # {"value": ..., "std": ...}
+        x = x.get("value")
+    if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x):
+        return float(x)
+    return None
+
+
+def _ripple(ident: Identification) -> tuple[float, float]:
+    """Force ripple (amplitude u-unit, pitch m) recorded in ident.json's extra fields, if any.
+
+    Read from ``extra["model"]["ripple_amp"]`` / ``["ripple_pitch"]`` (what
+    ``commission identify`` writes) or ``extra["ripple"] = {"amplitude", "pitch"}``.
+    """
+    model = ident.extra.get("model")
+    if isinstance(model, dict):
+        amp, pitch = _num(model.get("ripple_amp")), _num(model.get("ripple_pitch"))
+        if amp is not None and pitch is not None and pitch > 0:
+            return abs(amp), pitch
+    r = ident.extra.get("ripple")
+    if isinstance(r, dict):
+        amp, pitch = _num(r.get("amplitude", r.get("amp"))), _num(r.get("pitch"))
+        if amp is not None and pitch is not None and pitch > 0:
+            return abs(amp), pitch
+    return 0.0, 0.0
+
+
+def identified_plant(ident: Identification) -> np.ndarray:
+    """The plant vector of the identified model (CONTRACT §2 parameters).
+
+    A Coulomb-only model (``fs`` absent) gets ``fs = fc`` (vs, xi then
+    irrelevant).  Ripple comes from ``ident.extra["ripple"]`` =
+    ``{"amplitude": u-unit, "pitch": m}`` when present.
+    """
+    par = ident.parameters
+    fc = max(ident.value("fc"), 0.0)
+    fs = par["fs"].value if par.get("fs") is not None else fc  # type: ignore[union-attr]
+    vs = par["vs"].value if par.get("vs") is not None else 0.01  # type: ignore[union-attr]
+    xi = par["xi"].value if par.get("xi") is not None else 2.0  # type: ignore[union-attr]
+    amp, pitch = _ripple(ident)
+    return plant_vector(M=ident.value("M"), B=max(ident.value("B"), 0.0), fc=fc, fs=max(fs, 0.0),
+                        vs=vs if vs > 0 else 0.01, xi=xi if xi > 0 else 2.0,
+                        offset=ident.value("offset"), ripple_amp=amp, ripple_pitch=pitch)
+
+
+def resolve_quantization(ident: Identification, spec: Spec) -> float:
+    """Encoder resolution used in simulation, m.
+
+    The spec's ``controller.quantization``; else ident.json's
+    ``extra["encoder"]["quantization"]`` (what ``commission identify`` writes) or
+    ``extra["quantization"]``; else :data:`commission.spec.DEFAULT_QUANTIZATION` (1 um).
+    """
+    if spec.quantization is not None:
+        return float(spec.quantization)
+    enc = ident.extra.get("encoder")
+    for q in ((enc.get("quantization") if isinstance(enc, dict) else None), ident.extra.get("quantization")):
+        v = _num(q)
+        if v is not None and v >= 0:
+            return v
+    return DEFAULT_QUANTIZATION
+
+
+def case1_trajectory(spec: Spec) -> TrajectorySpec:
+    """Case 1 scaled to the envelope (module docstring); the paper's 0.05 sin(4t), 10 s by default."""
+    A = spec.travel / 8.0
+    omega = min(0.2 * spec.v_max / A, math.sqrt(spec.a_max / (15.0 * A)))
+    duration = max(CASE1_DURATION, 4.0 * 2.0 * math.pi / omega)
+    return TrajectorySpec("case1", duration=duration, amplitude=A, omega=omega,
+                          beta1=spec.beta1, beta2=spec.beta2)
+
+
+def case2_trajectory(spec: Spec) -> TrajectorySpec:
+    """Case 2 on the envelope: ``moves`` moves of ``travel``, then :data:`CASE2_TAIL` s at rest."""
+    sched = _traj.trapezoid_moves(spec.travel, spec.v_max, spec.a_max, spec.dwell, spec.moves)
+    duration = round(float(sched.t_switch[-1]) + CASE2_TAIL, 6)
+    return TrajectorySpec("case2", duration=duration, travel=spec.travel, v_max=spec.v_max,
+                          a_max=spec.a_max, dwell=spec.dwell, moves=spec.moves,
+                          beta1=spec.beta1, beta2=spec.beta2)
+
+
+def _variant(base: np.ndarray, variant: str, ident: Identification) -> np.ndarray:
+    p = base.copy()
+    if variant == "payload_light":
+        p[P_M] = 1.0 / ident.theta.max[0]
+    elif variant == "payload_heavy":
+        p[P_M] = 1.0 / ident.theta.min[0]
+    elif variant in ("friction_low", "friction_high"):
+        k = 1.0 - FRICTION_SCALE if variant == "friction_low" else 1.0 + FRICTION_SCALE
+        for i in (P_B, P_FC, P_FS):
+            p[i] *= k
+    return p
+
+
+def disturbance_step(ident: Identification, duration: float) -> StepDisturbance:
+    """The Assumption-1-sized step: ``delta_d * M`` u-unit over 22 %..72 % of ``duration``."""
+    return StepDisturbance(ident.delta_d * ident.value("M"), DISTURBANCE_ON * duration,
+                           DISTURBANCE_OFF * duration)
+
+
+def force_range(ident: Identification) -> tuple[float, float]:
+    """Range of the nominal disturbance force d_n = -offset that the box admits at every mass, u-unit.
+
+    theta3 = d_n / M must stay in [theta3_min, theta3_max] for every M in
+    [1/theta1_max, 1/theta1_min]; the binding end is the lightest mass, so
+    d_n in [theta3_min, theta3_max] / theta1_max.  (A payload adds mass, not force.)
+    """
+    m_light = 1.0 / ident.theta.max[0]
+    return ident.theta.min[2] * m_light, ident.theta.max[2] * m_light
+
+
+def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` plant vectors from the theta box (identified friction curve), shape (n, 9).
+
+    theta1 and theta2 are uniform in the box (M = 1/theta1, B = theta2 M); the
+    disturbance force d_n = -offset is uniform in :func:`force_range`, so that
+    theta3 = d_n / M lies in the box for every drawn mass.  (Drawing theta3
+    uniformly instead would pair the heaviest payload with forces
+    theta3_max / theta1_min, up to theta1_max / theta1_min times the largest
+    force the box admits for the empty axis.)
+    """
+    base = identified_plant(ident)
+    lo = np.asarray(ident.theta.min)
+    hi = np.asarray(ident.theta.max)
+    u = rng.random((n, 3))
+    th = lo[:2] + (hi[:2] - lo[:2]) * u[:, :2]
+    d_lo, d_hi = force_range(ident)
+    out = np.tile(base, (n, 1))
+    out[:, P_M] = 1.0 / th[:, 0]
+    out[:, P_B] = th[:, 1] * out[:, P_M]
+    out[:, P_OFFSET] = -(d_lo + (d_hi - d_lo) * u[:, 2])
+    return out
+
+
+def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generator,
+                    n_monte_carlo: int = 64) -> list[Scenario]:
+    """The full validation matrix (module docstring), deterministic for a given ``rng`` state.
+
+    Parameters
+    ----------
+    ident : Identification
+        Identified model, theta box and delta_d.
+    spec : Spec
+        Envelope, sample rate (trajectories are rendered later at ``1/spec.sample_rate``).
+    rng : numpy.random.Generator
+        Source of the Monte-Carlo sample (drawn only when ``n_monte_carlo > 0``).
+    n_monte_carlo : int
+        Monte-Carlo plants from the theta box (default 64).
+
+    Returns
+    -------
+    list of Scenario
+        The 12 fixed scenarios (tag ``"tune"``) followed by ``mc/000`` ...
+    """
+    if n_monte_carlo < 0:
+        raise ValueError(f"n_monte_carlo: must be >= 0, got {n_monte_carlo}")
+    base = identified_plant(ident)
+    qz = resolve_quantization(ident, spec)
+    trajs = {"case1": case1_trajectory(spec), "case2": case2_trajectory(spec)}
+    out: list[Scenario] = []
+    for case in CASES:
+        tr = trajs[case]
+        for variant in VARIANTS:
+            dist = disturbance_step(ident, tr.duration) if variant == "disturbance" else NO_DISTURBANCE
+            out.append(Scenario(f"{case}/{variant}", _variant(base, variant, ident), tr, dist, 0.0,
+                                (case, variant, "tune"), qz))
+    if n_monte_carlo:
+        plants = monte_carlo_plants(ident, n_monte_carlo, rng)
+        for i in range(n_monte_carlo):
+            case = CASES[i % 2]
+            out.append(Scenario(f"mc/{i:03d}", plants[i], trajs[case], NO_DISTURBANCE, 0.0,
+                                (case, "monte_carlo"), qz))
+    return out
+
+
+def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
+    """The 8 corners of the Monte-Carlo domain on both trajectories (16 runs), identified friction.
+
+    ``corner/<case>/<b1><b2><b3>`` with ``b = 0`` for the lower, ``1`` for the upper end of
+    theta1, theta2 and the force d_n of :func:`force_range`: M = 1/theta1, B = theta2 M,
+    offset = -d_n.  These are the deterministic extremes of the domain that the
+    validation's Monte-Carlo sample (:func:`monte_carlo_plants`) draws from.
+    """
+    base = identified_plant(ident)
+    qz = resolve_quantization(ident, spec)
+    lo, hi = ident.theta.min, ident.theta.max
+    d_lo, d_hi = force_range(ident)
+    out: list[Scenario] = []
+    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+        for b in range(8):
+            bits = ((b >> 2) & 1, (b >> 1) & 1, b & 1)
+            th = [hi[i] if bits[i] else lo[i] for i in range(2)]
+            p = base.copy()
+            p[P_M] = 1.0 / th[0]
+            p[P_B] = th[1] * p[P_M]
+            p[P_OFFSET] = -(d_hi if bits[2] else d_lo)
+            out.append(Scenario(f"corner/{case}/{bits[0]}{bits[1]}{bits[2]}", p, tr, NO_DISTURBANCE, 0.0,
+                                (case, "corner", "tune"), qz))
+    return out
+
+
+def offset_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
+    """The identified plant with the largest unknown force the box admits, both signs, both trajectories.
+
+    ``offset/<case>/lo`` and ``offset/<case>/hi``: offset = -d_n with d_n at the
+    lower and upper end of :func:`force_range`, every other parameter as
+    identified (theta3 = d_n / M stays inside the box since M >= 1/theta1_max).
+    These are the Monte-Carlo plants where the ARC and the PID come closest: the
+    start-up transient against an unlearnt force decides e_rms, and the ARC's
+    integral action (theta3 adaptation) is limited by the stability of its loop.
+    """
+    base = identified_plant(ident)
+    qz = resolve_quantization(ident, spec)
+    d_lo, d_hi = force_range(ident)
+    out: list[Scenario] = []
+    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+        for end, d in (("lo", d_lo), ("hi", d_hi)):
+            p = base.copy()
+            p[P_OFFSET] = -d
+            out.append(Scenario(f"offset/{case}/{end}", p, tr, NO_DISTURBANCE, 0.0, (case, "offset", "tune"), qz))
+    return out
+
+
+def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Generator,
+                     n_monte_carlo: int | None = None) -> list[Scenario]:
+    """The set ``tune`` optimises on.
+
+    Every fixed scenario of :func:`scenario_matrix`, the 16 box corners of
+    :func:`corner_scenarios` (a deterministic stand-in for the validation's
+    Monte-Carlo sample, whose worst plants sit near the corners), the 4
+    largest-force plants of :func:`offset_scenarios`, and ``spec.monte_carlo``
+    (or ``n_monte_carlo``) Monte-Carlo plants drawn from ``rng``.
+    """
+    n = spec.monte_carlo if n_monte_carlo is None else n_monte_carlo
+    fixed = scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n)
+    k = len(CASES) * len(VARIANTS)
+    return fixed[:k] + corner_scenarios(ident, spec) + offset_scenarios(ident, spec) + fixed[k:]

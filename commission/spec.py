@@ -1,0 +1,379 @@
+"""The tuning spec (``spec.toml``) of ``commission tune``.
+
+A spec states what the user wants from the axis: the controller sample rate,
+the input limit, the trajectory envelope, and the accuracy and chattering
+targets.  Every key is optional; an absent key takes the documented default
+below, so an empty file (or no ``--spec`` at all) reproduces the paper's
+setting (Xu & Yao 2001, §4.3).  Unknown keys, wrong types, non-positive rates
+and a sample rate too low for a requested bandwidth are rejected by
+:func:`load_spec` / :func:`spec_from_mapping` with one
+:class:`commission.errors.SpecError` line naming the TOML key path, before
+any simulation runs.
+
+Keys and defaults
+-----------------
+``[controller]``
+    ``sample_rate`` = 2500.0
+        Controller rate, Hz (paper: 2.5 kHz).  ``commission tune`` defaults it
+        to the excitation log's rate when ident.json records one
+        (``source.sample_rate``).
+    ``u_max`` = 10.0
+        Input limit |u| <= u_max, u-unit (a +-10 V drive command).
+    ``observer_pole``
+        Double pole -p of the observer matrix A0 (10), rad/s.  Default
+        ``OBSERVER_POLE_FRACTION * sample_rate`` = 0.08 * f_s (the paper's
+        -200 rad/s at 2.5 kHz, giving k1 = 2p = 400, k2 = p^2 = 4e4).
+    ``quantization``
+        Encoder resolution used in simulation, m.  Default: the
+        ``quantization`` recorded in ident.json if present, else 1e-6 m.
+    ``theta1_0``
+        The ARC's initial estimate theta_hat1(0) = 1/M_hat(0), m/(u-unit s^2);
+        must lie in the identified theta box.  Default: chosen by the search
+        between 0.5 x and 1 x the identified nominal theta1 (the paper started
+        at 30 for a nominal 37: a lower start meets a payload sooner, see
+        ``commission.tune``).  theta_hat2(0), theta_hat3(0) are the nominal.
+``[trajectory]`` (the envelope; Case 1 and Case 2 are scaled to it)
+    ``v_max`` = 1.0 (m/s), ``a_max`` = 12.0 (m/s^2), ``travel`` = 0.4 (m),
+    ``dwell`` = 0.5 (s), ``moves`` = 6 (back-and-forth moves of Case 2),
+    ``beta1`` = 100.0 (1/s) and ``beta2`` = 2500.0 (1/s^2): the reference
+    filter (58).
+``[targets]``
+    ``e_rms`` = 5e-6
+        Accuracy target: rms tracking error, m (paper's ARC: 1.9-4.3 um).
+    ``e_f`` = 10e-6
+        Final tracking accuracy (max |e| over the last 2 s), m.
+    ``c_u`` = 0.5
+        Chattering target: ||du||_rms / ||u||_rms (paper's ARC: 0.19-0.32).
+``[pid]``
+    ``pole``
+        Triple closed-loop pole of (56) at M_min, rad/s.  Default
+        ``PID_POLE_FRACTION * sample_rate`` = 0.12 * f_s (the paper's -300 rad/s
+        at 2.5 kHz).
+``[tune]``
+    ``budget`` = 96
+        Candidate gain sets simulated by the search (each on the 32 tuning
+        scenarios; about 25-55 s at 2.5-5 kHz on 2 cores, see benchmarks/bench_tune.py).
+    ``monte_carlo`` = 0
+        Monte-Carlo plants from the theta box added to the tuning subset.
+    ``margin`` = 0.01
+        Discrete feasibility: spectral radius of the linearised sampled loop
+        (estimates frozen) must be below ``1 - margin`` at every corner of the
+        theta box; with the theta3 adaptation in the loop it must be below 1.
+
+Bandwidth rule
+--------------
+A requested bandwidth omega (rad/s) needs ``omega / sample_rate <= MAX_OMEGA_T``
+= 0.5 (upper end of the ``omega h = 0.15 ... 0.5`` rule of thumb of Åström &
+Wittenmark, *Computer-Controlled Systems*).  It is checked for the observer
+pole, the PID pole and the fastest root of the reference filter (58).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from typing import Any, Mapping
+
+from commission.errors import InputFileError, SpecError
+
+try:  # Python >= 3.11
+    import tomllib as _toml
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as _toml  # type: ignore[no-redef]
+
+#: Default observer pole as a fraction of the sample rate: p = 0.08 f_s (rad/s per Hz).
+OBSERVER_POLE_FRACTION = 0.08
+#: Default PID pole as a fraction of the sample rate: 0.12 f_s (paper: 300 rad/s at 2.5 kHz).
+PID_POLE_FRACTION = 0.12
+#: Largest accepted omega*T for any requested bandwidth omega (rad/s) at period T (s).
+MAX_OMEGA_T = 0.5
+#: Encoder resolution when neither the spec nor ident.json gives one, m.
+DEFAULT_QUANTIZATION = 1e-6
+
+# (section, key) -> (type, default, must-be-positive, unit).  None default: derived.
+_SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
+    "controller": {
+        "sample_rate": (float, 2500.0, True, "Hz"),
+        "u_max": (float, 10.0, True, "u-unit"),
+        "observer_pole": (float, None, True, "rad/s"),
+        "quantization": (float, None, False, "m"),
+        "theta1_0": (float, None, True, "m/(u-unit s^2)"),
+    },
+    "trajectory": {
+        "v_max": (float, 1.0, True, "m/s"),
+        "a_max": (float, 12.0, True, "m/s^2"),
+        "travel": (float, 0.4, True, "m"),
+        "dwell": (float, 0.5, False, "s"),
+        "moves": (int, 6, True, ""),
+        "beta1": (float, 100.0, True, "1/s"),
+        "beta2": (float, 2500.0, True, "1/s^2"),
+    },
+    "targets": {
+        "e_rms": (float, 5e-6, True, "m"),
+        "e_f": (float, 10e-6, True, "m"),
+        "c_u": (float, 0.5, True, ""),
+    },
+    "pid": {
+        "pole": (float, None, True, "rad/s"),
+    },
+    "tune": {
+        "budget": (int, 96, True, ""),
+        "monte_carlo": (int, 0, False, ""),
+        "margin": (float, 0.01, True, ""),
+    },
+}
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A validated tuning spec with every default resolved (see module docstring).
+
+    Attributes
+    ----------
+    sample_rate : float
+        Controller rate, Hz.
+    u_max : float
+        Input limit, u-unit.
+    observer_pole : float
+        Observer double pole magnitude p, rad/s (k1 = 2p, k2 = p^2).
+    quantization : float or None
+        Encoder resolution, m; ``None``: take it from ident.json, else 1e-6 m.
+    theta1_0 : float or None
+        Initial estimate theta_hat1(0), m/(u-unit s^2); ``None``: chosen by the search.
+    v_max, a_max, travel, dwell : float
+        Trajectory envelope: m/s, m/s^2, m, s.
+    moves : int
+        Back-and-forth moves of the Case-2 trajectory.
+    beta1, beta2 : float
+        Reference filter (58) coefficients, 1/s and 1/s^2.
+    e_rms, e_f : float
+        Accuracy targets, m.
+    c_u : float
+        Chattering target, dimensionless.
+    pid_pole : float
+        PID triple pole magnitude, rad/s.
+    budget : int
+        Candidate gain sets the search simulates.
+    monte_carlo : int
+        Monte-Carlo plants in the tuning subset.
+    margin : float
+        Required stability margin: spectral radius < 1 - margin.
+    """
+
+    sample_rate: float = 2500.0
+    u_max: float = 10.0
+    observer_pole: float = OBSERVER_POLE_FRACTION * 2500.0
+    quantization: float | None = None
+    theta1_0: float | None = None
+    v_max: float = 1.0
+    a_max: float = 12.0
+    travel: float = 0.4
+    dwell: float = 0.5
+    moves: int = 6
+    beta1: float = 100.0
+    beta2: float = 2500.0
+    e_rms: float = 5e-6
+    e_f: float = 10e-6
+    c_u: float = 0.5
+    pid_pole: float = PID_POLE_FRACTION * 2500.0
+    budget: int = 96
+    monte_carlo: int = 0
+    margin: float = 0.01
+
+    @property
+    def period(self) -> float:
+        """Sample period T = 1/sample_rate, s."""
+        return 1.0 / self.sample_rate
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Nested mapping in the TOML layout, every default resolved."""
+        flat = asdict(self)
+        out: dict[str, dict[str, Any]] = {}
+        for section, keys in _SCHEMA.items():
+            out[section] = {}
+            for key in keys:
+                attr = _ATTR.get((section, key), key)
+                if flat[attr] is not None:
+                    out[section][key] = flat[attr]
+        return out
+
+
+# TOML key -> dataclass attribute where the names differ.
+_ATTR = {("pid", "pole"): "pid_pole"}
+
+
+def default_spec() -> Spec:
+    """The spec of an empty ``spec.toml`` (the paper's setting)."""
+    return spec_from_mapping({}, "spec.toml")
+
+
+def _fail(source: str, path: str, msg: str) -> SpecError:
+    return SpecError(f"{source}: {path}{msg}")
+
+
+def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, prefix: str = "",
+                      sample_rate_default: float | None = None) -> Spec:
+    """Validate a parsed spec and resolve its defaults.
+
+    Parameters
+    ----------
+    data : mapping
+        Parsed TOML (sections -> keys -> values).
+    source : str
+        File name used as the first word of every error.
+    prefix : str
+        Prepended to key paths in errors (e.g. ``"$.spec."`` inside tuning.json).
+    sample_rate_default : float, optional
+        Default of ``controller.sample_rate`` (Hz) instead of 2500, e.g. the
+        rate of the excitation log recorded in ident.json.
+
+    Returns
+    -------
+    Spec
+
+    Raises
+    ------
+    SpecError
+        Naming the key path: an unknown section or key, a wrong type, a
+        non-positive rate or size, or a sample rate too low for a requested
+        bandwidth (``controller.sample_rate``).
+    """
+    if not isinstance(data, Mapping):
+        raise _fail(source, prefix.rstrip("."), f": expected a table, got {type(data).__name__}")
+    values: dict[str, Any] = {}
+    for section, table in data.items():
+        if section not in _SCHEMA:
+            raise _fail(source, f"{prefix}{section}", f": unknown section (known: {', '.join(_SCHEMA)})")
+        if not isinstance(table, Mapping):
+            raise _fail(source, f"{prefix}{section}", f": expected a table, got {table!r}")
+        schema = _SCHEMA[section]
+        for key, raw in table.items():
+            path = f"{prefix}{section}.{key}"
+            if key not in schema:
+                raise _fail(source, path, f": unknown key (known in [{section}]: {', '.join(schema)})")
+            typ, _default, positive, unit = schema[key]
+            u = f" {unit}" if unit else ""
+            if typ is int:
+                if isinstance(raw, bool) or not isinstance(raw, int):
+                    raise _fail(source, path, f" = {raw!r}: expected an integer")
+                val: Any = int(raw)
+            else:
+                if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw):
+                    raise _fail(source, path, f" = {raw!r}: expected a finite number{u and ' in' + u}")
+                val = float(raw)
+            if positive and not val > 0:
+                raise _fail(source, path, f" = {val!r}{u} must be positive")
+            if not positive and val < 0:
+                raise _fail(source, path, f" = {val!r}{u} must not be negative")
+            values[(section, key)] = val
+
+    def get(section: str, key: str) -> Any:
+        if (section, key) == ("controller", "sample_rate") and sample_rate_default is not None:
+            return values.get((section, key), float(sample_rate_default))
+        return values.get((section, key), _SCHEMA[section][key][1])
+
+    fs = get("controller", "sample_rate")
+    obs_req = ("controller", "observer_pole") in values
+    pid_req = ("pid", "pole") in values
+    obs = get("controller", "observer_pole") if obs_req else OBSERVER_POLE_FRACTION * fs
+    pid = get("pid", "pole") if pid_req else PID_POLE_FRACTION * fs
+    b1, b2 = get("trajectory", "beta1"), get("trajectory", "beta2")
+    # Fastest root magnitude of s^2 + b1 s + b2 (real or complex pair).
+    disc = b1 * b1 - 4.0 * b2
+    filt = (b1 + math.sqrt(disc)) / 2.0 if disc >= 0 else math.sqrt(b2)
+    for what, omega in (("observer poles", obs), ("PID poles", pid), ("reference filter (58) poles", filt)):
+        need = bandwidth_rule(omega)
+        if fs < need:
+            dflt = (" (default: the log's rate)" if sample_rate_default is not None
+                    and ("controller", "sample_rate") not in values else "")
+            raise _fail(
+                source,
+                f"{prefix}controller.sample_rate",
+                f" = {fs:g} Hz{dflt} is too low for {what} at -{omega:g} rad/s "
+                f"(need >= {need:g} Hz: omega*T <= {MAX_OMEGA_T:g})",
+            )
+    travel, vmax, amax = get("trajectory", "travel"), get("trajectory", "v_max"), get("trajectory", "a_max")
+    if vmax * vmax / amax > travel:
+        # Still a valid (triangular) profile, but v_max is then unreachable: say so now.
+        raise _fail(
+            source,
+            f"{prefix}trajectory.v_max",
+            f" = {vmax:g} m/s cannot be reached within trajectory.travel = {travel:g} m at "
+            f"a_max = {amax:g} m/s^2 (need v_max^2/a_max <= travel)",
+        )
+    return Spec(
+        sample_rate=fs,
+        u_max=get("controller", "u_max"),
+        observer_pole=obs,
+        quantization=get("controller", "quantization"),
+        theta1_0=get("controller", "theta1_0"),
+        v_max=vmax,
+        a_max=amax,
+        travel=travel,
+        dwell=get("trajectory", "dwell"),
+        moves=get("trajectory", "moves"),
+        beta1=b1,
+        beta2=b2,
+        e_rms=get("targets", "e_rms"),
+        e_f=get("targets", "e_f"),
+        c_u=get("targets", "c_u"),
+        pid_pole=pid,
+        budget=get("tune", "budget"),
+        monte_carlo=get("tune", "monte_carlo"),
+        margin=get("tune", "margin"),
+    )
+
+
+def read_spec_toml(path: str | os.PathLike[str] | None) -> tuple[dict[str, Any], str]:
+    """Parse ``spec.toml`` (no validation); ``None`` gives an empty spec.
+
+    Returns
+    -------
+    data : dict
+        The parsed TOML.
+    source : str
+        The file name for error messages (``"spec (defaults)"`` for ``None``).
+
+    Raises
+    ------
+    InputFileError
+        The file is missing.
+    SpecError
+        The file is not valid TOML.
+    """
+    if path is None:
+        return {}, "spec (defaults)"
+    name = os.fspath(path)
+    if not os.path.isfile(name):
+        raise InputFileError(f"{name}: no such file")
+    try:
+        with open(name, "rb") as fh:
+            return _toml.load(fh), name
+    except _toml.TOMLDecodeError as exc:
+        raise SpecError(f"{name}: not valid TOML ({exc})") from None
+
+
+def load_spec(path: str | os.PathLike[str] | None, *, sample_rate_default: float | None = None) -> Spec:
+    """Read and validate ``spec.toml``; ``None`` gives :func:`default_spec`.
+
+    Parameters
+    ----------
+    path : path-like or None
+    sample_rate_default : float, optional
+        Default sample rate, Hz (see :func:`spec_from_mapping`).
+
+    Raises
+    ------
+    InputFileError
+        The file is missing.
+    SpecError
+        The TOML does not parse, or a key is bad (see :func:`spec_from_mapping`).
+    """
+    data, name = read_spec_toml(path)
+    return spec_from_mapping(data, name, sample_rate_default=sample_rate_default)
+
+
+def bandwidth_rule(omega: float) -> float:
+    """Lowest sample rate (Hz) accepted for a bandwidth ``omega`` (rad/s)."""
+    return omega / MAX_OMEGA_T

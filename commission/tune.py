@@ -1,0 +1,730 @@
+"""The ``commission tune`` pipeline: ident.json + spec -> tuning.json.
+
+Steps (all numerics in :mod:`commission.controllers`; this module only
+orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
+
+1. Spec checks before any simulation (:mod:`commission.spec`, then
+   :func:`check_spec_against_ident`: the input limit must cover the envelope
+   on the heaviest plant of the box).
+2. Observer: double pole of A0 (10) at ``-spec.observer_pole``; k1 = 2p,
+   k2 = p^2; P of (11) (:func:`controllers.design.observer_design`).
+3. Base ARC gains (:func:`base_arc_gains`): the paper's §4.3 gains carried
+   over to this axis.  Gains in 1/s scale with the sample rate (r = f_s / 2.5 kHz),
+   and every gain whose unit involves the command unit scales with
+   c = 37 / theta1_nominal (the ARC law is invariant when u is re-scaled by c
+   and w2, C_phi, C_theta2, Gamma, eps22 follow; see the function).  The
+   Theorem-1 condition is invariant under this map.  theta_hat(0) = the
+   identified nominal theta (theta_hat1(0) is then searched, step 4); bounds =
+   the identified box; friction compensation = the identified one; output
+   limit = ``spec.u_max``.
+4. Free gains, searched in log scale (:class:`FreeGains`): the caps k1s_max,
+   k2s_max on the total nonlinear gains that make (37)/(47) implementable,
+   g1, g2 as fractions of the caps, the three entries of Gamma, the
+   weight w2 and the initial estimate theta_hat1(0) (between
+   :data:`THETA1_0_LOW` and 1 x the identified nominal, inside the box;
+   ``controller.theta1_0`` of the spec pins it).  A start below the nominal
+   is what the paper did (30 for 37): a payload only lowers theta1, and the
+   start-up against an unlearnt payload decides e_M and e_rms on the heavy
+   plants, while the empty axis forgives a moderately low start.  (The eps
+   terms stay at the carried-over paper values: with
+   bounded gains they only decide how often a cap is active.)  The search
+   (:func:`search`) is a seeded coarse-to-fine random search: generation 0 is
+   the carried-over paper gains (as printed, caps at g1, g2), the arc module's
+   implementable paper gains, :data:`EXTRA_STARTS` and random points;
+   each later generation draws ``POP`` candidates around the best *feasible*
+   one so far, the step shrinking by ``SHRINK``, for ``spec.budget``
+   candidates.  Each candidate is simulated on the tuning scenarios of
+   :func:`commission.scenarios.tuning_scenarios` (validate's 12 fixed
+   scenarios, the 16 box corners and the 4 largest-force plants at the
+   identified mass, where the ARC and the PID come closest) with the batch
+   simulator.  Objective
+   (:func:`cost`): weighted mean over the scenarios of ln(e_rms /
+   targets.e_rms), plus penalties for e_F above ``targets.e_f``, c_u above
+   ``targets.c_u``, the input reaching u_max, e_rms not below PID_MARGIN x
+   the PID baseline's, divergence; plus the worst ARC/PID e_rms ratio.
+5. Discrete feasibility (:func:`controllers.design.discrete_feasibility`:
+   the sampled loop linearised at the 8 corners of the theta box along both
+   trajectories, spectral radius < 1 - margin with the estimates frozen and
+   < 1 with the theta3 adaptation in the loop) is a constraint of the search,
+   checked lazily on the candidates that would improve on the best feasible
+   one.  The chosen gains are also checked with theta_hat at every box
+   corner (reported, informational).  The PID baseline (poles of (56) at
+   M_min = 1/theta_max[0]) is checked and scored the same way.
+6. tuning.json with provenance, every gain, the design reports, the
+   guarantee statement and the scores of ARC and PID on every tuning scenario.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+import os
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+import commission
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains, arc_pack, paper_gains_as_printed, paper_gains_implementable
+from commission.controllers.design import (
+    KIND_ARC,
+    KIND_PID,
+    DesignError,
+    FeasibilityReport,
+    discrete_feasibility,
+    observer_design,
+    theorem1_check,
+)
+from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
+from commission.controllers.plant import P_B, P_FC, P_FS, P_OFFSET
+from commission.controllers.simulate import simulate_batch
+from commission.errors import SpecError, UsageError
+from commission.jsonio import read_json, sha256_file
+from commission.scenarios import (
+    Scenario,
+    case1_trajectory,
+    case2_trajectory,
+    identified_plant,
+    resolve_quantization,
+    tuning_scenarios,
+)
+from commission.spec import Spec, read_spec_toml, spec_from_mapping
+from commission.tuning import FeasibilitySummary, Guarantee, Provenance, Score, SearchRecord, Tuning
+
+Progress = Callable[[int, int], None]
+
+#: The paper's axis: theta1 = 37 at 2.5 kHz; the reference of the gain scaling.
+PAPER_THETA1 = 37.0
+PAPER_RATE = 2500.0
+#: Plant sub-steps per sample in every tuning simulation (as in validate and the paper table).
+SUBSTEPS = 10
+#: Candidates per generation of the search, and the step shrink per generation.
+POP = 8
+SHRINK = 0.6
+#: Penalty weights of the objective (per scenario, in units of ln e_rms).
+W_TARGET = 2.0
+W_CHATTER = 10.0
+W_STEP = 1.0
+W_SATURATION = 2.0
+W_DIVERGED = 20.0
+#: The ARC is asked to beat the PID's e_rms by this factor on every tuning scenario (soft
+#: constraint), so that validation's "ARC no worse than PID" holds on plants between them.
+PID_MARGIN = 0.9
+#: Weight of the worst ARC/PID e_rms ratio over the scenarios (minimax term of the objective).
+W_WORST = 1.0
+#: Objective weight of each of the 16 box-corner scenarios (the 12 fixed scenarios weigh 1):
+#: the corners mostly act through the penalties (divergence, no worse than the PID).
+CORNER_WEIGHT = 0.25
+#: Lowest theta_hat1(0) the search considers, as a fraction of the identified nominal theta1
+#: (further clipped to the box).  theta_hat1(0) below the nominal trades a slower start on the
+#: empty axis for a faster one under payload (a payload only lowers theta1 = 1/M); above the
+#: nominal nothing is gained.
+THETA1_0_LOW = 0.5
+#: The paper's theta_hat1(0) (§4.3), for a nominal theta1 of 37.
+PAPER_THETA1_0 = 30.0
+#: Structured starting points of generation 0 besides FREE_START and :func:`paper_implementable_start`
+#: (relative free gains): a small w2 with a faster theta3 adaptation (the integral action, see FREE_BOUNDS);
+#: a larger K2 cap, w2 and theta3 rate with the paper's theta_hat1(0) / theta1 = 30/37.
+EXTRA_STARTS = ((1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 10.0, 0.1, 1.0),
+                (1.0, 3.0, 1.0, 1.0, 1.0, 1.0, 3.0, 3.0, PAPER_THETA1_0 / PAPER_THETA1))
+
+
+def paper_implementable_start() -> tuple[float, ...]:
+    """:func:`controllers.arc.paper_gains_implementable` as relative free gains.
+
+    Its caps, g and Gamma relative to the printed paper gains (the base of
+    :func:`base_arc_gains` for the paper's axis), clipped to :data:`FREE_BOUNDS`.
+    """
+    pr, im = paper_gains_as_printed(), paper_gains_implementable()
+    x = (im.k1s_max / pr.g1, im.k2s_max / pr.g2, im.g1 / im.k1s_max, im.g2 / im.k2s_max,
+         im.Gamma[0] / pr.Gamma[0], im.Gamma[1] / pr.Gamma[1], im.Gamma[2] / pr.Gamma[2], im.w2 / pr.w2,
+         im.theta0[0] / PAPER_THETA1)
+    return tuple(min(max(v, b[1]), b[2]) for v, b in zip(x, FREE_BOUNDS))
+
+
+# --------------------------------------------------------------------------- spec vs ident
+
+
+def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "spec.toml") -> None:
+    """Reject a spec whose input limit cannot drive the envelope on the heaviest plant of the box.
+
+    Needed |u| (u-unit): M_heavy a_max + B v_max + max(fc, fs) + |offset| + delta_d M,
+    with M_heavy = 1/theta_min[0].  Raises :class:`SpecError` naming ``controller.u_max``.
+    """
+    if spec.theta1_0 is not None and not ident.theta.min[0] <= spec.theta1_0 <= ident.theta.max[0]:
+        raise SpecError(
+            f"{source}: controller.theta1_0 = {spec.theta1_0:g} lies outside the identified theta1 box "
+            f"[{ident.theta.min[0]:.4g}, {ident.theta.max[0]:.4g}]")
+    p = identified_plant(ident)
+    m_heavy = 1.0 / ident.theta.min[0]
+    need = (m_heavy * spec.a_max + p[P_B] * spec.v_max + max(p[P_FC], p[P_FS]) + abs(p[P_OFFSET])
+            + ident.delta_d * ident.value("M"))
+    if need > spec.u_max:
+        raise SpecError(
+            f"{source}: controller.u_max = {spec.u_max:g} {ident.units.get('u', 'u-unit')} is below the "
+            f"{need:.3g} needed for trajectory.a_max = {spec.a_max:g} m/s^2 and v_max = {spec.v_max:g} m/s "
+            f"on the heaviest plant of the theta box (M = {m_heavy:.3g})")
+
+
+# --------------------------------------------------------------------------- gains
+
+
+@dataclass(frozen=True)
+class FreeGains:
+    """The gains the search chooses (absolute values).
+
+    Attributes
+    ----------
+    k1s_max, k2s_max : float
+        Caps on the total nonlinear gains K1 (28)+(37)+(38) and K2 (43)+(47), 1/s:
+        the bound that makes the robust terms implementable.
+    g1, g2 : float
+        Minimum nonlinear gains of (28) and (43), 1/s (<= the caps).
+    Gamma : tuple of 3 float
+        Diagonal adaptation rate of (19).
+    w2 : float
+        Weight of (41) (w1 = 1).
+    theta1_0 : float
+        Initial estimate theta_hat1(0), m/(u-unit s^2) (inside the theta box).
+    """
+
+    k1s_max: float
+    k2s_max: float
+    g1: float
+    g2: float
+    Gamma: tuple[float, float, float]
+    w2: float
+    theta1_0: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {"k1s_max": self.k1s_max, "k2s_max": self.k2s_max, "g1": self.g1, "g2": self.g2,
+                "Gamma1": self.Gamma[0], "Gamma2": self.Gamma[1], "Gamma3": self.Gamma[2], "w2": self.w2,
+                "theta1_0": self.theta1_0}
+
+
+#: Search box of the free gains, relative to :func:`base_arc_gains`: (name, low, high).
+#: k1, k2: caps as multiples of the base g1, g2; f1, f2: g as a fraction of its cap;
+#: G1..G3: Gamma entries as multiples of the base Gamma; w2: the weight w2 of (41) as a
+#: multiple of the base (w1 = 1 fixed: only w1/w2 matters).  A small w2 lets the theta3
+#: adaptation (the loop's integral action, tau3 = w1 psi2 z1 + w2 phi2_3 z2) run much faster
+#: before its loop loses stability, at the price of more chattering: the search trades them.
+#: t1: theta_hat1(0) as a multiple of the identified nominal (clipped to the box; see THETA1_0_LOW).
+FREE_BOUNDS = (("k1", 0.25, 4.0), ("k2", 0.25, 4.0), ("f1", 0.05, 1.0), ("f2", 0.05, 1.0),
+               ("G1", 1e-2, 30.0), ("G2", 1e-2, 30.0), ("G3", 1e-2, 1e4), ("w2", 1e-3, 10.0),
+               ("t1", THETA1_0_LOW, 1.0))
+#: Starting point (relative): the paper's g1, g2 as caps (robust terms bounded by g), paper Gamma and w2,
+#: theta_hat(0) = the identified nominal.
+FREE_START = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+N_FREE = len(FREE_BOUNDS)
+#: Index of theta_hat1(0) in the free vector.
+I_THETA1_0 = 8
+
+
+def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
+    """The paper's §4.3 ARC gains carried over to this axis (module docstring, step 3).
+
+    With c = 37 / theta1_nominal (command-unit scale) and r = f_s / 2500 Hz:
+    w1 = 1, w2 = 0.1 / c^2; g1 = 600 r, g2 = 850 r (1/s); eps11 = 5e-5, eps12 = 5e-5 / r,
+    eps21 = 1e-3, eps22 = c^2 r; C_phi1 = 1e-5 [5 c, 0.5, 10]; C_phi2 = 1e-5 [5, 0.5/c, 10/c];
+    C_theta2 = 1e5 [1/c^2, 1/c, 1/c]; Gamma = 1e5 [5/c^2, 3, 20]; caps k1s_max = g1,
+    k2s_max = g2 (the robust terms bounded: see :data:`FREE_START`).
+    """
+    c = PAPER_THETA1 / ident.theta.nominal[0]
+    r = spec.sample_rate / PAPER_RATE
+    ob = observer_design(spec.observer_pole, spec.period)
+    g1, g2 = 600.0 * r, 850.0 * r
+    return ArcGains(
+        Ts=spec.period, k1=ob.k1, k2=ob.k2, w1=1.0, w2=0.1 / c ** 2, g1=g1, g2=g2,
+        eps11=5e-5, eps12=5e-5 / r, eps21=1e-3, eps22=c ** 2 * r,
+        C_phi1=(5e-5 * c, 5e-6, 1e-4), C_phi2=(5e-5, 5e-6 / c, 1e-4 / c),
+        C_theta2=(1e5 / c ** 2, 1e5 / c, 1e5 / c),
+        Gamma=(5e5 / c ** 2, 3e5, 2e6),
+        theta_min=tuple(ident.theta.min), theta_max=tuple(ident.theta.max),  # type: ignore[arg-type]
+        theta0=tuple(ident.theta.nominal),  # type: ignore[arg-type]
+        fric_level=ident.fric_level, fric_slope=ident.fric_slope,
+        k1s_max=g1, k2s_max=g2, u_max=spec.u_max,
+    )
+
+
+def apply_free(base: ArcGains, x: Sequence[float]) -> ArcGains:
+    """ARC gains for the relative free gains ``x`` (order of :data:`FREE_BOUNDS`)."""
+    k1 = base.g1 * x[0]
+    k2 = base.g2 * x[1]
+    # Theorem 1 needs c_theta2_r^2 >= w_k w2 / (2 c_phi_kr^2): a larger w2 scales C_theta2 by
+    # sqrt(w2 / w2_base), which keeps every ratio of the condition at least the base's (5).
+    ct = math.sqrt(max(1.0, x[7]))
+    # theta_hat1(0) as a multiple of the nominal (base.theta0), kept inside the box.
+    th10 = min(max(base.theta0[0] * x[8], base.theta_min[0]), base.theta_max[0])
+    return dataclasses.replace(
+        base, k1s_max=k1, k2s_max=k2, g1=k1 * x[2], g2=k2 * x[3],
+        Gamma=(base.Gamma[0] * x[4], base.Gamma[1] * x[5], base.Gamma[2] * x[6]), w2=base.w2 * x[7],
+        C_theta2=tuple(c * ct for c in base.C_theta2),  # type: ignore[arg-type]
+        theta0=(th10, base.theta0[1], base.theta0[2]))
+
+
+def free_gains(arc: ArcGains) -> FreeGains:
+    """The free gains of ``arc``."""
+    return FreeGains(k1s_max=arc.k1s_max, k2s_max=arc.k2s_max, g1=arc.g1, g2=arc.g2, Gamma=arc.Gamma, w2=arc.w2,
+                     theta1_0=arc.theta0[0])
+
+
+def pid_baseline(ident: Identification, spec: Spec) -> tuple[PidGains, float]:
+    """The paper's PID (57): poles of (56) at ``-spec.pid_pole`` for M_min = 1/theta_max[0].
+
+    Feedforward M_hat, B_hat = the identified M, B; friction compensation = the
+    identified one; output limit ``spec.u_max``.  Returns ``(gains, M_min)``.
+    """
+    m_min = 1.0 / ident.theta.max[0]
+    Kp, Ki, Kd = pid_place_poles(m_min, -spec.pid_pole)
+    return PidGains(Ts=spec.period, M_hat=ident.value("M"), B_hat=max(ident.value("B"), 0.0), Kp=Kp, Ki=Ki,
+                    Kd=Kd, fric_level=ident.fric_level, fric_slope=ident.fric_slope, u_max=spec.u_max), m_min
+
+
+# --------------------------------------------------------------------------- evaluation
+
+
+@dataclass(frozen=True)
+class _Group:
+    """Scenarios sharing one rendered trajectory (one batch-simulator call)."""
+
+    idx: tuple[int, ...]
+    traj: object
+    plants: np.ndarray
+    dist: np.ndarray | None
+    quant: float
+
+
+class Evaluator:
+    """Scores controllers on a fixed scenario list with the batch simulator.
+
+    Trajectories are rendered once; each :meth:`scores` call runs one batch per
+    trajectory over (candidates x scenarios).
+
+    Parameters
+    ----------
+    scenarios : list of Scenario
+    spec : Spec
+        Sample rate and actuator limit ``u_max``.
+    workers : int, optional
+        Threads of the batch simulator.
+    """
+
+    def __init__(self, scenarios: Sequence[Scenario], spec: Spec, workers: int | None = None) -> None:
+        self.scenarios = list(scenarios)
+        self.spec = spec
+        self.workers = workers
+        #: Objective weight per scenario: the box corners (tune-only stand-ins for the
+        #: Monte-Carlo sample) count CORNER_WEIGHT each, every other scenario 1.
+        self.weights = [CORNER_WEIGHT if "corner" in s.tags else 1.0 for s in self.scenarios]
+        groups: dict[tuple, list[int]] = {}
+        for i, s in enumerate(self.scenarios):
+            groups.setdefault((s.trajectory, s.y0, s.quantization), []).append(i)
+        self.groups: list[_Group] = []
+        for (tr, y0, qz), idx in groups.items():
+            traj = tr.render(spec.period, y0)
+            plants = np.stack([self.scenarios[i].plant for i in idx])
+            d = np.stack([self.scenarios[i].disturbance.samples(traj.t) for i in idx])
+            self.groups.append(_Group(tuple(idx), traj, plants, d if np.any(d) else None, qz))
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.scenarios]
+
+    def scores(self, kind: int, ctrl_ps: Sequence[np.ndarray]) -> list[list[Score]]:
+        """``scores[c][s]`` of candidate ``c`` on scenario ``s``."""
+        nc, ns = len(ctrl_ps), len(self.scenarios)
+        out: list[list[Score | None]] = [[None] * ns for _ in range(nc)]
+        P = np.stack(ctrl_ps)
+        for g in self.groups:
+            m = len(g.idx)
+            plants = np.tile(g.plants, (nc, 1))
+            cps = np.repeat(P, m, axis=0)
+            dist = None if g.dist is None else np.tile(g.dist, (nc, 1))
+            r = simulate_batch(plants, kind, cps, g.traj, substeps=SUBSTEPS, quant=g.quant, disturbance=dist,
+                               y0=self.scenarios[g.idx[0]].y0, u_sat=self.spec.u_max, e_abort=self.spec.travel,
+                               return_traces=True,
+                               workers=self.workers)
+            for c in range(nc):
+                for j, si in enumerate(g.idx):
+                    row = c * m + j
+                    u = r.u[row]  # type: ignore[index]
+                    peak = float(np.nanmax(np.abs(u))) if np.any(np.isfinite(u)) else math.nan
+                    out[c][si] = Score(float(r.e_M[row]), float(r.e_F[row]), float(r.e_rms[row]),
+                                       float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]), peak,
+                                       bool(r.diverged[row]))
+        return out  # type: ignore[return-value]
+
+
+def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None = None,
+         weights: Sequence[float] | None = None) -> float:
+    """Objective of one candidate (lower is better): see the module docstring, step 4.
+
+    Per scenario::
+
+        ln(e_rms / targets.e_rms)                                   objective
+        + W_TARGET  ln(e_F / targets.e_f)^+                          accuracy target
+        + W_CHATTER ln(c_u / targets.c_u)^+ + W_STEP [c_u > target]  chattering target
+        + W_SATURATION [|u| reached u_max]                           input limit
+        + W_CHATTER ln(e_rms / (m e_rms_ref))^+ + W_STEP [e_rms > m ref]   better than the PID
+                                                                     by the margin m = PID_MARGIN
+
+    averaged over the scenarios with ``weights`` (default equal), plus
+    ``W_WORST max_s ln(e_rms / e_rms_ref)``: the scenario where the ARC gains least
+    over the PID (often the heavy payload) counts again, so the search does not
+    trade it away for the easy scenarios.  A diverged run
+    counts W_DIVERGED.  ``reference`` are the PID baseline's scores on the same
+    scenarios (optional).
+    """
+    total = 0.0
+    wsum = 0.0
+    worst = -math.inf
+    for i, s in enumerate(scores):
+        w = 1.0 if weights is None else float(weights[i])
+        wsum += w
+        if s.diverged or not math.isfinite(s.e_rms) or s.e_rms <= 0:
+            total += w * W_DIVERGED
+            continue
+        j = math.log(s.e_rms / spec.e_rms)
+        if reference is not None:
+            r = reference[i]
+            if not r.diverged and math.isfinite(r.e_rms) and r.e_rms > 0:
+                worst = max(worst, math.log(s.e_rms / r.e_rms))
+                if PID_MARGIN * r.e_rms < s.e_rms:
+                    j += W_STEP + W_CHATTER * math.log(s.e_rms / (PID_MARGIN * r.e_rms))
+        if s.e_F > 0:
+            j += W_TARGET * max(0.0, math.log(s.e_F / spec.e_f))
+        if not (math.isfinite(s.c_u) and s.c_u >= 0):
+            j += W_STEP + W_CHATTER
+        elif s.c_u > spec.c_u:
+            j += W_STEP + W_CHATTER * math.log(s.c_u / spec.c_u)
+        if s.u_peak >= spec.u_max * (1.0 - 1e-9):
+            j += W_SATURATION
+        total += w * j
+    out = total / wsum if wsum > 0 else 0.0
+    if math.isfinite(worst):
+        out += W_WORST * worst
+    return out
+
+
+def meets_targets(scores: Sequence[Score], spec: Spec) -> bool:
+    """Every run finite, within e_f and c_u targets and below the input limit."""
+    return all(not s.diverged and s.e_F <= spec.e_f and s.c_u <= spec.c_u and s.u_peak < spec.u_max
+               for s in scores)
+
+
+# --------------------------------------------------------------------------- search
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Every candidate of the search, best first.
+
+    Attributes
+    ----------
+    x : numpy.ndarray
+        Relative free gains, shape (n, N_FREE), sorted by cost.
+    costs : numpy.ndarray
+        Cost of each, shape (n,).
+    scores : list of list of Score
+        Scores of each on the evaluator's scenarios.
+    feasibility : list of FeasibilityReport or None
+        Discrete-feasibility report of each candidate that was checked (None: not checked).
+    cost_initial : float
+        Cost of :data:`FREE_START`.
+    history : tuple of float
+        Every cost in evaluation order.
+    best : int or None
+        Index (in the sorted order) of the lowest-cost candidate whose feasibility
+        holds; None when no checked candidate holds.
+    """
+
+    x: np.ndarray
+    costs: np.ndarray
+    scores: list[list[Score]]
+    feasibility: list[FeasibilityReport | None]
+    cost_initial: float
+    history: tuple[float, ...]
+    best: int | None
+
+
+def search(base: ArcGains, ev: Evaluator, spec: Spec, rng: np.random.Generator, *,
+           feasible: Callable[[ArcGains], FeasibilityReport], budget: int | None = None,
+           reference: Sequence[Score] | None = None, progress: Progress | None = None,
+           progress_total: int | None = None) -> SearchResult:
+    """Coarse-to-fine seeded random search of the free gains in log space, feasibility-constrained.
+
+    Generation 0 holds :data:`FREE_START`, :func:`paper_implementable_start`,
+    :data:`EXTRA_STARTS` and random points
+    drawn with a log-step of 1 (a factor e) per axis around the start; each later generation draws ``POP``
+    points around the best *feasible* candidate so far with the step shrunk by
+    ``SHRINK``, clipped to :data:`FREE_BOUNDS`.  Feasibility (``feasible``, the
+    discrete check over the theta box) is evaluated lazily: after each
+    generation, the candidates that beat the best feasible cost are checked in
+    order of cost until one holds.  Stops after ``budget`` candidates.
+    """
+    budget = spec.budget if budget is None else budget
+    lo = np.log([b[1] for b in FREE_BOUNDS])
+    hi = np.log([b[2] for b in FREE_BOUNDS])
+    if spec.theta1_0 is not None:  # theta_hat1(0) fixed by the spec: pin its axis
+        lo[I_THETA1_0] = hi[I_THETA1_0] = math.log(spec.theta1_0 / base.theta0[0])
+    x0 = np.clip(np.log(FREE_START), lo, hi)
+    X: list[np.ndarray] = []
+    C: list[float] = []
+    S: list[list[Score]] = []
+    F: dict[int, FeasibilityReport] = {}
+    step = 1.0
+    best_i: int | None = None
+    total = progress_total if progress_total is not None else budget
+    while len(X) < budget:
+        n = min(POP, budget - len(X))
+        center = x0 if best_i is None else X[best_i]
+        if not X:
+            fixed = [x0] + [np.clip(np.log(e), lo, hi) for e in (paper_implementable_start(), *EXTRA_STARTS)]
+            cand = fixed[:n] + [np.clip(x0 + step * rng.standard_normal(N_FREE), lo, hi)
+                                for _ in range(n - len(fixed[:n]))]
+        else:
+            cand = [np.clip(center + step * rng.standard_normal(N_FREE), lo, hi) for _ in range(n)]
+        gains = [apply_free(base, np.exp(c)) for c in cand]
+        sc = ev.scores(KIND_ARC, [arc_pack(g) for g in gains])
+        first = len(X)
+        for c, s in zip(cand, sc):
+            X.append(c)
+            C.append(cost(s, spec, reference, ev.weights))
+            S.append(s)
+        bound = C[best_i] if best_i is not None else math.inf
+        for i in sorted(range(first, len(X)), key=lambda i: C[i]):
+            if not C[i] < bound or C[i] >= W_DIVERGED:
+                break
+            F[i] = feasible(gains[i - first])
+            if F[i].holds:
+                best_i = i
+                break
+        step *= SHRINK
+        if progress is not None:
+            progress(len(X), total)
+    order = [int(i) for i in np.argsort(C, kind="stable")]
+    rank = {i: r for r, i in enumerate(order)}
+    return SearchResult(x=np.exp(np.array(X)[order]), costs=np.array(C)[order], scores=[S[i] for i in order],
+                        feasibility=[F.get(i) for i in order], cost_initial=C[0], history=tuple(C),
+                        best=None if best_i is None else rank[best_i])
+
+
+# --------------------------------------------------------------------------- report
+
+
+def _summary(rep: FeasibilityReport, names: Sequence[str],
+             robust: FeasibilityReport | None = None) -> FeasibilitySummary:
+    w = rep.worst
+    return FeasibilitySummary(holds=rep.holds, margin=rep.margin, rho_max=rep.rho_max, worst_corner=w.corner,
+                              worst_trajectory=names[w.trajectory], worst_t=w.t, n_points=len(rep.points),
+                              rho_adaptive_max=rep.rho_adaptive_max,
+                              rho_any_estimate_max=robust.rho_max if robust is not None else math.nan)
+
+
+def guarantees(arc: ArcGains, t1, feas: FeasibilitySummary) -> dict[str, Guarantee]:
+    """Which of the paper's guarantees hold as tuned, and which are traded for implementability."""
+    return {
+        "theorem1_condition": Guarantee(
+            t1.holds, f"c_phi_kr^2 >= w_k w2 / (2 c_theta2_r^2) for k = 1, 2, r = 1..3: smallest ratio "
+                      f"{t1.min_ratio:.3g} (>= 1 holds)"),
+        "projection_P1": Guarantee(
+            True, "theta_hat stays in the identified box exactly: each discrete adaptation step is clipped to "
+                  "[theta_min, theta_max]"),
+        "projection_P2_continuous": Guarantee(
+            False, "traded: the discontinuous projection (19)-(20) is replaced by clipping the Euler step "
+                   "theta_hat + Ts Gamma tau to the box (for diagonal Gamma the Gamma^-1-weighted projection); "
+                   "the continuous-time argument (A.8) does not carry over verbatim"),
+        "exact_observer_filters": Guarantee(
+            True, "filters (12), (18) advanced by exact matrix exponentials each sample (the sampled inputs "
+                  "held as the controllers.arc law states); observer poles at -p give k1 = 2p, k2 = p^2 and P of (11)"),
+        "robust_gains_37_47": Guarantee(
+            math.isinf(arc.k1s_max) and math.isinf(arc.k2s_max),
+            f"traded: the nonlinear gains K1 (28)+(37)+(38) and K2 (43)+(47) are capped at k1s_max = "
+            f"{arc.k1s_max:.4g} 1/s and k2s_max = {arc.k2s_max:.4g} 1/s; conditions (33), (35), (46) hold only "
+            f"while a cap is inactive, so the prescribed final accuracy of (51) is not guaranteed"),
+        "sampled_data_stability": Guarantee(
+            feas.holds, f"Theorem 1 is continuous-time; instead the sampled loop (exact ZOH plant + discrete "
+                        f"controller; friction, ripple, quantization, saturation and sign nonlinearities excluded) "
+                        f"is linearised at the 8 corners of the theta box along both trajectories, with theta_hat "
+                        f"at the value reached and at each box corner: spectral radius <= {feas.rho_max:.4g} with "
+                        f"the estimates frozen (need < {1 - feas.margin:.4g}), <= {feas.rho_adaptive_max:.6g} with "
+                        f"the theta3 adaptation in the loop (need < 1)"),
+        "stability_for_any_estimate_in_box": Guarantee(
+            feas.rho_any_estimate_max < 1.0,
+            f"informational: with theta_hat frozen at any of the 8 corners of the box (which the projection "
+            f"allows) instead of the values the runs reached, the largest spectral radius is "
+            f"{feas.rho_any_estimate_max:.4g} (< 1: stable whatever the estimate)"),
+        "input_limit": Guarantee(
+            math.isinf(arc.u_max), f"traded: the paper assumes an unbounded input; here |u| <= u_max = "
+                                   f"{arc.u_max:g} (the lambda filter is driven by the applied u*)"),
+        "zero_initial_V2_remark4": Guarantee(
+            True, "q_d(0) = y(0), filters at rest at y(0): z1(0) = z2(0) = 0, i.e. V2(0) = 0"),
+    }
+
+
+# --------------------------------------------------------------------------- pipeline
+
+
+def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
+         ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
+         workers: int | None = None, created_utc: str | None = None) -> Tuning:
+    """Tune the ARC (and the PID baseline) for an identified axis.
+
+    Parameters
+    ----------
+    ident : Identification
+    spec : Spec
+        Already validated (:func:`commission.spec.load_spec`).
+    rng : numpy.random.Generator
+        The only source of randomness (search and Monte-Carlo plants).
+    seed : int
+        Recorded in the provenance.
+    ident_sha256 : str
+        sha256 of ident.json.
+    ident_path : str
+        Recorded in the provenance.
+    log_sha256 : str, optional
+        Of the excitation log, when known.
+    progress : callable(done, total), optional
+        Called after each search generation and each final stage.
+    workers : int, optional
+        Batch-simulator threads.
+    created_utc : str, optional
+        Time stamp (default: now).
+
+    Returns
+    -------
+    Tuning
+    """
+    check_spec_against_ident(spec, ident)
+    scen = tuning_scenarios(ident, spec, rng=rng)
+    ev = Evaluator(scen, spec, workers=workers)
+    observer = observer_design(spec.observer_pole, spec.period)
+    base = base_arc_gains(ident, spec)
+    total = spec.budget + 3
+    pid, m_min = pid_baseline(ident, spec)
+    pid_scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
+    traj_names = ["case1", "case2"]
+    trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
+
+    def feasible(g: ArcGains) -> FeasibilityReport:
+        return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
+                                    margin=spec.margin)
+
+    res = search(base, ev, spec, rng, feasible=feasible, reference=pid_scores, progress=progress,
+                 progress_total=total)
+    if res.best is not None:
+        chosen_i = res.best
+        chosen_rep = res.feasibility[chosen_i]
+    else:  # nothing feasible among the candidates checked: report the best one, failing
+        chosen_i = 0
+        chosen_rep = res.feasibility[0] or feasible(apply_free(base, res.x[0]))
+    chosen = apply_free(base, res.x[chosen_i])
+    assert chosen_rep is not None
+    if progress is not None:
+        progress(spec.budget + 1, total)
+    pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
+                                   margin=spec.margin)
+    if progress is not None:
+        progress(spec.budget + 2, total)
+    arc_scores = res.scores[chosen_i]
+    t1 = theorem1_check(chosen.w1, chosen.w2, chosen.C_phi1, chosen.C_phi2, chosen.C_theta2)
+    robust = discrete_feasibility(KIND_ARC, arc_pack(chosen), ident.theta.min, ident.theta.max, trajs,
+                                  margin=spec.margin, estimate_corners=True)
+    feas = {"arc": _summary(chosen_rep, traj_names, robust), "pid": _summary(pid_rep, traj_names)}
+    scores = {name: {"arc": a, "pid": p} for name, a, p in zip(ev.names, arc_scores, pid_scores)}
+    prov = Provenance(ident_sha256=ident_sha256, log_sha256=log_sha256, tool_version=commission.__version__,
+                      created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                      seed=int(seed), ident_path=ident_path)
+    record = SearchRecord(n_evaluations=len(res.costs), budget=spec.budget, seed=int(seed),
+                          cost_initial=res.cost_initial, cost_best=float(res.costs[chosen_i]),
+                          free=free_gains(chosen).as_dict(), history=res.history)
+    out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident),
+                 quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=spec.pid_pole,
+                 pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
+                 guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record)
+    if progress is not None:
+        progress(total, total)
+    return out
+
+
+def _log_sha256(ident: Identification) -> str | None:
+    """The excitation log's sha256 if ident.json records one (``extra.source.sha256``)."""
+    src = ident.extra.get("source")
+    if isinstance(src, dict) and isinstance(src.get("sha256"), str):
+        return src["sha256"]
+    v = ident.extra.get("log_sha256")
+    return v if isinstance(v, str) else None
+
+
+def log_sample_rate(ident: Identification) -> float | None:
+    """The excitation log's sample rate (Hz) if ident.json records one (``extra.source.sample_rate``)."""
+    src = ident.extra.get("source")
+    if isinstance(src, dict):
+        v = src.get("sample_rate")
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0:
+            return float(v)
+    return None
+
+
+@dataclass(frozen=True)
+class TuneInputs:
+    """Everything ``commission tune`` reads, checked (see :func:`load_tune_inputs`)."""
+
+    ident: Identification
+    spec: Spec
+    ident_path: str
+    ident_sha256: str
+    log_sha256: str | None
+    seed: int
+
+
+def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
+                     seed: int = 0) -> TuneInputs:
+    """Read and check every input of ``commission tune``; no simulation runs here.
+
+    Raises
+    ------
+    InputFileError, SchemaError, SpecError, UsageError
+        Bad input (the CLI's exit 2), naming the file and the key.
+    """
+    if seed < 0:
+        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
+    ident_path = os.fspath(ident_path)
+    spec_data, spec_name = read_spec_toml(spec_path)  # parse errors before reading ident.json
+    spec_from_mapping(spec_data, spec_name)  # every key checked at the documented defaults
+    ident = Identification.from_dict(read_json(ident_path), source=ident_path)
+    spec = spec_from_mapping(spec_data, spec_name, sample_rate_default=log_sample_rate(ident))
+    check_spec_against_ident(spec, ident, os.fspath(spec_path) if spec_path is not None else "spec (defaults)")
+    try:
+        observer_design(spec.observer_pole, spec.period)
+    except DesignError as exc:
+        raise SpecError(f"{spec_path or 'spec (defaults)'}: controller.observer_pole: {exc}") from None
+    return TuneInputs(ident=ident, spec=spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
+                      log_sha256=_log_sha256(ident), seed=int(seed))
+
+
+def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
+             spec_path: str | os.PathLike[str] | None = None, seed: int = 0,
+             progress: Progress | None = None, workers: int | None = None,
+             inputs: TuneInputs | None = None) -> Tuning:
+    """File-level pipeline of ``commission tune``: read, check, tune, write.
+
+    Every input check (:func:`load_tune_inputs`: ident.json schema, spec keys
+    and values, spec against the identification) runs before any simulation;
+    nothing is written unless tuning completes.  ``inputs`` (already loaded)
+    skips the reading.
+
+    Raises
+    ------
+    InputFileError, SchemaError, SpecError, UsageError
+        Bad input (the CLI's exit 2).
+    """
+    inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
+    t = tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
+             ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
+             progress=progress, workers=workers)
+    t.save(os.fspath(out_path))
+    return t

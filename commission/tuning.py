@@ -1,0 +1,445 @@
+"""The tuning artifact (``tuning.json``), written by ``commission tune``.
+
+Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
+
+    provenance        ident_sha256, log_sha256 (or null), tool_version, created_utc, seed, ident_path
+    spec              the resolved spec (commission.spec layout: controller, trajectory, targets, pid, tune)
+    identification    ident.json's content verbatim (rebuilds the scenario matrix exactly)
+    plant             the identified plant model used in simulation: M, B, fc, fs, vs, xi, offset,
+                      ripple_amp, ripple_pitch (u-unit, m, s), quantization (m)
+    arc               every ArcGains field (controllers.arc); null stands for inf
+                      (eps: term switched off; k1s_max, k2s_max, u_max: no cap)
+    pid               every PidGains field (controllers.pid), plus pole (rad/s) and design_mass
+    observer          pole, k1, k2, P (2x2, eq. 11), P_eigenvalues, lyapunov_residual, discrete_pole
+    theorem1          holds, ratios (2x3), min_ratio
+    feasibility       {"arc": ..., "pid": ...}: holds, margin, rho_max (estimates frozen),
+                      rho_adaptive_max (theta3 adaptation in the loop), rho_any_estimate_max
+                      (informational: estimates at any box corner), worst_corner, worst_trajectory,
+                      worst_t, n_points
+    guarantees        {name: {"holds": bool, "detail": str}}: which guarantees of the paper hold
+                      as chosen, and which are traded for implementability
+    scores            {scenario: {"arc": score, "pid": score}}; score = e_M, e_F, e_rms (m), u_rms,
+                      du_rms, u_peak (u-unit), c_u, diverged; indexes null when diverged
+    search            n_evaluations, budget, seed, cost_initial, cost_best, free (name -> value),
+                      history (cost of every candidate, evaluation order)
+
+Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
+field raises :class:`commission.errors.SchemaError` naming its JSON path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains
+from commission.controllers.design import ObserverDesign, Theorem1Check
+from commission.controllers.pid import PidGains
+from commission.controllers.plant import NP
+from commission.errors import SchemaError
+from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.spec import Spec, spec_from_mapping
+
+TUNING_KIND = "tuning"
+TUNING_SCHEMA_VERSION = 1
+
+#: Plant-vector names in controllers.plant order.
+PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch")
+SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
+#: ArcGains fields that may be infinite (stored as JSON null).
+_ARC_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
+_PID_INF_OK = ("u_max",)
+
+
+def _num_or_null(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(x)
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a tuning came from.
+
+    Attributes
+    ----------
+    ident_sha256 : str
+        sha256 of the ident.json bytes.
+    log_sha256 : str or None
+        sha256 of the excitation log, when ident.json records one.
+    tool_version : str
+        ``commission.__version__``.
+    created_utc : str
+        ISO-8601 UTC time of the run.
+    seed : int
+        Seed of the search's Generator.
+    ident_path : str
+        ident.json as given on the command line.
+    """
+
+    ident_sha256: str
+    log_sha256: str | None
+    tool_version: str
+    created_utc: str
+    seed: int
+    ident_path: str
+
+
+@dataclass(frozen=True)
+class Score:
+    """Section-4.2 indexes of one controller on one scenario (SI units) plus the peak input.
+
+    Indexes are NaN when the run diverged.
+    """
+
+    e_M: float
+    e_F: float
+    e_rms: float
+    u_rms: float
+    du_rms: float
+    c_u: float
+    u_peak: float
+    diverged: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {k: _num_or_null(getattr(self, k)) for k in SCORE_NAMES}
+        d["diverged"] = self.diverged
+        return d
+
+    @classmethod
+    def from_reader(cls, r: Reader) -> "Score":
+        vals = {k: r.num(k, optional=True) for k in SCORE_NAMES}
+        return cls(**{k: (math.nan if v is None else v) for k, v in vals.items()}, diverged=r.bool_("diverged"))
+
+
+@dataclass(frozen=True)
+class FeasibilitySummary:
+    """Discrete feasibility of one controller (see :func:`controllers.design.discrete_feasibility`).
+
+    Attributes
+    ----------
+    holds : bool
+        Every spectral radius < 1 - margin.
+    margin : float
+    rho_max : float
+        Largest spectral radius found (``inf``, stored as null, if a nominal run blew up).
+    worst_corner : tuple of 3 float
+        theta corner of ``rho_max``.
+    worst_trajectory : str
+        Trajectory name there (``case1`` / ``case2``).
+    worst_t : float
+        Time of that linearisation point, s.
+    n_points : int
+        Points checked (corners x trajectories x points along each).
+    rho_adaptive_max : float
+        Largest radius with the theta3 adaptation in the loop (must be < 1); NaN if not recorded.
+    rho_any_estimate_max : float
+        Informational, not part of ``holds``: the largest radius with the estimates
+        frozen at any of the 8 corners of the box instead of the values reached
+        (< 1: the loop is stable whatever theta_hat the projection allows); NaN if not computed.
+    """
+
+    holds: bool
+    margin: float
+    rho_max: float
+    worst_corner: tuple[float, float, float]
+    worst_trajectory: str
+    worst_t: float
+    n_points: int
+    rho_adaptive_max: float = math.nan
+    rho_any_estimate_max: float = math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"holds": self.holds, "margin": self.margin, "rho_max": _num_or_null(self.rho_max),
+                "worst_corner": list(self.worst_corner), "worst_trajectory": self.worst_trajectory,
+                "worst_t": self.worst_t, "n_points": self.n_points,
+                "rho_adaptive_max": _num_or_null(self.rho_adaptive_max),
+                "rho_any_estimate_max": _num_or_null(self.rho_any_estimate_max)}
+
+    @classmethod
+    def from_reader(cls, r: Reader) -> "FeasibilitySummary":
+        rho = r.num("rho_max", optional=True)
+        return cls(holds=r.bool_("holds"), margin=r.num("margin", positive=True),  # type: ignore[arg-type]
+                   rho_max=math.inf if rho is None else rho,
+                   worst_corner=r.vec("worst_corner", 3),  # type: ignore[arg-type]
+                   worst_trajectory=r.str_("worst_trajectory"),  # type: ignore[arg-type]
+                   worst_t=r.num("worst_t", nonneg=True),  # type: ignore[arg-type]
+                   n_points=r.int_("n_points"),
+                   rho_adaptive_max=_nan(r.num("rho_adaptive_max", optional=True)),
+                   rho_any_estimate_max=_nan(r.num("rho_any_estimate_max", optional=True)))
+
+
+@dataclass(frozen=True)
+class Guarantee:
+    """One guarantee of the paper: does it hold as tuned, and why (or what was traded)."""
+
+    holds: bool
+    detail: str
+
+
+@dataclass(frozen=True)
+class SearchRecord:
+    """Summary of the gain search.
+
+    Attributes
+    ----------
+    n_evaluations : int
+        Candidate gain sets simulated.
+    budget : int
+        Requested budget (spec ``tune.budget``).
+    seed : int
+    cost_initial, cost_best : float
+        Objective of the starting point and of the chosen gains (lower is better).
+    free : dict
+        The free gains as chosen (name -> value).
+    history : tuple of float
+        Cost of every candidate in evaluation order (the first is the starting point).
+    """
+
+    n_evaluations: int
+    budget: int
+    seed: int
+    cost_initial: float
+    cost_best: float
+    free: Mapping[str, float]
+    history: tuple[float, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
+                "cost_initial": _num_or_null(self.cost_initial), "cost_best": _num_or_null(self.cost_best),
+                "free": {k: float(v) for k, v in self.free.items()},
+                "history": [_num_or_null(c) for c in self.history]}
+
+
+def _gains_to_dict(g: Any) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(g):
+        v = getattr(g, f.name)
+        out[f.name] = [float(x) for x in v] if isinstance(v, tuple) else _num_or_null(float(v))
+    return out
+
+
+def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tuple[str, ...] = ()) -> Any:
+    known = {f.name for f in dataclasses.fields(cls)}
+    for k in r.keys():
+        if k not in known and k not in skip:
+            raise r.fail("unknown field", f"{r.path}.{k}")
+    kw: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        raw = r.child(f.name).data
+        if isinstance(raw, list):
+            kw[f.name] = r.vec(f.name, 3)
+        elif raw is None and f.name in inf_ok:
+            kw[f.name] = math.inf
+        else:
+            kw[f.name] = r.num(f.name)
+    try:
+        return cls(**kw)
+    except ValueError as exc:
+        raise r.fail(str(exc)) from None
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """Result of ``commission tune`` (module docstring for the JSON layout).
+
+    Attributes
+    ----------
+    provenance : Provenance
+    spec : Spec
+    identification : Identification
+        The identification the gains were tuned for.
+    plant : numpy.ndarray
+        float64[9] identified plant vector (controllers.plant layout), read-only.
+    quantization : float
+        Encoder resolution used in simulation, m.
+    arc : ArcGains
+        The tuned discrete ARC.
+    pid : PidGains
+        The PID baseline (57), poles of (56) at M_min.
+    pid_pole : float
+        PID triple pole magnitude, rad/s.
+    pid_design_mass : float
+        M_min = 1/theta_max[0], u-unit s^2/m.
+    observer : ObserverDesign
+    theorem1 : Theorem1Check
+    feasibility : dict
+        ``{"arc": FeasibilitySummary, "pid": FeasibilitySummary}``.
+    guarantees : dict
+        name -> :class:`Guarantee`.
+    scores : dict
+        scenario -> ``{"arc": Score, "pid": Score}``.
+    search : SearchRecord
+    """
+
+    provenance: Provenance
+    spec: Spec
+    identification: Identification
+    plant: np.ndarray
+    quantization: float
+    arc: ArcGains
+    pid: PidGains
+    pid_pole: float
+    pid_design_mass: float
+    observer: ObserverDesign
+    theorem1: Theorem1Check
+    feasibility: Mapping[str, FeasibilitySummary]
+    guarantees: Mapping[str, Guarantee]
+    scores: Mapping[str, Mapping[str, Score]]
+    search: SearchRecord
+
+    def __post_init__(self) -> None:
+        p = np.array(self.plant, dtype=np.float64)
+        if p.shape != (NP,):
+            raise ValueError(f"Tuning.plant: expected {NP} entries, got shape {p.shape}")
+        p.setflags(write=False)
+        object.__setattr__(self, "plant", p)
+
+    @property
+    def delta_d(self) -> float:
+        """Assumption-1 bound on |d~|, m/s^2."""
+        return self.identification.delta_d
+
+    @property
+    def theta(self):
+        """The theta box (:class:`commission.artifacts.ThetaBox`)."""
+        return self.identification.theta
+
+    def to_dict(self) -> dict[str, Any]:
+        pv = self.provenance
+        plant = {name: float(self.plant[i]) for i, name in enumerate(PLANT_NAMES)}
+        plant["quantization"] = self.quantization
+        pid = _gains_to_dict(self.pid)
+        pid["pole"] = self.pid_pole
+        pid["design_mass"] = self.pid_design_mass
+        ob = self.observer
+        return {
+            "kind": TUNING_KIND,
+            "schema_version": TUNING_SCHEMA_VERSION,
+            "provenance": {"ident_sha256": pv.ident_sha256, "log_sha256": pv.log_sha256,
+                           "tool_version": pv.tool_version, "created_utc": pv.created_utc,
+                           "seed": pv.seed, "ident_path": pv.ident_path},
+            "spec": self.spec.to_dict(),
+            "identification": self.identification.to_dict(),
+            "plant": plant,
+            "arc": _gains_to_dict(self.arc),
+            "pid": pid,
+            "observer": {"pole": ob.pole, "k1": ob.k1, "k2": ob.k2, "P": [list(r) for r in ob.P],
+                         "P_eigenvalues": list(ob.P_eigenvalues), "lyapunov_residual": ob.lyapunov_residual,
+                         "discrete_pole": _num_or_null(ob.discrete_pole)},
+            "theorem1": {"holds": self.theorem1.holds, "ratios": [list(r) for r in self.theorem1.ratios],
+                         "min_ratio": _num_or_null(self.theorem1.min_ratio)},
+            "feasibility": {k: v.to_dict() for k, v in self.feasibility.items()},
+            "guarantees": {k: {"holds": g.holds, "detail": g.detail} for k, g in self.guarantees.items()},
+            "scores": {s: {c: sc.to_dict() for c, sc in row.items()} for s, row in self.scores.items()},
+            "search": self.search.to_dict(),
+        }
+
+    def save(self, path: str) -> None:
+        """Write atomically with sorted keys."""
+        write_json_atomic(path, self.to_dict())
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "tuning.json") -> "Tuning":
+        """Strict load; errors name the JSON path (``tuning.json: $.arc.g1: ...``)."""
+        r = Reader(data, "$", source)
+        r.header(TUNING_KIND, TUNING_SCHEMA_VERSION)
+        pr = r.obj("provenance")
+        prov = Provenance(ident_sha256=pr.str_("ident_sha256"), log_sha256=pr.str_("log_sha256", optional=True),  # type: ignore[arg-type]
+                          tool_version=pr.str_("tool_version"), created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
+                          seed=pr.int_("seed"), ident_path=pr.str_("ident_path"))  # type: ignore[arg-type]
+        sr = r.obj("spec")
+        spec = spec_from_mapping(sr.data, source, prefix="$.spec.")
+        ir = r.obj("identification")
+        try:
+            ident = Identification.from_dict(ir.data, source=source)
+        except SchemaError as exc:
+            # re-anchor the path under $.identification
+            raise SchemaError(str(exc).replace(f"{source}: $", f"{source}: $.identification")) from None
+        plr = r.obj("plant")
+        plant = np.array([plr.num(n) for n in PLANT_NAMES], dtype=np.float64)
+        quant = plr.num("quantization", nonneg=True)
+        arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
+        pidr = r.obj("pid")
+        pid = _gains_from_reader(PidGains, pidr, _PID_INF_OK, skip=("pole", "design_mass"))
+        obr = r.obj("observer")
+        P = _matrix(obr, "P", 2, 2)
+        dp = obr.num("discrete_pole", optional=True)
+        observer = ObserverDesign(pole=obr.num("pole", positive=True), k1=obr.num("k1", positive=True),  # type: ignore[arg-type]
+                                  k2=obr.num("k2", positive=True), P=P,  # type: ignore[arg-type]
+                                  P_eigenvalues=obr.vec("P_eigenvalues", 2),  # type: ignore[arg-type]
+                                  lyapunov_residual=obr.num("lyapunov_residual", nonneg=True),  # type: ignore[arg-type]
+                                  discrete_pole=math.nan if dp is None else dp)
+        t1 = r.obj("theorem1")
+        ratios = _matrix(t1, "ratios", 2, 3)
+        mr = t1.num("min_ratio", optional=True)
+        theorem1 = Theorem1Check(holds=t1.bool_("holds"), ratios=ratios,  # type: ignore[arg-type]
+                                 min_ratio=math.inf if mr is None else mr)
+        fr = r.obj("feasibility")
+        feas = {k: FeasibilitySummary.from_reader(fr.obj(k)) for k in ("arc", "pid")}
+        gr = r.obj("guarantees")
+        guarantees = {k: Guarantee(gr.obj(k).bool_("holds"), gr.obj(k).str_("detail")) for k in gr.keys()}  # type: ignore[arg-type]
+        scr = r.obj("scores")
+        scores = {s: {c: Score.from_reader(scr.obj(s).obj(c)) for c in ("arc", "pid")} for s in scr.keys()}
+        se = r.obj("search")
+        fre = se.obj("free")
+        search = SearchRecord(n_evaluations=se.int_("n_evaluations"), budget=se.int_("budget"), seed=se.int_("seed"),
+                              cost_initial=_nan(se.num("cost_initial", optional=True)),
+                              cost_best=_nan(se.num("cost_best", optional=True)),
+                              free={k: fre.num(k) for k in fre.keys()},  # type: ignore[misc]
+                              history=_nullable_list(se, "history"))
+        if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
+            raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
+        return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=quant,  # type: ignore[arg-type]
+                   arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
+                   pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
+                   observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
+                   scores=scores, search=search)
+
+    @classmethod
+    def load(cls, path: str) -> "Tuning":
+        """Read and strictly validate ``tuning.json``."""
+        return cls.from_dict(read_json(path), source=str(path))
+
+
+def _matrix(r: Reader, key: str, rows: int, cols: int) -> tuple[tuple[float, ...], ...]:
+    """A rows x cols list of lists of finite numbers at ``key``; errors name ``key[i][j]``."""
+    m = r.child(key)
+    if not isinstance(m.data, list) or len(m.data) != rows:
+        raise r.fail(f"expected a {rows}x{cols} matrix (list of {rows} rows)", m.path)
+    return tuple(_row(m, i, row, cols) for i, row in enumerate(m.data))
+
+
+def _row(m: Reader, i: int, row: Any, cols: int) -> tuple[float, ...]:
+    p = f"{m.path}[{i}]"
+    if not isinstance(row, list) or len(row) != cols:
+        raise m.fail(f"expected a list of {cols} numbers", p)
+    for j, x in enumerate(row):
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+            raise m.fail(f"expected a finite number, got {x!r}", f"{p}[{j}]")
+    return tuple(float(x) for x in row)
+
+
+def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:
+    """An optional list of numbers where null stands for NaN (a diverged candidate); absent: empty."""
+    if not r.has(key):
+        return ()
+    m = r.child(key)
+    if not isinstance(m.data, list):
+        raise r.fail("expected a list of numbers", m.path)
+    out = []
+    for i, v in enumerate(m.data):
+        if v is None:
+            out.append(math.nan)
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise r.fail(f"expected a number or null, got {v!r}", f"{m.path}[{i}]")
+        else:
+            out.append(float(v))
+    return tuple(out)
+
+
+def _nan(x: float | None) -> float:
+    return math.nan if x is None else x

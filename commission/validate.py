@@ -1,0 +1,648 @@
+"""The ``commission validate`` pipeline: tuning.json -> report, gate verdict, controller.json.
+
+Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
+
+1. Inputs are checked before any simulation: the gate TOML
+   (:func:`commission.gate.load_gate`), tuning.json (strict schema), the seed
+   and the Monte-Carlo count, and the output folder (an existing output file
+   is refused without ``force``).
+2. The scenario matrix (:func:`commission.scenarios.scenario_matrix`): the 12
+   fixed scenarios (Case 1 and Case 2 x nominal, payload at both theta_1
+   bounds, friction +-20 %, the delta_d disturbance step) and
+   ``n_monte_carlo`` plants drawn from the theta box with
+   ``numpy.random.default_rng(seed)``.
+3. Every scenario is simulated with the tuned ARC and with the PID baseline
+   (:func:`commission.controllers.simulate.simulate`: exact ZOH plant with
+   :data:`SUBSTEPS` sub-steps, the encoder quantization of the tuning, the
+   actuator limit ``spec.u_max``, abort when ``|q - q_d|`` exceeds the
+   envelope's travel).  The runs are independent and the compiled loop
+   releases the GIL, so they are spread over a thread pool (one thread per
+   CPU by default); results do not depend on the number of threads.  The ARC
+   is simulated with the gains *as read back from the controller.json
+   layout*, so what was validated is what is deployed.
+4. The gate (:mod:`commission.gate`) is checked on every scenario.
+5. Outputs: ``validation.json`` (every index of every run, the gate and every
+   check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``
+   only when every check passed.  With ``force`` and a failing gate a
+   controller.json left by an earlier run is removed, so that the folder never
+   pairs a failing report with a deployable file.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+import commission
+from commission.controller_config import ControllerConfig, ControllerProvenance
+from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.plant import P_B, P_M, P_OFFSET
+from commission.controllers.pid import pid_pack
+from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
+from commission.controllers.trajectory import Trajectory
+from commission.errors import SpecError, UsageError
+from commission.gate import GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, resolve_gate
+from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
+from commission.report import report_markdown
+from commission.scenarios import resolve_quantization, scenario_matrix
+from commission.tuning import Score, Tuning
+
+Progress = Callable[[int, int], None]
+
+VALIDATION_KIND = "validation"
+VALIDATION_SCHEMA_VERSION = 1
+#: Plant sub-steps per sample (as in ``commission tune``).
+SUBSTEPS = 10
+#: Monte-Carlo plants by default.
+DEFAULT_MONTE_CARLO = 64
+
+REPORT_NAME = "report.md"
+VALIDATION_NAME = "validation.json"
+CONTROLLER_NAME = "controller.json"
+#: Figures the CLI draws (cli/plots_validate.py); listed here so that --force checks cover them.
+FIGURE_NAMES = ("tracking_case1.png", "tracking_case2.png", "theta_hat.png", "control_input.png",
+                "monte_carlo.png")
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """ARC and PID on one scenario.
+
+    Attributes
+    ----------
+    name : str
+    tags : tuple of str
+    arc, pid : Score
+        Indexes (SI units; NaN when diverged) and the peak |u|.
+    arc_t_abort, pid_t_abort : float
+        Time of the abort, s (NaN when the run completed).
+    theta_final : tuple of 3 float
+        ARC estimates at the last sample.
+    theta_true : tuple of 3 float
+        The scenario plant's [1/M, B/M, -offset/M] (friction not included).
+    """
+
+    name: str
+    tags: tuple[str, ...]
+    arc: Score
+    pid: Score
+    arc_t_abort: float
+    pid_t_abort: float
+    theta_final: tuple[float, float, float]
+    theta_true: tuple[float, float, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "tags": list(self.tags), "arc": self.arc.to_dict(), "pid": self.pid.to_dict(),
+                "arc_t_abort": _nn(self.arc_t_abort), "pid_t_abort": _nn(self.pid_t_abort),
+                "theta_final": [_nn(x) for x in self.theta_final], "theta_true": list(self.theta_true)}
+
+
+@dataclass(frozen=True)
+class Trace:
+    """Time histories of one fixed scenario, for the figures.
+
+    Arrays stop at an abort (``y_arc`` and ``y_pid`` may be shorter than ``t``).
+
+    Attributes
+    ----------
+    t, qd : numpy.ndarray
+        Sample times (s) and desired position (m).
+    y_arc, u_arc, y_pid, u_pid : numpy.ndarray
+        Measured position (m) and applied command (u-unit).
+    theta_hat : numpy.ndarray, shape (n, 3)
+        ARC estimates.
+    theta_true : tuple of 3 float
+    """
+
+    t: np.ndarray
+    qd: np.ndarray
+    y_arc: np.ndarray
+    u_arc: np.ndarray
+    y_pid: np.ndarray
+    u_pid: np.ndarray
+    theta_hat: np.ndarray
+    theta_true: tuple[float, float, float]
+
+    @property
+    def e_arc(self) -> np.ndarray:
+        """Measured ARC tracking error, m."""
+        return self.y_arc - self.qd[: self.y_arc.shape[0]]
+
+    @property
+    def e_pid(self) -> np.ndarray:
+        """Measured PID tracking error, m."""
+        return self.y_pid - self.qd[: self.y_pid.shape[0]]
+
+
+@dataclass(frozen=True)
+class ValidationResult:
+    """Everything ``validate`` computed.
+
+    Attributes
+    ----------
+    runs : tuple of RunRecord
+        In scenario-matrix order (fixed scenarios, then ``mc/NNN``).
+    traces : dict
+        Scenario name -> :class:`Trace`, for the fixed scenarios.
+    verdict : GateVerdict
+    units : dict
+        ``{"u": command unit, "q": "m"}``.
+    seed : int
+    n_monte_carlo : int
+    arc_gains : ArcGains
+        The gains simulated (read back from the controller.json layout).
+    quantization : float
+        Encoder resolution simulated, m.
+    e_abort : float
+        Abort threshold on |q - q_d|, m.
+    u_sat : float
+        Actuator limit simulated, u-unit.
+    elapsed : float
+        Wall time of the simulations, s.
+    workers : int
+        Threads used.
+    """
+
+    runs: tuple[RunRecord, ...]
+    traces: Mapping[str, Trace]
+    verdict: GateVerdict
+    units: Mapping[str, str]
+    seed: int
+    n_monte_carlo: int
+    arc_gains: ArcGains
+    quantization: float
+    e_abort: float
+    u_sat: float
+    elapsed: float
+    workers: int
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict.passed
+
+    def run(self, name: str) -> RunRecord:
+        for r in self.runs:
+            if r.name == name:
+                return r
+        raise KeyError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": VALIDATION_KIND,
+            "schema_version": VALIDATION_SCHEMA_VERSION,
+            "passed": self.passed,
+            "seed": self.seed,
+            "monte_carlo": self.n_monte_carlo,
+            "units": dict(self.units),
+            "simulation": {"substeps": SUBSTEPS, "quantization": self.quantization, "e_abort": self.e_abort,
+                           "u_sat": _nn(self.u_sat), "sample_period": self.arc_gains.Ts},
+            "gate": self.verdict.limits.to_dict(),
+            "failures": [c.to_dict() for c in self.verdict.failures],
+            "worst": {k: c.to_dict() for k, c in self.verdict.worst().items()},
+            "runs": [r.to_dict() for r in self.runs],
+            "elapsed_s": self.elapsed,
+        }
+
+
+def _nn(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def deployable_gains(arc: ArcGains) -> ArcGains:
+    """``arc`` after a round trip through the controller.json layout (what the runtime will run)."""
+    probe = ControllerConfig(gains=arc, sample_rate=1.0 / arc.Ts, units={"u": "u", "q": "m"}, validated={},
+                             provenance=ControllerProvenance(None, "0" * 64, "0" * 64, "", ""))
+    doc = json.loads(json.dumps(probe.to_dict()))
+    back = ControllerConfig.from_dict(doc, "controller.json (round trip)").gains
+    if not np.array_equal(arc_pack(back), arc_pack(arc)):  # pragma: no cover - a layout bug
+        raise RuntimeError("controller.json layout does not reproduce the tuned ARC exactly")
+    return back
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    score: Score
+    t_abort: float
+    theta_final: tuple[float, float, float]
+    sim: SimResult | None
+
+
+def _theta_true(plant: np.ndarray) -> tuple[float, float, float]:
+    M = float(plant[P_M])
+    return (1.0 / M, float(plant[P_B]) / M, -float(plant[P_OFFSET]) / M)
+
+
+def _score(r: SimResult) -> Score:
+    peak = float(np.max(np.abs(r.u))) if r.n_steps > 0 else math.nan
+    if r.indexes is None:
+        return Score(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, peak, True)
+    i = r.indexes
+    return Score(i.e_M, i.e_F, i.e_rms, i.u_rms, i.du_rms, i.c_u, peak, False)
+
+
+def _t_abort(r: SimResult, Ts: float) -> float:
+    return r.n_steps * Ts if r.diverged else math.nan
+
+
+def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
+             n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
+             workers: int | None = None) -> ValidationResult:
+    """Simulate the scenario matrix with the tuned ARC and the PID baseline; check the gate.
+
+    Parameters
+    ----------
+    tuning : Tuning
+    gate : GateSpec, optional
+        Default: every default of :mod:`commission.gate`.
+    seed : int
+        Seed of the Monte-Carlo sample (``numpy.random.default_rng(seed)``).
+    n_monte_carlo : int
+        Monte-Carlo plants from the theta box.
+    progress : callable(done, total), optional
+        Called after each simulation (``total`` = 2 x scenarios), on the calling thread.
+    workers : int, optional
+        Threads (default: ``os.cpu_count()``).
+
+    Returns
+    -------
+    ValidationResult
+    """
+    if seed < 0:
+        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
+    if n_monte_carlo < 0:
+        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    gate = GateSpec() if gate is None else gate
+    spec = tuning.spec
+    limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max)
+    scenarios = scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(seed),
+                                n_monte_carlo=n_monte_carlo)
+    arc = deployable_gains(tuning.arc)
+    ctrl = {KIND_ARC: arc_pack(arc), KIND_PID: pid_pack(tuning.pid)}
+    Ts = arc.Ts
+    if abs(tuning.pid.Ts - Ts) > 1e-12 * Ts:
+        raise UsageError(f"tuning: ARC and PID sample periods differ ({Ts} s vs {tuning.pid.Ts} s)")
+    e_abort = spec.travel
+    u_sat = spec.u_max
+    refs: dict[tuple, Trajectory] = {}
+    for s in scenarios:
+        key = (s.trajectory, s.y0)
+        if key not in refs:
+            refs[key] = s.trajectory.render(Ts, s.y0)
+    jobs = [(i, kind) for i in range(len(scenarios)) for kind in (KIND_ARC, KIND_PID)]
+
+    def run(job: tuple[int, int]) -> _Outcome:
+        i, kind = job
+        s = scenarios[i]
+        ref = refs[(s.trajectory, s.y0)]
+        d = s.disturbance.samples(ref.t)
+        r = simulate(s.plant, kind, ctrl[kind], ref, substeps=SUBSTEPS, quant=s.quantization,
+                     disturbance=d if np.any(d) else None, y0=s.y0, u_sat=u_sat, e_abort=e_abort)
+        th = r.theta_hat
+        final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
+        # Monte-Carlo traces are dropped at once (memory); the fixed scenarios keep theirs for the figures.
+        return _Outcome(_score(r), _t_abort(r, Ts), final, None if "monte_carlo" in s.tags else r)  # type: ignore[arg-type]
+
+    nworkers = max(1, (os.cpu_count() or 1) if workers is None else int(workers))
+    results: dict[tuple[int, int], _Outcome] = {}
+    t0 = time.perf_counter()
+    total = len(jobs)
+    if progress is not None:
+        progress(0, total)
+    if nworkers == 1:
+        for k, job in enumerate(jobs):
+            results[job] = run(job)
+            if progress is not None:
+                progress(k + 1, total)
+    else:
+        with ThreadPoolExecutor(max_workers=nworkers) as ex:
+            futs = {ex.submit(run, job): job for job in jobs}
+            for k, f in enumerate(as_completed(futs)):
+                results[futs[f]] = f.result()
+                if progress is not None:
+                    progress(k + 1, total)
+    elapsed = time.perf_counter() - t0
+    runs: list[RunRecord] = []
+    traces: dict[str, Trace] = {}
+    for i, s in enumerate(scenarios):
+        oa, op = results[(i, KIND_ARC)], results[(i, KIND_PID)]
+        truth = _theta_true(s.plant)
+        runs.append(RunRecord(s.name, s.tags, oa.score, op.score, oa.t_abort, op.t_abort, oa.theta_final, truth))
+        if oa.sim is not None and op.sim is not None:
+            ref = refs[(s.trajectory, s.y0)]
+            th = oa.sim.theta_hat
+            traces[s.name] = Trace(t=ref.t, qd=ref.qd, y_arc=oa.sim.y, u_arc=oa.sim.u, y_pid=op.sim.y,
+                                   u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
+                                   theta_true=truth)
+    verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs])
+    return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
+                            units=dict(tuning.identification.units), seed=int(seed),
+                            n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
+                            e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers)
+
+
+# --------------------------------------------------------------------------- controller.json
+
+
+def validated_record(result: ValidationResult) -> dict[str, Any]:
+    """The ``validated`` section of controller.json.
+
+    ``gate``: the resolved limits; ``worst``: per criterion the worst value and
+    its scenario; ``nominal``: the ARC's indexes on the identified plant per
+    trajectory (``case1``, ``case2``), i.e. the performance the identified model predicts.
+    """
+    worst = result.verdict.worst()
+    nominal = {r.tags[0]: r.arc.to_dict() for r in result.runs if "nominal" in r.tags}
+    return {
+        "gate": result.verdict.limits.to_dict(),
+        "nominal": nominal,
+        "worst": {k: {"scenario": c.scenario, "value": _nn(c.value), "limit": _nn(c.limit)} for k, c in worst.items()},
+        "scenarios": len(result.runs),
+        "monte_carlo": result.n_monte_carlo,
+        "seed": result.seed,
+        "simulation": {"substeps": SUBSTEPS, "quantization": result.quantization, "e_abort": result.e_abort,
+                       "u_sat": _nn(result.u_sat)},
+    }
+
+
+def log_sha256_of(tuning: Tuning) -> str | None:
+    """sha256 of the excitation log: the tuning's provenance, else ident.json's ``source.sha256``."""
+    if tuning.provenance.log_sha256:
+        return tuning.provenance.log_sha256
+    src = tuning.identification.extra.get("source")
+    if isinstance(src, dict) and isinstance(src.get("sha256"), str):
+        return src["sha256"]
+    return None
+
+
+def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: str,
+                      created_utc: str | None = None) -> ControllerConfig:
+    """The deployable controller of a passed validation.
+
+    Raises
+    ------
+    ValueError
+        When the gate did not pass (a controller is never built from a failed validation).
+    """
+    if not result.passed:
+        raise ValueError("controller_config: the gate failed; no controller is emitted")
+    prov = ControllerProvenance(
+        log_sha256=log_sha256_of(tuning),
+        ident_sha256=tuning.provenance.ident_sha256,
+        tuning_sha256=tuning_sha256,
+        tool_version=commission.__version__,
+        created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+    )
+    return ControllerConfig(gains=result.arc_gains, sample_rate=tuning.spec.sample_rate,
+                            units=dict(tuning.identification.units), validated=validated_record(result),
+                            provenance=prov)
+
+
+# --------------------------------------------------------------------------- file-level pipeline
+
+
+@dataclass(frozen=True)
+class ValidateOutcome:
+    """What :func:`run_validate` wrote.
+
+    Attributes
+    ----------
+    result : ValidationResult
+    tuning : Tuning
+    written : tuple of Path
+        Every file written, in order.
+    controller : Path or None
+        controller.json when the gate passed.
+    """
+
+    result: ValidationResult
+    tuning: Tuning
+    written: tuple[Path, ...]
+    controller: Path | None
+
+
+FigureWriter = Callable[[ValidationResult, Path], Sequence[Path]]
+
+
+def output_names() -> tuple[str, ...]:
+    """Every file ``validate`` may write into its output folder."""
+    return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES)
+
+
+def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: bool) -> Path:
+    """Refuse an output folder that is a file, or that holds one of ``names``, unless ``force``.
+
+    Raises
+    ------
+    UsageError
+        ``DIR/controller.json: exists; pass --force to overwrite``.
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out-dir {out}: exists and is not a folder")
+    if not force:
+        for n in names:
+            if (out / n).exists():
+                raise UsageError(f"{out / n}: exists; pass --force to overwrite")
+    return out
+
+
+def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+                 gate_path: str | os.PathLike[str] | None = None, force: bool = False, seed: int = 0,
+                 n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
+                 workers: int | None = None, figures: FigureWriter | None = None) -> ValidateOutcome:
+    """File-level pipeline of ``commission validate`` (module docstring).
+
+    Every input check runs before any simulation, and nothing is written
+    until the simulations are done.
+
+    Parameters
+    ----------
+    tuning_path : path
+        tuning.json.
+    out_dir : path
+        Folder for report.md, validation.json, the figures and controller.json.
+    gate_path : path, optional
+        gate.toml (default: the documented defaults).
+    force : bool
+        Overwrite existing outputs.
+    seed, n_monte_carlo, progress, workers
+        As in :func:`validate`.
+    figures : callable(result, out_dir) -> paths, optional
+        Draws the figures (the CLI passes its matplotlib writer); report.md links what it returns.
+
+    Raises
+    ------
+    InputFileError, SchemaError, SpecError, UsageError
+        Bad input (exit 2); nothing is written.
+    """
+    if seed < 0:
+        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
+    if n_monte_carlo < 0:
+        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    gate = load_gate(gate_path)
+    tpath = os.fspath(tuning_path)
+    tuning = Tuning.from_dict(read_json(tpath), source=tpath)
+    # Resolve now so that a gate that cannot apply to this tuning fails before any simulation.
+    resolve_gate(gate, lsb=tuning.quantization, travel=tuning.spec.travel, u_max=tuning.spec.u_max)
+    out = check_out_dir(out_dir, output_names(), force)
+    tuning_sha = sha256_file(tpath)
+    result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers)
+    written = write_outputs(result, tuning, tuning_sha, out, figures=figures,
+                            sources={"tuning": tpath, "gate": os.fspath(gate_path) if gate_path else None})
+    ctrl = out / CONTROLLER_NAME
+    return ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
+
+
+def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, out: Path, *,
+                  figures: FigureWriter | None = None, sources: Mapping[str, str | None] | None = None) -> list[Path]:
+    """Write validation.json, the figures, report.md and (gate passed) controller.json into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    write_json_atomic(out / VALIDATION_NAME, result.to_dict())
+    written.append(out / VALIDATION_NAME)
+    figs = list(figures(result, out)) if figures is not None else []
+    written.extend(figs)
+    text = report_markdown(result, tuning, figures=[p.name for p in figs], sources=sources or {},
+                           tuning_sha256=tuning_sha256)
+    write_text_atomic(out / REPORT_NAME, text)
+    written.append(out / REPORT_NAME)
+    ctrl = out / CONTROLLER_NAME
+    if result.passed:
+        write_json_atomic(ctrl, controller_config(result, tuning, tuning_sha256).to_dict())
+        written.append(ctrl)
+    elif ctrl.exists():
+        ctrl.unlink()  # never leave a deployable file next to a failing report
+    return written
+
+
+IDENT_NAME = "ident.json"
+TUNING_NAME = "tuning.json"
+StageProgress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What :func:`run_all` wrote.
+
+    Attributes
+    ----------
+    ident : Path
+    tuning : Path
+    validation : ValidateOutcome
+    """
+
+    ident: Path
+    tuning: Path
+    validation: ValidateOutcome
+
+
+def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+            mapping: Mapping[str, str] | None = None, input_gain: float = 1.0,
+            sample_rate: float | None = None, friction: str = "stribeck",
+            spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
+            force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
+            progress: StageProgress | None = None, workers: int | None = None,
+            figures: FigureWriter | None = None) -> RunOutcome:
+    """``commission run``: identify, tune and validate one log into ``out_dir``.
+
+    Every check of the inputs (flags, spec, gate, the log, the spec against the
+    identified axis, the output folder) happens before anything is written;
+    the three stages then run in memory and the files -- ident.json,
+    tuning.json, validation.json, the figures, report.md and (gate passed)
+    controller.json -- are written at the end.  The files are byte for byte
+    what ``commission identify``, ``tune`` and ``validate`` would write (up to
+    time stamps): ident.json and tuning.json are round-tripped through their
+    JSON form before the next stage uses them, and their sha256 are those of
+    the files written.
+
+    Parameters
+    ----------
+    log_path : path
+        Excitation log (CONTRACT §1).
+    out_dir : path
+    mapping, input_gain, sample_rate, friction
+        As ``commission identify`` (``--map``, ``--input-gain``, ``--sample-rate``, ``--friction``).
+    spec_path : path, optional
+        Tuning spec (``commission tune --spec``); default: the paper's setting.
+    gate_path : path, optional
+        Gate TOML; default: :mod:`commission.gate` defaults.
+    force : bool
+        Overwrite existing outputs.
+    seed : int
+        Seed of the tuning search and of the validation's Monte-Carlo sample.
+    n_monte_carlo : int
+    progress : callable(stage, done, total), optional
+        ``stage`` is ``"identify"``, ``"tune"`` or ``"validate"``.
+    workers : int, optional
+    figures : callable, optional
+        As in :func:`run_validate`.
+
+    Raises
+    ------
+    InputFileError, DataError, SchemaError, SpecError, UsageError
+        Bad input (exit 2); nothing is written.
+    """
+    from commission.artifacts import Identification
+    from commission.controllers.design import DesignError
+    from commission.identification import identify_log
+    from commission.jsonio import canonical_json, sha256_json
+    from commission.spec import load_spec
+    from commission.tune import check_spec_against_ident, tune
+
+    if seed < 0:
+        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
+    if n_monte_carlo < 0:
+        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    if friction not in ("coulomb", "stribeck"):
+        raise UsageError(f"--friction: expected coulomb or stribeck, got {friction!r}")
+    gate = load_gate(gate_path)
+    spec = load_spec(spec_path)
+    out = check_out_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), force)
+
+    def stage(name: str) -> Progress:
+        return lambda done, total: progress(name, done, total) if progress is not None else None
+
+    stage("identify")(0, 1)
+    ident_out = identify_log(os.fspath(log_path), mapping=mapping, input_gain=input_gain,
+                             sample_rate=sample_rate, friction=friction)  # type: ignore[arg-type]
+    stage("identify")(1, 1)
+    ident_doc = ident_out.ident.to_dict()
+    ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
+    spec_src = os.fspath(spec_path) if spec_path is not None else "spec (defaults)"
+    check_spec_against_ident(spec, ident, spec_src)
+    resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
+    try:
+        tuned = tune(ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
+                     ident_path=str(out / IDENT_NAME), log_sha256=ident_out.log.sha256,
+                     progress=stage("tune"), workers=workers)
+    except DesignError as exc:
+        raise SpecError(f"{spec_src}: {exc}") from None
+    tuning_doc = tuned.to_dict()
+    tuning = Tuning.from_dict(json.loads(canonical_json(tuning_doc)), source=str(out / TUNING_NAME))
+    result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
+                      workers=workers)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / IDENT_NAME, ident_doc)
+    write_json_atomic(out / TUNING_NAME, tuning_doc)
+    written = write_outputs(result, tuning, sha256_json(tuning_doc), out, figures=figures,
+                            sources={"tuning": str(out / TUNING_NAME),
+                                     "gate": os.fspath(gate_path) if gate_path else None})
+    ctrl = out / CONTROLLER_NAME
+    vo = ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
+    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo)
+
+
+__all__ = [
+    "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
+    "controller_config", "validated_record", "run_validate", "write_outputs", "check_out_dir", "output_names",
+    "deployable_gains", "run_all", "RunOutcome", "log_sha256_of",
+]

@@ -1,0 +1,155 @@
+"""The tuning spec: documented defaults, and bad specs rejected before any simulation (exit 2, one line)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from commission import tune as tune_mod
+from commission.artifacts import Estimate, Identification, ThetaBox
+from commission.cli.main import app
+from commission.errors import InputFileError, SpecError
+from commission.spec import MAX_OMEGA_T, default_spec, load_spec, spec_from_mapping
+
+runner = CliRunner()
+
+
+def ref_ident_doc() -> dict:
+    """The CONTRACT §5 reference plant as an ident.json document (constructed, not identified)."""
+    ident = Identification(
+        units={"u": "V", "q": "m"},
+        parameters={k: Estimate(v, 0.0) for k, v in
+                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
+        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
+        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
+        delta_d=0.5 / 0.027, fric_level=0.1, fric_slope=900.0)
+    return ident.to_dict()
+
+
+def test_defaults_are_the_papers_setting():
+    s = default_spec()
+    assert s.sample_rate == 2500.0
+    assert s.observer_pole == pytest.approx(200.0)  # paper: all observer roots at -200
+    assert s.pid_pole == pytest.approx(300.0)  # paper: PID poles at -300
+    assert (s.v_max, s.a_max, s.travel, s.dwell, s.moves) == (1.0, 12.0, 0.4, 0.5, 6)
+    assert (s.beta1, s.beta2) == (100.0, 2500.0)
+    assert s.u_max == 10.0 and s.quantization is None
+    # an empty file gives the same spec, and the spec round-trips through its TOML layout
+    assert spec_from_mapping({}) == s
+    assert spec_from_mapping(s.to_dict()) == s
+
+
+def test_derived_defaults_follow_the_sample_rate():
+    s = spec_from_mapping({"controller": {"sample_rate": 5000}})
+    assert s.observer_pole == pytest.approx(400.0) and s.pid_pole == pytest.approx(600.0)
+    s2 = spec_from_mapping({}, sample_rate_default=1000.0)
+    assert s2.sample_rate == 1000.0 and s2.observer_pole == pytest.approx(80.0)
+
+
+@pytest.mark.parametrize("data, match", [
+    ({"controler": {"sample_rate": 2500.0}}, r"^spec\.toml: controler: unknown section"),
+    ({"controller": {"sampel_rate": 2500.0}}, r"^spec\.toml: controller\.sampel_rate: unknown key"),
+    ({"controller": {"sample_rate": -2500.0}}, r"^spec\.toml: controller\.sample_rate = -2500.0 Hz must be positive"),
+    ({"controller": {"sample_rate": 0}}, r"controller\.sample_rate = 0.0 Hz must be positive"),
+    ({"trajectory": {"v_max": -1.0}}, r"trajectory\.v_max = -1.0 m/s must be positive"),
+    ({"trajectory": {"dwell": -0.1}}, r"trajectory\.dwell = -0.1 s must not be negative"),
+    ({"trajectory": {"moves": 2.5}}, r"trajectory\.moves = 2.5: expected an integer"),
+    ({"targets": {"c_u": "low"}}, r"targets\.c_u = 'low': expected a finite number"),
+    ({"controller": {"sample_rate": 100.0, "observer_pole": 200.0}},
+     r"controller\.sample_rate = 100 Hz is too low for observer poles at -200 rad/s \(need >= 400 Hz"),
+    ({"controller": {"sample_rate": 500.0}, "pid": {"pole": 300.0}},
+     r"controller\.sample_rate = 500 Hz is too low for PID poles at -300 rad/s \(need >= 600 Hz"),
+    ({"controller": {"sample_rate": 90.0}},
+     r"controller\.sample_rate = 90 Hz is too low for reference filter \(58\) poles at -50 rad/s"),
+    ({"trajectory": {"v_max": 3.0, "a_max": 12.0, "travel": 0.4}}, r"trajectory\.v_max = 3 m/s cannot be reached"),
+])
+def test_bad_specs_name_the_key(data, match):
+    with pytest.raises(SpecError, match=match):
+        spec_from_mapping(data, "spec.toml")
+
+
+def test_bandwidth_rule_boundary():
+    # omega T = MAX_OMEGA_T exactly is accepted, just above it is not.
+    fs = 200.0 / MAX_OMEGA_T
+    assert spec_from_mapping({"controller": {"sample_rate": fs, "observer_pole": 200.0}}).sample_rate == fs
+    with pytest.raises(SpecError, match="too low"):
+        spec_from_mapping({"controller": {"sample_rate": fs * 0.999, "observer_pole": 200.0}})
+
+
+def test_log_rate_default_is_named_in_the_error():
+    with pytest.raises(SpecError, match=r"sample_rate = 300 Hz \(default: the log's rate\) is too low"):
+        spec_from_mapping({"controller": {"observer_pole": 200.0}}, sample_rate_default=300.0)
+
+
+def test_load_spec_files(tmp_path):
+    p = tmp_path / "spec.toml"
+    p.write_text("[controller]\nsample_rate = 4000\n[targets]\ne_f = 2e-5\n")
+    s = load_spec(p)
+    assert s.sample_rate == 4000.0 and s.e_f == 2e-5 and s.observer_pole == pytest.approx(320.0)
+    (tmp_path / "broken.toml").write_text("[controller\n")
+    with pytest.raises(SpecError, match="broken.toml: not valid TOML"):
+        load_spec(tmp_path / "broken.toml")
+    with pytest.raises(InputFileError, match="missing.toml: no such file"):
+        load_spec(tmp_path / "missing.toml")
+    assert load_spec(None) == default_spec()
+
+
+# --------------------------------------------------------------------------- CLI: exit 2, one line, nothing run
+
+
+@pytest.fixture()
+def no_simulation(monkeypatch):
+    """Fail the test if the tuning pipeline gets as far as simulating anything."""
+    calls = []
+
+    def boom(*a, **k):  # pragma: no cover - only runs when the check is broken
+        calls.append(1)
+        raise AssertionError("a simulation ran before the spec was rejected")
+
+    monkeypatch.setattr(tune_mod, "tune", boom)
+    monkeypatch.setattr(tune_mod, "simulate_batch", boom)
+    return calls
+
+
+@pytest.mark.parametrize("toml, key, words", [
+    ("[controller]\nsampel_rate = 2500\n", "controller.sampel_rate", "unknown key"),
+    ("[controller]\nsample_rate = -2500\n", "controller.sample_rate", "must be positive"),
+    ("[controller]\nsample_rate = 100\nobserver_pole = 200.0\n", "controller.sample_rate", "too low for observer poles"),
+    ("[controller]\nu_max = 0.5\n", "controller.u_max", "is below the"),
+])
+def test_cli_rejects_bad_spec_before_simulating(tmp_path, no_simulation, toml, key, words):
+    ident = tmp_path / "ident.json"
+    ident.write_text(json.dumps(ref_ident_doc()))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(toml)
+    out = tmp_path / "tuning.json"
+    r = runner.invoke(app, ["tune", str(ident), "--out", str(out), "--spec", str(spec)])
+    assert r.exit_code == 2, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1, r.output  # one line, no traceback, no progress bar
+    assert lines[0].startswith("error: ") and str(spec) in lines[0]
+    assert key in lines[0] and words in lines[0]
+    assert not out.exists()
+    assert no_simulation == []
+
+
+def test_cli_rejects_negative_seed_and_missing_ident(tmp_path, no_simulation):
+    r = runner.invoke(app, ["tune", str(tmp_path / "nope.json"), "--out", str(tmp_path / "t.json")])
+    assert r.exit_code == 2 and "nope.json: no such file" in r.output
+    ident = tmp_path / "ident.json"
+    ident.write_text(json.dumps(ref_ident_doc()))
+    r = runner.invoke(app, ["tune", str(ident), "--out", str(tmp_path / "t.json"), "--seed", "-1"])
+    assert r.exit_code == 2 and "--seed" in r.output
+
+
+def test_u_max_check_uses_the_heaviest_plant():
+    # 12 m/s^2 on M = 1/8.3 needs 1.45 V of inertia alone, + B v + stiction + disturbance.
+    ident = Identification.from_dict(ref_ident_doc())
+    need = 12.0 / 8.3 + 0.273 * 1.0 + 0.12 + 0.0 + 0.5
+    tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": need * 1.001}}), ident)
+    with pytest.raises(SpecError, match=r"controller\.u_max = 2\.3"):
+        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 2.3}}), ident)
+    assert math.isclose(need, 2.3386, rel_tol=1e-3)

@@ -1,0 +1,170 @@
+"""tuning.json: schema, strict loading with JSON paths, determinism, provenance, CLI success path."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from commission.artifacts import Estimate, Identification, ThetaBox
+from commission.cli.main import app
+from commission.controllers.arc import ArcGains
+from commission.controllers.pid import PidGains
+from commission.errors import SchemaError
+from commission.jsonio import sha256_file, write_json_atomic
+from commission.spec import spec_from_mapping
+from commission.tune import base_arc_gains, load_tune_inputs, tune
+from commission.tuning import Tuning
+
+SMALL = {"tune": {"budget": 3}}
+
+
+def ref_ident(**extra) -> Identification:
+    """The CONTRACT §5 reference plant, constructed directly (not identified)."""
+    return Identification(
+        units={"u": "V", "q": "m"},
+        parameters={k: Estimate(v, 0.0) for k, v in
+                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
+        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
+        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
+        delta_d=0.5 / 0.027, fric_level=0.1, fric_slope=900.0, extra=extra)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """A 3-candidate tuning of the (constructed) reference plant, through the CLI."""
+    d = tmp_path_factory.mktemp("tune")
+    ident = ref_ident(source={"sha256": "ab" * 32, "sample_rate": 2500.0})
+    write_json_atomic(d / "ident.json", ident.to_dict())
+    (d / "spec.toml").write_text("[tune]\nbudget = 3\n")
+    r = CliRunner().invoke(app, ["tune", str(d / "ident.json"), "--out", str(d / "tuning.json"),
+                                 "--spec", str(d / "spec.toml"), "--seed", "3"])
+    assert r.exit_code == 0, r.output
+    return d, r.output
+
+
+def test_cli_writes_a_schema_versioned_tuning(small):
+    d, output = small
+    doc = json.loads((d / "tuning.json").read_text())
+    assert doc["kind"] == "tuning" and doc["schema_version"] == 1
+    assert list(doc) == sorted(doc)  # sorted keys
+    pv = doc["provenance"]
+    assert pv["ident_sha256"] == sha256_file(d / "ident.json")
+    assert pv["log_sha256"] == "ab" * 32 and pv["seed"] == 3 and pv["created_utc"].endswith("Z")
+    assert set(doc["arc"]) == {f.name for f in dataclasses.fields(ArcGains)}
+    assert set(doc["pid"]) == {f.name for f in dataclasses.fields(PidGains)} | {"pole", "design_mass"}
+    assert doc["observer"]["k1"] == 400.0 and doc["observer"]["k2"] == 4e4
+    assert doc["pid"]["design_mass"] == pytest.approx(1 / 50.0)
+    assert doc["pid"]["Kp"] == pytest.approx(5400.0) and doc["pid"]["Ki"] == pytest.approx(5.4e5)  # paper (57)
+    assert doc["theorem1"]["holds"] is True
+    assert set(doc["feasibility"]) == {"arc", "pid"}
+    for name in ("theorem1_condition", "projection_P1", "exact_observer_filters", "robust_gains_37_47",
+                 "sampled_data_stability", "input_limit"):
+        assert name in doc["guarantees"]
+    assert doc["guarantees"]["robust_gains_37_47"]["holds"] is False  # traded: capped gains
+    assert len(doc["scores"]) == 12 + 16 + 4  # fixed scenarios, box corners, largest-force plants
+    assert doc["search"]["free"]["theta1_0"] == doc["arc"]["theta0"][0]
+    assert doc["search"]["n_evaluations"] == 3
+    assert "Chosen gains" in output and "case1/nominal" in output
+
+
+def test_roundtrip_and_strict_loading(small):
+    d, _ = small
+    t = Tuning.load(str(d / "tuning.json"))
+    assert Tuning.from_dict(t.to_dict()).to_dict() == t.to_dict()
+    # theta_hat2(0), theta_hat3(0): the nominal; theta_hat1(0): searched between 0.5x and 1x the nominal
+    assert t.arc.theta0[1:] == (10.1, 0.0) and 0.5 * 37.0 <= t.arc.theta0[0] <= 37.0 and t.arc.u_max == 10.0
+    doc = json.loads((d / "tuning.json").read_text())
+    cases = [
+        (lambda x: x["arc"].__setitem__("g1", "fast"), r"tuning\.json: \$\.arc\.g1: expected a finite number"),
+        (lambda x: x["arc"].pop("Gamma"), r"\$\.arc\.Gamma: missing required field"),
+        (lambda x: x["arc"].__setitem__("gain", 1.0), r"\$\.arc\.gain: unknown field"),
+        (lambda x: x["arc"].__setitem__("g1", -1.0), r"\$\.arc: ArcGains\.g1: must be > 0"),
+        (lambda x: x.__setitem__("kind", "identification"), r"\$\.kind: expected kind 'tuning'"),
+        (lambda x: x["spec"]["controller"].__setitem__("sample_rate", -1), r"\$\.spec\.controller\.sample_rate"),
+        (lambda x: x["identification"]["theta"].pop("min"), r"\$\.identification\.theta\.min: missing"),
+        (lambda x: x["observer"]["P"].__setitem__(1, [1.0]), r"\$\.observer\.P\[1\]: expected a list of 2"),
+        (lambda x: x["scores"]["case1/nominal"]["arc"].__setitem__("diverged", 0), r"diverged: expected true or false"),
+        (lambda x: x["pid"].__setitem__("design_mass", 0.03), r"\$\.pid\.design_mass: does not equal"),
+    ]
+    for mutate, msg in cases:
+        bad = copy.deepcopy(doc)
+        mutate(bad)
+        with pytest.raises(SchemaError, match=msg):
+            Tuning.from_dict(bad, source="tuning.json")
+
+
+def test_same_seed_same_tuning_different_seed_different_search():
+    ident = ref_ident()
+    spec = spec_from_mapping({"tune": {"budget": 6}})  # 4 structured starts + 2 random draws
+    kw = dict(ident_sha256="0" * 64, created_utc="2026-01-01T00:00:00Z", workers=2)
+    a = tune(ident, spec, rng=np.random.default_rng(11), seed=11, **kw)
+    b = tune(ident, spec, rng=np.random.default_rng(11), seed=11, workers=1,
+             **{k: v for k, v in kw.items() if k != "workers"})
+    c = tune(ident, spec, rng=np.random.default_rng(12), seed=12, **kw)
+    assert a.to_dict() == b.to_dict()  # bit-identical, independent of the thread count
+    assert a.search.history != c.search.history and len(c.search.history) == spec.budget
+    # the structured starts (carried-over paper gains first) do not depend on the seed
+    assert a.search.cost_initial == c.search.cost_initial == a.search.history[0]
+    assert a.search.history[:4] == c.search.history[:4]
+
+
+def test_spec_can_pin_theta_hat1_0():
+    ident = ref_ident()
+    spec = spec_from_mapping({"tune": {"budget": 6}, "controller": {"theta1_0": 30.0}})
+    t = tune(ident, spec, rng=np.random.default_rng(1), seed=1, ident_sha256="0" * 64,
+             created_utc="2026-01-01T00:00:00Z")
+    assert t.arc.theta0 == (pytest.approx(30.0), 10.1, 0.0)
+    assert t.search.free["theta1_0"] == pytest.approx(30.0)
+
+
+def test_theta_hat1_0_outside_the_box_is_refused(tmp_path):
+    from commission.errors import SpecError
+
+    write_json_atomic(tmp_path / "ident.json", ref_ident().to_dict())
+    (tmp_path / "spec.toml").write_text("[controller]\ntheta1_0 = 60.0\n")
+    with pytest.raises(SpecError, match=r"controller\.theta1_0 = 60 lies outside the identified theta1 box"):
+        load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "spec.toml")
+
+
+def test_progress_callback_and_base_gains():
+    ident = ref_ident()
+    spec = spec_from_mapping(SMALL)
+    seen = []
+    tune(ident, spec, rng=np.random.default_rng(0), seed=0, ident_sha256="0" * 64,
+         progress=lambda done, total: seen.append((done, total)))
+    assert seen[-1][0] == seen[-1][1] == spec.budget + 3
+    assert [s[0] for s in seen] == sorted(s[0] for s in seen)
+    g = base_arc_gains(ident, spec)
+    # theta1 nominal 37 and 2.5 kHz are the paper's axis: its gains carry over unchanged
+    assert (g.g1, g.g2, g.w1, g.w2) == (pytest.approx(600.0), pytest.approx(850.0), 1.0, pytest.approx(0.1))
+    assert g.Gamma == pytest.approx((5e5, 3e5, 2e6)) and g.C_theta2 == pytest.approx((1e5, 1e5, 1e5))
+
+
+def test_log_rate_becomes_the_default_sample_rate(tmp_path):
+    ident = ref_ident(source={"sha256": "cd" * 32, "sample_rate": 4000.0})
+    write_json_atomic(tmp_path / "ident.json", ident.to_dict())
+    inp = load_tune_inputs(tmp_path / "ident.json")
+    assert inp.spec.sample_rate == 4000.0 and inp.spec.observer_pole == pytest.approx(320.0)
+    assert inp.log_sha256 == "cd" * 32
+    (tmp_path / "spec.toml").write_text("[controller]\nsample_rate = 2500\n")
+    assert load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "spec.toml").spec.sample_rate == 2500.0
+
+
+def test_theorem1_holds_anywhere_in_the_search_box():
+    from commission.controllers.design import theorem1_check
+    from commission.tune import FREE_BOUNDS, apply_free
+
+    base = base_arc_gains(ref_ident(), spec_from_mapping({}))
+    rng = np.random.default_rng(0)
+    lo = np.log([b[1] for b in FREE_BOUNDS])
+    hi = np.log([b[2] for b in FREE_BOUNDS])
+    for x in [lo, hi, *(lo + (hi - lo) * rng.random((50, len(FREE_BOUNDS))))]:
+        g = apply_free(base, np.exp(x))
+        assert theorem1_check(g.w1, g.w2, g.C_phi1, g.C_phi2, g.C_theta2).min_ratio >= 5.0 - 1e-9
+        assert g.g1 <= g.k1s_max and g.g2 <= g.k2s_max
+        assert g.theta_min[0] <= g.theta0[0] <= base.theta0[0]  # theta_hat1(0) in the box, not above nominal

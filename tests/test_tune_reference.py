@@ -1,0 +1,133 @@
+"""MUST SHOW 1: on the CONTRACT §5 reference plant, the tuned ARC against the paper's hand-set
+gains (made implementable) on e_rms, and against the PID on e_M, e_F and e_rms.
+
+Result: it wins every comparison in every Table-1 scenario (Sets 1-3 and Case 2),
+Set 2 (the 9.1 kg payload, theta1 = 10 against the identified nominal 36.7)
+included: the search chooses theta_hat1(0) below the nominal (as the paper did,
+30 for 37) together with a higher K2 cap and a faster theta3 adaptation, so the
+start-up against the unlearnt payload no longer decides e_M and e_rms
+(measured with seed 0: Set 2 e_M / e_F / e_rms 102 / 2.5 / 2.47 um against the
+paper's ARC 113 / 9.4 / 3.13 and its PID 120 / 22.6 / 5.81).
+
+The identification is not constructed by hand: a commissioning log is simulated
+from the reference plant (:mod:`commission.synth`, known truth) and identified
+by the product (:func:`commission.identification.identify_log`); the tuning
+then runs on that ident.json exactly as ``commission tune`` would.  Scores are
+measured on the paper's Table-1 scenarios (:mod:`commission.paper`: Sets 1-3
+and Case 2, 2.5 kHz, 1 um encoder), which are independent of the tuning's own
+scenario matrix (none of them is a tuning scenario: Set 2's M = 0.1 is not the
+box's heaviest 1/theta1_min, and Set 3's step is 0.5 V from 2.2 s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from commission import paper
+from commission.controllers.arc import arc_pack, paper_gains_implementable
+from commission.controllers.pid import pid_pack
+from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
+from commission.identification import identify_log
+from commission.jsonio import write_json_atomic
+from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
+from commission.tune import run_tune
+
+pytestmark = pytest.mark.slow
+
+REFERENCE = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0, ripple_amp=0.01,
+                      ripple_pitch=0.03, lsb=1e-6, sample_rate=2500.0, u_unit="V", noise_std=0.0, u_max=10.0)
+
+
+@pytest.fixture(scope="module")
+def tuned(tmp_path_factory):
+    d = tmp_path_factory.mktemp("reference")
+    log = simulate_excitation(REFERENCE, ExcitationPlan(), np.random.default_rng(2001))
+    write_log_h5(d / "log.h5", log)
+    ident = identify_log(str(d / "log.h5")).ident
+    write_json_atomic(d / "ident.json", ident.to_dict())
+    return run_tune(d / "ident.json", d / "tuning.json", seed=0)
+
+
+def _run(name: str, kind: int, p: np.ndarray):
+    sc = paper.scenario(name)
+    r = simulate(sc.plant_p, kind, p, sc.traj, substeps=paper.SUBSTEPS, quant=paper.QUANT,
+                 disturbance=sc.disturbance, y0=sc.y0, u_sat=10.0)
+    assert not r.diverged, (name, kind)
+    return r.indexes
+
+
+@pytest.fixture(scope="module")
+def table(tuned):
+    ctrls = {"tuned": (KIND_ARC, arc_pack(tuned.arc)),
+             "paper_arc": (KIND_ARC, arc_pack(paper_gains_implementable())),
+             "paper_pid": paper.paper_controller("PID"),
+             "tuned_pid": (KIND_PID, pid_pack(tuned.pid))}
+    return {s: {c: _run(s, *kp) for c, kp in ctrls.items()} for s in paper.SCENARIOS}
+
+
+def test_identified_reference_is_close_to_the_truth(tuned):
+    ident = tuned.identification
+    assert ident.value("M") == pytest.approx(0.027, rel=0.05)
+    assert ident.theta.min[0] <= 10.0 <= ident.theta.max[0]  # Set 2's payload is inside the box
+    assert tuned.spec.sample_rate == pytest.approx(2500.0)
+
+
+def test_design_checks_hold(tuned):
+    assert tuned.observer.k1 == pytest.approx(400.0) and tuned.observer.k2 == pytest.approx(4e4)
+    assert tuned.theorem1.holds
+    assert tuned.feasibility["arc"].holds
+    assert tuned.guarantees["sampled_data_stability"].holds
+
+
+@pytest.mark.parametrize("scenario", paper.SCENARIOS)
+def test_tuned_arc_beats_the_papers_gains_on_e_rms(table, scenario):
+    row = table[scenario]
+    assert row["tuned"].e_rms < row["paper_arc"].e_rms
+
+
+@pytest.mark.parametrize("scenario", paper.SCENARIOS)
+@pytest.mark.parametrize("pid", ["tuned_pid", "paper_pid"])
+@pytest.mark.parametrize("index", ["e_M", "e_F", "e_rms"])
+def test_tuned_arc_beats_the_pids(table, scenario, pid, index):
+    row = table[scenario]
+    assert getattr(row["tuned"], index) < getattr(row[pid], index)
+
+
+def test_theta_hat1_0_is_chosen_inside_the_box_at_or_below_the_nominal(tuned):
+    ident = tuned.identification
+    th10 = tuned.arc.theta0[0]
+    assert ident.theta.min[0] <= th10 <= ident.theta.nominal[0]
+    assert tuned.arc.theta0[1:] == tuple(ident.theta.nominal[1:])
+
+
+def test_tuned_arc_is_robust_where_the_hand_set_gains_are_not(tuned):
+    """The tuning must hold over the whole theta box, which the hand-set gains do not.
+
+    On the 16 box corners of the tuning set (heaviest/lightest mass x viscous x
+    disturbance force, both trajectories) the paper's gains made implementable
+    are worse in the worst case than the tuned ones (measured: they lose the
+    heavy-mass Case-2 corners, e_rms ~1.8 mm, while the tuned ARC stays within 25 um).
+    """
+    import dataclasses
+
+    from commission.scenarios import corner_scenarios
+
+    ident, spec = tuned.identification, tuned.spec
+    impl = dataclasses.replace(paper_gains_implementable(spec.period), theta_min=ident.theta.min,
+                               theta_max=ident.theta.max)
+    worst = {}
+    for name, g in (("tuned", tuned.arc), ("paper", impl)):
+        e = []
+        for s in corner_scenarios(ident, spec):
+            r = simulate(s.plant, KIND_ARC, arc_pack(g), s.reference(spec.period), quant=s.quantization,
+                         u_sat=spec.u_max, e_abort=spec.travel)
+            e.append(float("inf") if r.diverged else r.indexes.e_rms)
+        worst[name] = max(e)
+    assert worst["tuned"] < 25e-6
+    assert worst["tuned"] < worst["paper"]
+
+
+def test_chattering_stays_within_the_gate(table):
+    # commission.gate's default c_u limit is 1.0; the paper's ARC measured 0.19-0.32.
+    assert all(row["tuned"].c_u < 1.0 for row in table.values())

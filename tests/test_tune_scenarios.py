@@ -1,0 +1,134 @@
+"""The scenario matrix shared by tune and validate."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from commission.artifacts import Estimate, Identification, ThetaBox
+from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP, P_RIPPLE_PITCH
+from commission.controllers.trajectory import back_and_forth, sinusoid
+from commission.scenarios import (
+    case1_trajectory,
+    case2_trajectory,
+    corner_scenarios,
+    force_range,
+    identified_plant,
+    offset_scenarios,
+    resolve_quantization,
+    scenario_matrix,
+    tuning_scenarios,
+)
+from commission.spec import default_spec, spec_from_mapping
+
+
+def ref_ident(**extra) -> Identification:
+    """The CONTRACT §5 reference plant, constructed directly (not identified)."""
+    return Identification(
+        units={"u": "V", "q": "m"},
+        parameters={k: Estimate(v, 0.0) for k, v in
+                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
+        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
+        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
+        delta_d=0.5 / 0.027, fric_level=0.1, fric_slope=900.0, extra=extra)
+
+
+def test_default_envelope_gives_the_papers_cases():
+    spec = default_spec()
+    c1, c2 = case1_trajectory(spec), case2_trajectory(spec)
+    assert (c1.amplitude, c1.omega, c1.duration) == (pytest.approx(0.05), pytest.approx(4.0), 10.0)
+    assert c2.duration == pytest.approx(8.0)  # 6 moves of 0.983 s + 2.1 s at rest
+    ref = sinusoid(10.0, spec.period, amplitude=0.05, omega=4.0)
+    got = c1.render(spec.period)
+    assert np.array_equal(got.qd, ref.qd) and np.array_equal(got.ddqd, ref.ddqd)
+    assert np.array_equal(c2.render(spec.period).qd, back_and_forth(8.0, spec.period).qd)
+
+
+def test_envelope_scaling_respects_limits():
+    spec = spec_from_mapping({"trajectory": {"v_max": 0.2, "a_max": 1.0, "travel": 0.1}})
+    c1 = case1_trajectory(spec)
+    assert c1.amplitude * c1.omega <= 0.2 * spec.v_max + 1e-12
+    assert c1.amplitude * c1.omega ** 2 <= spec.a_max / 15 + 1e-12
+    assert c1.duration >= 4 * 2 * math.pi / c1.omega - 1e-9
+    tr = case2_trajectory(spec).render(spec.period)
+    assert np.max(np.abs(tr.dqd)) <= spec.v_max * 1.001
+    assert np.max(tr.qd) == pytest.approx(spec.travel, abs=1e-4)
+
+
+def test_matrix_contents():
+    ident = ref_ident()
+    spec = default_spec()
+    sc = scenario_matrix(ident, spec, rng=np.random.default_rng(0), n_monte_carlo=8)
+    names = [s.name for s in sc]
+    assert len(sc) == 12 + 8 and len(set(names)) == len(names)
+    by = {s.name: s for s in sc}
+    base = identified_plant(ident)
+    assert np.array_equal(by["case1/nominal"].plant, base)
+    assert by["case1/payload_light"].plant[P_M] == pytest.approx(1 / 50.0)
+    assert by["case2/payload_heavy"].plant[P_M] == pytest.approx(1 / 8.3)
+    for k in (P_B, P_FC, P_FS):
+        assert by["case1/friction_low"].plant[k] == pytest.approx(0.8 * base[k])
+        assert by["case1/friction_high"].plant[k] == pytest.approx(1.2 * base[k])
+    d = by["case1/disturbance"].disturbance
+    # Assumption-1 size delta_d M = 0.5 V, on 2.2 s .. 7.2 s of the 10 s run (paper Set 3)
+    assert (d.amplitude, d.t_on, d.t_off) == (pytest.approx(0.5), pytest.approx(2.2), pytest.approx(7.2))
+    t = np.arange(25000) / 2500.0
+    assert np.count_nonzero(d.samples(t)) == 12500
+    assert all("tune" in by[n].tags for n in names[:12])
+    assert all("monte_carlo" in by[n].tags for n in names[12:])
+    assert all(s.quantization == 1e-6 for s in sc)
+
+
+def test_monte_carlo_is_seeded_and_inside_the_box():
+    ident = ref_ident()
+    spec = default_spec()
+    a = scenario_matrix(ident, spec, rng=np.random.default_rng(5), n_monte_carlo=64)
+    b = scenario_matrix(ident, spec, rng=np.random.default_rng(5), n_monte_carlo=64)
+    c = scenario_matrix(ident, spec, rng=np.random.default_rng(6), n_monte_carlo=64)
+    pa = np.stack([s.plant for s in a[12:]])
+    assert np.array_equal(pa, np.stack([s.plant for s in b[12:]]))
+    assert not np.array_equal(pa, np.stack([s.plant for s in c[12:]]))
+    th = np.column_stack([1 / pa[:, P_M], pa[:, P_B] / pa[:, P_M], -pa[:, P_OFFSET] / pa[:, P_M]])
+    lo, hi = np.array(ident.theta.min), np.array(ident.theta.max)
+    assert np.all(th >= lo - 1e-9) and np.all(th <= hi + 1e-9)
+    d_lo, d_hi = force_range(ident)
+    assert (d_lo, d_hi) == (pytest.approx(-1.0), pytest.approx(1.0))  # +-50 m/s^2 at M = 0.02
+    assert np.all(np.abs(pa[:, P_OFFSET]) <= 1.0 + 1e-12)
+    # the draws spread over the box (not stuck at a point)
+    assert np.ptp(th[:, 0]) > 0.7 * (hi[0] - lo[0]) and np.ptp(pa[:, P_OFFSET]) > 1.4
+    assert {s.trajectory.kind for s in a[12:]} == {"case1", "case2"}
+
+
+def test_tuning_set_adds_the_corners():
+    ident = ref_ident()
+    spec = default_spec()
+    ts = tuning_scenarios(ident, spec, rng=np.random.default_rng(0))
+    corners = corner_scenarios(ident, spec)
+    offsets = offset_scenarios(ident, spec)
+    assert [s.name for s in ts] == [s.name for s in scenario_matrix(ident, spec, rng=np.random.default_rng(0),
+                                                                     n_monte_carlo=0)] + \
+        [s.name for s in corners] + [s.name for s in offsets]
+    assert len(corners) == 16 and len(offsets) == 4
+    # the largest-force plants: identified mass, force at both ends of force_range, inside the box
+    base = identified_plant(ident)
+    lo, hi = np.array(ident.theta.min), np.array(ident.theta.max)
+    for s in offsets:
+        assert np.array_equal(np.delete(s.plant, P_OFFSET), np.delete(base, P_OFFSET))
+        th3 = -s.plant[P_OFFSET] / s.plant[P_M]
+        assert lo[2] <= th3 <= hi[2]
+    assert sorted(s.plant[P_OFFSET] for s in offsets) == [pytest.approx(-1.0)] * 2 + [pytest.approx(1.0)] * 2
+    m = sorted({s.plant[P_M] for s in corners})
+    assert m == [pytest.approx(1 / 50.0), pytest.approx(1 / 8.3)]
+    assert sorted({s.plant[P_OFFSET] for s in corners}) == [pytest.approx(-1.0), pytest.approx(1.0)]
+
+
+def test_ident_extras_feed_ripple_and_quantization():
+    ident = ref_ident(model={"ripple_amp": {"value": -0.01, "std": 0.001}, "ripple_pitch": 0.03},
+                      encoder={"quantization": 5e-8})
+    p = identified_plant(ident)
+    assert (p[P_RIPPLE_AMP], p[P_RIPPLE_PITCH]) == (0.01, 0.03)
+    assert resolve_quantization(ident, default_spec()) == 5e-8
+    assert resolve_quantization(ident, spec_from_mapping({"controller": {"quantization": 2e-6}})) == 2e-6
+    assert resolve_quantization(ref_ident(), default_spec()) == 1e-6

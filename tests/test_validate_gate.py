@@ -1,0 +1,164 @@
+"""The validation gate: TOML parsing, documented defaults, and the checks it makes."""
+
+import math
+
+import pytest
+
+from commission.errors import InputFileError, SpecError
+from commission.gate import (
+    CRITERIA,
+    DEFAULT_C_U,
+    GateSpec,
+    evaluate_gate,
+    gate_from_mapping,
+    load_gate,
+    resolve_gate,
+)
+from commission.tuning import Score
+
+NAN = math.nan
+
+
+def score(e_M=50e-6, e_F=5e-6, e_rms=2e-6, c_u=0.3, u_peak=1.0, diverged=False, u_rms=0.2, du_rms=0.06):
+    return Score(e_M, e_F, e_rms, u_rms, du_rms, c_u, u_peak, diverged)
+
+
+def test_defaults_on_the_paper_axis_are_the_documented_formulas():
+    # 1 um encoder, 0.4 m travel (the paper's envelope): the travel terms dominate.
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
+    assert lim.e_F == pytest.approx(max(30 * 1e-6, 1e-4 * 0.4))  # 40 um
+    assert lim.e_M == pytest.approx(max(200 * 1e-6, 2e-3 * 0.4))  # 800 um
+    assert lim.e_rms == pytest.approx(max(15 * 1e-6, 5e-5 * 0.4))  # 20 um
+    assert lim.c_u == DEFAULT_C_U == 1.0
+    assert lim.u_max == 10.0 and lim.no_divergence and lim.arc_vs_pid_e_rms == 1.0
+    assert "default" in lim.basis["e_F"] and "LSB" in lim.basis["e_F"]
+
+
+def test_defaults_follow_the_encoder_on_a_short_coarse_axis():
+    # 10 um encoder on a 20 mm stroke: the LSB terms dominate.
+    lim = resolve_gate(GateSpec(), lsb=10e-6, travel=0.02, u_max=5.0)
+    assert lim.e_F == pytest.approx(300e-6)
+    assert lim.e_M == pytest.approx(2000e-6)
+    assert lim.e_rms == pytest.approx(150e-6)
+    assert lim.u_max == 5.0
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("20 um", 20e-6),
+        ("20um", 20e-6),
+        ("0.02 mm", 20e-6),
+        ("20000 nm", 20e-6),
+        ("2e-5 m", 2e-5),
+        ("20 lsb", 20 * 0.5e-6),
+        ("0.005 %travel", 0.005e-2 * 0.4),
+        (3e-5, 3e-5),
+    ],
+)
+def test_error_limit_units(text, expected):
+    g = gate_from_mapping({"gate": {"e_rms": text}}, "g.toml")
+    lim = resolve_gate(g, lsb=0.5e-6, travel=0.4, u_max=10.0)
+    assert lim.e_rms == pytest.approx(expected, rel=1e-12)
+    assert lim.basis["e_rms"].startswith("g.toml")
+
+
+def test_every_key_overrides_its_default():
+    g = gate_from_mapping({"gate": {"e_F": "5 um", "e_M": "50 um", "e_rms": "2 um", "c_u": 0.4, "u_max": 3.0,
+                                    "no_divergence": False, "arc_vs_pid_e_rms": 1.5}})
+    lim = resolve_gate(g, lsb=1e-6, travel=0.4, u_max=10.0)
+    assert (lim.e_F, lim.e_M, lim.e_rms) == pytest.approx((5e-6, 50e-6, 2e-6))
+    assert (lim.c_u, lim.u_max, lim.no_divergence, lim.arc_vs_pid_e_rms) == (0.4, 3.0, False, 1.5)
+
+
+@pytest.mark.parametrize(
+    "doc, match",
+    [
+        ({"gate": {"e_F": -1.0}}, r"gate\.e_F = -1\.0: must be a positive"),
+        ({"gate": {"e_M": "12 furlongs"}}, r"gate\.e_M = '12 furlongs': expected \"<number> <unit>\""),
+        ({"gate": {"e_rms": True}}, r"gate\.e_rms = True"),
+        ({"gate": {"c_u": "low"}}, r"gate\.c_u = 'low': expected a positive finite number"),
+        ({"gate": {"u_max": 0}}, r"gate\.u_max = 0: expected a positive finite number in u-unit"),
+        ({"gate": {"no_divergence": "yes"}}, r"gate\.no_divergence = 'yes': expected true or false"),
+        ({"gate": {"arc_vs_pid_e_rms": -2}}, r"gate\.arc_vs_pid_e_rms = -2"),
+        ({"gate": {"e_max": 1e-5}}, r"gate\.e_max: unknown key \(known: e_F, e_M"),
+        ({"gates": {}}, r"gates: unknown section"),
+        ({"gate": 3}, r"gate: expected a table"),
+    ],
+)
+def test_bad_gate_names_the_key(doc, match):
+    with pytest.raises(SpecError, match=match):
+        gate_from_mapping(doc, "gate.toml")
+
+
+def test_load_gate_file_errors(tmp_path):
+    with pytest.raises(InputFileError, match="no such file"):
+        load_gate(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[gate\ne_F = 1")
+    with pytest.raises(SpecError, match="bad.toml: not valid TOML"):
+        load_gate(bad)
+    good = tmp_path / "good.toml"
+    good.write_text('[gate]\ne_F = "12 um"\n')
+    assert resolve_gate(load_gate(good), lsb=1e-6, travel=0.4, u_max=10).e_F == pytest.approx(12e-6)
+    assert load_gate(None) == GateSpec()
+
+
+def test_lsb_limit_needs_an_encoder_resolution():
+    g = gate_from_mapping({"gate": {"e_F": "10 lsb"}}, "g.toml")
+    with pytest.raises(SpecError, match=r"g\.toml: gate\.e_F = '10 lsb': the tuning has no encoder quantization"):
+        resolve_gate(g, lsb=0.0, travel=0.4, u_max=10.0)
+
+
+def test_a_good_run_passes_every_criterion():
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
+    v = evaluate_gate(lim, [("case1/nominal", score(), score(e_rms=3e-6), NAN)])
+    assert v.passed and not v.failures
+    assert [c.criterion for c in v.checks] == list(CRITERIA)
+
+
+def test_every_failure_is_listed_with_scenario_and_value():
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
+    runs = [
+        ("case1/nominal", score(), score(e_rms=3e-6), NAN),  # passes
+        ("case1/payload_heavy", score(e_F=41e-6, e_M=801e-6, e_rms=21e-6, c_u=1.2), score(e_rms=30e-6), NAN),
+        ("case2/nominal", score(u_peak=10.0), score(e_rms=1e-6), NAN),  # saturated, and worse than PID
+        ("mc/007", score(diverged=True, e_M=NAN, e_F=NAN, e_rms=NAN, c_u=NAN, u_peak=10.0), score(), 1.234),
+    ]
+    v = evaluate_gate(lim, runs)
+    assert not v.passed
+    got = {(c.criterion, c.scenario) for c in v.failures}
+    assert got == {
+        ("e_F", "case1/payload_heavy"), ("e_M", "case1/payload_heavy"), ("e_rms", "case1/payload_heavy"),
+        ("c_u", "case1/payload_heavy"),
+        ("u_peak", "case2/nominal"), ("arc_vs_pid_e_rms", "case2/nominal"),
+        ("divergence", "mc/007"), ("e_F", "mc/007"), ("e_M", "mc/007"), ("e_rms", "mc/007"), ("c_u", "mc/007"),
+        ("u_peak", "mc/007"), ("arc_vs_pid_e_rms", "mc/007"),
+    }
+    by = {(c.criterion, c.scenario): c for c in v.failures}
+    assert by[("e_F", "case1/payload_heavy")].value == 41e-6
+    assert "41 um (limit 40 um)" in by[("e_F", "case1/payload_heavy")].detail
+    assert by[("divergence", "mc/007")].value == 1.234
+    assert "aborted at t = 1.234 s" in by[("divergence", "mc/007")].detail
+    assert "clipped" in by[("u_peak", "case2/nominal")].detail
+    assert by[("arc_vs_pid_e_rms", "case2/nominal")].value == pytest.approx(2.0)
+    worst = v.worst()
+    assert worst["e_M"].scenario == "mc/007"  # a diverged run is worse than any finite error
+    assert worst["divergence"].scenario == "mc/007"
+    assert evaluate_gate(lim, runs[:3]).worst()["e_M"].scenario == "case1/payload_heavy"
+    assert evaluate_gate(lim, runs[:1]).worst()["e_M"].value == 50e-6
+
+
+def test_limits_are_inclusive_and_pid_divergence_favours_arc():
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
+    at = score(e_F=lim.e_F, e_M=lim.e_M, e_rms=lim.e_rms, c_u=lim.c_u, u_peak=9.999)
+    pid_div = score(diverged=True, e_M=NAN, e_F=NAN, e_rms=NAN, c_u=NAN)
+    v = evaluate_gate(lim, [("s", at, pid_div, NAN)])
+    assert v.passed, [c.detail for c in v.failures]
+
+
+def test_divergence_check_can_be_switched_off_but_indexes_still_fail():
+    lim = resolve_gate(GateSpec(no_divergence=False), lsb=1e-6, travel=0.4, u_max=10.0)
+    v = evaluate_gate(lim, [("s", score(diverged=True, e_M=NAN, e_F=NAN, e_rms=NAN, c_u=NAN), score(), 0.5)])
+    crit = {c.criterion for c in v.failures}
+    assert "divergence" not in crit and {"e_F", "e_M", "e_rms"} <= crit
