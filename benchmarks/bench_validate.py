@@ -34,21 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from commission.artifacts import Identification
+from commission.paper import reference_identification
 from commission.spec import spec_from_mapping
 from commission.tune import tune
 from commission.validate import DEFAULT_MONTE_CARLO, validate, write_outputs
 
-IDENT = {
-    "kind": "identification", "schema_version": 1, "units": {"u": "V", "q": "m"},
-    "parameters": {"M": {"value": 0.027, "std": 1e-4}, "B": {"value": 0.273, "std": 2e-3},
-                   "fc": {"value": 0.10, "std": 1e-3}, "fs": {"value": 0.12, "std": 2e-3},
-                   "vs": {"value": 0.01, "std": 1e-3}, "xi": {"value": 2.0, "std": 0.1},
-                   "offset": {"value": 0.0, "std": 1e-3}},
-    "fit": {"relative_error": 0.04, "condition_number": 26.0, "validation_relative_error": None},
-    "theta": {"nominal": [37.0, 10.1, 0.0], "min": [8.3, 2.4, -50.0], "max": [50.0, 17.5, 50.0]},
-    "delta_d": 0.5, "friction_compensation": {"level": 0.1, "slope": 900.0},
-}
 
 
 def main() -> None:
@@ -57,7 +47,7 @@ def main() -> None:
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench_validate_"))
     try:
-        t = tune(Identification.from_dict(IDENT), spec_from_mapping({"tune": {"budget": 8}}),
+        t = tune(reference_identification(delta_d=0.5), spec_from_mapping({"tune": {"budget": 8}}),
                  rng=np.random.default_rng(0), seed=0, ident_sha256="0" * 64)
         tpath = tmp / "tuning.json"
         t.save(str(tpath))

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.controllers.arc import arc_pack, paper_gains_implementable
 from commission.controllers.metrics import Indexes
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
@@ -52,6 +53,25 @@ def reference_plant(M: float = 0.027) -> np.ndarray:
     """
     return plant_vector(M=M, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0,
                         ripple_amp=0.01, ripple_pitch=0.03)
+
+
+def reference_identification(*, delta_d: float = 0.5 / 0.027, **extra: object) -> Identification:
+    """The reference plant as an exact identification (not fitted), with the paper's box (53).
+
+    Parameters
+    ----------
+    delta_d : float
+        Bound on |d~|, m/s^2 (default: Set 3's 0.5 V step over M = 0.027).
+    **extra
+        Additional, non-contract ident.json fields (e.g. ``source``).
+    """
+    return Identification(
+        units={"u": "V", "q": "m"},
+        parameters={k: Estimate(v, 0.0) for k, v in
+                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
+        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
+        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
+        delta_d=delta_d, fric_level=0.1, fric_slope=900.0, extra=extra)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from commission.artifacts import Identification
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.controllers.plant import plant_vector
 from commission.controllers.simulate import KIND_ARC, simulate, step_disturbance
@@ -17,26 +16,17 @@ from commission.controllers.arc import arc_pack
 from commission.controllers.trajectory import back_and_forth, sinusoid
 from commission.errors import InputFileError, SchemaError, UsageError
 from commission.jsonio import read_json, write_json_atomic
+from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.spec import default_spec
 from commission.tune import base_arc_gains
 
-IDENT = {
-    "kind": "identification", "schema_version": 1, "units": {"u": "V", "q": "m"},
-    "parameters": {"M": {"value": 0.027, "std": 1e-4}, "B": {"value": 0.273, "std": 2e-3},
-                   "fc": {"value": 0.10, "std": 1e-3}, "fs": {"value": 0.12, "std": 2e-3},
-                   "vs": {"value": 0.01, "std": 1e-3}, "xi": {"value": 2.0, "std": 0.1},
-                   "offset": {"value": 0.0, "std": 1e-3}},
-    "fit": {"relative_error": 0.04, "condition_number": 26.0, "validation_relative_error": None},
-    "theta": {"nominal": [37.0, 10.1, 0.0], "min": [8.3, 2.4, -50.0], "max": [50.0, 17.5, 50.0]},
-    "delta_d": 0.5, "friction_compensation": {"level": 0.1, "slope": 900.0},
-}
 PLANT = plant_vector(0.027, 0.273, 0.10, 0.12, 0.01, 2.0, 0.0, 0.01, 0.03)
 
 
 @pytest.fixture(scope="module")
 def gains():
-    return base_arc_gains(Identification.from_dict(IDENT), default_spec())
+    return base_arc_gains(reference_identification(delta_d=0.5), default_spec())
 
 
 def config(g, **validated):

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.cli.main import app
 from commission.controllers.arc import ArcGains
 from commission.controllers.pid import PidGains
 from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
+from commission.paper import reference_identification
 from commission.spec import spec_from_mapping
 from commission.tune import base_arc_gains, load_tune_inputs, tune
 from commission.tuning import Tuning
@@ -23,15 +23,7 @@ from commission.tuning import Tuning
 SMALL = {"tune": {"budget": 3}}
 
 
-def ref_ident(**extra) -> Identification:
-    """The CONTRACT §5 reference plant, constructed directly (not identified)."""
-    return Identification(
-        units={"u": "V", "q": "m"},
-        parameters={k: Estimate(v, 0.0) for k, v in
-                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
-        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
-        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
-        delta_d=0.5 / 0.027, fric_level=0.1, fric_slope=900.0, extra=extra)
+ref_ident = reference_identification
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP, P_RIPPLE_PITCH
 from commission.controllers.trajectory import back_and_forth, sinusoid
+from commission.paper import reference_identification
 from commission.scenarios import (
     case1_trajectory,
     case2_trajectory,
@@ -24,15 +24,7 @@ from commission.scenarios import (
 from commission.spec import default_spec, spec_from_mapping
 
 
-def ref_ident(**extra) -> Identification:
-    """The CONTRACT §5 reference plant, constructed directly (not identified)."""
-    return Identification(
-        units={"u": "V", "q": "m"},
-        parameters={k: Estimate(v, 0.0) for k, v in
-                    dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0).items()},
-        relative_error=0.0, condition_number=1.0, validation_relative_error=None,
-        theta=ThetaBox((37.0, 10.1, 0.0), (8.3, 2.4, -50.0), (50.0, 17.5, 50.0)),
-        delta_d=0.5 / 0.027, fric_level=0.1, fric_slope=900.0, extra=extra)
+ref_ident = reference_identification
 
 
 def test_default_envelope_gives_the_papers_cases():

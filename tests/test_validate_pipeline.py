@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from commission.artifacts import Identification
 from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.simulate import KIND_ARC, simulate
 from commission.jsonio import read_json, sha256_file, write_json_atomic
+from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.scenarios import scenario_matrix
 from commission.spec import spec_from_mapping
@@ -27,16 +27,6 @@ from commission.tune import tune
 from commission.tuning import Tuning
 from commission.validate import FIGURE_NAMES, SUBSTEPS, run_validate, validate
 
-IDENT = {
-    "kind": "identification", "schema_version": 1, "units": {"u": "V", "q": "m"},
-    "parameters": {"M": {"value": 0.027, "std": 1e-4}, "B": {"value": 0.273, "std": 2e-3},
-                   "fc": {"value": 0.10, "std": 1e-3}, "fs": {"value": 0.12, "std": 2e-3},
-                   "vs": {"value": 0.01, "std": 1e-3}, "xi": {"value": 2.0, "std": 0.1},
-                   "offset": {"value": 0.0, "std": 1e-3}},
-    "fit": {"relative_error": 0.04, "condition_number": 26.0, "validation_relative_error": None},
-    "theta": {"nominal": [37.0, 10.1, 0.0], "min": [8.3, 2.4, -50.0], "max": [50.0, 17.5, 50.0]},
-    "delta_d": 0.5, "friction_compensation": {"level": 0.1, "slope": 900.0},
-}
 MC = 8
 #: Margin of the test gate over the worst value the good tuning reached.
 MARGIN = 1.5
@@ -47,7 +37,7 @@ runner = CliRunner()
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
-    ident = Identification.from_dict(IDENT)
+    ident = reference_identification(delta_d=0.5)
     t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
              ident_sha256="1" * 64, log_sha256="2" * 64)
     path = d / "tuning.json"
