@@ -11,7 +11,8 @@ from rich.console import Console
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.identify_cmd import Friction
 from commission.cli.main import app
-from commission.cli.validate_cmd import print_summary, progress_bar
+from commission.cli.progress import StageProgress
+from commission.cli.validate_cmd import print_summary
 from commission.logs import parse_mapping
 from commission.validate import DEFAULT_MONTE_CARLO, run_all
 
@@ -37,14 +38,11 @@ def run_command(
 
     err = Console(stderr=True)
     mapping = parse_mapping(map_)
-    with progress_bar(err) as bar:
-        tasks: dict[str, object] = {}
+    stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
+    with StageProgress(err) as bar:
 
         def cb(stage: str, done: int, total: int) -> None:
-            if stage not in tasks:
-                tasks[stage] = bar.add_task({"identify": "identifying", "tune": "tuning",
-                                             "validate": "validating"}.get(stage, stage), total=None)
-            bar.update(tasks[stage], completed=done, total=total)  # type: ignore[arg-type]
+            bar.update(stages.get(stage, stage), done, total)
 
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, spec_path=spec, gate_path=gate, force=force, seed=seed,

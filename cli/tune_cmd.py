@@ -8,11 +8,11 @@ from typing import Optional
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
+from commission.cli.progress import StageProgress
 from commission.tune import load_tune_inputs, run_tune
 from commission.tuning import Tuning
 
@@ -87,13 +87,7 @@ def tune_command(
     out_console = Console()
     err = Console(stderr=True)
     inputs = load_tune_inputs(ident, spec_path=spec, seed=seed)  # every check before any simulation
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=err, transient=False) as bar:
-        task = bar.add_task("tuning", total=None)
-
-        def cb(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        t = run_tune(ident, out, progress=cb, workers=workers, inputs=inputs)
+    with StageProgress(err) as bar:
+        t = run_tune(ident, out, progress=bar.callback("tuning"), workers=workers, inputs=inputs)
     print_summary(t, out_console)
     out_console.print(f"wrote {out}", highlight=False)

@@ -4,32 +4,16 @@ write the report and (gate passed) controller.json."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Optional
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
+from commission.cli.progress import StageProgress
 from commission.report import summary_text
 from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
-
-
-def progress_bar(console: Console) -> Progress:
-    """The progress bar of the long stages (on stderr, so stdout keeps only the results)."""
-    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                    console=console, transient=False)
-
-
-def bar_callback(bar: Progress, description: str) -> Callable[[int, int], None]:
-    """A ``progress(done, total)`` callback that drives one task of ``bar``."""
-    task = bar.add_task(description, total=None)
-
-    def cb(done: int, total: int) -> None:
-        bar.update(task, completed=done, total=total)
-
-    return cb
 
 
 def print_summary(result: ValidationResult) -> None:
@@ -61,10 +45,9 @@ def validate_command(
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
-    with progress_bar(err) as bar:
-        cb = bar_callback(bar, "simulating")
+    with StageProgress(err) as bar:
         outcome = run_validate(tuning, out_dir, gate_path=gate, force=force, seed=seed, n_monte_carlo=monte_carlo,
-                               progress=cb, workers=workers, figures=validation_plots)
+                               progress=bar.callback("simulating"), workers=workers, figures=validation_plots)
     print_summary(outcome.result)
     for p in outcome.written:
         typer.echo(f"wrote {p}")
