@@ -70,7 +70,7 @@ from scipy import ndimage
 from commission.identify.errors import NotIdentifiableError
 from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
                                           stribeck_shape_derivatives)
-from commission.identify.ls import FrictionModel, regressor, solve, stribeck_shape
+from commission.identify.ls import FrictionModel, readonly_copy, regressor, solve, stribeck_shape
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, check_signals, default_settings,
                                          preprocess, quantization_step)
 from commission.identify.steady import SteadySegments, find_steady_segments
@@ -89,12 +89,6 @@ MIN_STRIBECK_ROWS = 20
 MAX_REL_STD_M = 0.25
 #: Alternations of the friction-map / mass steps.
 N_ALTERNATIONS = 3
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=np.float64, copy=True)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True)
@@ -565,9 +559,9 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
     cond = float(np.linalg.cond(pp.decimate(full.Phi)))
     return AxisFit(friction=friction, method=method, parameters=params,
                    relative_error=float(np.linalg.norm(r) / np.linalg.norm(y)), condition_number=cond,
-                   residual_std=float(np.std(r, ddof=1)), residuals=_ro(r), t_decimated=_ro(pp.t_dec),
-                   force_measured=_ro(y), force_fitted=_ro(y_hat), steady_velocity=_ro(fmap[:, 0]),
-                   steady_force=_ro(fmap[:, 1]), quantization=quant, velocity_resolution=v_res,
+                   residual_std=float(np.std(r, ddof=1)), residuals=readonly_copy(r), t_decimated=readonly_copy(pp.t_dec),
+                   force_measured=readonly_copy(y), force_fitted=readonly_copy(y_hat), steady_velocity=readonly_copy(fmap[:, 0]),
+                   steady_force=readonly_copy(fmap[:, 1]), quantization=quant, velocity_resolution=v_res,
                    v_max=float(np.max(np.abs(pp.qd))), sample_rate=pp.sample_rate, bandwidth_hz=float(bandwidth_hz),
                    cutoff_hz=pp.cutoff_hz, decimation=pp.decimation, trim_start=pp.trim_start,
                    ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings))

@@ -24,7 +24,8 @@ FrictionModel = Literal["coulomb", "stribeck"]
 MAX_SCALED_CONDITION = 1e8
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
+def readonly_copy(a: np.ndarray) -> np.ndarray:
+    """A float64 copy of ``a`` that cannot be written (result arrays of frozen dataclasses)."""
     a = np.array(a, dtype=np.float64, copy=True)
     a.flags.writeable = False
     return a
@@ -192,7 +193,7 @@ def solve(Phi: np.ndarray, y: np.ndarray) -> LSResult:
     ginv = (vt.T / s**2) @ vt
     cov = sigma2 * ginv
     ny = float(np.linalg.norm(y))
-    return LSResult(theta=_readonly(theta), std=_readonly(np.sqrt(np.diag(cov))), cov=_readonly(cov), sigma2=sigma2,
+    return LSResult(theta=readonly_copy(theta), std=readonly_copy(np.sqrt(np.diag(cov))), cov=readonly_copy(cov), sigma2=sigma2,
                     condition_number=float(s[0] / s[-1]),
                     relative_error=float(np.linalg.norm(r)) / ny if ny > 0 else float("inf"),
-                    residuals=_readonly(r))
+                    residuals=readonly_copy(r))
