@@ -158,8 +158,11 @@ def _scatter(result: ValidationResult, path: Path) -> Path:
         lo, hi = min(allv) / 1.5, max(allv) * 1.5
         ax.plot([lo, hi], [lo, hi], color="k", lw=0.8)
         ratio = result.verdict.limits.arc_vs_pid_e_rms
-        if ratio != 1.0:
-            ax.plot([lo, hi], [lo * ratio, hi * ratio], color="k", lw=0.8, ls="--", label=f"gate: ARC = {ratio:g} PID")
+        slack = result.verdict.limits.arc_vs_pid_slack * 1e6
+        if ratio != 1.0 or slack > 0:
+            xs = np.geomspace(lo, hi, 64)
+            ax.plot(xs, ratio * xs + slack, color="k", lw=0.8, ls="--",
+                    label=f"gate: ARC = {ratio:g} PID + {slack:.3g} um")
         ax.set_xlim(lo, hi)
         ax.set_ylim(lo, hi)
         ax.set_xscale("log")

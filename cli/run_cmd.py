@@ -47,6 +47,8 @@ def run_command(
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
+    for note in outcome.notes:
+        err.print(f"note: {note}", highlight=False)
     v = outcome.validation
     print_summary(v.result)
     for p in (outcome.ident, outcome.tuning, *v.written):

@@ -87,6 +87,8 @@ def tune_command(
     out_console = Console()
     err = Console(stderr=True)
     inputs = load_tune_inputs(ident, spec_path=spec, seed=seed)  # every check before any simulation
+    for note in inputs.notes:
+        err.print(f"note: {note}", highlight=False)
     with StageProgress(err) as bar:
         t = run_tune(ident, out, progress=bar.callback("tuning"), workers=workers, inputs=inputs)
     print_summary(t, out_console)

@@ -40,7 +40,7 @@ def validate_command(
 ) -> None:
     """Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
 
-    Gate TOML (--gate): one table named "gate"; every key optional; checked for the ARC on every scenario. e_F default max(30 LSB, 0.01 %travel); e_M max(200 LSB, 0.2 %travel); e_rms max(15 LSB, 0.005 %travel) -- numbers in m, or strings such as "20 um", "30 lsb", "0.01 %travel"; c_u 1.0; u_max the spec's (reaching it fails); no_divergence true; arc_vs_pid_e_rms 1.0 (ARC e_rms no worse than PID).
+    Gate TOML (--gate): one table named "gate"; every key optional; checked for the ARC on every scenario. e_F default max(30 LSB, 0.01 %travel); e_M max(200 LSB, 0.2 %travel); e_rms max(15 LSB, 0.005 %travel) -- numbers in m, or strings such as "20 um", "30 lsb", "0.01 %travel"; c_u 1.0; u_max the spec's (reaching it fails); no_divergence true; arc_vs_pid_e_rms 1.0 and arc_vs_pid_slack "0.2887 lsb" (ARC e_rms <= 1.0 x PID e_rms + LSB/sqrt(12): no worse than the PID beyond the quantization noise).
     """
     from commission.cli.plots_validate import validation_plots
 

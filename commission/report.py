@@ -93,7 +93,8 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.c_u:.3g}"
     if key == "u_peak":
         return f"{limits.u_max:.4g}"
-    return f"{limits.arc_vs_pid_e_rms:.3g}"
+    slack = getattr(limits, "arc_vs_pid_slack", 0.0)
+    return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} um" if slack > 0 else "")
 
 
 def _basis_key(key: str) -> str:

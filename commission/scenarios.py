@@ -25,10 +25,10 @@ back-and-forth moves), both scaled to the spec's envelope:
     paper's 2.2 s to 7.2 s of 10 s).
 ``mc/NNN``
     ``n_monte_carlo`` plants from the theta box, alternating case1 and case2,
-    drawn from the passed Generator: theta1, theta2 uniform in the box
-    (M = 1/theta1, B = theta2 M), the disturbance force d_n = -offset uniform in
-    the range the box admits at every mass (:func:`force_range`), the
-    identified friction curve.  Every drawn theta lies in the box.
+    drawn from the passed Generator: theta1 uniform in the box (M = 1/theta1),
+    the viscous B and the disturbance force d_n = -offset uniform in the ranges
+    the box admits at every mass (:func:`viscous_range`, :func:`force_range`),
+    the identified friction curve.  Every drawn theta lies in the box.
 
 Every non-Monte-Carlo scenario carries the tag ``"tune"``.  :func:`tuning_scenarios`
 (what ``tune`` optimises on) is these 12, plus the 16 corners of the theta box
@@ -75,6 +75,10 @@ FRICTION_SCALE = 0.2
 CASE2_TAIL = 2.1
 #: Case-1 minimum duration, s (paper: 10 s).
 CASE1_DURATION = 10.0
+
+#: Case 1's peak reference speed A omega as a fraction of v_max (0.2 m/s of the paper's 1 m/s).
+#: Filter (58) starts at rest, so q_dd(0) = beta1 A omega: 20 m/s^2 for the paper, above its a_max.
+CASE1_SPEED_FRACTION = 0.2
 
 CASES = ("case1", "case2")
 VARIANTS = ("nominal", "payload_light", "payload_heavy", "friction_low", "friction_high", "disturbance")
@@ -269,7 +273,7 @@ def resolve_quantization(ident: Identification, spec: Spec) -> float:
 def case1_trajectory(spec: Spec) -> TrajectorySpec:
     """Case 1 scaled to the envelope (module docstring); the paper's 0.05 sin(4t), 10 s by default."""
     A = spec.travel / 8.0
-    omega = min(0.2 * spec.v_max / A, math.sqrt(spec.a_max / (15.0 * A)))
+    omega = min(CASE1_SPEED_FRACTION * spec.v_max / A, math.sqrt(spec.a_max / (15.0 * A)))
     duration = max(CASE1_DURATION, 4.0 * 2.0 * math.pi / omega)
     return TrajectorySpec("case1", duration=duration, amplitude=A, omega=omega,
                           beta1=spec.beta1, beta2=spec.beta2)
@@ -314,27 +318,61 @@ def force_range(ident: Identification) -> tuple[float, float]:
     return ident.theta.min[2] * m_light, ident.theta.max[2] * m_light
 
 
+def viscous_range(ident: Identification) -> tuple[float, float]:
+    """Range of the viscous coefficient B that the box admits at every mass, u-unit s/m.
+
+    theta2 = B / M must stay in [theta2_min, theta2_max] for every M in
+    [1/theta1_max, 1/theta1_min]: B >= theta2_min / theta1_min (heaviest mass) and
+    B <= theta2_max / theta1_max (lightest).  This is the inverse of the interval
+    arithmetic that built the box (:mod:`commission.identify.bounds`), so for a box
+    built by ``commission identify`` it returns the viscous range it was built from.
+    A payload adds mass, not viscous friction: pairing the heaviest payload with the
+    largest theta2 (B = theta2_max / theta1_min) would ask for up to
+    theta1_max / theta1_min times the largest B the empty axis may have.  When the
+    box admits no B at every mass (lower end above the upper), the identified B
+    (clipped to zero) is returned as a point range.
+    """
+    lo = ident.theta.min[1] / ident.theta.min[0]
+    hi = ident.theta.max[1] / ident.theta.max[0]
+    if lo > hi:
+        b = max(ident.value("B"), 0.0)
+        return b, b
+    return lo, hi
+
+
+def clip_to_box(plants: np.ndarray, ident: Identification) -> np.ndarray:
+    """Clip B and the offset of plant vectors (rows) so that theta2, theta3 lie in the box at each row's mass."""
+    out = np.array(plants, dtype=np.float64, copy=True)
+    m = out[:, P_M]
+    out[:, P_B] = np.clip(out[:, P_B], ident.theta.min[1] * m, ident.theta.max[1] * m)
+    # theta3 = d_n / M with d_n = -offset
+    out[:, P_OFFSET] = -np.clip(-out[:, P_OFFSET], ident.theta.min[2] * m, ident.theta.max[2] * m)
+    return out
+
+
 def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` plant vectors from the theta box (identified friction curve), shape (n, 9).
 
-    theta1 and theta2 are uniform in the box (M = 1/theta1, B = theta2 M); the
-    disturbance force d_n = -offset is uniform in :func:`force_range`, so that
-    theta3 = d_n / M lies in the box for every drawn mass.  (Drawing theta3
-    uniformly instead would pair the heaviest payload with forces
-    theta3_max / theta1_min, up to theta1_max / theta1_min times the largest
-    force the box admits for the empty axis.)
+    theta1 is uniform in the box (M = 1/theta1); the viscous coefficient B is
+    uniform in :func:`viscous_range` and the disturbance force d_n = -offset
+    uniform in :func:`force_range`, the ranges the box admits at every mass, so
+    that theta2 = B / M and theta3 = d_n / M lie in the box for every drawn mass.
+    (Drawing theta2, theta3 uniformly instead would pair the heaviest payload with
+    B = theta2_max / theta1_min and forces theta3_max / theta1_min, up to
+    theta1_max / theta1_min times what the box admits for the empty axis: a
+    payload adds mass, not viscous friction or force.)
     """
     base = identified_plant(ident)
-    lo = np.asarray(ident.theta.min)
-    hi = np.asarray(ident.theta.max)
+    lo = ident.theta.min[0]
+    hi = ident.theta.max[0]
     u = rng.random((n, 3))
-    th = lo[:2] + (hi[:2] - lo[:2]) * u[:, :2]
+    b_lo, b_hi = viscous_range(ident)
     d_lo, d_hi = force_range(ident)
     out = np.tile(base, (n, 1))
-    out[:, P_M] = 1.0 / th[:, 0]
-    out[:, P_B] = th[:, 1] * out[:, P_M]
+    out[:, P_M] = 1.0 / (lo + (hi - lo) * u[:, 0])
+    out[:, P_B] = b_lo + (b_hi - b_lo) * u[:, 1]
     out[:, P_OFFSET] = -(d_lo + (d_hi - d_lo) * u[:, 2])
-    return out
+    return clip_to_box(out, ident)  # only rounding (or the point-range fallback) can leave the box
 
 
 def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generator,
@@ -382,23 +420,24 @@ def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """The 8 corners of the Monte-Carlo domain on both trajectories (16 runs), identified friction.
 
     ``corner/<case>/<b1><b2><b3>`` with ``b = 0`` for the lower, ``1`` for the upper end of
-    theta1, theta2 and the force d_n of :func:`force_range`: M = 1/theta1, B = theta2 M,
-    offset = -d_n.  These are the deterministic extremes of the domain that the
+    theta1, the viscous B of :func:`viscous_range` and the force d_n of :func:`force_range`:
+    M = 1/theta1, offset = -d_n.  These are the deterministic extremes of the domain that the
     validation's Monte-Carlo sample (:func:`monte_carlo_plants`) draws from.
     """
     base = identified_plant(ident)
     qz = resolve_quantization(ident, spec)
     lo, hi = ident.theta.min, ident.theta.max
+    b_lo, b_hi = viscous_range(ident)
     d_lo, d_hi = force_range(ident)
     out: list[Scenario] = []
     for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
         for b in range(8):
             bits = ((b >> 2) & 1, (b >> 1) & 1, b & 1)
-            th = [hi[i] if bits[i] else lo[i] for i in range(2)]
             p = base.copy()
-            p[P_M] = 1.0 / th[0]
-            p[P_B] = th[1] * p[P_M]
+            p[P_M] = 1.0 / (hi[0] if bits[0] else lo[0])
+            p[P_B] = b_hi if bits[1] else b_lo
             p[P_OFFSET] = -(d_hi if bits[2] else d_lo)
+            p = clip_to_box(p[None, :], ident)[0]
             out.append(Scenario(f"corner/{case}/{bits[0]}{bits[1]}{bits[2]}", p, tr, NO_DISTURBANCE, 0.0,
                                 (case, "corner", "tune"), qz))
     return out

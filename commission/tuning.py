@@ -21,7 +21,9 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
     scores            {scenario: {"arc": score, "pid": score}}; score = e_M, e_F, e_rms (m), u_rms,
                       du_rms, u_peak (u-unit), c_u, diverged; indexes null when diverged
     search            n_evaluations, budget, seed, cost_initial, cost_best, free (name -> value),
-                      history (cost of every candidate, evaluation order)
+                      history (cost of every candidate, evaluation order), holdout_plants,
+                      holdout_failures (default-gate failures of each candidate compared on
+                      the hold-out plants, best cost first; see commission.tune.select_on_holdout)
 
 Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
 field raises :class:`commission.errors.SchemaError` naming its JSON path.
@@ -197,6 +199,10 @@ class SearchRecord:
         The free gains as chosen (name -> value).
     history : tuple of float
         Cost of every candidate in evaluation order (the first is the starting point).
+    holdout_plants : int
+        Monte-Carlo plants of the hold-out selection (0: not run).
+    holdout_failures : tuple of int
+        Default-gate failures of each candidate compared there, best cost first.
     """
 
     n_evaluations: int
@@ -206,12 +212,15 @@ class SearchRecord:
     cost_best: float
     free: Mapping[str, float]
     history: tuple[float, ...] = ()
+    holdout_plants: int = 0
+    holdout_failures: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
                 "cost_initial": _num_or_null(self.cost_initial), "cost_best": _num_or_null(self.cost_best),
                 "free": {k: float(v) for k, v in self.free.items()},
-                "history": [_num_or_null(c) for c in self.history]}
+                "history": [_num_or_null(c) for c in self.history],
+                "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures)}
 
 
 def _gains_to_dict(g: Any) -> dict[str, Any]:
@@ -390,7 +399,9 @@ class Tuning:
                               cost_initial=_nan(se.num("cost_initial", optional=True)),
                               cost_best=_nan(se.num("cost_best", optional=True)),
                               free={k: fre.num(k) for k in fre.keys()},  # type: ignore[misc]
-                              history=_nullable_list(se, "history"))
+                              history=_nullable_list(se, "history"),
+                              holdout_plants=se.int_("holdout_plants") if se.has("holdout_plants") else 0,
+                              holdout_failures=_int_list(se, "holdout_failures"))
         if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
             raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
         return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=quant,  # type: ignore[arg-type]
@@ -421,6 +432,19 @@ def _row(m: Reader, i: int, row: Any, cols: int) -> tuple[float, ...]:
         if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
             raise m.fail(f"expected a finite number, got {x!r}", f"{p}[{j}]")
     return tuple(float(x) for x in row)
+
+
+def _int_list(r: Reader, key: str) -> tuple[int, ...]:
+    """An optional list of non-negative integers; absent: empty."""
+    if not r.has(key):
+        return ()
+    m = r.child(key)
+    if not isinstance(m.data, list):
+        raise r.fail("expected a list of integers", m.path)
+    for i, v in enumerate(m.data):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise r.fail(f"expected a non-negative integer, got {v!r}", f"{m.path}[{i}]")
+    return tuple(m.data)
 
 
 def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:

@@ -538,11 +538,14 @@ class RunOutcome:
     ident : Path
     tuning : Path
     validation : ValidateOutcome
+    notes : tuple of str
+        Spec defaults lowered for this axis (:func:`commission.tune.resolve_spec`).
     """
 
     ident: Path
     tuning: Path
     validation: ValidateOutcome
+    notes: tuple[str, ...] = ()
 
 
 def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
@@ -595,8 +598,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     from commission.controllers.design import DesignError
     from commission.identification import identify_log
     from commission.jsonio import canonical_json, sha256_json
-    from commission.spec import load_spec
-    from commission.tune import check_spec_against_ident, tune
+    from commission.spec import read_spec_toml, spec_from_mapping
+    from commission.tune import resolve_spec, tune
 
     if seed < 0:
         raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
@@ -605,7 +608,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     if friction not in ("coulomb", "stribeck"):
         raise UsageError(f"--friction: expected coulomb or stribeck, got {friction!r}")
     gate = load_gate(gate_path)
-    spec = load_spec(spec_path)
+    spec_data, spec_src = read_spec_toml(spec_path)
+    spec = spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
     out = check_out_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), force)
 
     def stage(name: str) -> Progress:
@@ -617,8 +621,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
-    spec_src = os.fspath(spec_path) if spec_path is not None else "spec (defaults)"
-    check_spec_against_ident(spec, ident, spec_src)
+    spec, notes = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope
     resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
     try:
         tuned = tune(ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
@@ -638,7 +641,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
                                      "gate": os.fspath(gate_path) if gate_path else None})
     ctrl = out / CONTROLLER_NAME
     vo = ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
-    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo)
+    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
 
 
 __all__ = [

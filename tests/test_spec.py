@@ -118,7 +118,8 @@ def no_simulation(monkeypatch):
     ("[controller]\nsampel_rate = 2500\n", "controller.sampel_rate", "unknown key"),
     ("[controller]\nsample_rate = -2500\n", "controller.sample_rate", "must be positive"),
     ("[controller]\nsample_rate = 100\nobserver_pole = 200.0\n", "controller.sample_rate", "too low for observer poles"),
-    ("[controller]\nu_max = 0.5\n", "controller.u_max", "is below the"),
+    ("[controller]\nu_max = 0.5\n", "controller.u_max", "is too small for this theta box"),
+    ("[controller]\nu_max = 2.5\n[trajectory]\na_max = 12.0\n", "trajectory.a_max = 12", "is below the"),
 ])
 def test_cli_rejects_bad_spec_before_simulating(tmp_path, no_simulation, toml, key, words):
     ident = tmp_path / "ident.json"
@@ -145,11 +146,37 @@ def test_cli_rejects_negative_seed_and_missing_ident(tmp_path, no_simulation):
     assert r.exit_code == 2 and "--seed" in r.output
 
 
-def test_u_max_check_uses_the_heaviest_plant():
-    # 12 m/s^2 on M = 1/8.3 needs 1.45 V of inertia alone, + B v + stiction + disturbance.
+def test_u_max_check_uses_the_most_demanding_plant():
+    # Paper box: M_heavy = 1/8.3; Case 1 starts at q_dd(0) = beta1 * 0.2 v_max = 20 m/s^2 (> a_max = 12);
+    # B = max(theta2_max / theta1_max = 0.35, 1.2 * 0.273); friction 1.2 * 0.12; force max(50/50, 0 + 0.5).
     ident = Identification.from_dict(ref_ident_doc())
-    need = 12.0 / 8.3 + 0.273 * 1.0 + 0.12 + 0.0 + 0.5
+    need = 20.0 / 8.3 + 0.35 * 1.0 + 1.2 * 0.12 + 1.0
+    d = tune_mod.drive_need(ident)
+    assert d.need(1.0, 12.0, 100.0) == pytest.approx(need, rel=1e-12)
     tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": need * 1.001}}), ident)
-    with pytest.raises(SpecError, match=r"controller\.u_max = 2\.3"):
-        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 2.3}}), ident)
-    assert math.isclose(need, 2.3386, rel_tol=1e-3)
+    with pytest.raises(SpecError, match=r"controller\.u_max = 3\.8 V is below .*trajectory\.a_max = 12 .*"
+                                        r"largest trajectory\.a_max at this v_max: "):
+        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
+    assert math.isclose(need, 3.9036, rel_tol=1e-4)
+
+
+def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
+    doc = ref_ident_doc()
+    ident = Identification.from_dict(doc)
+    # the paper's setting fits a 10 V drive: nothing changes
+    spec, notes = tune_mod.resolve_spec({}, "spec (defaults)", ident)
+    assert (spec.v_max, spec.a_max, notes) == (1.0, 12.0, ())
+    # a 3 V drive: the defaulted a_max (and v_max) are lowered so that the worst plant needs <= 0.7 u_max
+    spec, notes = tune_mod.resolve_spec({"controller": {"u_max": 3.0}}, "s.toml", ident)
+    d = tune_mod.drive_need(ident)
+    assert spec.a_max < 12.0 and spec.v_max < 1.0 and len(notes) == 2
+    assert d.need(spec.v_max, spec.a_max, spec.beta1) <= tune_mod.DRIVE_HEADROOM * 3.0 * (1 + 1e-12)
+    assert spec.v_max ** 2 / spec.a_max <= spec.travel
+    assert all(n.startswith("trajectory.") and "instead of" in n for n in notes)
+    # a key the user set is never changed: the check names it instead
+    with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 3 V is below .* trajectory\.a_max = 12 "):
+        tune_mod.resolve_spec({"controller": {"u_max": 3.0}, "trajectory": {"a_max": 12.0, "v_max": 1.0}},
+                              "s.toml", ident)
+    # a drive that cannot even hold the box's forces with headroom is refused, naming u_max
+    with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 1\.5 V is too small for this theta box"):
+        tune_mod.resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)

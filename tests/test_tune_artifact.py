@@ -5,19 +5,32 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from commission.cli.main import app
-from commission.controllers.arc import ArcGains
-from commission.controllers.pid import PidGains
+from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.pid import PidGains, pid_pack
 from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
 from commission.paper import reference_identification
-from commission.spec import spec_from_mapping
-from commission.tune import base_arc_gains, load_tune_inputs, tune
+from commission.controllers.simulate import KIND_ARC, KIND_PID
+from commission.scenarios import tuning_scenarios
+from commission.spec import default_spec, spec_from_mapping
+from commission.tune import (
+    HOLDOUT_PLANTS,
+    Evaluator,
+    SearchResult,
+    apply_free,
+    base_arc_gains,
+    load_tune_inputs,
+    pid_baseline,
+    select_on_holdout,
+    tune,
+)
 from commission.tuning import Tuning
 
 SMALL = {"tune": {"budget": 3}}
@@ -61,6 +74,10 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     assert len(doc["scores"]) == 12 + 16 + 4  # fixed scenarios, box corners, largest-force plants
     assert doc["search"]["free"]["theta1_0"] == doc["arc"]["theta0"][0]
     assert doc["search"]["n_evaluations"] == 3
+    # the winner was chosen by the default gate on fresh Monte-Carlo plants among the feasible candidates
+    assert doc["search"]["holdout_plants"] == HOLDOUT_PLANTS
+    fails = doc["search"]["holdout_failures"]
+    assert 1 <= len(fails) <= 3 and all(isinstance(f, int) and f >= 0 for f in fails)
     assert "Chosen gains" in output and "case1/nominal" in output
 
 
@@ -160,3 +177,27 @@ def test_theorem1_holds_anywhere_in_the_search_box():
         assert theorem1_check(g.w1, g.w2, g.C_phi1, g.C_phi2, g.C_theta2).min_ratio >= 5.0 - 1e-9
         assert g.g1 <= g.k1s_max and g.g2 <= g.k2s_max
         assert g.theta_min[0] <= g.theta0[0] <= base.theta0[0]  # theta_hat1(0) in the box, not above nominal
+
+
+def test_holdout_selection_prefers_fewer_gate_failures():
+    """The selection rule on a synthetic two-candidate search result.
+
+    Candidate 0 is given the lower cost but carries destabilising gains (both caps x4, theta3
+    adaptation x1e4, w2 x1e-3): it chatters and hits the input limit.  Candidate 1 is the
+    paper's gains carried over.  The hold-out gate must count more failures for candidate 0
+    and choose candidate 1 despite its cost.
+    """
+    ident = ref_ident()
+    spec = default_spec()
+    base = base_arc_gains(ident, spec)
+    ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(0)), spec)
+    x = np.array([[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e4, 1e-3, 1.0], [1.0] * 9])
+    scores = ev.scores(KIND_ARC, [arc_pack(apply_free(base, xi)) for xi in x])
+    pid_scores = ev.scores(KIND_PID, [pid_pack(pid_baseline(ident, spec)[0])])[0]
+    holds = SimpleNamespace(holds=True)
+    res = SearchResult(x=x, costs=np.array([0.0, 1.0]), scores=scores, feasibility=[holds, holds],
+                       cost_initial=0.0, history=(0.0, 1.0), best=0)
+    ch = select_on_holdout(res, base, ident, spec, ev, pid_scores, lambda g: holds, rng=np.random.default_rng(1))
+    assert ch.n_plants == HOLDOUT_PLANTS and len(ch.failures) == 2
+    assert ch.failures[0] > ch.failures[1]
+    assert ch.chosen == 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -20,6 +21,7 @@ from commission.scenarios import (
     resolve_quantization,
     scenario_matrix,
     tuning_scenarios,
+    viscous_range,
 )
 from commission.spec import default_spec, spec_from_mapping
 
@@ -88,6 +90,9 @@ def test_monte_carlo_is_seeded_and_inside_the_box():
     d_lo, d_hi = force_range(ident)
     assert (d_lo, d_hi) == (pytest.approx(-1.0), pytest.approx(1.0))  # +-50 m/s^2 at M = 0.02
     assert np.all(np.abs(pa[:, P_OFFSET]) <= 1.0 + 1e-12)
+    # a payload adds mass only: B stays in the range the box admits at every mass
+    b_lo, b_hi = viscous_range(ident)
+    assert np.all((pa[:, P_B] >= b_lo - 1e-12) & (pa[:, P_B] <= b_hi + 1e-12))
     # the draws spread over the box (not stuck at a point)
     assert np.ptp(th[:, 0]) > 0.7 * (hi[0] - lo[0]) and np.ptp(pa[:, P_OFFSET]) > 1.4
     assert {s.trajectory.kind for s in a[12:]} == {"case1", "case2"}
@@ -124,3 +129,22 @@ def test_ident_extras_feed_ripple_and_quantization():
     assert resolve_quantization(ident, default_spec()) == 5e-8
     assert resolve_quantization(ident, spec_from_mapping({"controller": {"quantization": 2e-6}})) == 2e-6
     assert resolve_quantization(ref_ident(), default_spec()) == 1e-6
+
+
+def test_viscous_range_inverts_the_interval_box():
+    # A box built by interval arithmetic from M in [m1, m2], B in [b1, b2]:
+    # theta1 in [1/m2, 1/m1], theta2 in [b1/m2, b2/m1]; the range recovers [b1, b2] exactly.
+    m1, m2, b1, b2 = 0.02, 0.11, 0.2, 0.33
+    ident = ref_ident()
+    box = dataclasses.replace(ident.theta, min=(1 / m2, b1 / m2, ident.theta.min[2]),
+                              max=(1 / m1, b2 / m1, ident.theta.max[2]))
+    lo, hi = viscous_range(dataclasses.replace(ident, theta=box))
+    assert (lo, hi) == (pytest.approx(b1, rel=1e-12), pytest.approx(b2, rel=1e-12))
+    # the paper's box: B in [2.4 / 8.3, 17.5 / 50]; its corners use these ends, not theta2 * M_heavy
+    lo, hi = viscous_range(ident)
+    assert (lo, hi) == (pytest.approx(2.4 / 8.3), pytest.approx(17.5 / 50.0))
+    corners = corner_scenarios(ident, default_spec())
+    assert sorted({round(s.plant[P_B], 12) for s in corners}) == [pytest.approx(lo), pytest.approx(hi)]
+    # a box that admits no common B at every mass falls back to the identified B
+    tight = dataclasses.replace(ident.theta, min=(8.3, 9.0, -50.0), max=(50.0, 11.0, 50.0))
+    assert viscous_range(dataclasses.replace(ident, theta=tight)) == (0.273, 0.273)

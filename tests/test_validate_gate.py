@@ -162,3 +162,26 @@ def test_divergence_check_can_be_switched_off_but_indexes_still_fail():
     v = evaluate_gate(lim, [("s", score(diverged=True, e_M=NAN, e_F=NAN, e_rms=NAN, c_u=NAN), score(), 0.5)])
     crit = {c.criterion for c in v.failures}
     assert "divergence" not in crit and {"e_F", "e_M", "e_rms"} <= crit
+
+
+def test_arc_vs_pid_slack_is_the_quantization_noise_rms_by_default():
+    # An error-free loop read through an encoder of LSB q shows e_rms = q / sqrt(12): the default slack.
+    lim = resolve_gate(GateSpec(), lsb=0.8e-6, travel=0.4, u_max=10.0)
+    assert lim.arc_vs_pid_slack == pytest.approx(0.8e-6 / math.sqrt(12.0))
+    assert "sqrt(12)" in lim.basis["arc_vs_pid_slack"]
+    pid = score(e_rms=0.31e-6)
+    edge = 0.31e-6 + lim.arc_vs_pid_slack
+    ok = evaluate_gate(lim, [("s", score(e_rms=edge), pid, NAN)])
+    assert ok.passed, [c.detail for c in ok.failures]
+    bad = evaluate_gate(lim, [("s", score(e_rms=edge * 1.001), pid, NAN)])
+    assert [(c.criterion, c.scenario) for c in bad.failures] == [("arc_vs_pid_e_rms", "s")]
+    assert "+ 0.231 um slack" in bad.failures[0].detail
+    # strict comparison on request; lengths as the error limits; negative refused
+    strict = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_slack": 0}}), lsb=0.8e-6, travel=0.4, u_max=10.0)
+    assert strict.arc_vs_pid_slack == 0.0
+    assert not evaluate_gate(strict, [("s", score(e_rms=0.32e-6), pid, NAN)]).passed
+    two = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_slack": "2 lsb"}}), lsb=0.8e-6, travel=0.4,
+                       u_max=10.0)
+    assert two.arc_vs_pid_slack == pytest.approx(1.6e-6)
+    with pytest.raises(SpecError, match=r"gate\.arc_vs_pid_slack = -1: must be a non-negative finite length"):
+        gate_from_mapping({"gate": {"arc_vs_pid_slack": -1}}, "g.toml")
