@@ -29,6 +29,8 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
   controller.observer_pole = 0.08 * sample_rate rad/s (paper: 200 -> k1 = 400, k2 = 4e4)
   controller.quantization  = ident.json's, else 1e-6 m
   trajectory.v_max = 1 m/s, a_max = 12 m/s^2, travel = 0.4 m, dwell = 0.5 s, moves = 6
+    (v_max, a_max left at their defaults are lowered, with a note, until the box's most
+    demanding plant needs <= 0.7 u_max of feedforward; values you set are checked, not changed)
   trajectory.beta1 = 100 1/s, beta2 = 2500 1/s^2 (reference filter 58)
   targets.e_rms = 5e-6 m, e_f = 1e-5 m (max |e| over the last 2 s), c_u = 0.5
   pid.pole = 0.12 * sample_rate rad/s (paper: 300)

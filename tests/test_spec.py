@@ -180,3 +180,20 @@ def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
     # a drive that cannot even hold the box's forces with headroom is refused, naming u_max
     with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 1\.5 V is too small for this theta box"):
         tune_mod.resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)
+
+
+def test_cli_prints_a_note_for_each_lowered_default(tmp_path, monkeypatch):
+    # Stop right after the inputs are resolved: the note must be printed before any simulation.
+    def stop(*a, **k):
+        raise SystemExit(0)
+
+    monkeypatch.setattr("commission.cli.tune_cmd.run_tune", stop)
+    ident = tmp_path / "ident.json"
+    ident.write_text(json.dumps(ref_ident_doc()))
+    spec = tmp_path / "spec.toml"
+    spec.write_text("[controller]\nu_max = 3.0\n")
+    r = runner.invoke(app, ["tune", str(ident), "--out", str(tmp_path / "t.json"), "--spec", str(spec)])
+    notes = [ln for ln in r.output.splitlines() if ln.startswith("note: ")]
+    assert len(notes) == 2, r.output
+    assert "trajectory.v_max defaulted to" in notes[0] and "trajectory.a_max defaulted to" in notes[1]
+    assert not (tmp_path / "t.json").exists()
