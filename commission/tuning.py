@@ -23,7 +23,10 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
     search            n_evaluations, budget, seed, cost_initial, cost_best, free (name -> value),
                       history (cost of every candidate, evaluation order), holdout_plants,
                       holdout_failures (default-gate failures of each candidate compared on
-                      the hold-out plants, best cost first; see commission.tune.select_on_holdout)
+                      the hold-out plants, best cost first; see commission.tune.select_on_holdout),
+                      repair_moves (single-gain moves accepted after the hold-out, in order, e.g.
+                      "G1 /3"; see commission.tune.repair_on_holdout), repair_evaluations,
+                      repair_failures (hold-out gate failures after the repair; null: no repair run)
 
 Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
 field raises :class:`commission.errors.SchemaError` naming its JSON path.
@@ -34,7 +37,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -203,6 +206,12 @@ class SearchRecord:
         Monte-Carlo plants of the hold-out selection (0: not run).
     holdout_failures : tuple of int
         Default-gate failures of each candidate compared there, best cost first.
+    repair_moves : tuple of str
+        Single-gain moves of the hold-out repair, in order (empty: none accepted or not run).
+    repair_evaluations : int
+        Candidates the repair simulated (0: not run).
+    repair_failures : int or None
+        Hold-out gate failures after the repair (None: not run).
     """
 
     n_evaluations: int
@@ -214,13 +223,18 @@ class SearchRecord:
     history: tuple[float, ...] = ()
     holdout_plants: int = 0
     holdout_failures: tuple[int, ...] = ()
+    repair_moves: tuple[str, ...] = ()
+    repair_evaluations: int = 0
+    repair_failures: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
                 "cost_initial": _num_or_null(self.cost_initial), "cost_best": _num_or_null(self.cost_best),
                 "free": {k: float(v) for k, v in self.free.items()},
                 "history": [_num_or_null(c) for c in self.history],
-                "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures)}
+                "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures),
+                "repair_moves": list(self.repair_moves), "repair_evaluations": self.repair_evaluations,
+                "repair_failures": self.repair_failures}
 
 
 def _gains_to_dict(g: Any) -> dict[str, Any]:
@@ -401,7 +415,12 @@ class Tuning:
                               free={k: fre.num(k) for k in fre.keys()},  # type: ignore[misc]
                               history=_nullable_list(se, "history"),
                               holdout_plants=se.int_("holdout_plants") if se.has("holdout_plants") else 0,
-                              holdout_failures=_int_list(se, "holdout_failures"))
+                              holdout_failures=_int_list(se, "holdout_failures"),
+                              repair_moves=_str_list(se, "repair_moves"),
+                              repair_evaluations=se.int_("repair_evaluations") if se.has("repair_evaluations") else 0,
+                              repair_failures=(se.int_("repair_failures")
+                                               if se.has("repair_failures") and se.child("repair_failures").data
+                                               is not None else None))
         if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
             raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
         return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=quant,  # type: ignore[arg-type]
@@ -434,17 +453,28 @@ def _row(m: Reader, i: int, row: Any, cols: int) -> tuple[float, ...]:
     return tuple(float(x) for x in row)
 
 
-def _int_list(r: Reader, key: str) -> tuple[int, ...]:
-    """An optional list of non-negative integers; absent: empty."""
+def _checked_list(r: Reader, key: str, ok: Callable[[Any], bool], what: str) -> tuple:
+    """An optional list whose every item passes ``ok`` (``what`` names the item type); absent: empty."""
     if not r.has(key):
         return ()
     m = r.child(key)
     if not isinstance(m.data, list):
-        raise r.fail("expected a list of integers", m.path)
+        raise r.fail(f"expected a list of {what}s", m.path)
     for i, v in enumerate(m.data):
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-            raise r.fail(f"expected a non-negative integer, got {v!r}", f"{m.path}[{i}]")
+        if not ok(v):
+            raise r.fail(f"expected a {what}, got {v!r}", f"{m.path}[{i}]")
     return tuple(m.data)
+
+
+def _int_list(r: Reader, key: str) -> tuple[int, ...]:
+    """An optional list of non-negative integers; absent: empty."""
+    return _checked_list(r, key, lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
+                         "non-negative integer")
+
+
+def _str_list(r: Reader, key: str) -> tuple[str, ...]:
+    """An optional list of strings; absent: empty."""
+    return _checked_list(r, key, lambda v: isinstance(v, str), "string")
 
 
 def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:

@@ -182,6 +182,22 @@ def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
         tune_mod.resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)
 
 
+def test_defaulted_envelope_scales_with_a_sample_rate_below_the_papers():
+    ident = Identification.from_dict(ref_ident_doc())
+    # 1 kHz is r = 0.4 of the paper's 2.5 kHz: v_max x r, a_max x r^2, each with a note
+    spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": 1000.0}}, "s.toml", ident)
+    assert spec.v_max == pytest.approx(0.4) and spec.a_max == pytest.approx(12.0 * 0.16)
+    assert len(notes) == 2 and all("sample rate 1000 Hz is 0.4 x the paper's 2500 Hz" in n for n in notes)
+    # a key the user set is kept; the other one still scales
+    spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": 1000.0}, "trajectory": {"a_max": 3.0}},
+                                        "s.toml", ident)
+    assert (spec.v_max, spec.a_max) == (pytest.approx(0.4), 3.0) and len(notes) == 1
+    # at and above the paper's rate nothing changes
+    for fs in (2500.0, 5000.0):
+        spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": fs}}, "s.toml", ident)
+        assert (spec.v_max, spec.a_max, notes) == (1.0, 12.0, ())
+
+
 def test_cli_prints_a_note_for_each_lowered_default(tmp_path, monkeypatch):
     # Stop right after the inputs are resolved: the note must be printed before any simulation.
     def stop(*a, **k):

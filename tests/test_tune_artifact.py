@@ -21,13 +21,17 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID
 from commission.scenarios import tuning_scenarios
 from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
+    FREE_BOUNDS,
     HOLDOUT_PLANTS,
+    REPAIR_BUDGET,
     Evaluator,
+    HoldoutGate,
     SearchResult,
     apply_free,
     base_arc_gains,
     load_tune_inputs,
     pid_baseline,
+    repair_on_holdout,
     select_on_holdout,
     tune,
 )
@@ -71,14 +75,21 @@ def test_cli_writes_a_schema_versioned_tuning(small):
                  "sampled_data_stability", "input_limit"):
         assert name in doc["guarantees"]
     assert doc["guarantees"]["robust_gains_37_47"]["holds"] is False  # traded: capped gains
-    assert len(doc["scores"]) == 12 + 16 + 4  # fixed scenarios, box corners, largest-force plants
+    assert len(doc["scores"]) == 12 + 16 + 4 + 6  # fixed scenarios, box corners, largest-force plants, payloads
     assert doc["search"]["free"]["theta1_0"] == doc["arc"]["theta0"][0]
     assert doc["search"]["n_evaluations"] == 3
     # the winner was chosen by the default gate on fresh Monte-Carlo plants among the feasible candidates
     assert doc["search"]["holdout_plants"] == HOLDOUT_PLANTS
     fails = doc["search"]["holdout_failures"]
     assert 1 <= len(fails) <= 3 and all(isinstance(f, int) and f >= 0 for f in fails)
+    # the repair runs exactly when every compared candidate still failed the hold-out gate
+    se = doc["search"]
+    if min(fails) == 0:
+        assert se["repair_failures"] is None and se["repair_evaluations"] == 0 and se["repair_moves"] == []
+    else:
+        assert 0 < se["repair_evaluations"] and se["repair_failures"] <= min(fails)
     assert "Chosen gains" in output and "case1/nominal" in output
+    assert "fresh plants" in output and "default gate, hold-out" in output
 
 
 def test_roundtrip_and_strict_loading(small):
@@ -146,7 +157,8 @@ def test_progress_callback_and_base_gains():
     seen = []
     tune(ident, spec, rng=np.random.default_rng(0), seed=0, ident_sha256="0" * 64,
          progress=lambda done, total: seen.append((done, total)))
-    assert seen[-1][0] == seen[-1][1] == spec.budget + 3
+    # search candidates, hold-out, the repair's candidates (skipped steps jump), two final reports
+    assert seen[-1][0] == seen[-1][1] == spec.budget + 1 + REPAIR_BUDGET + 2
     assert [s[0] for s in seen] == sorted(s[0] for s in seen)
     g = base_arc_gains(ident, spec)
     # theta1 nominal 37 and 2.5 kHz are the paper's axis: its gains carry over unchanged
@@ -179,25 +191,58 @@ def test_theorem1_holds_anywhere_in_the_search_box():
         assert g.theta_min[0] <= g.theta0[0] <= base.theta0[0]  # theta_hat1(0) in the box, not above nominal
 
 
-def test_holdout_selection_prefers_fewer_gate_failures():
-    """The selection rule on a synthetic two-candidate search result.
-
-    Candidate 0 is given the lower cost but carries destabilising gains (both caps x4, theta3
-    adaptation x1e4, w2 x1e-3): it chatters and hits the input limit.  Candidate 1 is the
-    paper's gains carried over.  The hold-out gate must count more failures for candidate 0
-    and choose candidate 1 despite its cost.
-    """
+@pytest.fixture(scope="module")
+def holdout_setup():
+    """Reference identification, default spec, its tuning evaluator, the PID and a hold-out gate."""
     ident = ref_ident()
     spec = default_spec()
     base = base_arc_gains(ident, spec)
     ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(0)), spec)
-    x = np.array([[4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e4, 1e-3, 1.0], [1.0] * 9])
+    pid = pid_baseline(ident, spec)[0]
+    pid_scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
+    hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=np.random.default_rng(1))
+    return ident, spec, base, ev, hg
+
+
+#: Destabilising relative free gains: both caps x4, theta3 adaptation x1e4, w2 x1e-3 (chatters, hits u_max).
+BAD_X = [4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 1e4, 1e-3, 1.0]
+
+
+def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
+    """The selection rule on a synthetic two-candidate search result.
+
+    Candidate 0 is given the lower cost but carries :data:`BAD_X`.  Candidate 1 is the
+    paper's gains carried over.  The hold-out gate must count more failures for candidate 0
+    and choose candidate 1 despite its cost.
+    """
+    ident, spec, base, ev, hg = holdout_setup
+    x = np.array([BAD_X, [1.0] * 9])
     scores = ev.scores(KIND_ARC, [arc_pack(apply_free(base, xi)) for xi in x])
-    pid_scores = ev.scores(KIND_PID, [pid_pack(pid_baseline(ident, spec)[0])])[0]
     holds = SimpleNamespace(holds=True)
     res = SearchResult(x=x, costs=np.array([0.0, 1.0]), scores=scores, feasibility=[holds, holds],
                        cost_initial=0.0, history=(0.0, 1.0), best=0)
-    ch = select_on_holdout(res, base, ident, spec, ev, pid_scores, lambda g: holds, rng=np.random.default_rng(1))
+    ch = select_on_holdout(res, base, hg, lambda g: holds)
     assert ch.n_plants == HOLDOUT_PLANTS and len(ch.failures) == 2
     assert ch.failures[0] > ch.failures[1]
     assert ch.chosen == 1
+
+
+def test_repair_moves_away_from_destabilising_gains(holdout_setup):
+    """Starting from :data:`BAD_X`, single-gain moves must cut the hold-out gate's failures.
+
+    Every accepted move names a free gain of FREE_BOUNDS, each one lowers (failures, excess),
+    and the result is what the hold-out gate says of the final gains (re-judged here).
+    """
+    ident, spec, base, ev, hg = holdout_setup
+    x0 = np.array(BAD_X)
+    (s0, f0, e0), = hg.judge([apply_free(base, x0)])
+    assert f0 > 0
+    holds = SimpleNamespace(holds=True)
+    rep = repair_on_holdout(x0, s0, f0, e0, holds, base, hg, spec, lambda g: holds, budget=36)
+    assert rep.evaluations <= 36 and rep.moves
+    names = {b[0] for b in FREE_BOUNDS}
+    assert all(m.split()[0] in names for m in rep.moves)
+    assert rep.failures < f0
+    (s1, f1, e1), = hg.judge([apply_free(base, rep.x)])
+    assert (f1, e1) == (rep.failures, pytest.approx(rep.excess))
+    assert [a.e_rms for a in s1] == [a.e_rms for a in rep.scores]

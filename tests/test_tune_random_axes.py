@@ -8,16 +8,18 @@ demanding plant, :func:`commission.tune.default_envelope`) and validates the tun
 against :mod:`commission.gate`'s defaults on the full matrix (12 fixed scenarios +
 64 Monte-Carlo plants).
 
-Measured (seed 0 of the search and of the Monte-Carlo sample), session 2: axes 2
-(2 kHz), 3 (5 kHz), 5 (4 kHz, envelope lowered to 0.24 m/s, 4.8 m/s^2), 7 (2 kHz,
-0.44 m/s, 8.8 m/s^2) and 8 (5 kHz) pass every criterion on every scenario.
+Measured (seed 0 of the search and of the Monte-Carlo sample), session 3: axes 2
+(2 kHz, envelope scaled to 0.8 m/s, 7.7 m/s^2), 3 (5 kHz), 5 (4 kHz, envelope lowered to
+0.24 m/s, 4.8 m/s^2), 6 (5 kHz), 7 (2 kHz, 0.44 m/s, 7.7 m/s^2), 8 (5 kHz) and 12
+(2.5 kHz) pass every criterion on every scenario.  Axis 12 is the case of the interior
+payloads (:func:`commission.scenarios.payload_scenarios`): before the tuning set had
+them, its theta1 estimate drifted to the box's light end on a x1.9 payload and the ARC
+lost to the PID by 19x there.
 
-Not every random axis passes.  Of random_axis seeds 0-17, five (4, 9, 10, 13, 14)
-are refused with exit 2 before any simulation: the box's friction and constant
-forces alone need more than 0.7 x 10 V.  Of the rest, 1 kHz axes (11, 15) miss the
-e_rms limit on heavy plants; light axes on coarse encoders (0, 16) chatter above
-c_u = 1 on Case 1 (the PID reaches 0.9-1.1 there too); axes 1, 6 and 12 fail 1-7
-Monte-Carlo plants (input limit reached, or ARC worse than the PID).
+Not every random axis passes; see the closing note of session 3 for the list (refused
+with exit 2 when the box's friction and constant forces alone need more than
+0.7 x 10 V; light axes on coarse encoders chatter above c_u = 1 on Case 1, where the
+PID reaches 0.9-1.1 too).
 """
 
 from __future__ import annotations
@@ -35,8 +37,8 @@ from commission.validate import validate
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module", params=[2, 3, 7, 8], ids=["axis2-2kHz", "axis3-5kHz", "axis7-2kHz-heavy",
-                                                              "axis8-5kHz"])
+@pytest.fixture(scope="module", params=[2, 3, 7, 8, 12], ids=["axis2-2kHz", "axis3-5kHz", "axis7-2kHz-heavy",
+                                                                  "axis8-5kHz", "axis12-payload-drift"])
 def validated(request, tmp_path_factory):
     seed = request.param
     d = tmp_path_factory.mktemp(f"axis{seed}")

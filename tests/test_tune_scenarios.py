@@ -15,6 +15,7 @@ from commission.scenarios import (
     case1_trajectory,
     case2_trajectory,
     corner_scenarios,
+    payload_scenarios,
     force_range,
     identified_plant,
     offset_scenarios,
@@ -104,10 +105,19 @@ def test_tuning_set_adds_the_corners():
     ts = tuning_scenarios(ident, spec, rng=np.random.default_rng(0))
     corners = corner_scenarios(ident, spec)
     offsets = offset_scenarios(ident, spec)
+    payloads = payload_scenarios(ident, spec)
     assert [s.name for s in ts] == [s.name for s in scenario_matrix(ident, spec, rng=np.random.default_rng(0),
                                                                      n_monte_carlo=0)] + \
-        [s.name for s in corners] + [s.name for s in offsets]
-    assert len(corners) == 16 and len(offsets) == 4
+        [s.name for s in corners] + [s.name for s in offsets] + [s.name for s in payloads]
+    assert len(corners) == 16 and len(offsets) == 4 and len(payloads) == 6
+    # interior payloads: geometric steps from the identified mass to the heaviest, nothing else changed
+    base = identified_plant(ident)
+    m0, m_heavy = base[P_M], 1 / ident.theta.min[0]
+    for s in payloads:
+        k = float(s.name.rsplit("/", 1)[1])
+        assert s.plant[P_M] == pytest.approx(m0 * (m_heavy / m0) ** k)
+        assert np.array_equal(np.delete(s.plant, P_M), np.delete(base, P_M))
+    assert sorted(float(s.name.rsplit("/", 1)[1]) for s in payloads) == [0.25] * 2 + [0.5] * 2 + [0.75] * 2
     # the largest-force plants: identified mass, force at both ends of force_range, inside the box
     base = identified_plant(ident)
     lo, hi = np.array(ident.theta.min), np.array(ident.theta.max)
