@@ -802,8 +802,10 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
         if not p.diverged and math.isfinite(p.e_rms):
             ratios.append(a.e_rms / (limits.arc_vs_pid_e_rms * p.e_rms + limits.arc_vs_pid_slack))
         for r in ratios:
-            total += max(0.0, math.log(r / margin)) if math.isfinite(r) and r > 0 else (
-                REPAIR_DIVERGED_EXCESS if not math.isfinite(r) else 0.0)
+            if not math.isfinite(r):  # an index undefined (NaN) or unbounded counts as a diverged run
+                total += REPAIR_DIVERGED_EXCESS
+            elif r > margin:
+                total += math.log(r / margin)
     return total
 
 
