@@ -31,7 +31,8 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
   trajectory.v_max = 1 m/s, a_max = 12 m/s^2, travel = 0.4 m, dwell = 0.5 s, moves = 6
     (v_max, a_max left at their defaults are scaled by r and r^2 below 2.5 kHz, r = rate/2500,
     then lowered, with a note, until the box's most demanding plant needs <= 0.7 u_max of
-    feedforward; values you set are checked, not changed)
+    feedforward; values you set are checked, not changed.  When identify's defaulted load-force
+    bound leaves no room for any envelope, the theta3 box is narrowed with a note instead)
   trajectory.beta1 = 100 1/s, beta2 = 2500 1/s^2 (reference filter 58)
   targets.e_rms = 5e-6 m, e_f = 1e-5 m (max |e| over the last 2 s), c_u = 0.5
   pid.pole = 0.12 * sample_rate rad/s (paper: 300)

@@ -207,6 +207,8 @@ def identify_log(
             "mass_range": list(tb.mass_range),
             "viscous_range": list(tb.viscous_range),
             "disturbance_range": list(tb.disturbance_range),
+            "disturbance_bound": tb.disturbance_bound,
+            "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
         },
         "friction_compensation_rms_error": comp.rms_error,
         "warnings": warnings,

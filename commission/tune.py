@@ -5,7 +5,10 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
 
 1. Spec checks before any simulation (:mod:`commission.spec`, then
    :func:`check_spec_against_ident`: the input limit must cover the envelope
-   on the heaviest plant of the box).
+   on the heaviest plant of the box).  Defaults are fitted to the axis first
+   (:func:`resolve_spec`): the envelope to the sample rate and the drive, and a
+   *defaulted* load-force bound that leaves the drive no room for any envelope
+   is narrowed (:func:`fit_disturbance_to_drive`).
 2. Observer: double pole of A0 (10) at ``-spec.observer_pole``; k1 = 2p,
    k2 = p^2; P of (11) (:func:`controllers.design.observer_design`).
 3. Base ARC gains (:func:`base_arc_gains`): the paper's §4.3 gains carried
@@ -244,6 +247,86 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
             f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.3g} {u} needed for "
             f"trajectory.a_max = {spec.a_max:g} m/s^2 and v_max = {spec.v_max:g} m/s on the most demanding "
             f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}")
+
+
+#: Share of the feedforward budget (DRIVE_HEADROOM x u_max) that a *defaulted* load-force bound
+#: is narrowed to when, at its default, not even the smallest default envelope fits (see
+#: :func:`fit_disturbance_to_drive`).
+DISTURBANCE_SHARE = 0.5
+
+
+def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
+                             source: str = "spec (defaults)") -> tuple[Identification, tuple[str, ...]]:
+    """Narrow the theta3 box of a *defaulted* load-force bound to what the drive can reject.
+
+    ``commission identify`` bounds the load force by ``10 max(fc, fs)`` when the user does not
+    say (``--disturbance-bound``): the paper's box allows about eleven times its stiction.  On a
+    heavy axis with high friction that default alone can exceed the drive (10 x 1.1 V of
+    stiction on a 10 V rail): no controller rejects a load the motor cannot push, and the
+    spec used to be refused.  When the bound was defaulted (``bounds.disturbance_bound_defaulted``
+    in ident.json) and even the smallest default envelope (:data:`MIN_DEFAULT_V_MAX`,
+    :data:`MIN_DEFAULT_A_MAX`) does not fit in the feedforward budget ``DRIVE_HEADROOM x u_max``
+    on the most demanding plant, the force range is narrowed symmetrically about the identified
+    offset force until friction, ripple and constant force take :data:`DISTURBANCE_SHARE` of the
+    budget; the rest is left to the envelope (:func:`default_envelope`).  theta3's bounds
+    follow at the lightest mass, where they bind (:func:`commission.scenarios.force_range`).
+
+    A bound the user gave, an envelope the user set in full, or an ident.json written before
+    the flag existed is never narrowed; :func:`default_envelope` and
+    :func:`check_spec_against_ident` then decide as before.  The narrowed box is what ``tune``
+    designs for and ``validate`` tests (it is stored in tuning.json's identification, with
+    ``bounds.narrowed_by_tune``); a note says so.
+
+    Returns
+    -------
+    ident : Identification
+        With the narrowed theta3 box (the same object when nothing changed).
+    notes : tuple of str
+        One line when the box was narrowed.
+    """
+    bounds = ident.extra.get("bounds")
+    if not (isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True):
+        return ident, ()
+    if {"v_max", "a_max"} <= given:
+        return ident, ()
+    budget = DRIVE_HEADROOM * spec.u_max
+    d = drive_need(ident)
+    v_min = min(spec.v_max, MIN_DEFAULT_V_MAX)
+    a_min = min(spec.a_max, MIN_DEFAULT_A_MAX)
+    if d.need(v_min, a_min, spec.beta1) <= budget:
+        return ident, ()
+    p = identified_plant(ident)
+    d_lo, d_hi = force_range(ident)
+    step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
+    force = max(abs(d_lo), abs(d_hi), step)
+    fixed = d.const - force  # friction (+20 %) and ripple
+    allowed = DISTURBANCE_SHARE * budget - fixed  # largest |constant force| left for the box
+    dn = -p[P_OFFSET]
+    reach = allowed - abs(dn)  # half-width of the narrowed force range about d_n
+    if not (reach > 0 and allowed >= step and max(abs(d_lo), abs(d_hi)) > allowed):
+        return ident, ()  # friction alone is too much: default_envelope refuses, naming u_max
+    m_light = 1.0 / ident.theta.max[0]
+    lo = max(ident.theta.min[2], (dn - reach) / m_light)
+    hi = min(ident.theta.max[2], (dn + reach) / m_light)
+    theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
+    u = ident.units.get("u", "u-unit")
+    old_bound = bounds.get("disturbance_bound")
+    new_bounds = dict(bounds)
+    new_bounds["narrowed_by_tune"] = {
+        "theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
+        "force_range": [d_lo, d_hi], "narrowed_force_range": [lo * m_light, hi * m_light],
+        "u_max": spec.u_max}
+    extra = dict(ident.extra)
+    extra["bounds"] = new_bounds
+    out = dataclasses.replace(ident, theta=theta, extra=extra)
+    was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
+    note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
+            f"m/s^2 (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
+            f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} m/s, "
+            f"a_max = {a_min:g} m/s^2 on the most demanding plant; it now takes {DISTURBANCE_SHARE:g} of the "
+            f"{budget:.3g} {u} feedforward budget.  State the real load with commission identify "
+            f"--disturbance-bound")
+    return out, (note,)
 
 
 def rate_scaled_envelope(spec: Spec, given: set[str]) -> tuple[Spec, tuple[str, ...]]:
@@ -708,13 +791,25 @@ HOLDOUT_PLANTS = 32
 #: Coordinate steps of :func:`repair_on_holdout`, coarse to fine: each free gain times or divided by
 #: these factors (one gain per move).
 REPAIR_FACTORS = (3.0, 1.7, 1.3)
-#: Candidates :func:`repair_on_holdout` may simulate (two rounds of the 18 coordinate moves).
+#: Candidates :func:`repair_on_holdout` may simulate at 2.5 kHz and above (two rounds of the 18
+#: coordinate moves); below, :func:`repair_budget` raises it with the falling cost of a simulation.
 REPAIR_BUDGET = 36
 #: The repair's secondary objective measures each index against this fraction of its gate limit,
 #: so that once nothing fails it still prefers gains with room to spare on plants it has not seen.
 REPAIR_MARGIN = 0.9
 #: Excess counted for a diverged run in the repair's secondary objective (ln units).
 REPAIR_DIVERGED_EXCESS = 10.0
+
+
+def repair_budget(spec: Spec) -> int:
+    """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s).
+
+    A simulation's cost is proportional to its samples, so below the paper's rate the same
+    wall time buys more moves (90 at 1 kHz).  On a 1 kHz axis of
+    :func:`commission.synth.random_axis` two rounds stopped at 16 hold-out failures where
+    single further moves (Gamma3 x 3, or the K1 cap x 1.3) passed validate's gate.
+    """
+    return int(round(REPAIR_BUDGET * max(1.0, PAPER_RATE / spec.sample_rate)))
 
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
@@ -1047,7 +1142,8 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     observer = observer_design(spec.observer_pole, spec.period)
     base = base_arc_gains(ident, spec)
     # progress steps: the search's candidates, the hold-out, the repair's candidates, two reports
-    total = spec.budget + 1 + REPAIR_BUDGET + 2
+    n_repair = repair_budget(spec)
+    total = spec.budget + 1 + n_repair + 2
     pid, m_min = pid_baseline(ident, spec)
     pid_scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
     traj_names = ["case1", "case2"]
@@ -1071,11 +1167,11 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     if holdout.failures and min(holdout.failures) > 0 and chosen_rep.holds:
         repaired = repair_on_holdout(
             x_chosen, arc_scores, min(holdout.failures), holdout.excess, chosen_rep, base, hg, spec, feasible,
-            progress=None if progress is None else (lambda k: progress(spec.budget + 1 + k, total)))
+            budget=n_repair, progress=None if progress is None else (lambda k: progress(spec.budget + 1 + k, total)))
         x_chosen, arc_scores, chosen_rep = repaired.x, repaired.scores, repaired.feasibility
     chosen = apply_free(base, x_chosen)
     if progress is not None:
-        progress(spec.budget + 1 + REPAIR_BUDGET, total)
+        progress(spec.budget + 1 + n_repair, total)
     pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
                                    margin=spec.margin)
     if progress is not None:
@@ -1138,19 +1234,34 @@ class TuneInputs:
     notes: tuple[str, ...] = ()
 
 
-def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> tuple[Spec, tuple[str, ...]]:
+@dataclass(frozen=True)
+class ResolvedSpec:
+    """What ``tune`` runs with, after the defaults were fitted to the axis (:func:`resolve_spec`).
+
+    Attributes
+    ----------
+    spec : Spec
+    ident : Identification
+        The identification tune designs for: the input one, or a copy whose theta3 box was
+        narrowed to the drive (:func:`fit_disturbance_to_drive`).
+    notes : tuple of str
+        One line per default that was lowered or narrowed.
+    """
+
+    spec: Spec
+    ident: Identification
+    notes: tuple[str, ...]
+
+
+def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> ResolvedSpec:
     """The spec ``tune`` runs with, for this identification; no simulation runs here.
 
     The sample rate defaults to the log's (:func:`log_sample_rate`), the envelope's
-    defaulted keys are scaled to that rate (:func:`rate_scaled_envelope`) and lowered to
+    defaulted keys are scaled to that rate (:func:`rate_scaled_envelope`), a defaulted
+    load-force bound that leaves no room for any envelope is narrowed
+    (:func:`fit_disturbance_to_drive`), the envelope's defaulted keys are lowered to
     what the drive can move (:func:`default_envelope`),
     then :func:`check_spec_against_ident` and the observer design check the result.
-
-    Returns
-    -------
-    spec : Spec
-    notes : tuple of str
-        One line per default that was lowered.
 
     Raises
     ------
@@ -1161,14 +1272,14 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> tupl
     traj = spec_data.get("trajectory")
     given = set(traj) if isinstance(traj, dict) else set()
     spec, rate_notes = rate_scaled_envelope(spec, given)
+    ident, box_notes = fit_disturbance_to_drive(spec, ident, given, spec_name)
     spec, notes = default_envelope(spec, ident, given, spec_name)
-    notes = rate_notes + notes
     check_spec_against_ident(spec, ident, spec_name)
     try:
         observer_design(spec.observer_pole, spec.period)
     except DesignError as exc:
         raise SpecError(f"{spec_name}: controller.observer_pole: {exc}") from None
-    return spec, notes
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
@@ -1186,9 +1297,9 @@ def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.
     spec_data, spec_name = read_spec_toml(spec_path)  # parse errors before reading ident.json
     spec_from_mapping(spec_data, spec_name)  # every key checked at the documented defaults
     ident = Identification.from_dict(read_json(ident_path), source=ident_path)
-    spec, notes = resolve_spec(spec_data, spec_name, ident)
-    return TuneInputs(ident=ident, spec=spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
-                      log_sha256=_log_sha256(ident), seed=int(seed), notes=notes)
+    rs = resolve_spec(spec_data, spec_name, ident)
+    return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
+                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes)
 
 
 def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,

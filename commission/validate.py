@@ -621,10 +621,11 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
-    spec, notes = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope
+    rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
+    spec, notes = rs.spec, rs.notes
     resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
     try:
-        tuned = tune(ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
+        tuned = tune(rs.ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
                      ident_path=str(out / IDENT_NAME), log_sha256=ident_out.log.sha256,
                      progress=stage("tune"), workers=workers)
     except DesignError as exc:

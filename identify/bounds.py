@@ -71,6 +71,10 @@ class ThetaBounds:
         ``B`` range, u-unit s/m.
     disturbance_range : tuple of 2 float
         ``d_n`` range, u-unit.
+    disturbance_bound : float
+        The load-force bound ``D`` the box was built with, u-unit.
+    disturbance_bound_defaulted : bool
+        True when ``D`` is the default ``10 max(fc, fs)`` (not given by the caller).
     """
 
     nominal: tuple[float, float, float]
@@ -80,6 +84,8 @@ class ThetaBounds:
     mass_range: tuple[float, float]
     viscous_range: tuple[float, float]
     disturbance_range: tuple[float, float]
+    disturbance_bound: float
+    disturbance_bound_defaulted: bool
 
 
 def theta_bounds(fit: AxisFit, *, k_sigma: float = 3.0, model_margin: float = 0.2, payload_min: float = 0.0,
@@ -140,7 +146,8 @@ def theta_bounds(fit: AxisFit, *, k_sigma: float = 3.0, model_margin: float = 0.
                        theta_min=(1.0 / m_hi, b_lo / m_hi, min(th3)),
                        theta_max=(1.0 / m_lo, b_hi / m_lo, max(th3)),
                        delta_d=delta_d, mass_range=(m_lo, m_hi), viscous_range=(b_lo, b_hi),
-                       disturbance_range=(d_lo, d_hi))
+                       disturbance_range=(d_lo, d_hi), disturbance_bound=D,
+                       disturbance_bound_defaulted=disturbance_bound is None)
 
 
 def friction_compensation(fit: AxisFit, *, v_resolution: float | None = None,

@@ -69,7 +69,11 @@ def test_sample_data_recovers_truth_with_plots(tmp_path):
     r = invoke(["identify", str(SAMPLE / "axis_excitation.h5"), "--friction", "stribeck",
                 "--ripple-pitch", "0.03", "--out", str(out), "--plot", str(tmp_path / "plots")])
     assert r.exit_code == 0, r.output
-    p = json.loads(out.read_text())["parameters"]
+    doc = json.loads(out.read_text())
+    p = doc["parameters"]
+    # the load-force bound: the default 10 max(fc, fs), flagged so that tune may narrow it to the drive
+    assert doc["bounds"]["disturbance_bound"] == pytest.approx(10 * max(p["fc"]["value"], p["fs"]["value"]))
+    assert doc["bounds"]["disturbance_bound_defaulted"] is True
     assert p["M"]["value"] == pytest.approx(truth["M"]["value"], rel=0.02)
     assert p["B"]["value"] == pytest.approx(truth["B"]["value"], rel=0.02)
     assert p["fc"]["value"] == pytest.approx(truth["fc"]["value"], rel=0.05)

@@ -279,6 +279,9 @@ def test_theta_bounds_closed_form():
     bd = theta_bounds(exact)
     assert bd.mass_range[1] == pytest.approx((2 + 0.03) * 1.2 + 6.0)
     assert bd.disturbance_range[1] == pytest.approx(0.4 + 0.015 + 30.0)
+    # the bound used, and whether it was the default, travel with the box (tune narrows only a default)
+    assert (bd.disturbance_bound, bd.disturbance_bound_defaulted) == (pytest.approx(30.0), True)
+    assert (b.disturbance_bound, b.disturbance_bound_defaulted) == (1.0, False)
     with pytest.raises(ValueError, match="payload_min <= payload_max"):
         theta_bounds(exact, payload_min=1.0, payload_max=0.5)
 

@@ -146,6 +146,12 @@ def test_cli_rejects_negative_seed_and_missing_ident(tmp_path, no_simulation):
     assert r.exit_code == 2 and "--seed" in r.output
 
 
+def _resolved(spec_data, name, ident):
+    rs = tune_mod.resolve_spec(spec_data, name, ident)
+    assert rs.ident is ident  # the paper's box fits these drives: never narrowed
+    return rs.spec, rs.notes
+
+
 def test_u_max_check_uses_the_most_demanding_plant():
     # Paper box: M_heavy = 1/8.3; Case 1 starts at q_dd(0) = beta1 * 0.2 v_max = 20 m/s^2 (> a_max = 12);
     # B = max(theta2_max / theta1_max = 0.35, 1.2 * 0.273); friction 1.2 * 0.12; force max(50/50, 0 + 0.5).
@@ -164,10 +170,10 @@ def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
     doc = ref_ident_doc()
     ident = Identification.from_dict(doc)
     # the paper's setting fits a 10 V drive: nothing changes
-    spec, notes = tune_mod.resolve_spec({}, "spec (defaults)", ident)
+    spec, notes = _resolved({}, "spec (defaults)", ident)
     assert (spec.v_max, spec.a_max, notes) == (1.0, 12.0, ())
     # a 3 V drive: the defaulted a_max (and v_max) are lowered so that the worst plant needs <= 0.7 u_max
-    spec, notes = tune_mod.resolve_spec({"controller": {"u_max": 3.0}}, "s.toml", ident)
+    spec, notes = _resolved({"controller": {"u_max": 3.0}}, "s.toml", ident)
     d = tune_mod.drive_need(ident)
     assert spec.a_max < 12.0 and spec.v_max < 1.0 and len(notes) == 2
     assert d.need(spec.v_max, spec.a_max, spec.beta1) <= tune_mod.DRIVE_HEADROOM * 3.0 * (1 + 1e-12)
@@ -182,19 +188,53 @@ def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
         tune_mod.resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)
 
 
+def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
+    # The paper's box on a 2 V drive: friction (+20 %) 0.144 V plus the box's 1 V load force leave no room
+    # for even the smallest default envelope (0.1 m/s, 1 m/s^2: 0.28 V of 1.4 V) at its default.
+    doc = ref_ident_doc()
+    doc["bounds"] = {"disturbance_bound": 1.2, "disturbance_bound_defaulted": True}
+    ident = Identification.from_dict(doc)
+    rs = tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", ident)
+    budget = tune_mod.DRIVE_HEADROOM * 2.0
+    # closed form: the load force may take DISTURBANCE_SHARE of the budget minus the friction, about d_n = 0,
+    # and theta3 binds at the lightest mass 1/50
+    reach = tune_mod.DISTURBANCE_SHARE * budget - 1.2 * 0.12
+    assert rs.ident.theta.min[2] == pytest.approx(-reach * 50.0, rel=1e-12)
+    assert rs.ident.theta.max[2] == pytest.approx(reach * 50.0, rel=1e-12)
+    assert rs.ident.theta.min[:2] == ident.theta.min[:2] and rs.ident.theta.max[:2] == ident.theta.max[:2]
+    assert tune_mod.drive_need(rs.ident).const == pytest.approx(tune_mod.DISTURBANCE_SHARE * budget, rel=1e-12)
+    assert rs.ident.extra["bounds"]["narrowed_by_tune"]["theta3_max"] == 50.0
+    assert tune_mod.drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
+    assert rs.notes[0].startswith("theta3 box narrowed from [-50, 50] to [-27.8, 27.8] m/s^2")
+    assert "--disturbance-bound" in rs.notes[0] and len(rs.notes) == 3  # plus v_max and a_max lowered
+    # the narrowed identification round-trips through tuning.json's copy
+    assert Identification.from_dict(json.loads(json.dumps(rs.ident.to_dict()))).theta == rs.ident.theta
+    # a bound the user gave is never narrowed: refused as before, naming u_max
+    doc["bounds"]["disturbance_bound_defaulted"] = False
+    with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 2 V is too small for this theta box"):
+        tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
+    # nor is one that fits the drive at its default
+    doc["bounds"]["disturbance_bound_defaulted"] = True
+    assert tune_mod.resolve_spec({}, "s.toml", Identification.from_dict(doc)).notes == ()
+    # friction alone above the share: still refused
+    doc["parameters"]["fs"]["value"] = 0.5
+    with pytest.raises(SpecError, match=r"controller\.u_max = 2 V is too small"):
+        tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
+
+
 def test_defaulted_envelope_scales_with_a_sample_rate_below_the_papers():
     ident = Identification.from_dict(ref_ident_doc())
     # 1 kHz is r = 0.4 of the paper's 2.5 kHz: v_max x r, a_max x r^2, each with a note
-    spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": 1000.0}}, "s.toml", ident)
+    spec, notes = _resolved({"controller": {"sample_rate": 1000.0}}, "s.toml", ident)
     assert spec.v_max == pytest.approx(0.4) and spec.a_max == pytest.approx(12.0 * 0.16)
     assert len(notes) == 2 and all("sample rate 1000 Hz is 0.4 x the paper's 2500 Hz" in n for n in notes)
     # a key the user set is kept; the other one still scales
-    spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": 1000.0}, "trajectory": {"a_max": 3.0}},
+    spec, notes = _resolved({"controller": {"sample_rate": 1000.0}, "trajectory": {"a_max": 3.0}},
                                         "s.toml", ident)
     assert (spec.v_max, spec.a_max) == (pytest.approx(0.4), 3.0) and len(notes) == 1
     # at and above the paper's rate nothing changes
     for fs in (2500.0, 5000.0):
-        spec, notes = tune_mod.resolve_spec({"controller": {"sample_rate": fs}}, "s.toml", ident)
+        spec, notes = _resolved({"controller": {"sample_rate": fs}}, "s.toml", ident)
         assert (spec.v_max, spec.a_max, notes) == (1.0, 12.0, ())
 
 

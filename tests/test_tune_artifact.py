@@ -24,6 +24,7 @@ from commission.tune import (
     FREE_BOUNDS,
     HOLDOUT_PLANTS,
     REPAIR_BUDGET,
+    repair_budget,
     Evaluator,
     HoldoutGate,
     SearchResult,
@@ -151,6 +152,13 @@ def test_theta_hat1_0_outside_the_box_is_refused(tmp_path):
         load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "spec.toml")
 
 
+def test_repair_budget_grows_as_a_simulation_gets_cheaper():
+    # a simulation costs its samples: below 2.5 kHz the same wall time buys 2500 / f_s x the moves
+    budgets = [repair_budget(spec_from_mapping({"controller": {"sample_rate": fs}})) for fs in (1000.0, 2000.0, 2500.0,
+                                                                                                  5000.0)]
+    assert budgets == [90, 45, REPAIR_BUDGET, REPAIR_BUDGET]
+
+
 def test_progress_callback_and_base_gains():
     ident = ref_ident()
     spec = spec_from_mapping(SMALL)
@@ -158,7 +166,7 @@ def test_progress_callback_and_base_gains():
     tune(ident, spec, rng=np.random.default_rng(0), seed=0, ident_sha256="0" * 64,
          progress=lambda done, total: seen.append((done, total)))
     # search candidates, hold-out, the repair's candidates (skipped steps jump), two final reports
-    assert seen[-1][0] == seen[-1][1] == spec.budget + 1 + REPAIR_BUDGET + 2
+    assert seen[-1][0] == seen[-1][1] == spec.budget + 1 + repair_budget(spec) + 2
     assert [s[0] for s in seen] == sorted(s[0] for s in seen)
     g = base_arc_gains(ident, spec)
     # theta1 nominal 37 and 2.5 kHz are the paper's axis: its gains carry over unchanged
