@@ -220,3 +220,22 @@ def test_results_do_not_depend_on_threads_and_progress_counts_every_run(tuned):
     # a different seed draws different Monte-Carlo plants
     r3 = validate(t, seed=4, n_monte_carlo=2, workers=2)
     assert r3.run("mc/000").theta_true != r1.run("mc/000").theta_true
+
+
+def test_report_states_a_theta3_box_that_tune_narrowed(tuned, tmp_path):
+    tpath, gate, _ = tuned
+    doc = read_json(tpath)
+    bounds = doc["identification"].setdefault("bounds", {})
+    bounds["narrowed_by_tune"] = {"theta3_min": -120.0, "theta3_max": 110.0, "u_max": 10.0,
+                                  "force_range": [-3.0, 2.8], "narrowed_force_range": [-1.0, 1.0]}
+    narrowed = tmp_path / "tuning.json"
+    narrowed.write_text(json.dumps(doc))
+    out = tmp_path / "val"
+    r = invoke("validate", narrowed, "--out-dir", out, "--gate", gate, "--monte-carlo", MC)
+    assert r.exit_code in (0, 1), r.output
+    report = (out / "report.md").read_text()
+    assert "**theta3 narrowed by tune** from [-120, 110] m/s^2" in report
+    assert "the 10 V drive no room for any envelope" in report
+    # an untouched tuning says nothing of the kind
+    r = invoke("validate", tpath, "--out-dir", tmp_path / "plain", "--gate", gate, "--monte-carlo", MC)
+    assert "narrowed" not in (tmp_path / "plain" / "report.md").read_text()
