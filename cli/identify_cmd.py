@@ -19,8 +19,13 @@ from commission.logs import parse_mapping
 
 
 class Friction(str, enum.Enum):
+    auto = "auto"
     coulomb = "coulomb"
     stribeck = "stribeck"
+
+
+FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
+                 "with a warning; stribeck: refuse a log that does not support it.")
 
 
 def bounds_options(
@@ -98,7 +103,7 @@ def identify_command(
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
     u_unit: Optional[str] = typer.Option(None, "--u-unit", help="Unit of u after --input-gain (V, N, A); default: the file's."),
     sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
-    friction: Friction = typer.Option(Friction.stribeck, "--friction", help="Friction model."),
+    friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
     ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="Force-ripple pitch P in m: fits sin/cos(2πq/P)."),
     validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="Second log for the cross-test relative error."),
     k_sigma: float = typer.Option(3.0, "--k-sigma", help="Standard deviations covered by the theta box."),

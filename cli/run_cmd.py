@@ -9,7 +9,7 @@ import typer
 from rich.console import Console
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
-from commission.cli.identify_cmd import Friction
+from commission.cli.identify_cmd import FRICTION_HELP, Friction
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import print_summary
@@ -25,7 +25,7 @@ def run_command(
     map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
     sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
-    friction: Friction = typer.Option(Friction.stribeck, "--friction", help="Friction model."),
+    friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
     gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),

@@ -550,7 +550,7 @@ class RunOutcome:
 
 def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
             mapping: Mapping[str, str] | None = None, input_gain: float = 1.0,
-            sample_rate: float | None = None, friction: str = "stribeck",
+            sample_rate: float | None = None, friction: str = "auto",
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
@@ -605,8 +605,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
         raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
     if n_monte_carlo < 0:
         raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
-    if friction not in ("coulomb", "stribeck"):
-        raise UsageError(f"--friction: expected coulomb or stribeck, got {friction!r}")
+    if friction not in ("auto", "coulomb", "stribeck"):
+        raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     gate = load_gate(gate_path)
     spec_data, spec_src = read_spec_toml(spec_path)
     spec = spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults

@@ -14,3 +14,7 @@ class SignalError(ValueError):
 
 class NotIdentifiableError(ValueError):
     """The excitation in the log cannot identify a parameter of the requested model."""
+
+
+class StribeckNotIdentifiableError(NotIdentifiableError):
+    """The log shows no Stribeck curve it can support (the Coulomb model may still fit it)."""

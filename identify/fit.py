@@ -67,7 +67,7 @@ from typing import Literal
 import numpy as np
 from scipy import ndimage
 
-from commission.identify.errors import NotIdentifiableError
+from commission.identify.errors import NotIdentifiableError, StribeckNotIdentifiableError
 from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
                                           stribeck_shape_derivatives)
 from commission.identify.ls import FrictionModel, readonly_copy, regressor, solve, stribeck_shape
@@ -249,11 +249,11 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
     n_low = int(np.sum(speeds < 3.0 * vs))
     head = f"too few samples below 3*vs for the Stribeck curve ({what}): "
     if n_low < n_need:
-        raise NotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} m/s, need {n_need}; {hint}")
+        raise StribeckNotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} m/s, need {n_need}; {hint}")
     if not abs(fs - fc) > 3.0 * sd_hump:
-        raise NotIdentifiableError(head + f"no Stribeck hump shows (fs - fc = {fs - fc:.3g} +- {sd_hump:.2g}); {hint}")
+        raise StribeckNotIdentifiableError(head + f"no Stribeck hump shows (fs - fc = {fs - fc:.3g} +- {sd_hump:.2g}); {hint}")
     if "vs" in sep.at_bound:
-        raise NotIdentifiableError(head + f"vs = {vs:.3g} m/s lies on the edge of the speeds seen; {hint}")
+        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} m/s lies on the edge of the speeds seen; {hint}")
     if "xi" in sep.at_bound:
         warnings.append(f"stribeck: xi = {sep.value[i['xi']]:.3g} at the edge of its search box {XI_BOUNDS}; "
                         "the shape of the curve is poorly determined")

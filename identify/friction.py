@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from commission.identify.errors import NotIdentifiableError
+from commission.identify.errors import NotIdentifiableError, StribeckNotIdentifiableError
 
 #: Bounds of the Stribeck exponent searched.
 XI_BOUNDS = (0.3, 5.0)
@@ -148,7 +148,7 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
     lo = np.array([math.log(vs_bounds[0]), xi_bounds[0]])
     hi = np.array([math.log(vs_bounds[1]), xi_bounds[1]])
     if not np.all(hi > lo):
-        raise NotIdentifiableError(f"stribeck: empty search box vs in {vs_bounds} m/s, xi in {xi_bounds}")
+        raise StribeckNotIdentifiableError(f"stribeck: empty search box vs in {vs_bounds} m/s, xi in {xi_bounds}")
 
     # The residual of y on [Phi0, s] is that of y on Phi0 minus its projection on the
     # part of s orthogonal to Phi0: one QR of Phi0 makes every evaluation O(N p0).
@@ -194,7 +194,7 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
     J[:, i_fc] = Phi0[:, i_fc] - s
     n, p = J.shape
     if n <= p:
-        raise NotIdentifiableError(f"stribeck: {n} rows for {p} parameters")
+        raise StribeckNotIdentifiableError(f"stribeck: {n} rows for {p} parameters")
     sigma2 = float(r @ r) / (n - p)
     _, sv, vt = np.linalg.svd(J, full_matrices=False)
     with np.errstate(divide="ignore"):

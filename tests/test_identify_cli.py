@@ -164,3 +164,26 @@ def test_bad_flags_exit_2(tmp_path):
 
         assert re.search(pattern, r.stderr), (args, r.stderr)
         assert not (tmp_path / "x.json").exists()
+
+
+def test_friction_auto_falls_back_to_coulomb_where_stribeck_refuses(tmp_path):
+    from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
+
+    # The paper's axis (vs = 10 mm/s) on a ladder that starts at 40 mm/s: no sample below 3 vs.
+    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0, ripple_amp=0.0,
+                      ripple_pitch=0.03, lsb=1e-6, sample_rate=2500.0, u_unit="V", noise_std=0.0, u_max=10.0)
+    write_log_h5(tmp_path / "fast.h5", simulate_excitation(truth, ExcitationPlan(v_min=0.04), np.random.default_rng(3)))
+    out = tmp_path / "ident.json"
+    r = invoke(["identify", str(tmp_path / "fast.h5"), "--out", str(out)])  # default: --friction auto
+    assert r.exit_code == 0, r.output
+    doc = json.loads(out.read_text())
+    assert (doc["model"]["friction"], doc["model"]["friction_requested"]) == ("coulomb", "auto")
+    assert doc["parameters"].get("fs") is None
+    assert doc["parameters"]["M"]["value"] == pytest.approx(0.027, rel=0.03)
+    assert any(w.startswith("friction auto: Stribeck curve not identifiable (too few samples below 3*vs")
+               for w in doc["warnings"])
+    assert "friction auto: Stribeck curve not identifiable" in " ".join(r.output.split())
+    # insisting on the Stribeck model refuses the same log: exit 2, one line, nothing written
+    out2 = tmp_path / "strict.json"
+    r = runner.invoke(app, ["identify", str(tmp_path / "fast.h5"), "--friction", "stribeck", "--out", str(out2)])
+    assert r.exit_code == 2 and "too few samples below 3*vs" in r.output and not out2.exists()
