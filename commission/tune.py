@@ -103,6 +103,7 @@ from commission.scenarios import (
     case2_trajectory,
     force_range,
     identified_plant,
+    plant_substeps,
     resolve_quantization,
     scenario_matrix,
     tuning_scenarios,
@@ -116,8 +117,6 @@ Progress = Callable[[int, int], None]
 #: The paper's axis: theta1 = 37 at 2.5 kHz; the reference of the gain scaling.
 PAPER_THETA1 = 37.0
 PAPER_RATE = 2500.0
-#: Plant sub-steps per sample in every tuning simulation (as in validate and the paper table).
-SUBSTEPS = 10
 #: Candidates per generation of the search, and the step shrink per generation.
 POP = 8
 SHRINK = 0.6
@@ -595,7 +594,7 @@ class Evaluator:
             plants = np.tile(g.plants, (nc, 1))
             cps = np.repeat(P, m, axis=0)
             dist = None if g.dist is None else np.tile(g.dist, (nc, 1))
-            r = simulate_batch(plants, kind, cps, g.traj, substeps=SUBSTEPS, quant=g.quant, disturbance=dist,
+            r = simulate_batch(plants, kind, cps, g.traj, substeps=plant_substeps(self.spec.sample_rate), quant=g.quant, disturbance=dist,
                                y0=self.scenarios[g.idx[0]].y0, u_sat=self.spec.u_max, e_abort=self.spec.travel,
                                return_traces=True,
                                workers=self.workers)

@@ -13,7 +13,7 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    ``numpy.random.default_rng(seed)``.
 3. Every scenario is simulated with the tuned ARC and with the PID baseline
    (:func:`commission.controllers.simulate.simulate`: exact ZOH plant with
-   :data:`SUBSTEPS` sub-steps, the encoder quantization of the tuning, the
+   :func:`~commission.scenarios.plant_substeps` sub-steps, the encoder quantization of the tuning, the
    actuator limit ``spec.u_max``, abort when ``|q - q_d|`` exceeds the
    envelope's travel).  The runs are independent and the compiled loop
    releases the GIL, so they are spread over a thread pool (one thread per
@@ -53,15 +53,13 @@ from commission.errors import SpecError, UsageError
 from commission.gate import GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, resolve_gate
 from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
-from commission.scenarios import resolve_quantization, scenario_matrix
+from commission.scenarios import plant_substeps, resolve_quantization, scenario_matrix
 from commission.tuning import Score, Tuning
 
 Progress = Callable[[int, int], None]
 
 VALIDATION_KIND = "validation"
 VALIDATION_SCHEMA_VERSION = 1
-#: Plant sub-steps per sample (as in ``commission tune``).
-SUBSTEPS = 10
 #: Monte-Carlo plants by default.
 DEFAULT_MONTE_CARLO = 64
 
@@ -203,7 +201,7 @@ class ValidationResult:
             "seed": self.seed,
             "monte_carlo": self.n_monte_carlo,
             "units": dict(self.units),
-            "simulation": {"substeps": SUBSTEPS, "quantization": self.quantization, "e_abort": self.e_abort,
+            "simulation": {"substeps": plant_substeps(1.0 / self.arc_gains.Ts), "quantization": self.quantization, "e_abort": self.e_abort,
                            "u_sat": _nn(self.u_sat), "sample_period": self.arc_gains.Ts},
             "gate": self.verdict.limits.to_dict(),
             "failures": [c.to_dict() for c in self.verdict.failures],
@@ -304,7 +302,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         s = scenarios[i]
         ref = refs[(s.trajectory, s.y0)]
         d = s.disturbance.samples(ref.t)
-        r = simulate(s.plant, kind, ctrl[kind], ref, substeps=SUBSTEPS, quant=s.quantization,
+        r = simulate(s.plant, kind, ctrl[kind], ref, substeps=plant_substeps(1.0 / Ts), quant=s.quantization,
                      disturbance=d if np.any(d) else None, y0=s.y0, u_sat=u_sat, e_abort=e_abort)
         th = r.theta_hat
         final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
@@ -368,7 +366,7 @@ def validated_record(result: ValidationResult) -> dict[str, Any]:
         "scenarios": len(result.runs),
         "monte_carlo": result.n_monte_carlo,
         "seed": result.seed,
-        "simulation": {"substeps": SUBSTEPS, "quantization": result.quantization, "e_abort": result.e_abort,
+        "simulation": {"substeps": plant_substeps(1.0 / result.arc_gains.Ts), "quantization": result.quantization, "e_abort": result.e_abort,
                        "u_sat": _nn(result.u_sat)},
     }
 

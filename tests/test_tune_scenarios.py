@@ -19,6 +19,7 @@ from commission.scenarios import (
     force_range,
     identified_plant,
     offset_scenarios,
+    plant_substeps,
     resolve_quantization,
     scenario_matrix,
     tuning_scenarios,
@@ -28,6 +29,15 @@ from commission.spec import default_spec, spec_from_mapping
 
 
 ref_ident = reference_identification
+
+
+def test_plant_substeps_keep_the_papers_plant_step():
+    # 10 sub-steps at and below 2.5 kHz (the paper table's 40 us at 2.5 kHz); above, the fewest that keep
+    # the plant step <= 40 us
+    assert [plant_substeps(fs) for fs in (1000.0, 2000.0, 2500.0, 4000.0, 5000.0, 10000.0)] == [10, 10, 10, 7, 5, 3]
+    for fs in np.geomspace(2500.0, 20000.0, 41)[1:]:
+        n = plant_substeps(float(fs))
+        assert 1.0 / (fs * n) <= 4e-5 * (1 + 1e-9) < 1.0 / (fs * (n - 1))
 
 
 def test_default_envelope_gives_the_papers_cases():

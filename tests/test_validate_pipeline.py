@@ -21,11 +21,11 @@ from commission.controllers.simulate import KIND_ARC, simulate
 from commission.jsonio import read_json, sha256_file, write_json_atomic
 from commission.paper import reference_identification
 from commission.runtime import load_controller
-from commission.scenarios import scenario_matrix
+from commission.scenarios import plant_substeps, scenario_matrix
 from commission.spec import spec_from_mapping
 from commission.tune import tune
 from commission.tuning import Tuning
-from commission.validate import FIGURE_NAMES, SUBSTEPS, run_validate, validate
+from commission.validate import FIGURE_NAMES, run_validate, validate
 
 MC = 8
 #: Margin of the test gate over the worst value the good tuning reached.
@@ -97,8 +97,8 @@ def test_passing_validation_writes_report_figures_and_controller(tuned, tmp_path
     scen = {s.name: s for s in scenario_matrix(tuning.identification, tuning.spec, rng=np.random.default_rng(0),
                                                n_monte_carlo=0)}["case1/nominal"]
     ref = scen.reference(tuning.arc.Ts)
-    sim = simulate(scen.plant, KIND_ARC, arc_pack(tuning.arc), ref, substeps=SUBSTEPS, quant=scen.quantization,
-                   u_sat=tuning.spec.u_max, e_abort=tuning.spec.travel)
+    sim = simulate(scen.plant, KIND_ARC, arc_pack(tuning.arc), ref, substeps=plant_substeps(tuning.spec.sample_rate),
+                   quant=scen.quantization, u_sat=tuning.spec.u_max, e_abort=tuning.spec.travel)
     ctrl.reset(sim.y[0])
     u = np.array([ctrl.step(sim.y[k], ref.qd[k], ref.dqd[k], ref.ddqd[k]) for k in range(ref.n)])
     assert np.array_equal(u, sim.u)
