@@ -87,8 +87,8 @@ def _fit_with_context(log: ExcitationLog, *, friction: str,
     """
     try:
         try:
-            fit = fit_axis(log.t, log.q, log.u, friction="stribeck" if friction == "auto" else friction,  # type: ignore[arg-type]
-                           ripple_pitch=ripple_pitch)
+            model = "stribeck" if friction == "auto" else friction
+            fit = fit_axis(log.t, log.q, log.u, friction=model, ripple_pitch=ripple_pitch)  # type: ignore[arg-type]
             return fit, []
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":

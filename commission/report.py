@@ -181,9 +181,9 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     narrowed = bounds.get("narrowed_by_tune") if isinstance(bounds, dict) else None
     if isinstance(narrowed, dict) and all(isinstance(narrowed.get(k), (int, float))
                                           for k in ("theta3_min", "theta3_max", "u_max")):
-        L.append(f"- **theta3 narrowed by tune** from [{narrowed.get('theta3_min'):.4g}, {narrowed.get('theta3_max'):.4g}] "
-                 f"m/s^2: identify's defaulted load-force bound left the {narrowed.get('u_max'):g} {unit} drive no "
-                 f"room for any envelope; loads outside the box above were not validated "
+        lo, hi = narrowed["theta3_min"], narrowed["theta3_max"]
+        L.append(f"- **theta3 narrowed by tune** from [{lo:.4g}, {hi:.4g}] m/s^2: identify's defaulted load-force "
+                 f"bound left the {narrowed['u_max']:g} {unit} drive no room for any envelope; loads outside the box above were not validated "
                  f"(state the real one with `commission identify --disturbance-bound`)")
     L.append(f"- sample rate {spec.sample_rate:g} Hz; encoder resolution {result.quantization * 1e6:.3g} um; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")

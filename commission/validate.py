@@ -201,7 +201,8 @@ class ValidationResult:
             "seed": self.seed,
             "monte_carlo": self.n_monte_carlo,
             "units": dict(self.units),
-            "simulation": {"substeps": plant_substeps(1.0 / self.arc_gains.Ts), "quantization": self.quantization, "e_abort": self.e_abort,
+            "simulation": {"substeps": plant_substeps(1.0 / self.arc_gains.Ts), "quantization": self.quantization,
+                           "e_abort": self.e_abort,
                            "u_sat": _nn(self.u_sat), "sample_period": self.arc_gains.Ts},
             "gate": self.verdict.limits.to_dict(),
             "failures": [c.to_dict() for c in self.verdict.failures],
@@ -366,7 +367,8 @@ def validated_record(result: ValidationResult) -> dict[str, Any]:
         "scenarios": len(result.runs),
         "monte_carlo": result.n_monte_carlo,
         "seed": result.seed,
-        "simulation": {"substeps": plant_substeps(1.0 / result.arc_gains.Ts), "quantization": result.quantization, "e_abort": result.e_abort,
+        "simulation": {"substeps": plant_substeps(1.0 / result.arc_gains.Ts), "quantization": result.quantization,
+                       "e_abort": result.e_abort,
                        "u_sat": _nn(result.u_sat)},
     }
 
