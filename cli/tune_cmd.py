@@ -13,7 +13,7 @@ from rich.table import Table
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.tune import load_tune_inputs, run_tune
+from commission.tune import load_tune_inputs, pid_chatter, run_tune
 from commission.tuning import Tuning
 
 _HELP = """Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
@@ -109,3 +109,10 @@ def tune_command(
     if left:
         err.print(f"warning: these gains still fail {left} check(s) of validate's default gate on tune's "
                   f"hold-out plants; `commission validate` will likely refuse them", highlight=False)
+        chatter = pid_chatter(t)
+        if chatter is not None:
+            err.print(f"warning: the PID baseline itself exceeds the gate's c_u <= {chatter.limit:g} on "
+                      f"{chatter.count} tuning scenario(s) (worst {chatter.worst:.2f}, {chatter.scenario}): "
+                      f"at {t.spec.sample_rate:g} Hz an encoder step of {t.quantization * 1e6:.3g} um chatters "
+                      f"any loop that tracks within it; a finer encoder or a gate.toml c_u states what this "
+                      f"axis can do", highlight=False)

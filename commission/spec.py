@@ -51,8 +51,12 @@ Keys and defaults
         at 2.5 kHz).
 ``[tune]``
     ``budget`` = 96
-        Candidate gain sets simulated by the search (each on the 32 tuning
+        Candidate gain sets simulated by the search (each on the 38 tuning
         scenarios; about 25-55 s at 2.5-5 kHz on 2 cores, see benchmarks/bench_tune.py).
+        Left at its default, ``tune`` lowers it (to whole generations of 8, at
+        least 48) where one candidate simulates more than twice the paper
+        axis' work, as slow envelopes at 4-5 kHz do
+        (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``.
     ``monte_carlo`` = 0
         Monte-Carlo plants from the theta box added to the tuning subset.
     ``margin`` = 0.01

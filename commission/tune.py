@@ -120,6 +120,17 @@ PAPER_RATE = 2500.0
 #: Candidates per generation of the search, and the step shrink per generation.
 POP = 8
 SHRINK = 0.6
+#: Simulation work of one search candidate (:func:`candidate_work`, plant sub-steps) above which the
+#: *defaulted* search and repair budgets shrink in proportion (:func:`work_scale`).  It is 2x the
+#: paper's axis on the default envelope (12e6); slow envelopes at 4-5 kHz reach 30-41e6, where 96
+#: candidates took 109-131 s on 2 cores against the 120-s target.
+WORK_CAP = 24e6
+#: Cost of one ARC step in plant sub-steps (about 190 ns against 50 ns, measured at 4 kHz).
+ARC_STEP_WORK = 4
+#: Floor of a work-scaled search budget (6 generations).
+MIN_BUDGET = 48
+#: Floor of a work-scaled repair budget (one round of the 18 coordinate moves).
+MIN_REPAIR_BUDGET = 18
 #: Penalty weights of the objective (per scenario, in units of ln e_rms).
 W_TARGET = 2.0
 W_CHATTER = 10.0
@@ -596,16 +607,14 @@ class Evaluator:
             dist = None if g.dist is None else np.tile(g.dist, (nc, 1))
             r = simulate_batch(plants, kind, cps, g.traj, substeps=plant_substeps(self.spec.sample_rate),
                                quant=g.quant, disturbance=dist, y0=self.scenarios[g.idx[0]].y0,
-                               u_sat=self.spec.u_max, e_abort=self.spec.travel, return_traces=True,
-                               workers=self.workers)
+                               u_sat=self.spec.u_max, e_abort=self.spec.travel, workers=self.workers)
+            # No traces: the kernel's u_peak (recorded samples, also before an abort) is all that is needed.
             for c in range(nc):
                 for j, si in enumerate(g.idx):
                     row = c * m + j
-                    u = r.u[row]  # type: ignore[index]
-                    peak = float(np.nanmax(np.abs(u))) if np.any(np.isfinite(u)) else math.nan
                     out[c][si] = Score(float(r.e_M[row]), float(r.e_F[row]), float(r.e_rms[row]),
-                                       float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]), peak,
-                                       bool(r.diverged[row]))
+                                       float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]),
+                                       float(r.u_peak[row]), bool(r.diverged[row]))
         return out  # type: ignore[return-value]
 
 
@@ -800,15 +809,94 @@ REPAIR_MARGIN = 0.9
 REPAIR_DIVERGED_EXCESS = 10.0
 
 
-def repair_budget(spec: Spec) -> int:
-    """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s).
+def repair_budget(spec: Spec, scale: float = 1.0) -> int:
+    """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s) x ``scale``.
 
     A simulation's cost is proportional to its samples, so below the paper's rate the same
     wall time buys more moves (90 at 1 kHz).  On a 1 kHz axis of
     :func:`commission.synth.random_axis` (seed 11) two rounds stopped at 16 hold-out failures;
     with 90 the repair went on to G1 x 3 and G3 x 1.7, and the result passed validate's gate.
+    ``scale`` (:func:`work_scale`, <= 1) shrinks it where one candidate is expensive, down to
+    :data:`MIN_REPAIR_BUDGET`.
     """
-    return int(round(REPAIR_BUDGET * max(1.0, PAPER_RATE / spec.sample_rate)))
+    n = int(round(REPAIR_BUDGET * max(1.0, PAPER_RATE / spec.sample_rate) * scale))
+    return max(min(MIN_REPAIR_BUDGET, REPAIR_BUDGET), n)
+
+
+def candidate_work(ident: Identification, spec: Spec) -> float:
+    """Simulation work of one search candidate on the tuning set, in plant sub-steps.
+
+    Sum over :func:`commission.scenarios.tuning_scenarios` of samples x
+    (:data:`ARC_STEP_WORK` + :func:`commission.scenarios.plant_substeps`): the wall time of
+    the search is proportional to it.  Slow envelopes make it large (Case 1 lasts four of
+    its periods, Case 2 six moves of the stroke), and so do high sample rates.
+    """
+    per_sample = ARC_STEP_WORK + plant_substeps(spec.sample_rate)
+    # The Generator only draws spec.monte_carlo plants; durations do not depend on them.
+    scen = tuning_scenarios(ident, spec, rng=np.random.default_rng(0))
+    return float(sum(round(s.trajectory.duration * spec.sample_rate) * per_sample for s in scen))
+
+
+def work_scale(ident: Identification, spec: Spec) -> float:
+    """min(1, :data:`WORK_CAP` / :func:`candidate_work`): the share of the default budgets that fits."""
+    return min(1.0, WORK_CAP / candidate_work(ident, spec))
+
+
+def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[Spec, tuple[str, ...]]:
+    """Shrink a *defaulted* ``tune.budget`` where one candidate costs more than :data:`WORK_CAP`.
+
+    96 candidates on a 4 kHz axis whose envelope is 0.2 m/s simulate 3.4x the paper axis'
+    work each and took 131 s on 2 cores (target: 120 s).  The budget becomes
+    ``POP x round(budget x scale / POP)``, at least :data:`MIN_BUDGET`; the hold-out repair
+    shrinks by the same scale (:func:`repair_budget`).  A budget the user set is kept.
+    """
+    scale = work_scale(ident, spec)
+    if given or scale >= 1.0:
+        return spec, ()
+    n = max(MIN_BUDGET, POP * int(round(spec.budget * scale / POP)))
+    if n >= spec.budget:
+        return spec, ()
+    return dataclasses.replace(spec, budget=n), (
+        f"tune.budget defaulted to {n} instead of {spec.budget}: one candidate simulates "
+        f"{candidate_work(ident, spec) / WORK_CAP:.2g} x the work the default budget is sized for "
+        f"(slow envelope or high sample rate); set tune.budget to search longer",)
+
+
+@dataclass(frozen=True)
+class PidChatter:
+    """Where the PID baseline exceeds the default gate's c_u on the tuning scenarios.
+
+    Attributes
+    ----------
+    limit : float
+        The gate's c_u limit.
+    count : int
+        Scenarios where the PID's c_u exceeds it.
+    worst : float
+        The PID's largest c_u.
+    scenario : str
+        Where it occurs.
+    """
+
+    limit: float
+    count: int
+    worst: float
+    scenario: str
+
+
+def pid_chatter(tuning: Tuning) -> PidChatter | None:
+    """The PID baseline's c_u above the default gate's limit on the recorded tuning scores, or None.
+
+    When the paper's PID, placed at M_min, already chatters beyond the limit, the encoder's
+    step at this sample rate, not the ARC's tuning, sets the chattering floor.
+    """
+    limit = default_gate_limits(tuning.identification, tuning.spec).c_u
+    over = [(row["pid"].c_u, name) for name, row in tuning.scores.items()
+            if math.isfinite(row["pid"].c_u) and row["pid"].c_u > limit]
+    if not over:
+        return None
+    worst, name = max(over)
+    return PidChatter(limit=limit, count=len(over), worst=worst, scenario=name)
 
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
@@ -1141,7 +1229,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     observer = observer_design(spec.observer_pole, spec.period)
     base = base_arc_gains(ident, spec)
     # progress steps: the search's candidates, the hold-out, the repair's candidates, two reports
-    n_repair = repair_budget(spec)
+    n_repair = repair_budget(spec, work_scale(ident, spec))
     total = spec.budget + 1 + n_repair + 2
     pid, m_min = pid_baseline(ident, spec)
     pid_scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
@@ -1273,12 +1361,14 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> Reso
     spec, rate_notes = rate_scaled_envelope(spec, given)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
     spec, notes = default_envelope(spec, ident, given, spec_name)
+    tune_keys = spec_data.get("tune")
+    spec, budget_notes = work_scaled_budget(spec, ident, isinstance(tune_keys, dict) and "budget" in tune_keys)
     check_spec_against_ident(spec, ident, spec_name)
     try:
         observer_design(spec.observer_pole, spec.period)
     except DesignError as exc:
         raise SpecError(f"{spec_name}: controller.observer_pole: {exc}") from None
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,

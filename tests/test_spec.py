@@ -206,7 +206,8 @@ def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
     assert rs.ident.extra["bounds"]["narrowed_by_tune"]["theta3_max"] == 50.0
     assert tune_mod.drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
     assert rs.notes[0].startswith("theta3 box narrowed from [-50, 50] to [-27.8, 27.8] m/s^2")
-    assert "--disturbance-bound" in rs.notes[0] and len(rs.notes) == 3  # plus v_max and a_max lowered
+    # plus v_max and a_max lowered (and the budget, which the slower envelope shrinks: see test_tune_artifact)
+    assert "--disturbance-bound" in rs.notes[0] and len([n for n in rs.notes if "tune.budget" not in n]) == 3
     # the narrowed identification round-trips through tuning.json's copy
     assert Identification.from_dict(json.loads(json.dumps(rs.ident.to_dict()))).theta == rs.ident.theta
     # a bound the user gave is never narrowed: refused as before, naming u_max

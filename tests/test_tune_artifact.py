@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from commission import tune as tune_mod
 from commission.cli.main import app
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.pid import PidGains, pid_pack
@@ -18,7 +19,7 @@ from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
 from commission.paper import reference_identification
 from commission.controllers.simulate import KIND_ARC, KIND_PID
-from commission.scenarios import tuning_scenarios
+from commission.scenarios import case1_trajectory, case2_trajectory, plant_substeps, tuning_scenarios
 from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
     FREE_BOUNDS,
@@ -55,6 +56,17 @@ def small(tmp_path_factory):
                                  "--spec", str(d / "spec.toml"), "--seed", "3"])
     assert r.exit_code == 0, r.output
     return d, r.output
+
+
+def test_pid_chatter_names_the_scenarios_where_the_baseline_exceeds_the_gate(small):
+    d, _ = small
+    t = Tuning.from_dict(json.loads((d / "tuning.json").read_text()))
+    assert tune_mod.pid_chatter(t) is None  # the paper's axis: the PID's c_u is far below 1
+    scores = dict(t.scores)
+    for name, c_u in (("case1/nominal", 1.3), ("case1/friction_low", 1.7)):
+        scores[name] = {"arc": scores[name]["arc"], "pid": dataclasses.replace(scores[name]["pid"], c_u=c_u)}
+    ch = tune_mod.pid_chatter(dataclasses.replace(t, scores=scores))
+    assert ch == tune_mod.PidChatter(limit=1.0, count=2, worst=1.7, scenario="case1/friction_low")
 
 
 def test_cli_writes_a_schema_versioned_tuning(small):
@@ -159,6 +171,33 @@ def test_repair_budget_grows_as_a_simulation_gets_cheaper():
     assert budgets == [90, 45, REPAIR_BUDGET, REPAIR_BUDGET]
 
 
+def test_default_budgets_shrink_with_the_work_of_a_candidate():
+    ident = ref_ident()
+    # closed form of the work: 19 scenarios on each trajectory (12 fixed, 16 corners, 4 offsets, 6 payloads),
+    # every sample one ARC step plus the plant's sub-steps
+    slow = spec_from_mapping({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}})
+    n1 = round(case1_trajectory(slow).duration * 4000.0)
+    n2 = round(case2_trajectory(slow).duration * 4000.0)
+    work = 19 * (n1 + n2) * (tune_mod.ARC_STEP_WORK + plant_substeps(4000.0))
+    assert tune_mod.candidate_work(ident, slow) == pytest.approx(work, rel=1e-12)
+    scale = tune_mod.WORK_CAP / work
+    assert 0.3 < scale < 1.0 and tune_mod.work_scale(ident, slow) == pytest.approx(scale, rel=1e-12)
+    # a defaulted budget shrinks to whole generations, with a note naming the key; a given one is kept
+    rs = tune_mod.resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}},
+                               "s.toml", ident)
+    assert rs.spec.budget == tune_mod.POP * round(96 * scale / tune_mod.POP) < 96
+    assert any(n.startswith(f"tune.budget defaulted to {rs.spec.budget} instead of 96") for n in rs.notes)
+    kept = tune_mod.resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0},
+                                  "tune": {"budget": 96}}, "s.toml", ident)
+    assert kept.spec.budget == 96 and not any("tune.budget" in n for n in kept.notes)
+    # the paper's axis on the default envelope is within the cap: nothing changes
+    rs = tune_mod.resolve_spec({}, "s.toml", ident)
+    assert tune_mod.work_scale(ident, rs.spec) == 1.0 and rs.spec.budget == 96
+    # the repair shrinks by the same scale, never below one round of coordinate moves
+    assert repair_budget(slow, scale) == round(REPAIR_BUDGET * scale)
+    assert repair_budget(slow, 0.01) == tune_mod.MIN_REPAIR_BUDGET
+
+
 def test_progress_callback_and_base_gains():
     ident = ref_ident()
     spec = spec_from_mapping(SMALL)
@@ -166,7 +205,7 @@ def test_progress_callback_and_base_gains():
     tune(ident, spec, rng=np.random.default_rng(0), seed=0, ident_sha256="0" * 64,
          progress=lambda done, total: seen.append((done, total)))
     # search candidates, hold-out, the repair's candidates (skipped steps jump), two final reports
-    assert seen[-1][0] == seen[-1][1] == spec.budget + 1 + repair_budget(spec) + 2
+    assert seen[-1][0] == seen[-1][1] == spec.budget + 1 + repair_budget(spec, tune_mod.work_scale(ident, spec)) + 2
     assert [s[0] for s in seen] == sorted(s[0] for s in seen)
     g = base_arc_gains(ident, spec)
     # theta1 nominal 37 and 2.5 kHz are the paper's axis: its gains carry over unchanged
