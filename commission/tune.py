@@ -120,8 +120,8 @@ PAPER_RATE = 2500.0
 #: Candidates per generation of the search, and the step shrink per generation.
 POP = 8
 SHRINK = 0.6
-#: Simulation work of one search candidate (:func:`candidate_work`, plant sub-steps) above which the
-#: *defaulted* search and repair budgets shrink in proportion (:func:`work_scale`).  It is 2x the
+#: Simulation work of one search candidate (:func:`candidate_work`, plant sub-steps) above which a
+#: *defaulted* search budget shrinks in proportion (:func:`work_scale`) and the repair gets one round.  It is 2x the
 #: paper's axis on the default envelope (12e6); slow envelopes at 4-5 kHz reach 30-41e6, where 96
 #: candidates took 109-131 s on 2 cores against the 120-s target.
 WORK_CAP = 24e6
@@ -810,7 +810,7 @@ REPAIR_DIVERGED_EXCESS = 10.0
 
 
 def repair_budget(spec: Spec, scale: float = 1.0) -> int:
-    """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s) x ``scale``.
+    """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s).
 
     A simulation's cost is proportional to its samples, so below the paper's rate the same
     wall time buys more moves (90 at 1 kHz).  On a 1 kHz axis of
@@ -854,15 +854,15 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
     ``POP x round(budget x scale / POP)``, at least :data:`MIN_BUDGET`; the hold-out repair
     gets one round (:func:`repair_budget`).  A budget the user set is kept.
     """
-    scale = work_scale(ident, spec)
-    if given or scale >= 1.0:
+    if given:
         return spec, ()
-    n = max(MIN_BUDGET, POP * int(round(spec.budget * scale / POP)))
+    work = candidate_work(ident, spec)
+    n = max(MIN_BUDGET, POP * int(round(spec.budget * min(1.0, WORK_CAP / work) / POP)))
     if n >= spec.budget:
         return spec, ()
     return dataclasses.replace(spec, budget=n), (
         f"tune.budget defaulted to {n} instead of {spec.budget}: one candidate simulates "
-        f"{candidate_work(ident, spec) / WORK_CAP:.2g} x the work the default budget is sized for "
+        f"{work / WORK_CAP:.2g} x the work the default budget is sized for "
         f"(slow envelope or high sample rate); set tune.budget to search longer",)
 
 
