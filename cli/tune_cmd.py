@@ -26,7 +26,8 @@ the discrete feasibility over the theta box, and writes tuning.json.
 Spec TOML keys (section.key; every key optional; defaults = the paper's setting):
   controller.sample_rate   = the log's rate recorded in ident.json, else 2500 Hz
   controller.u_max         = 10 (u-unit, the input limit)
-  controller.observer_pole = 0.08 * sample_rate rad/s (paper: 200 -> k1 = 400, k2 = 4e4)
+  controller.observer_pole = 0.08 * sample_rate rad/s (paper: 200 -> k1 = 400, k2 = 4e4);
+    when defaulted, the hold-out repair may move it within 0.6-1.25x (tuning.json: observer)
   controller.quantization  = ident.json's, else 1e-6 m
   trajectory.v_max = 1 m/s, a_max = 12 m/s^2, travel = 0.4 m, dwell = 0.5 s, moves = 6
     (v_max, a_max left at their defaults are scaled by r and r^2 below 2.5 kHz, r = rate/2500,
@@ -69,7 +70,7 @@ def print_summary(t: Tuning, console: Console) -> None:
         hold = f"{min(se.holdout_failures)} failures on {se.holdout_plants} fresh plants + the tuning scenarios"
         if se.repair_failures is not None:
             hold += (f"; repair ({se.repair_evaluations} candidates): {se.repair_failures} after "
-                     f"{', '.join(se.repair_moves) or 'no accepted move'}")
+                     f"{'; '.join(se.repair_moves) or 'no accepted move'}")
         rows.append(("default gate, hold-out", hold))
     for r in rows:
         gains.add_row(*r)

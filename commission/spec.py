@@ -22,7 +22,9 @@ Keys and defaults
     ``observer_pole``
         Double pole -p of the observer matrix A0 (10), rad/s.  Default
         ``OBSERVER_POLE_FRACTION * sample_rate`` = 0.08 * f_s (the paper's
-        -200 rad/s at 2.5 kHz, giving k1 = 2p = 400, k2 = p^2 = 4e4).
+        -200 rad/s at 2.5 kHz, giving k1 = 2p = 400, k2 = p^2 = 4e4).  A defaulted
+        pole may be moved by tune's hold-out repair (0.6-1.25x; see
+        :func:`commission.tune.repair_on_holdout`); a given one is kept.
     ``quantization``
         Encoder resolution used in simulation, m.  Default: the
         ``quantization`` recorded in ident.json if present, else 1e-6 m.

@@ -41,8 +41,9 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    default gate on the tuning scenarios plus :data:`HOLDOUT_PLANTS` fresh
    Monte-Carlo plants the search never saw (:class:`HoldoutGate`,
    :func:`select_on_holdout`); when every one of them still fails there,
-   :func:`repair_on_holdout` moves one free gain at a time while the gate's
-   failures drop.  Each candidate is simulated on the tuning scenarios of
+   :func:`repair_on_holdout` runs a short random local search on that gate
+   (joint moves of the free gains and of a defaulted observer pole).  Each
+   candidate is simulated on the tuning scenarios of
    :func:`commission.scenarios.tuning_scenarios` (validate's 12 fixed
    scenarios, the 16 box corners, the 4 largest-force plants at the
    identified mass and 6 interior payloads) with the batch
@@ -129,8 +130,8 @@ WORK_CAP = 24e6
 ARC_STEP_WORK = 4
 #: Floor of a work-scaled search budget (6 generations).
 MIN_BUDGET = 48
-#: Repair budget where the search budget is work-scaled (one round of the 18 coordinate moves).
-MIN_REPAIR_BUDGET = 18
+#: Repair budget where the search budget is work-scaled (two rounds of :data:`REPAIR_POP`).
+MIN_REPAIR_BUDGET = 16
 #: Penalty weights of the objective (per scenario, in units of ln e_rms).
 W_TARGET = 2.0
 W_CHATTER = 10.0
@@ -796,11 +797,30 @@ def search(base: ArcGains, ev: Evaluator, spec: Spec, rng: np.random.Generator, 
 HOLDOUT_CANDIDATES = 6
 #: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
 HOLDOUT_PLANTS = 32
-#: Coordinate steps of :func:`repair_on_holdout`, coarse to fine: each free gain times or divided by
-#: these factors (one gain per move).
-REPAIR_FACTORS = (3.0, 1.7, 1.3)
-#: Candidates :func:`repair_on_holdout` may simulate at 2.5 kHz and above (two rounds of the 18
-#: coordinate moves); below, :func:`repair_budget` raises it with the falling cost of a simulation.
+#: The repair's random local search (:func:`repair_on_holdout`): candidates per round; the
+#: initial log-step (0.2: a factor 1.22 per coordinate at one sigma); while more than REPAIR_NEAR
+#: checks fail, every second draw of a round takes REPAIR_WIDE x the step; the step of an accepted
+#: draw carries on (at most REPAIR_MAX_STEP), and a round with none shrinks it by REPAIR_SHRINK
+#: (floor REPAIR_MIN_STEP).  Measured on :func:`commission.synth.random_axis` (tune seed 0):
+#: with a single step of 0.5 the repair accepted at most one move on the six failing 4-5 kHz axes
+#: (0, 1, 16, 19, 23, 27; near a thin stability margin most such draws fail more); with 0.2,
+#: axes 1 and 23 (one hold-out failure) passed but axis 11 (1 kHz, 26 failures, which passed
+#: with x3 single-gain moves before) did not; with half the draws wide in every round, axis 11
+#: passed and axes 1 and 23 did not (half the budget went to wide draws).
+REPAIR_POP = 8
+REPAIR_STEP = 0.2
+REPAIR_WIDE = 3.0
+REPAIR_MAX_STEP = 0.4
+REPAIR_NEAR = 4
+REPAIR_SHRINK = 0.85
+REPAIR_MIN_STEP = 0.08
+#: Range of the factor the repair may apply to a *defaulted* observer pole (controller.observer_pole).
+#: Below about 0.5 x the default (0.08 f_s) the heavy plants of a coarse-encoder axis lose stability
+#: (axis 0 of :func:`commission.synth.random_axis`: 332 gate failures at 0.5 x); a faster observer
+#: passes more encoder noise into the velocity estimate.
+OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
+#: Candidates :func:`repair_on_holdout` may simulate at 2.5 kHz and above (four and a half rounds of
+#: :data:`REPAIR_POP`); below, :func:`repair_budget` raises it with the falling cost of a simulation.
 REPAIR_BUDGET = 36
 #: The repair's secondary objective measures each index against this fraction of its gate limit,
 #: so that once nothing fails it still prefers gains with room to spare on plants it has not seen.
@@ -813,11 +833,11 @@ def repair_budget(spec: Spec, scale: float = 1.0) -> int:
     """Candidates the hold-out repair may simulate: :data:`REPAIR_BUDGET` x max(1, 2.5 kHz / f_s).
 
     A simulation's cost is proportional to its samples, so below the paper's rate the same
-    wall time buys more moves (90 at 1 kHz).  On a 1 kHz axis of
-    :func:`commission.synth.random_axis` (seed 11) two rounds stopped at 16 hold-out failures;
-    with 90 the repair went on to G1 x 3 and G3 x 1.7, and the result passed validate's gate.
+    wall time buys more moves (90 at 1 kHz).  A 1 kHz axis of
+    :func:`commission.synth.random_axis` (seed 11) starts the repair at 26 hold-out failures;
+    with 90 candidates it ended at 2, and the result passed validate's gate.
     Where one search candidate is already too expensive (``scale`` = :func:`work_scale` < 1),
-    the repair gets one round, :data:`MIN_REPAIR_BUDGET`: each of its candidates is judged
+    the repair gets two rounds, :data:`MIN_REPAIR_BUDGET`: each of its candidates is judged
     on the tuning scenarios plus the hold-out plants, 1.8x a search candidate's work.  (The
     paper's axis at 4 kHz with a 0.2 m/s envelope, whose hold-out fails: 21 repair
     candidates took it to 122 s.)
@@ -1058,6 +1078,8 @@ class RepairResult:
     ----------
     x : numpy.ndarray
         Relative free gains after the accepted moves, shape (N_FREE,).
+    observer_pole : float
+        Observer pole of the result, rad/s (the spec's unless the repair moved a defaulted one).
     scores : list of Score
         Their scores on the tuning scenarios.
     failures : int
@@ -1065,7 +1087,9 @@ class RepairResult:
     excess : float
         Their :func:`gate_excess`.
     moves : tuple of str
-        Accepted moves in order, e.g. ``"G1 /3"`` (names of :data:`FREE_BOUNDS`).
+        Accepted moves in order, one string per move naming each coordinate it changed by more
+        than 5 %, e.g. ``"k2 /1.31, w2 x1.6, ob /1.12"`` (names of :data:`REPAIR_NAMES`: g1, g2
+        as multiples of their base values, ``ob`` the observer pole).
     evaluations : int
         Candidates simulated.
     feasibility : FeasibilityReport
@@ -1073,6 +1097,7 @@ class RepairResult:
     """
 
     x: np.ndarray
+    observer_pole: float
     scores: list[Score]
     failures: int
     excess: float
@@ -1081,63 +1106,134 @@ class RepairResult:
     feasibility: FeasibilityReport
 
 
+def with_observer(g: ArcGains, pole: float) -> ArcGains:
+    """``g`` with the observer gains k1 = 2 p, k2 = p^2 of a double pole at ``-pole`` (rad/s)."""
+    ob = observer_design(pole, g.Ts)
+    return dataclasses.replace(g, k1=ob.k1, k2=ob.k2)
+
+
+#: Names of the repair's coordinates (:func:`repair_coordinates`).
+REPAIR_NAMES = ("k1", "k2", "g1", "g2", "G1", "G2", "G3", "w2", "t1", "ob")
+I_F1, I_F2 = 2, 3
+
+
+def repair_coordinates(x: np.ndarray, observer_factor: float) -> np.ndarray:
+    """The repair's log coordinates of relative free gains ``x`` and an observer-pole factor.
+
+    As :data:`FREE_BOUNDS` but with g1, g2 as multiples of their base values instead of
+    fractions of their caps, and the observer-pole factor appended: a move of a cap then
+    keeps g (up to the cap).  On a coarse encoder the chatter follows the cap more than g
+    (axis 16 of :func:`commission.synth.random_axis`: the k2 cap x0.7 with g2 kept cut
+    validate's failures from 14 to 6); that is one move here and two (k2 down, f2 up) in
+    the search's coordinates.
+    """
+    r = np.log(np.append(np.asarray(x, dtype=np.float64), observer_factor))
+    r[I_F1] += r[0]
+    r[I_F2] += r[1]
+    return r
+
+
+def free_of_repair(r: np.ndarray) -> tuple[np.ndarray, float]:
+    """Inverse of :func:`repair_coordinates`: ``(x, observer_factor)``, inside :data:`FREE_BOUNDS`."""
+    z = np.array(r[:N_FREE], dtype=np.float64)
+    z[I_F1] -= z[0]
+    z[I_F2] -= z[1]
+    lo = np.log([b[1] for b in FREE_BOUNDS])
+    hi = np.log([b[2] for b in FREE_BOUNDS])
+    return np.exp(np.clip(z, lo, hi)), math.exp(r[N_FREE])
+
+
+def _move_name(before: np.ndarray, after: np.ndarray) -> str:
+    """The repair coordinates a move changed by more than 5 %, as ``"k2 /1.31, ob x1.1"``."""
+    parts = []
+    for name, u, v in zip(REPAIR_NAMES, before, after):
+        r = math.exp(v - u)
+        if r > 1.05:
+            parts.append(f"{name} x{r:.3g}")
+        elif r < 1 / 1.05:
+            parts.append(f"{name} /{1 / r:.3g}")
+    return ", ".join(parts) or "(< 5 % on every gain)"
+
+
+
 def repair_on_holdout(x0: np.ndarray, scores0: Sequence[Score], failures0: int, excess0: float,
                       feasibility0: FeasibilityReport, base: ArcGains, hg: HoldoutGate, spec: Spec,
-                      feasible: Callable[[ArcGains], FeasibilityReport], *, budget: int = REPAIR_BUDGET,
+                      feasible: Callable[[ArcGains], FeasibilityReport], rng: np.random.Generator, *,
+                      observer_free: bool, budget: int = REPAIR_BUDGET,
                       progress: Callable[[int], None] | None = None) -> RepairResult:
-    """Coordinate descent of the hold-out gate's failures from the chosen gains.
+    """Random local search that minimises the hold-out gate's failures from the chosen gains.
 
     When the chosen gains still fail the default gate on the hold-out (plants between the
     tuning scenarios: a payload the theta1 adaptation over-learns, chatter just above
     the limit), the surrogate objective has no say left; the gate itself is then
-    minimised.  Each round simulates every single-gain move (each free gain times and
-    divided by a factor of :data:`REPAIR_FACTORS`, inside :data:`FREE_BOUNDS`) on the
-    tuning scenarios and the hold-out plants, and takes the best by (gate failures,
-    :func:`gate_excess`) if it beats the current gains and its discrete feasibility
-    holds; otherwise the factor shrinks.  It stops when nothing fails or exceeds
-    :data:`REPAIR_MARGIN` of a limit, the factors run out, or ``budget`` candidates
-    were simulated.
+    minimised.  Each round draws :data:`REPAIR_POP` candidates around the current gains,
+    log-normal on every coordinate of :func:`repair_coordinates` at once, inside
+    :data:`FREE_BOUNDS`, with the current step (initially :data:`REPAIR_STEP`); while
+    more than :data:`REPAIR_NEAR` checks fail, half of them with :data:`REPAIR_WIDE` x it.  The step of an accepted draw carries on (at most
+    :data:`REPAIR_MAX_STEP`); a round that accepts none shrinks it by :data:`REPAIR_SHRINK`
+    (floor :data:`REPAIR_MIN_STEP`).  When ``observer_free`` (the
+    spec's observer pole was defaulted) the observer pole is a coordinate too, within
+    :data:`OBSERVER_FACTOR_BOUNDS` of the spec's; a pinned theta_hat1(0) stays pinned.
+    The candidates are simulated on the tuning scenarios and the hold-out plants; the best
+    by (gate failures, :func:`gate_excess`) is taken if it beats the current gains and
+    its discrete feasibility holds.  It stops when nothing fails or exceeds
+    :data:`REPAIR_MARGIN` of a limit, or after ``budget`` candidates.
+
+    Why joint moves: on a coarse encoder the chatter limit and the ARC-vs-PID limit bind
+    together and the stability margin is thin, so the gains that pass differ from the
+    chosen ones by small amounts in several coordinates at once.  The earlier repair moved
+    one gain at a time by x/÷ 3, 1.7, 1.3 and left axes 1 and 23 of
+    :func:`commission.synth.random_axis` at one failure on validate's matrix; with these
+    joint moves both pass, and axis 11 (1 kHz, 26 hold-out failures) still does.
     """
-    lo = np.log([b[1] for b in FREE_BOUNDS])
-    hi = np.log([b[2] for b in FREE_BOUNDS])
-    dims = [k for k in range(N_FREE) if not (k == I_THETA1_0 and spec.theta1_0 is not None)]
-    x = np.log(np.asarray(x0, dtype=np.float64))
+    flo = np.log([b[1] for b in FREE_BOUNDS])
+    fhi = np.log([b[2] for b in FREE_BOUNDS])
+    # bounds in repair coordinates: g as a multiple of its base spans f_lo x cap_lo .. cap_hi
+    lo = np.append(flo, math.log(OBSERVER_FACTOR_BOUNDS[0]))
+    hi = np.append(fhi, math.log(OBSERVER_FACTOR_BOUNDS[1]))
+    lo[I_F1], hi[I_F1] = flo[0] + flo[I_F1], fhi[0]
+    lo[I_F2], hi[I_F2] = flo[1] + flo[I_F2], fhi[1]
+    fixed = [k for k in range(N_FREE + 1) if (k == I_THETA1_0 and spec.theta1_0 is not None)
+             or (k == N_FREE and not observer_free)]
+    z = repair_coordinates(x0, 1.0)
+    lo[fixed], hi[fixed] = z[fixed], z[fixed]
+    lo, hi = np.minimum(lo, z), np.maximum(hi, z)
+
+    def gains(c: np.ndarray) -> ArcGains:
+        x, f = free_of_repair(c)
+        g = apply_free(base, x)
+        return g if f == 1.0 else with_observer(g, spec.observer_pole * f)
+
     key = (failures0, excess0)
     scores, rep = list(scores0), feasibility0
     moves: list[str] = []
-    n = 0
-    for f in REPAIR_FACTORS:
-        while n < budget and key != (0, 0.0):
-            cand, names = [], []
-            for k in dims:
-                for sgn, tag in ((1.0, f"x{f:g}"), (-1.0, f"/{f:g}")):
-                    c = x.copy()
-                    c[k] = min(max(c[k] + sgn * math.log(f), lo[k]), hi[k])
-                    if c[k] != x[k]:
-                        cand.append(c)
-                        names.append(f"{FREE_BOUNDS[k][0]} {tag}")
-            cand, names = cand[:budget - n], names[:budget - n]
-            if not cand:
+    n, step = 0, REPAIR_STEP
+    while n < budget and key != (0, 0.0):
+        m = min(REPAIR_POP, budget - n)
+        far = key[0] > REPAIR_NEAR  # many failures: the passing gains may be a x3 move away
+        steps = [step * (REPAIR_WIDE if far and j % 2 else 1.0) for j in range(m)]
+        cand = [np.clip(z + steps[j] * rng.standard_normal(N_FREE + 1), lo, hi) for j in range(m)]
+        cand_gains = [gains(c) for c in cand]
+        judged = hg.judge(cand_gains)
+        n += m
+        if progress is not None:
+            progress(n)
+        accepted = None
+        for j in sorted(range(m), key=lambda j: (judged[j][1], judged[j][2])):
+            if not (judged[j][1], judged[j][2]) < key:
                 break
-            gains = [apply_free(base, np.exp(c)) for c in cand]
-            judged = hg.judge(gains)
-            n += len(cand)
-            if progress is not None:
-                progress(n)
-            accepted = False
-            for j in sorted(range(len(cand)), key=lambda j: (judged[j][1], judged[j][2])):
-                if not (judged[j][1], judged[j][2]) < key:
-                    break
-                r = feasible(gains[j])
-                if r.holds:
-                    x, scores, rep = cand[j], judged[j][0], r
-                    key = (judged[j][1], judged[j][2])
-                    moves.append(names[j])
-                    accepted = True
-                    break
-            if not accepted:
+            r = feasible(cand_gains[j])
+            if r.holds:
+                moves.append(_move_name(z, cand[j]))
+                z, scores, rep = cand[j], judged[j][0], r
+                key = (judged[j][1], judged[j][2])
+                accepted = j
                 break
-    return RepairResult(np.exp(x), scores, key[0], key[1], tuple(moves), n, rep)
+        # the step of the accepted draw carries on (a wide one widens the search); none: shrink
+        step = (min(steps[accepted], REPAIR_MAX_STEP) if accepted is not None
+                else max(REPAIR_MIN_STEP, step * REPAIR_SHRINK))
+    x, f = free_of_repair(z)
+    return RepairResult(x, spec.observer_pole * f, scores, key[0], key[1], tuple(moves), n, rep)
 
 
 # --------------------------------------------------------------------------- report
@@ -1198,7 +1294,7 @@ def guarantees(arc: ArcGains, t1, feas: FeasibilitySummary) -> dict[str, Guarant
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
          ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
-         workers: int | None = None, created_utc: str | None = None) -> Tuning:
+         workers: int | None = None, created_utc: str | None = None, observer_free: bool = False) -> Tuning:
     """Tune the ARC (and the PID baseline) for an identified axis.
 
     Parameters
@@ -1222,6 +1318,9 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         Batch-simulator threads.
     created_utc : str, optional
         Time stamp (default: now).
+    observer_free : bool
+        ``spec.observer_pole`` was defaulted, not given: the hold-out repair may move it
+        (:func:`repair_on_holdout`).  The pole used is the one recorded in ``observer``.
 
     Returns
     -------
@@ -1257,10 +1356,13 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     repaired: RepairResult | None = None
     if holdout.failures and min(holdout.failures) > 0 and chosen_rep.holds:
         repaired = repair_on_holdout(
-            x_chosen, arc_scores, min(holdout.failures), holdout.excess, chosen_rep, base, hg, spec, feasible,
-            budget=n_repair, progress=None if progress is None else (lambda k: progress(spec.budget + 1 + k, total)))
+            x_chosen, arc_scores, min(holdout.failures), holdout.excess, chosen_rep, base, hg, spec, feasible, rng,
+            observer_free=observer_free, budget=n_repair, progress=None if progress is None else (lambda k: progress(spec.budget + 1 + k, total)))
         x_chosen, arc_scores, chosen_rep = repaired.x, repaired.scores, repaired.feasibility
     chosen = apply_free(base, x_chosen)
+    if repaired is not None and repaired.observer_pole != spec.observer_pole:
+        observer = observer_design(repaired.observer_pole, spec.period)
+        chosen = with_observer(chosen, repaired.observer_pole)
     if progress is not None:
         progress(spec.budget + 1 + n_repair, total)
     pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
@@ -1323,6 +1425,7 @@ class TuneInputs:
     log_sha256: str | None
     seed: int
     notes: tuple[str, ...] = ()
+    observer_free: bool = False
 
 
 @dataclass(frozen=True)
@@ -1337,11 +1440,14 @@ class ResolvedSpec:
         narrowed to the drive (:func:`fit_disturbance_to_drive`).
     notes : tuple of str
         One line per default that was lowered or narrowed.
+    observer_free : bool
+        ``controller.observer_pole`` was not given: tune's hold-out repair may move it.
     """
 
     spec: Spec
     ident: Identification
     notes: tuple[str, ...]
+    observer_free: bool = False
 
 
 def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> ResolvedSpec:
@@ -1372,7 +1478,9 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> Reso
         observer_design(spec.observer_pole, spec.period)
     except DesignError as exc:
         raise SpecError(f"{spec_name}: controller.observer_pole: {exc}") from None
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes)
+    ctrl = spec_data.get("controller")
+    observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
@@ -1392,7 +1500,7 @@ def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.
     ident = Identification.from_dict(read_json(ident_path), source=ident_path)
     rs = resolve_spec(spec_data, spec_name, ident)
     return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
-                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes)
+                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes, observer_free=rs.observer_free)
 
 
 def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
@@ -1414,6 +1522,6 @@ def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str
     inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
     t = tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
              ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
-             progress=progress, workers=workers)
+             progress=progress, workers=workers, observer_free=inp.observer_free)
     t.save(os.fspath(out_path))
     return t

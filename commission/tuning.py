@@ -11,6 +11,8 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       (eps: term switched off; k1s_max, k2s_max, u_max: no cap)
     pid               every PidGains field (controllers.pid), plus pole (rad/s) and design_mass
     observer          pole, k1, k2, P (2x2, eq. 11), P_eigenvalues, lyapunov_residual, discrete_pole
+                      (the pole the controller runs: k1, k2 must equal arc.k1, arc.k2; tune's
+                      hold-out repair may move a defaulted pole, so it can differ from the spec's)
     theorem1          holds, ratios (2x3), min_ratio
     feasibility       {"arc": ..., "pid": ...}: holds, margin, rho_max (estimates frozen),
                       rho_adaptive_max (theta3 adaptation in the loop), rho_any_estimate_max
@@ -24,8 +26,9 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       history (cost of every candidate, evaluation order), holdout_plants,
                       holdout_failures (default-gate failures of each candidate compared on
                       the hold-out plants, best cost first; see commission.tune.select_on_holdout),
-                      repair_moves (single-gain moves accepted after the hold-out, in order, e.g.
-                      "G1 /3"; see commission.tune.repair_on_holdout), repair_evaluations,
+                      repair_moves (moves accepted after the hold-out, in order, each naming the
+                      gains it changed by more than 5 %, e.g. "k2 /1.18, w2 x1.38, ob /1.1"; see
+                      commission.tune.repair_on_holdout), repair_evaluations,
                       repair_failures (hold-out gate failures after the repair; null: no repair run)
 
 Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
@@ -207,7 +210,8 @@ class SearchRecord:
     holdout_failures : tuple of int
         Default-gate failures of each candidate compared there, best cost first.
     repair_moves : tuple of str
-        Single-gain moves of the hold-out repair, in order (empty: none accepted or not run).
+        Moves of the hold-out repair, in order (empty: none accepted or not run); each names the
+        gains it changed by more than 5 % (:func:`commission.tune.repair_on_holdout`).
     repair_evaluations : int
         Candidates the repair simulated (0: not run).
     repair_failures : int or None
@@ -423,6 +427,10 @@ class Tuning:
                                                is not None else None))
         if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
             raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
+        for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
+            if not math.isclose(getattr(observer, k), getattr(arc, k), rel_tol=1e-9):
+                raise obr.fail(f"{getattr(observer, k):.12g} does not equal arc.{k} = {getattr(arc, k):.12g}",
+                               f"{obr.path}.{k}")
         return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=quant,  # type: ignore[arg-type]
                    arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]

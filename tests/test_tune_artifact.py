@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -24,18 +25,23 @@ from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
     FREE_BOUNDS,
     HOLDOUT_PLANTS,
+    OBSERVER_FACTOR_BOUNDS,
     REPAIR_BUDGET,
-    repair_budget,
+    REPAIR_NAMES,
     Evaluator,
     HoldoutGate,
     SearchResult,
     apply_free,
     base_arc_gains,
+    free_of_repair,
     load_tune_inputs,
     pid_baseline,
+    repair_budget,
+    repair_coordinates,
     repair_on_holdout,
     select_on_holdout,
     tune,
+    with_observer,
 )
 from commission.tuning import Tuning
 
@@ -79,7 +85,14 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     assert pv["log_sha256"] == "ab" * 32 and pv["seed"] == 3 and pv["created_utc"].endswith("Z")
     assert set(doc["arc"]) == {f.name for f in dataclasses.fields(ArcGains)}
     assert set(doc["pid"]) == {f.name for f in dataclasses.fields(PidGains)} | {"pole", "design_mass"}
-    assert doc["observer"]["k1"] == 400.0 and doc["observer"]["k2"] == 4e4
+    # the observer the controller runs: the paper's pole (200 rad/s: k1 = 400, k2 = 4e4) unless the
+    # hold-out repair moved the defaulted pole, within OBSERVER_FACTOR_BOUNDS
+    ob = doc["observer"]
+    assert (ob["k1"], ob["k2"]) == (doc["arc"]["k1"], doc["arc"]["k2"])
+    assert ob["k1"] == pytest.approx(2 * ob["pole"]) and ob["k2"] == pytest.approx(ob["pole"] ** 2)
+    if ob["pole"] != 200.0:
+        assert doc["search"]["repair_evaluations"] > 0
+        assert OBSERVER_FACTOR_BOUNDS[0] <= ob["pole"] / 200.0 <= OBSERVER_FACTOR_BOUNDS[1]
     assert doc["pid"]["design_mass"] == pytest.approx(1 / 50.0)
     assert doc["pid"]["Kp"] == pytest.approx(5400.0) and doc["pid"]["Ki"] == pytest.approx(5.4e5)  # paper (57)
     assert doc["theorem1"]["holds"] is True
@@ -99,6 +112,7 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     se = doc["search"]
     if min(fails) == 0:
         assert se["repair_failures"] is None and se["repair_evaluations"] == 0 and se["repair_moves"] == []
+        assert (ob["k1"], ob["k2"]) == (400.0, 4e4)
     else:
         assert 0 < se["repair_evaluations"] and se["repair_failures"] <= min(fails)
     assert "Chosen gains" in output and "case1/nominal" in output
@@ -123,6 +137,7 @@ def test_roundtrip_and_strict_loading(small):
         (lambda x: x["observer"]["P"].__setitem__(1, [1.0]), r"\$\.observer\.P\[1\]: expected a list of 2"),
         (lambda x: x["scores"]["case1/nominal"]["arc"].__setitem__("diverged", 0), r"diverged: expected true or false"),
         (lambda x: x["pid"].__setitem__("design_mass", 0.03), r"\$\.pid\.design_mass: does not equal"),
+        (lambda x: x["observer"].__setitem__("k1", x["observer"]["k1"] * 1.1), r"\$\.observer\.k1: .* does not equal arc\.k1"),
     ]
     for mutate, msg in cases:
         bad = copy.deepcopy(doc)
@@ -193,8 +208,8 @@ def test_default_budgets_shrink_with_the_work_of_a_candidate():
     # the paper's axis on the default envelope is within the cap: nothing changes
     rs = tune_mod.resolve_spec({}, "s.toml", ident)
     assert tune_mod.work_scale(ident, rs.spec) == 1.0 and rs.spec.budget == 96
-    # the repair gets one round of coordinate moves (18) where the search had to shrink
-    assert repair_budget(slow, scale) == tune_mod.MIN_REPAIR_BUDGET == 18 < repair_budget(slow, 1.0) == REPAIR_BUDGET
+    # the repair gets two rounds (16) where the search had to shrink
+    assert repair_budget(slow, scale) == tune_mod.MIN_REPAIR_BUDGET == 16 < repair_budget(slow, 1.0) == REPAIR_BUDGET
 
 
 def test_progress_callback_and_base_gains():
@@ -220,6 +235,16 @@ def test_log_rate_becomes_the_default_sample_rate(tmp_path):
     assert inp.log_sha256 == "cd" * 32
     (tmp_path / "spec.toml").write_text("[controller]\nsample_rate = 2500\n")
     assert load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "spec.toml").spec.sample_rate == 2500.0
+
+
+def test_observer_pole_is_free_for_the_repair_only_when_defaulted(tmp_path):
+    """A spec that sets controller.observer_pole keeps it; otherwise the repair may move it."""
+    write_json_atomic(tmp_path / "ident.json", ref_ident().to_dict())
+    assert load_tune_inputs(tmp_path / "ident.json").observer_free
+    (tmp_path / "rate.toml").write_text("[controller]\nsample_rate = 2500\n")
+    assert load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "rate.toml").observer_free
+    (tmp_path / "pole.toml").write_text("[controller]\nobserver_pole = 200.0\n")
+    assert not load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "pole.toml").observer_free
 
 
 def test_theorem1_holds_anywhere_in_the_search_box():
@@ -273,22 +298,52 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     assert ch.chosen == 1
 
 
-def test_repair_moves_away_from_destabilising_gains(holdout_setup):
-    """Starting from :data:`BAD_X`, single-gain moves must cut the hold-out gate's failures.
+def test_repair_coordinates_move_a_cap_and_keep_g():
+    """Closed form of the repair's coordinates: a round trip is the identity inside the box,
+    a lower k2 cap keeps the absolute g2 while g2 fits under it, and then clips g2 to the cap."""
+    base = base_arc_gains(ref_ident(), default_spec())
+    x = np.array([1.5, 2.0, 0.4, 0.5, 3.0, 0.2, 50.0, 2.0, 0.8])
+    r = repair_coordinates(x, 0.9)
+    assert r[2] == pytest.approx(math.log(1.5 * 0.4)) and r[3] == pytest.approx(math.log(2.0 * 0.5))
+    x1, f = free_of_repair(r)
+    np.testing.assert_allclose(x1, x, rtol=1e-12)
+    assert f == pytest.approx(0.9)
+    g0 = apply_free(base, x)
+    r[1] -= math.log(1.5)  # k2 cap 2.0 -> 1.33 x base g2: g2 = 1.0 x base still fits
+    g1 = apply_free(base, free_of_repair(r)[0])
+    assert g1.k2s_max == pytest.approx(g0.k2s_max / 1.5) and g1.g2 == pytest.approx(g0.g2)
+    r[1] -= math.log(2.0)  # cap 0.67 x base g2: g2 clipped to the cap (f2 = 1)
+    g2 = apply_free(base, free_of_repair(r)[0])
+    assert g2.g2 == pytest.approx(g2.k2s_max) and g2.g2 < g0.g2
 
-    Every accepted move names a free gain of FREE_BOUNDS, each one lowers (failures, excess),
-    and the result is what the hold-out gate says of the final gains (re-judged here).
+
+def test_repair_moves_away_from_destabilising_gains(holdout_setup):
+    """Starting from :data:`BAD_X`, the repair's local search must cut the hold-out gate's failures.
+
+    Every accepted move names coordinates of FREE_BOUNDS (or ``ob``, the observer pole), each
+    one lowers (failures, excess), and the result is what the hold-out gate says of the final
+    gains (re-judged here, with the observer pole the repair reports).  With ``observer_free``
+    False the observer pole is the spec's, and no move names it.
     """
     ident, spec, base, ev, hg = holdout_setup
     x0 = np.array(BAD_X)
     (s0, f0, e0), = hg.judge([apply_free(base, x0)])
     assert f0 > 0
     holds = SimpleNamespace(holds=True)
-    rep = repair_on_holdout(x0, s0, f0, e0, holds, base, hg, spec, lambda g: holds, budget=36)
-    assert rep.evaluations <= 36 and rep.moves
-    names = {b[0] for b in FREE_BOUNDS}
-    assert all(m.split()[0] in names for m in rep.moves)
-    assert rep.failures < f0
-    (s1, f1, e1), = hg.judge([apply_free(base, rep.x)])
-    assert (f1, e1) == (rep.failures, pytest.approx(rep.excess))
-    assert [a.e_rms for a in s1] == [a.e_rms for a in rep.scores]
+    names = set(REPAIR_NAMES)
+    for free in (False, True):
+        rep = repair_on_holdout(x0, s0, f0, e0, holds, base, hg, spec, lambda g: holds, np.random.default_rng(3),
+                                observer_free=free, budget=24)
+        assert rep.evaluations <= 24 and rep.moves
+        for m in rep.moves:
+            assert {part.split()[0] for part in m.split(", ")} <= names, m
+        assert rep.failures < f0
+        g = with_observer(apply_free(base, rep.x), rep.observer_pole)
+        (s1, f1, e1), = hg.judge([g])
+        assert (f1, e1) == (rep.failures, pytest.approx(rep.excess))
+        assert [a.e_rms for a in s1] == [a.e_rms for a in rep.scores]
+        if not free:
+            assert rep.observer_pole == spec.observer_pole
+            assert not any("ob " in m for m in rep.moves)
+        else:
+            assert OBSERVER_FACTOR_BOUNDS[0] <= rep.observer_pole / spec.observer_pole <= OBSERVER_FACTOR_BOUNDS[1]
