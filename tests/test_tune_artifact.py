@@ -23,7 +23,6 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID
 from commission.scenarios import case1_trajectory, case2_trajectory, plant_substeps, tuning_scenarios
 from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
-    FREE_BOUNDS,
     HOLDOUT_PLANTS,
     OBSERVER_FACTOR_BOUNDS,
     REPAIR_BUDGET,
@@ -320,9 +319,9 @@ def test_repair_coordinates_move_a_cap_and_keep_g():
 def test_repair_moves_away_from_destabilising_gains(holdout_setup):
     """Starting from :data:`BAD_X`, the repair's local search must cut the hold-out gate's failures.
 
-    Every accepted move names coordinates of FREE_BOUNDS (or ``ob``, the observer pole), each
-    one lowers (failures, excess), and the result is what the hold-out gate says of the final
-    gains (re-judged here, with the observer pole the repair reports).  With ``observer_free``
+    Every accepted move names coordinates of REPAIR_NAMES (``ob``: the observer pole), the
+    failures drop, and the result is what the hold-out gate says of the final gains
+    (re-judged here, with the observer pole the repair reports).  With ``observer_free``
     False the observer pole is the spec's, and no move names it.
     """
     ident, spec, base, ev, hg = holdout_setup
