@@ -484,6 +484,9 @@ FREE_START = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
 N_FREE = len(FREE_BOUNDS)
 #: Index of theta_hat1(0) in the free vector.
 I_THETA1_0 = 8
+#: :data:`FREE_BOUNDS` in log space (read-only; copy before pinning a coordinate).
+FREE_LOG_LO = np.log([b[1] for b in FREE_BOUNDS])
+FREE_LOG_HI = np.log([b[2] for b in FREE_BOUNDS])
 
 
 def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
@@ -743,8 +746,7 @@ def search(base: ArcGains, ev: Evaluator, spec: Spec, rng: np.random.Generator, 
     order of cost until one holds.  Stops after ``budget`` candidates.
     """
     budget = spec.budget if budget is None else budget
-    lo = np.log([b[1] for b in FREE_BOUNDS])
-    hi = np.log([b[2] for b in FREE_BOUNDS])
+    lo, hi = FREE_LOG_LO.copy(), FREE_LOG_HI.copy()
     if spec.theta1_0 is not None:  # theta_hat1(0) fixed by the spec: pin its axis
         lo[I_THETA1_0] = hi[I_THETA1_0] = math.log(spec.theta1_0 / base.theta0[0])
     x0 = np.clip(np.log(FREE_START), lo, hi)
@@ -1134,13 +1136,16 @@ def repair_coordinates(x: np.ndarray, observer_factor: float) -> np.ndarray:
 
 
 def free_of_repair(r: np.ndarray) -> tuple[np.ndarray, float]:
-    """Inverse of :func:`repair_coordinates`: ``(x, observer_factor)``, inside :data:`FREE_BOUNDS`."""
+    """Inverse of :func:`repair_coordinates`: ``(x, observer_factor)``.
+
+    g1, g2 above their caps are clipped to them (f1, f2 within :data:`FREE_BOUNDS`); every
+    other coordinate passes unchanged, so a theta_hat1(0) pinned by the spec outside the
+    search box stays pinned.
+    """
     z = np.array(r[:N_FREE], dtype=np.float64)
-    z[I_F1] -= z[0]
-    z[I_F2] -= z[1]
-    lo = np.log([b[1] for b in FREE_BOUNDS])
-    hi = np.log([b[2] for b in FREE_BOUNDS])
-    return np.exp(np.clip(z, lo, hi)), math.exp(r[N_FREE])
+    for i, k in ((I_F1, 0), (I_F2, 1)):
+        z[i] = min(max(z[i] - z[k], FREE_LOG_LO[i]), FREE_LOG_HI[i])
+    return np.exp(z), math.exp(r[N_FREE])
 
 
 def _move_name(before: np.ndarray, after: np.ndarray) -> str:
@@ -1186,8 +1191,7 @@ def repair_on_holdout(x0: np.ndarray, scores0: Sequence[Score], failures0: int, 
     :func:`commission.synth.random_axis` at one failure on validate's matrix; with these
     joint moves both pass, and axis 11 (1 kHz, 26 hold-out failures) still does.
     """
-    flo = np.log([b[1] for b in FREE_BOUNDS])
-    fhi = np.log([b[2] for b in FREE_BOUNDS])
+    flo, fhi = FREE_LOG_LO, FREE_LOG_HI
     # bounds in repair coordinates: g as a multiple of its base spans f_lo x cap_lo .. cap_hi
     lo = np.append(flo, math.log(OBSERVER_FACTOR_BOUNDS[0]))
     hi = np.append(fhi, math.log(OBSERVER_FACTOR_BOUNDS[1]))
@@ -1197,7 +1201,6 @@ def repair_on_holdout(x0: np.ndarray, scores0: Sequence[Score], failures0: int, 
              or (k == N_FREE and not observer_free)]
     z = repair_coordinates(x0, 1.0)
     lo[fixed], hi[fixed] = z[fixed], z[fixed]
-    lo, hi = np.minimum(lo, z), np.maximum(hi, z)
 
     def gains(c: np.ndarray) -> ArcGains:
         x, f = free_of_repair(c)

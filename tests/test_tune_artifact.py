@@ -314,6 +314,9 @@ def test_repair_coordinates_move_a_cap_and_keep_g():
     r[1] -= math.log(2.0)  # cap 0.67 x base g2: g2 clipped to the cap (f2 = 1)
     g2 = apply_free(base, free_of_repair(r)[0])
     assert g2.g2 == pytest.approx(g2.k2s_max) and g2.g2 < g0.g2
+    # a theta_hat1(0) pinned by the spec above the search box (t1 > 1) passes unchanged
+    x[8] = 1.2
+    assert free_of_repair(repair_coordinates(x, 1.0))[0][8] == pytest.approx(1.2)
 
 
 def test_repair_moves_away_from_destabilising_gains(holdout_setup):
