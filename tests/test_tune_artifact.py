@@ -42,7 +42,7 @@ from commission.tune import (
     tune,
     with_observer,
 )
-from commission.tuning import Tuning
+from commission.tuning import Score, Tuning
 
 SMALL = {"tune": {"budget": 3}}
 
@@ -259,6 +259,37 @@ def test_theorem1_holds_anywhere_in_the_search_box():
         assert theorem1_check(g.w1, g.w2, g.C_phi1, g.C_phi2, g.C_theta2).min_ratio >= 5.0 - 1e-9
         assert g.g1 <= g.k1s_max and g.g2 <= g.k2s_max
         assert g.theta_min[0] <= g.theta0[0] <= base.theta0[0]  # theta_hat1(0) in the box, not above nominal
+
+
+def test_search_step_shrinks_to_its_floor():
+    """Closed form: 1, 0.6, 0.36, 0.216, 0.1296, then the floor 0.1 (0.6**5 = 0.078 is below it)."""
+    from commission.tune import STEP_FLOOR, search_step
+
+    assert STEP_FLOOR == 0.1
+    expected = [1.0, 0.6, 0.36, 0.216, 0.1296] + [0.1] * 7
+    assert [search_step(k) for k in range(12)] == pytest.approx(expected, rel=1e-12)
+
+
+def test_search_late_generations_still_spread_at_the_floor():
+    """The search's draws in its last generation are spread by the floor step, not 0.6**11.
+
+    A stub evaluator scores every candidate the same, so no candidate beats the first
+    feasible one and every generation is drawn around the start (log 1 = 0 on the k1, k2
+    caps, far from their bounds 0.25-4: no clipping); stable sorting keeps the evaluation
+    order.  The rms log-deviation of the caps of generation g estimates its step.
+    """
+    from commission.tune import search
+
+    spec = default_spec()
+    base = base_arc_gains(ref_ident(), spec)
+    flat = Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
+    ev = SimpleNamespace(scores=lambda kind, packs: [[flat] for _ in packs], weights=[1.0])
+    res = search(base, ev, spec, np.random.default_rng(3), feasible=lambda g: SimpleNamespace(holds=True),
+                 budget=96)
+    caps = np.log(res.x[:, :2]).reshape(12, 8, 2)  # (generation, candidate, k1/k2 cap)
+    rms = np.sqrt(np.mean(caps ** 2, axis=(1, 2)))
+    assert 0.3 < rms[1] < 1.0  # step 0.6
+    assert 0.05 < rms[11] < 0.2  # step 0.1; without the floor 0.6**11 = 0.004
 
 
 @pytest.fixture(scope="module")

@@ -22,9 +22,14 @@ to get it refused with exit 2.  tune now narrows that *defaulted* bound to half 
 drive's feedforward budget (:func:`commission.tune.fit_disturbance_to_drive`), and it
 passes (session 4; so do axes 9, 10, 13, refused before for the same reason).
 
-Not every random axis passes; see the closing notes of sessions 3 and 4 for the list
-(light axes on coarse encoders chatter above c_u = 1 on Case 1, where the PID reaches
-0.9-1.1 too).
+Axis 19 (4 kHz, M = 0.035 V s^2/m, 0.78 um encoder) is a light axis on a coarse encoder
+(:func:`test_a_light_axis_on_a_coarse_encoder_passes_the_gate`): it failed one c_u check
+(1.11) until the search's step stopped shrinking at :data:`commission.tune.STEP_FLOOR`
+(session 7).
+
+Not every random axis passes.  Of seeds 0-29, session 7: 27 pass; 0, 16 and 27 fail
+(light axes on 0.55-0.84 um encoders at 4-5 kHz: 9-12 checks, mostly c_u on Case 1,
+where the PID baseline itself reaches 0.97-1.17).
 """
 
 from __future__ import annotations
@@ -42,11 +47,8 @@ from commission.validate import validate
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module", params=[2, 3, 4, 7, 8, 12],
-                ids=["axis2-2kHz", "axis3-5kHz", "axis4-1kHz-load-narrowed", "axis7-2kHz-heavy", "axis8-5kHz",
-                     "axis12-payload-drift"])
-def validated(request, tmp_path_factory):
-    seed = request.param
+def _pipeline(seed: int, tmp_path_factory):
+    """Simulate axis ``seed``'s log, identify, tune (seed 0), validate (seed 0)."""
     d = tmp_path_factory.mktemp(f"axis{seed}")
     truth = random_axis(np.random.default_rng(seed))
     write_log_h5(d / "log.h5", simulate_excitation(truth, ExcitationPlan(), np.random.default_rng(seed + 1000)))
@@ -54,6 +56,26 @@ def validated(request, tmp_path_factory):
     write_json_atomic(d / "ident.json", ident.to_dict())
     tuning = run_tune(d / "ident.json", d / "tuning.json", seed=0)
     return truth, tuning, validate(tuning, GateSpec(), seed=0), seed
+
+
+@pytest.fixture(scope="module", params=[2, 3, 4, 7, 8, 12],
+                ids=["axis2-2kHz", "axis3-5kHz", "axis4-1kHz-load-narrowed", "axis7-2kHz-heavy", "axis8-5kHz",
+                     "axis12-payload-drift"])
+def validated(request, tmp_path_factory):
+    return _pipeline(request.param, tmp_path_factory)
+
+
+def test_a_light_axis_on_a_coarse_encoder_passes_the_gate(tmp_path_factory):
+    """Axis 19 (module docstring): the default gate passes, c_u included.
+
+    Both controllers track within an encoder step here, so the ARC is level with the PID
+    (median e_rms ratio 1.03 over the matrix, session 7) rather than better on most of it:
+    the median check of :func:`test_arc_vs_pid_on_the_matrix` does not apply, the gate's
+    comparison (within the quantization noise of the PID, scenario by scenario) does.
+    """
+    truth, tuning, result, _ = _pipeline(19, tmp_path_factory)
+    assert tuning.spec.sample_rate == pytest.approx(truth.sample_rate, rel=1e-6)
+    assert result.passed, [f.detail for f in result.verdict.failures]
 
 
 def test_tuning_uses_the_logs_rate_and_is_feasible(validated):
