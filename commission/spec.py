@@ -56,7 +56,7 @@ Keys and defaults
         Candidate gain sets simulated by the search (each on the 38 tuning
         scenarios; about 25-55 s at 2.5-5 kHz on 2 cores, see benchmarks/bench_tune.py).
         Left at its default, ``tune`` lowers it (to whole generations of 8, at
-        least 48) where one candidate simulates more than twice the paper
+        least 48) where one candidate simulates more than 1.8 times the paper
         axis' work, as slow envelopes at 4-5 kHz do
         (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``.
     ``monte_carlo`` = 0

@@ -126,10 +126,11 @@ SHRINK = 0.6
 #: the light 4-5 kHz axes that failed the gate the best cost stopped moving after the fourth generation.
 STEP_FLOOR = 0.1
 #: Simulation work of one search candidate (:func:`candidate_work`, plant sub-steps) above which a
-#: *defaulted* search budget shrinks in proportion (:func:`work_scale`) and the repair gets one round.  It is 2x the
+#: *defaulted* search budget shrinks in proportion (:func:`work_scale`) and the repair gets one round.  It is 1.8x the
 #: paper's axis on the default envelope (12e6); slow envelopes at 4-5 kHz reach 30-41e6, where 96
-#: candidates took 109-131 s on 2 cores against the 120-s target.
-WORK_CAP = 24e6
+#: candidates took 109-131 s on 2 cores against the 120-s target.  (It was 2x; with :data:`STEP_FLOOR` the slow
+#: worst case's 56 candidates took 112-125 s, so it gets 48.)
+WORK_CAP = 22e6
 #: Cost of one ARC step in plant sub-steps (about 190 ns against 50 ns, measured at 4 kHz).
 ARC_STEP_WORK = 4
 #: Floor of a work-scaled search budget (6 generations).
