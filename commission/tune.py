@@ -35,7 +35,7 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    the carried-over paper gains (as printed, caps at g1, g2), the arc module's
    implementable paper gains, :data:`EXTRA_STARTS` and random points;
    each later generation draws ``POP`` candidates around the best *feasible*
-   one so far, the step shrinking by ``SHRINK``, for ``spec.budget``
+   one so far, the step shrinking by ``SHRINK`` down to :data:`STEP_FLOOR`, for ``spec.budget``
    candidates.  The objective is a surrogate; the winner is then chosen among
    the :data:`HOLDOUT_CANDIDATES` best feasible candidates by validate's
    default gate on the tuning scenarios plus :data:`HOLDOUT_PLANTS` fresh
@@ -123,7 +123,7 @@ POP = 8
 SHRINK = 0.6
 #: Smallest log-step of the search (a factor 1.1 per axis).  Without it the step reached 0.6**5 = 0.08
 #: by the sixth generation and the last half of the budget only polished the first local minimum: on
-#: the light 4-5 kHz axes that failed the gate the best cost stopped moving after the fourth generation.
+#: two of the light 4-5 kHz axes that failed the gate the best cost stopped moving after the fourth generation.
 STEP_FLOOR = 0.1
 #: Simulation work of one search candidate (:func:`candidate_work`, plant sub-steps) above which a
 #: *defaulted* search budget shrinks in proportion (:func:`work_scale`) and the repair gets one round.  It is 1.8x the

@@ -28,8 +28,8 @@ Axis 19 (4 kHz, M = 0.035 V s^2/m, 0.78 um encoder) is a light axis on a coarse 
 (session 7).
 
 Not every random axis passes.  Of seeds 0-29, session 7: 27 pass; 0, 16 and 27 fail
-(light axes on 0.55-0.84 um encoders at 4-5 kHz: 9-12 checks, mostly c_u on Case 1,
-where the PID baseline itself reaches 0.97-1.17).
+(light axes on 0.55-0.84 um encoders at 4-5 kHz: 9-12 checks; c_u on 0 and 27, where the
+PID baseline itself reaches 1.12-1.17, and mostly ARC-vs-PID e_rms on 16).
 """
 
 from __future__ import annotations
