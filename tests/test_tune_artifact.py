@@ -27,6 +27,7 @@ from commission.tune import (
     OBSERVER_FACTOR_BOUNDS,
     REPAIR_BUDGET,
     REPAIR_NAMES,
+    STEP_FLOOR,
     Evaluator,
     HoldoutGate,
     SearchResult,
@@ -38,6 +39,8 @@ from commission.tune import (
     repair_budget,
     repair_coordinates,
     repair_on_holdout,
+    search,
+    search_step,
     select_on_holdout,
     tune,
     with_observer,
@@ -263,8 +266,6 @@ def test_theorem1_holds_anywhere_in_the_search_box():
 
 def test_search_step_shrinks_to_its_floor():
     """Closed form: 1, 0.6, 0.36, 0.216, 0.1296, then the floor 0.1 (0.6**5 = 0.078 is below it)."""
-    from commission.tune import STEP_FLOOR, search_step
-
     assert STEP_FLOOR == 0.1
     expected = [1.0, 0.6, 0.36, 0.216, 0.1296] + [0.1] * 7
     assert [search_step(k) for k in range(12)] == pytest.approx(expected, rel=1e-12)
@@ -278,8 +279,6 @@ def test_search_late_generations_still_spread_at_the_floor():
     caps, far from their bounds 0.25-4: no clipping); stable sorting keeps the evaluation
     order.  The rms log-deviation of the caps of generation g estimates its step.
     """
-    from commission.tune import search
-
     spec = default_spec()
     base = base_arc_gains(ref_ident(), spec)
     flat = Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
