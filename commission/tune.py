@@ -1174,7 +1174,6 @@ def _move_name(before: np.ndarray, after: np.ndarray) -> str:
     return ", ".join(parts) or "(< 5 % on every gain)"
 
 
-
 def repair_on_holdout(x0: np.ndarray, scores0: Sequence[Score], failures0: int, excess0: float,
                       feasibility0: FeasibilityReport, base: ArcGains, hg: HoldoutGate, spec: Spec,
                       feasible: Callable[[ArcGains], FeasibilityReport], rng: np.random.Generator, *,
