@@ -14,6 +14,7 @@ from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import print_summary
 from commission.logs import parse_mapping
+from commission.tune import pid_pole_note
 from commission.validate import DEFAULT_MONTE_CARLO, run_all
 
 
@@ -47,7 +48,8 @@ def run_command(
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
-    for note in outcome.notes:
+    pid_note = pid_pole_note(outcome.validation.tuning)
+    for note in (*outcome.notes, *(() if pid_note is None else (pid_note,))):
         err.print(f"note: {note}", highlight=False)
     v = outcome.validation
     print_summary(v.result)

@@ -13,7 +13,7 @@ from rich.table import Table
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.tune import load_tune_inputs, pid_chatter, run_tune
+from commission.tune import load_tune_inputs, pid_chatter, pid_pole_note, run_tune
 from commission.tuning import Tuning
 
 _HELP = """Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
@@ -36,7 +36,9 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
     bound leaves no room for any envelope, the theta3 box is narrowed with a note instead)
   trajectory.beta1 = 100 1/s, beta2 = 2500 1/s^2 (reference filter 58)
   targets.e_rms = 5e-6 m, e_f = 1e-5 m (max |e| over the last 2 s), c_u = 0.5
-  pid.pole = 0.12 * sample_rate rad/s (paper: 300)
+  pid.pole = 0.12 * sample_rate rad/s (paper: 300); when defaulted and that PID exceeds validate's
+    c_u limit on a tuning scenario, the baseline runs at the fastest 0.95^k of it that does not
+    (k <= 12; tuning.json: pid.pole, with a note)
   tune.budget = 96 candidates, monte_carlo = 0, margin = 0.01
 A requested bandwidth w (rad/s) needs w / sample_rate <= 0.5.
 A bad spec (unknown key, negative rate, too low a sample rate) exits 2 naming the key.
@@ -105,6 +107,9 @@ def tune_command(
         t = run_tune(ident, out, progress=bar.callback("tuning"), workers=workers, inputs=inputs)
     print_summary(t, out_console)
     out_console.print(f"wrote {out}", highlight=False)
+    pid_note = pid_pole_note(t)
+    if pid_note is not None:
+        err.print(f"note: {pid_note}", highlight=False)
     se = t.search
     left = se.repair_failures if se.repair_failures is not None else min(se.holdout_failures, default=0)
     if left:

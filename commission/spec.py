@@ -50,7 +50,9 @@ Keys and defaults
     ``pole``
         Triple closed-loop pole of (56) at M_min, rad/s.  Default
         ``PID_POLE_FRACTION * sample_rate`` = 0.12 * f_s (the paper's -300 rad/s
-        at 2.5 kHz).
+        at 2.5 kHz).  ``tune`` runs a defaulted pole lower when the PID there
+        exceeds validate's default c_u limit on a tuning scenario (a coarse
+        encoder at a high rate): :func:`commission.tune.deployable_pid`.
 ``[tune]``
     ``budget`` = 96
         Candidate gain sets simulated by the search (each on the 38 tuning

@@ -60,7 +60,10 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    checked lazily on the candidates that would improve on the best feasible
    one.  The chosen gains are also checked with theta_hat at every box
    corner (reported, informational).  The PID baseline (poles of (56) at
-   M_min = 1/theta_max[0]) is checked and scored the same way.
+   M_min = 1/theta_max[0]) is checked and scored the same way; it runs at the
+   spec's pole or, when that was defaulted and its PID exceeds validate's c_u
+   limit on a tuning scenario, at the fastest lower pole that does not
+   (:func:`deployable_pid`), so that the ARC is compared with a PID a user could deploy.
 6. tuning.json with provenance, every gain, the design reports, the
    guarantee statement and the scores of ARC and PID on every tuning scenario.
 """
@@ -542,6 +545,12 @@ def free_gains(arc: ArcGains) -> FreeGains:
                      theta1_0=arc.theta0[0])
 
 
+#: A *defaulted* PID pole whose baseline exceeds validate's default c_u limit on the tuning
+#: scenarios is lowered along ``pid_pole x PID_POLE_STEP**k``, k = 1 .. PID_POLE_STEPS (down to 0.54 x).
+PID_POLE_STEP = 0.95
+PID_POLE_STEPS = 12
+
+
 def pid_baseline(ident: Identification, spec: Spec) -> tuple[PidGains, float]:
     """The paper's PID (57): poles of (56) at ``-spec.pid_pole`` for M_min = 1/theta_max[0].
 
@@ -625,6 +634,60 @@ class Evaluator:
                                        float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]),
                                        float(r.u_peak[row]), bool(r.diverged[row]))
         return out  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class PidBaseline:
+    """The PID baseline of (57) as tune runs it (:func:`deployable_pid`).
+
+    Attributes
+    ----------
+    gains : PidGains
+    pole : float
+        Triple closed-loop pole of (56), rad/s.
+    design_mass : float
+        M_min = 1/theta_max[0], u-unit s^2/m.
+    scores : list of Score
+        On the tuning scenarios, in the Evaluator's order.
+    """
+
+    gains: PidGains
+    pole: float
+    design_mass: float
+    scores: list[Score]
+
+
+def deployable_pid(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: float,
+                   pole_free: bool) -> PidBaseline:
+    """The paper's PID (57) at ``spec.pid_pole``, or at the fastest pole the gate's c_u allows.
+
+    The baseline the ARC must beat should be one a user could deploy.  The default pole,
+    0.12 f_s, carries the paper's -300 rad/s at 2.5 kHz to other rates; the PID's
+    backward-difference derivative turns each encoder step q into a velocity step q f_s, so
+    on a coarse encoder at a high rate that PID chatters beyond validate's c_u limit by
+    itself (random axes 0 and 27 of :func:`commission.synth.random_axis`, 0.82-0.84 um at
+    4 kHz: c_u 1.12 and 1.17 at 480 rad/s, limit 1).  When the pole was defaulted
+    (``pole_free``) and that PID exceeds ``c_u_limit`` on a tuning scenario, the pole is
+    lowered to the fastest of ``spec.pid_pole x PID_POLE_STEP**k`` (k = 1 ..
+    :data:`PID_POLE_STEPS`) whose PID stays within it on every tuning scenario: the
+    strongest PID of the paper's family that the gate's chattering limit accepts.  The
+    candidates are simulated in one batch.  When none does, or the pole was set in the
+    spec, the spec's pole is kept (``tune`` then warns when its gate fails).
+    """
+    pid, m_min = pid_baseline(ident, spec)
+    scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
+
+    def within(sc: Sequence[Score]) -> bool:
+        return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in sc)
+
+    if not pole_free or within(scores):
+        return PidBaseline(pid, spec.pid_pole, m_min, scores)
+    poles = [spec.pid_pole * PID_POLE_STEP ** k for k in range(1, PID_POLE_STEPS + 1)]
+    cands = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0] for w in poles]
+    for w, g, sc in zip(poles, cands, ev.scores(KIND_PID, [pid_pack(g) for g in cands])):
+        if within(sc):
+            return PidBaseline(g, w, m_min, sc)
+    return PidBaseline(pid, spec.pid_pole, m_min, scores)
 
 
 def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None = None,
@@ -937,6 +1000,16 @@ def pid_chatter(tuning: Tuning) -> PidChatter | None:
         return None
     worst, name = max(over)
     return PidChatter(limit=limit, count=len(over), worst=worst, scenario=name)
+
+
+def pid_pole_note(tuning: Tuning) -> str | None:
+    """One line for the user when the PID baseline runs below the spec's pole (:func:`deployable_pid`)."""
+    if not tuning.pid_pole < tuning.spec.pid_pole:
+        return None
+    return (f"the PID baseline runs at pid.pole = {tuning.pid_pole:.3g} rad/s instead of the defaulted "
+            f"{tuning.spec.pid_pole:.3g}: there it exceeds validate's default c_u limit on a tuning scenario "
+            f"(encoder step {tuning.quantization * 1e6:.3g} um at {tuning.spec.sample_rate:g} Hz); "
+            f"set pid.pole to compare with another PID")
 
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
@@ -1310,7 +1383,8 @@ def guarantees(arc: ArcGains, t1, feas: FeasibilitySummary) -> dict[str, Guarant
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
          ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
-         workers: int | None = None, created_utc: str | None = None, observer_free: bool = False) -> Tuning:
+         workers: int | None = None, created_utc: str | None = None, observer_free: bool = False,
+         pid_free: bool = False) -> Tuning:
     """Tune the ARC (and the PID baseline) for an identified axis.
 
     Parameters
@@ -1337,6 +1411,9 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     observer_free : bool
         ``spec.observer_pole`` was defaulted, not given: the hold-out repair may move it
         (:func:`repair_on_holdout`).  The pole used is the one recorded in ``observer``.
+    pid_free : bool
+        ``spec.pid_pole`` was defaulted: the PID baseline may run at a lower pole
+        (:func:`deployable_pid`), recorded in ``pid_pole``.
 
     Returns
     -------
@@ -1350,8 +1427,9 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     # progress steps: the search's candidates, the hold-out, the repair's candidates, two reports
     n_repair = repair_budget(spec, work_scale(ident, spec))
     total = spec.budget + 1 + n_repair + 2
-    pid, m_min = pid_baseline(ident, spec)
-    pid_scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
+    gate = default_gate_limits(ident, spec)
+    baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
+    pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
     traj_names = ["case1", "case2"]
     trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
 
@@ -1359,7 +1437,6 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
                                     margin=spec.margin)
 
-    gate = default_gate_limits(ident, spec)
     res = search(base, ev, spec, rng, feasible=feasible, reference=pid_scores, progress=progress,
                  progress_total=total, gate=gate)
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
@@ -1403,7 +1480,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                           repair_evaluations=0 if repaired is None else repaired.evaluations,
                           repair_failures=None if repaired is None else repaired.failures)
     out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident),
-                 quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=spec.pid_pole,
+                 quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
                  guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record)
     if progress is not None:
@@ -1442,6 +1519,7 @@ class TuneInputs:
     seed: int
     notes: tuple[str, ...] = ()
     observer_free: bool = False
+    pid_free: bool = False
 
 
 @dataclass(frozen=True)
@@ -1458,12 +1536,15 @@ class ResolvedSpec:
         One line per default that was lowered or narrowed.
     observer_free : bool
         ``controller.observer_pole`` was not given: tune's hold-out repair may move it.
+    pid_free : bool
+        ``pid.pole`` was not given: tune may lower the PID baseline's pole (:func:`deployable_pid`).
     """
 
     spec: Spec
     ident: Identification
     notes: tuple[str, ...]
     observer_free: bool = False
+    pid_free: bool = False
 
 
 def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> ResolvedSpec:
@@ -1496,7 +1577,9 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> Reso
         raise SpecError(f"{spec_name}: controller.observer_pole: {exc}") from None
     ctrl = spec_data.get("controller")
     observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free)
+    pid = spec_data.get("pid")
+    pid_free = not (isinstance(pid, dict) and "pole" in pid)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
@@ -1516,7 +1599,8 @@ def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.
     ident = Identification.from_dict(read_json(ident_path), source=ident_path)
     rs = resolve_spec(spec_data, spec_name, ident)
     return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
-                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes, observer_free=rs.observer_free)
+                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes, observer_free=rs.observer_free,
+                      pid_free=rs.pid_free)
 
 
 def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
@@ -1538,6 +1622,6 @@ def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str
     inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
     t = tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
              ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
-             progress=progress, workers=workers, observer_free=inp.observer_free)
+             progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free)
     t.save(os.fspath(out_path))
     return t

@@ -288,7 +288,8 @@ class Tuning:
     pid : PidGains
         The PID baseline (57), poles of (56) at M_min.
     pid_pole : float
-        PID triple pole magnitude, rad/s.
+        PID triple pole magnitude the baseline runs at, rad/s: ``spec.pid_pole``, or lower
+        when a defaulted pole chattered beyond validate's c_u (:func:`commission.tune.deployable_pid`).
     pid_design_mass : float
         M_min = 1/theta_max[0], u-unit s^2/m.
     observer : ObserverDesign

@@ -627,7 +627,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     try:
         tuned = tune(rs.ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
                      ident_path=str(out / IDENT_NAME), log_sha256=ident_out.log.sha256,
-                     progress=stage("tune"), workers=workers)
+                     progress=stage("tune"), workers=workers, pid_free=rs.pid_free)
     except DesignError as exc:
         raise SpecError(f"{spec_src}: {exc}") from None
     tuning_doc = tuned.to_dict()

@@ -25,6 +25,8 @@ from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
     HOLDOUT_PLANTS,
     OBSERVER_FACTOR_BOUNDS,
+    PID_POLE_STEP,
+    PID_POLE_STEPS,
     REPAIR_BUDGET,
     REPAIR_NAMES,
     STEP_FLOOR,
@@ -33,9 +35,11 @@ from commission.tune import (
     SearchResult,
     apply_free,
     base_arc_gains,
+    deployable_pid,
     free_of_repair,
     load_tune_inputs,
     pid_baseline,
+    pid_pole_note,
     repair_budget,
     repair_coordinates,
     repair_on_holdout,
@@ -379,3 +383,48 @@ def test_repair_moves_away_from_destabilising_gains(holdout_setup):
             assert not any("ob " in m for m in rep.moves)
         else:
             assert OBSERVER_FACTOR_BOUNDS[0] <= rep.observer_pole / spec.observer_pole <= OBSERVER_FACTOR_BOUNDS[1]
+
+
+def _kd_chatter_evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
+    """A stub Evaluator whose PID c_u is proportional to the packed Kd, on ``n`` scenarios."""
+    from commission.controllers.pid import G_KD
+
+    def scores(kind, packs):
+        assert kind == KIND_PID
+        return [[Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD] * (1 + 0.1 * i),
+                       c_u=c_u_per_kd * p[G_KD] * (1 + 0.1 * i), u_peak=1.0, diverged=False) for i in range(n)]
+                for p in packs]
+    return SimpleNamespace(scores=scores, weights=[1.0] * n)
+
+
+def test_deployable_pid_takes_the_fastest_grid_pole_within_the_c_u_limit():
+    """Closed form: with c_u = c Kd (x1.2 on the worst scenario) and Kd = 3 M_min w, the
+    chosen pole is the largest w0 0.95^k with 1.2 c 3 M_min w <= limit."""
+    ident = ref_ident()
+    spec = default_spec()
+    _, m_min = pid_baseline(ident, spec)
+    w0 = spec.pid_pole
+    c = 1.0 / (1.2 * 3.0 * m_min * 0.8 * w0)  # the worst scenario reaches the limit 1 at 0.8 w0
+    k = next(k for k in range(1, PID_POLE_STEPS + 1) if PID_POLE_STEP ** k <= 0.8 * (1 - 1e-12))
+    out = deployable_pid(ident, spec, _kd_chatter_evaluator(c), 1.0, pole_free=True)
+    assert out.pole == pytest.approx(w0 * PID_POLE_STEP ** k) and k == 5  # 0.95^5 = 0.774
+    assert out.gains.Kd == pytest.approx(3.0 * m_min * out.pole)
+    assert max(s.c_u for s in out.scores) <= 1.0 < 1.2 * c * 3.0 * m_min * w0 * PID_POLE_STEP ** (k - 1)
+    # a pole set in the spec is kept, and so is the default when no grid pole meets the limit
+    kept = deployable_pid(ident, spec, _kd_chatter_evaluator(c), 1.0, pole_free=False)
+    assert kept.pole == w0 and max(s.c_u for s in kept.scores) > 1.0
+    hopeless = deployable_pid(ident, spec, _kd_chatter_evaluator(10 * c), 1.0, pole_free=True)
+    assert hopeless.pole == w0 and hopeless.gains == pid_baseline(ident, spec)[0]
+    # within the limit at the default pole: nothing changes
+    calm = deployable_pid(ident, spec, _kd_chatter_evaluator(0.7 * c), 1.0, pole_free=True)  # worst 0.875
+    assert calm.pole == w0
+
+
+def test_pid_pole_note_only_when_the_baseline_moved(small):
+    """The tuning of the reference plant keeps the paper's pole (its PID's c_u is about 0.3)."""
+    d, output = small
+    t = Tuning.from_dict(json.loads((d / "tuning.json").read_text()))
+    assert t.pid_pole == t.spec.pid_pole and pid_pole_note(t) is None and "PID baseline runs at" not in output
+    moved = dataclasses.replace(t, pid_pole=0.8 * t.spec.pid_pole)
+    note = pid_pole_note(moved)
+    assert note is not None and "pid.pole = 240 rad/s instead of the defaulted 300" in note

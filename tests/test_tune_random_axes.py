@@ -27,9 +27,15 @@ Axis 19 (4 kHz, M = 0.035 V s^2/m, 0.78 um encoder) is a light axis on a coarse 
 (1.11) until the search's step stopped shrinking at :data:`commission.tune.STEP_FLOOR`
 (session 7).
 
-Not every random axis passes.  Of seeds 0-29, session 7: 27 pass; 0, 16 and 27 fail
-(light axes on 0.55-0.84 um encoders at 4-5 kHz: 9-12 checks; c_u on 0 and 27, where the
-PID baseline itself reaches 1.12-1.17, and mostly ARC-vs-PID e_rms on 16).
+Axis 27 (4 kHz, 0.84 um encoder) is the case of a PID baseline that chatters beyond the
+gate by itself at the defaulted pole (c_u 1.17 at 480 rad/s): tune now compares with the
+fastest PID of the paper's family that meets the gate's c_u
+(:func:`commission.tune.deployable_pid`), and the ARC tuned against it passes (session 8).
+
+Not every random axis passes.  Of seeds 0-29, session 8: 28 pass; 0 and 16 fail (light
+axes on 0.55-0.82 um encoders at 4-5 kHz): 0 by one c_u check (1.03 on Case 1 with
+-20 % friction), 16 by 12 checks (mostly ARC-vs-PID e_rms on Case 2, where both
+controllers track within an encoder step).
 """
 
 from __future__ import annotations
@@ -65,17 +71,25 @@ def validated(request, tmp_path_factory):
     return _pipeline(request.param, tmp_path_factory)
 
 
-def test_a_light_axis_on_a_coarse_encoder_passes_the_gate(tmp_path_factory):
-    """Axis 19 (module docstring): the default gate passes, c_u included.
+@pytest.mark.parametrize("seed", [19, 27], ids=["axis19-4kHz-0.78um", "axis27-4kHz-0.84um-pid-lowered"])
+def test_a_light_axis_on_a_coarse_encoder_passes_the_gate(seed, tmp_path_factory):
+    """Axes 19 and 27 (module docstring): the default gate passes, c_u included.
 
     Both controllers track within an encoder step here, so the ARC is level with the PID
-    (median e_rms ratio 1.03 over the matrix, session 7) rather than better on most of it:
-    the median check of :func:`test_arc_vs_pid_on_the_matrix` does not apply, the gate's
-    comparison (within the quantization noise of the PID, scenario by scenario) does.
+    (axis 19: median e_rms ratio 1.03 over the matrix, session 7) rather than better on most
+    of it: the median check of :func:`test_arc_vs_pid_on_the_matrix` does not apply, the
+    gate's comparison (within the quantization noise of the PID, scenario by scenario) does.
+    On axis 27 the defaulted PID pole (480 rad/s) chatters beyond the gate's c_u by itself,
+    so the baseline runs lower, and within that limit on every tuning scenario; on axis 19
+    it does not, and the pole is kept.
     """
-    truth, tuning, result, _ = _pipeline(19, tmp_path_factory)
+    truth, tuning, result, _ = _pipeline(seed, tmp_path_factory)
     assert tuning.spec.sample_rate == pytest.approx(truth.sample_rate, rel=1e-6)
     assert result.passed, [f.detail for f in result.verdict.failures]
+    moved = tuning.pid_pole < tuning.spec.pid_pole
+    assert moved == (seed == 27)
+    if moved:
+        assert max(r["pid"].c_u for r in tuning.scores.values()) <= 1.0
 
 
 def test_tuning_uses_the_logs_rate_and_is_feasible(validated):
