@@ -1598,9 +1598,29 @@ def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.
     spec_from_mapping(spec_data, spec_name)  # every key checked at the documented defaults
     ident = Identification.from_dict(read_json(ident_path), source=ident_path)
     rs = resolve_spec(spec_data, spec_name, ident)
-    return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=sha256_file(ident_path),
-                      log_sha256=_log_sha256(ident), seed=int(seed), notes=rs.notes, observer_free=rs.observer_free,
+    return tune_inputs(rs, ident_path=ident_path, ident_sha256=sha256_file(ident_path), log_sha256=_log_sha256(ident),
+                       seed=seed)
+
+
+def tune_inputs(rs: ResolvedSpec, *, ident_path: str, ident_sha256: str, log_sha256: str | None,
+                seed: int) -> TuneInputs:
+    """The :class:`TuneInputs` of a resolved spec.
+
+    ``commission tune`` (:func:`load_tune_inputs`) and ``commission run``
+    (:func:`commission.validate.run_all`) both build their inputs here and tune them with
+    :func:`tune_from`, so that the same log and spec give the same tuning either way
+    (``observer_free`` and ``pid_free`` included).
+    """
+    return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=ident_sha256,
+                      log_sha256=log_sha256, seed=int(seed), notes=rs.notes, observer_free=rs.observer_free,
                       pid_free=rs.pid_free)
+
+
+def tune_from(inp: TuneInputs, *, progress: Progress | None = None, workers: int | None = None) -> Tuning:
+    """:func:`tune` on checked inputs, seeded with ``inp.seed`` (a fresh ``numpy.random.default_rng``)."""
+    return tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
+                ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
+                progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free)
 
 
 def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
@@ -1620,8 +1640,6 @@ def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str
         Bad input (the CLI's exit 2).
     """
     inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
-    t = tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
-             ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
-             progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free)
+    t = tune_from(inp, progress=progress, workers=workers)
     t.save(os.fspath(out_path))
     return t

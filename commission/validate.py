@@ -599,7 +599,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     from commission.identification import identify_log
     from commission.jsonio import canonical_json, sha256_json
     from commission.spec import read_spec_toml, spec_from_mapping
-    from commission.tune import resolve_spec, tune
+    from commission.tune import resolve_spec, tune_from, tune_inputs
 
     if seed < 0:
         raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
@@ -624,10 +624,11 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
     spec, notes = rs.spec, rs.notes
     resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
+    # The same inputs and call as ``commission tune`` on the ident.json written below.
+    inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=sha256_json(ident_doc),
+                         log_sha256=ident_out.log.sha256, seed=seed)
     try:
-        tuned = tune(rs.ident, spec, rng=np.random.default_rng(seed), seed=seed, ident_sha256=sha256_json(ident_doc),
-                     ident_path=str(out / IDENT_NAME), log_sha256=ident_out.log.sha256,
-                     progress=stage("tune"), workers=workers, pid_free=rs.pid_free)
+        tuned = tune_from(inputs, progress=stage("tune"), workers=workers)
     except DesignError as exc:
         raise SpecError(f"{spec_src}: {exc}") from None
     tuning_doc = tuned.to_dict()

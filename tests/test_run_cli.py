@@ -21,7 +21,7 @@ from commission.runtime import load_controller
 from commission.scenarios import case1_trajectory, case2_trajectory
 from commission.spec import load_spec
 from commission.synth import ExcitationPlan, random_axis, simulate_excitation, write_log_h5
-from commission.validate import FIGURE_NAMES
+from commission.validate import FIGURE_NAMES, run_all
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
 OUTPUTS = ("ident.json", "tuning.json", "validation.json", "report.md", "controller.json", *FIGURE_NAMES)
@@ -69,6 +69,40 @@ def test_run_refuses_bad_input_before_writing(tmp_path):
     r = invoke("run", SAMPLE, "--out-dir", out)
     assert r.exit_code == 2 and "ident.json: exists; pass --force" in r.output
     assert [p.name for p in out.iterdir()] == ["ident.json"]
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_run_tunes_the_same_inputs_as_identify_then_tune(tmp_path, monkeypatch):
+    """``run`` and ``identify`` -> ``tune`` hand tune the same inputs: notes, seed, and which defaults it may move.
+
+    (``run`` used to leave ``observer_free`` False, so its hold-out repair could never move a
+    defaulted observer pole where ``tune``'s could.)  The tuning itself is stopped at its start.
+    """
+    from commission import tune as tune_mod
+
+    seen = []
+
+    def capture(inp, **_):
+        seen.append(inp)
+        raise _Stop
+
+    monkeypatch.setattr(tune_mod, "tune_from", capture)
+    spec = tmp_path / "spec.toml"
+    spec.write_text("[targets]\ne_rms = 4e-6\n")
+    with pytest.raises(_Stop):
+        run_all(SAMPLE, tmp_path / "run", spec_path=spec, seed=3)
+    r = invoke("identify", SAMPLE, "--out", tmp_path / "ident.json")
+    assert r.exit_code == 0, r.output
+    expected = tune_mod.load_tune_inputs(tmp_path / "ident.json", spec_path=spec, seed=3)
+    (got,) = seen
+    assert got.observer_free and got.pid_free  # neither pole is in the spec
+    for field in ("spec", "ident_sha256", "log_sha256", "seed", "notes", "observer_free", "pid_free"):
+        assert getattr(got, field) == getattr(expected, field), field
+    assert got.ident.to_dict() | {"created_utc": None} == expected.ident.to_dict() | {"created_utc": None}
+    assert not (tmp_path / "run").exists()  # nothing written when tuning does not complete
 
 
 def true_axis_loop(ctrl, truth, traj, rng, substeps=10):
