@@ -40,6 +40,8 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
     c_u limit on a tuning scenario, the baseline runs at the fastest 0.95^k of it that does not
     (k <= 12; tuning.json: pid.pole, with a note)
   tune.budget = 96 candidates, monte_carlo = 0, margin = 0.01
+    (when defaulted: fewer where one candidate is slow to simulate, with a note; more where the best
+    fail the default gate on tune's hold-out plants and the work allows: tuning.json search.extension)
 A requested bandwidth w (rad/s) needs w / sample_rate <= 0.5.
 A bad spec (unknown key, negative rate, too low a sample rate) exits 2 naming the key.
 """
@@ -70,6 +72,8 @@ def print_summary(t: Tuning, console: Console) -> None:
     se = t.search
     if se.holdout_plants:
         hold = f"{min(se.holdout_failures)} failures on {se.holdout_plants} fresh plants + the tuning scenarios"
+        if se.extension:
+            hold += f" (after {se.extension} more search candidates)"
         if se.repair_failures is not None:
             hold += (f"; repair ({se.repair_evaluations} candidates): {se.repair_failures} after "
                      f"{'; '.join(se.repair_moves) or 'no accepted move'}")

@@ -60,7 +60,9 @@ Keys and defaults
         Left at its default, ``tune`` lowers it (to whole generations of 8, at
         least 48) where one candidate simulates more than 1.8 times the paper
         axis' work, as slow envelopes at 4-5 kHz do
-        (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``.
+        (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``;
+        and continues it where the best candidates fail the default gate on the
+        hold-out plants, up to that same work (:func:`commission.tune.search_extension`).
     ``monte_carlo`` = 0
         Monte-Carlo plants from the theta box added to the tuning subset.
     ``margin`` = 0.01

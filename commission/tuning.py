@@ -26,6 +26,8 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       history (cost of every candidate, evaluation order), holdout_plants,
                       holdout_failures (default-gate failures of each candidate compared on
                       the hold-out plants, best cost first; see commission.tune.select_on_holdout),
+                      extension (candidates the search continued with because its best failed
+                      there; 0: none; see commission.tune.search_extension),
                       repair_moves (moves accepted after the hold-out, in order, each naming the
                       gains it changed by more than 5 %, e.g. "k2 /1.18, w2 x1.38, ob /1.1"; see
                       commission.tune.repair_on_holdout), repair_evaluations,
@@ -208,7 +210,12 @@ class SearchRecord:
     holdout_plants : int
         Monte-Carlo plants of the hold-out selection (0: not run).
     holdout_failures : tuple of int
-        Default-gate failures of each candidate compared there, best cost first.
+        Default-gate failures of each candidate compared there, best cost first (after the
+        extension, when it ran).
+    extension : int
+        Candidates the search continued with because its best failed the hold-out gate
+        (:func:`commission.tune.search_extension`; 0: it did not).  ``n_evaluations``
+        includes them.
     repair_moves : tuple of str
         Moves of the hold-out repair, in order (empty: none accepted or not run); each names the
         gains it changed by more than 5 % (:func:`commission.tune.repair_on_holdout`).
@@ -227,6 +234,7 @@ class SearchRecord:
     history: tuple[float, ...] = ()
     holdout_plants: int = 0
     holdout_failures: tuple[int, ...] = ()
+    extension: int = 0
     repair_moves: tuple[str, ...] = ()
     repair_evaluations: int = 0
     repair_failures: int | None = None
@@ -237,6 +245,7 @@ class SearchRecord:
                 "free": {k: float(v) for k, v in self.free.items()},
                 "history": [_num_or_null(c) for c in self.history],
                 "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures),
+                "extension": self.extension,
                 "repair_moves": list(self.repair_moves), "repair_evaluations": self.repair_evaluations,
                 "repair_failures": self.repair_failures}
 
@@ -421,6 +430,7 @@ class Tuning:
                               history=_nullable_list(se, "history"),
                               holdout_plants=se.int_("holdout_plants") if se.has("holdout_plants") else 0,
                               holdout_failures=_int_list(se, "holdout_failures"),
+                              extension=se.int_("extension") if se.has("extension") else 0,
                               repair_moves=_str_list(se, "repair_moves"),
                               repair_evaluations=se.int_("repair_evaluations") if se.has("repair_evaluations") else 0,
                               repair_failures=(se.int_("repair_failures")

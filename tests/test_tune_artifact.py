@@ -6,6 +6,7 @@ import copy
 import dataclasses
 import json
 import math
+import zlib
 from types import SimpleNamespace
 
 import numpy as np
@@ -30,9 +31,11 @@ from commission.tune import (
     REPAIR_BUDGET,
     REPAIR_NAMES,
     STEP_FLOOR,
+    WORK_CAP,
     Evaluator,
     HoldoutGate,
     SearchResult,
+    SearchRun,
     apply_free,
     base_arc_gains,
     deployable_pid,
@@ -44,6 +47,7 @@ from commission.tune import (
     repair_coordinates,
     repair_on_holdout,
     search,
+    search_extension,
     search_step,
     select_on_holdout,
     tune,
@@ -293,6 +297,49 @@ def test_search_late_generations_still_spread_at_the_floor():
     rms = np.sqrt(np.mean(caps ** 2, axis=(1, 2)))
     assert 0.3 < rms[1] < 1.0  # step 0.6
     assert 0.05 < rms[11] < 0.2  # step 0.1; without the floor 0.6**11 = 0.004
+
+
+def _hashed_scores(kind, packs):
+    """Stub evaluator: one score per pack, its e_rms a fixed function of the pack's bytes."""
+    out = []
+    for p in packs:
+        e = 1e-6 * (1.0 + (zlib.crc32(np.ascontiguousarray(p).tobytes()) % 1000) / 1000.0)
+        out.append([Score(e_M=1e-5, e_F=1e-6, e_rms=e, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)])
+    return out
+
+
+def test_a_continued_search_equals_the_larger_budget_at_once():
+    """:class:`SearchRun`: 16 candidates, then 24 more, are the 40 of one search (tune's extension relies on it).
+
+    The stub's costs differ between candidates, so the centre of each generation moves.
+    """
+    spec = default_spec()
+    base = base_arc_gains(ref_ident(), spec)
+    ev = SimpleNamespace(scores=_hashed_scores, weights=[1.0])
+    holds = SimpleNamespace(holds=True)
+    once = search(base, ev, spec, np.random.default_rng(5), feasible=lambda g: holds, budget=40)
+    run = SearchRun(base, ev, spec, feasible=lambda g: holds)
+    rng = np.random.default_rng(5)
+    run.advance(16, rng)
+    first = run.result()
+    run.advance(24, rng)
+    both = run.result()
+    assert len(first.history) == 16 and first.history == once.history[:16]
+    assert both.history == once.history and np.array_equal(both.x, once.x) and both.best == once.best
+    assert len(set(once.history)) > 30  # the stub does tell the candidates apart
+
+
+def test_search_extension_fills_the_work_of_the_slowest_default_search(monkeypatch):
+    """Closed form: POP x floor((budget x WORK_CAP / work - budget) / POP), within [0, budget]; 0 if the budget was given."""
+    spec = default_spec()
+    ident = ref_ident()
+    for work, expected in ((WORK_CAP * 96 / 140, 40),  # room 44 -> 40
+                           (WORK_CAP * 96 / 176, 80),
+                           (WORK_CAP / 3, 96),  # room 192: at most the budget again
+                           (WORK_CAP, 0), (2 * WORK_CAP, 0)):
+        monkeypatch.setattr(tune_mod, "candidate_work", lambda i, s, w=work: w)
+        assert search_extension(spec, ident, given=False) == expected, work
+        assert search_extension(spec, ident, given=True) == 0
 
 
 @pytest.fixture(scope="module")
