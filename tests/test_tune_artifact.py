@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from commission import tune as tune_mod
 from commission.cli.main import app
 from commission.controllers.arc import ArcGains, arc_pack
-from commission.controllers.pid import PidGains, pid_pack
+from commission.controllers.pid import G_KD, PidGains, pid_pack
 from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
 from commission.paper import reference_identification
@@ -434,7 +434,6 @@ def test_repair_moves_away_from_destabilising_gains(holdout_setup):
 
 def _kd_chatter_evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
     """A stub Evaluator whose PID c_u is proportional to the packed Kd, on ``n`` scenarios."""
-    from commission.controllers.pid import G_KD
 
     def scores(kind, packs):
         assert kind == KIND_PID
