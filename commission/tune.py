@@ -812,10 +812,13 @@ def search_step(generation: int) -> float:
 class SearchRun:
     """The state of one search (:func:`search`), which :meth:`advance` can continue.
 
-    Continuing is the same as having asked for the larger budget at once: every candidate
-    depends only on the Generator's draws and the candidates before it, and the step of
-    each generation only on its index (:func:`search_step`).  :func:`tune` continues a
-    search whose best candidates fail the hold-out gate (:func:`search_extension`).
+    Continuing after whole generations (a multiple of ``POP``, as every defaulted budget
+    is) with the same Generator is the same as having asked for the larger budget at once:
+    every candidate depends only on the Generator's draws and the candidates before it, and
+    the step of each generation only on its index (:func:`search_step`).  :func:`tune`
+    continues a search whose best candidates fail the hold-out gate
+    (:func:`search_extension`); it draws the hold-out plants from the Generator in between,
+    so its continued candidates are not those of a larger budget at once.
     """
 
     def __init__(self, base: ArcGains, ev: Evaluator, spec: Spec, *,
