@@ -2,7 +2,9 @@
 
 Target: at most 5 s (median) on 2 cores for the default path (friction ladder
 present, ``friction="stribeck"``, with a ripple pitch).  Also prints the Coulomb
-fit and, for information, the whole-log Stribeck fallback (``use_steady=False``).
+fit and, for information, the whole-log Stribeck fallback (``use_steady=False``),
+and what reading an HDF5 log in the isolated child process costs against reading
+it in this process (the same 10^6-sample log written to a temporary .h5).
 
 Run: ``python benchmarks/bench_identify.py [--runs 3]``
 """
@@ -13,10 +15,13 @@ import argparse
 import importlib.util
 import pathlib
 import statistics
+import tempfile
 import time
 
+import h5py
 import numpy as np
 
+from commission import logs
 from commission.identify import fit_axis
 
 TARGET_S = 5.0
@@ -62,6 +67,18 @@ def main() -> None:
     print(f"fit_axis coulomb  (method {fit.method}): median {med:.2f} s")
     med, fit = _median_time(lambda: fit_axis(t, q, u, friction="stribeck", ripple_pitch=0.03, use_steady=False), 1)
     print(f"fit_axis stribeck whole-log fallback (use_steady=False): {med:.2f} s (1 run, information only)")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = pathlib.Path(tmp) / "log.h5"
+        with h5py.File(path, "w") as f:
+            for k, v in (("t", t), ("q", q), ("u", u)):
+                f.create_dataset(k, data=v)
+        data = path.read_bytes()
+        read = {name: _median_time(lambda fn=getattr(logs, name): fn(data, "log.h5", "HDF5", {}, True, matlab=False),
+                                   max(args.runs, 5))[0] for name in ("_read_hdf5_here", "_read_hdf5")}
+    print(f"HDF5 read of {len(data) / 1e6:.0f} MB: in process {1e3 * read['_read_hdf5_here']:.0f} ms, "
+          f"isolated child {1e3 * read['_read_hdf5']:.0f} ms (median; ratio "
+          f"{read['_read_hdf5'] / read['_read_hdf5_here']:.2f})")
 
 
 if __name__ == "__main__":

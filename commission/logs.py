@@ -21,9 +21,13 @@ from __future__ import annotations
 import csv
 import hashlib
 import io
+import json
 import math
 import os
+import select
+import signal
 import struct
+import time
 import warnings
 import zlib
 from dataclasses import dataclass
@@ -431,7 +435,126 @@ def _attr_text(value: object) -> object:
     return value
 
 
+#: Time allowed to read an HDF5 file in the isolated reader: this many seconds ...
+HDF5_READ_TIMEOUT = 20.0
+#: ... plus the file's size at this rate (bytes/s; the file is already in memory).
+HDF5_READ_RATE = 20e6
+#: Error classes a child reader may report; anything else becomes an InputFileError.
+_CHILD_ERRORS = {cls.__name__: cls for cls in (DataError, InputFileError, UsageError)}
+
+
+class _Unparsed:
+    """A non-text unit attribute, carried from the child reader by its ``repr``."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
 def _read_hdf5(
+    data: bytes, label: str, kind: str, mapping: Mapping[str, str], need_t: bool, *, matlab: bool,
+    timeout: float | None = None,
+) -> _Raw:
+    """Read an HDF5 (or MATLAB v7.3) log in a forked child process, with a deadline.
+
+    A damaged file can send libhdf5 into an endless loop inside one C call, which
+    nothing in this process could interrupt: a one-byte change to the free-space
+    record of the global heap that holds a variable-length string attribute
+    (``q_unit``) does it with h5py 3.16 / HDF5 2.0.  The child reads the file and
+    sends back the validated vectors (``.npy`` bytes, never pickle) or the error;
+    past ``timeout`` seconds (default :data:`HDF5_READ_TIMEOUT` + size /
+    :data:`HDF5_READ_RATE`) it is killed and the file refused.  A child that dies
+    (a crash in the library) is refused the same way.  Without ``os.fork``
+    (Windows) the file is read in this process, unguarded.
+    """
+    if not hasattr(os, "fork"):
+        return _read_hdf5_here(data, label, kind, mapping, need_t, matlab=matlab)
+    if timeout is None:
+        timeout = HDF5_READ_TIMEOUT + len(data) / HDF5_READ_RATE
+    rfd, wfd = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child; its result is checked through the parent
+        try:
+            os.close(rfd)
+            try:
+                blob = _encode_raw(_read_hdf5_here(data, label, kind, mapping, need_t, matlab=matlab))
+            except CommissionError as exc:
+                blob = _encode_error(exc)
+            except BaseException as exc:  # noqa: BLE001 - reported to the parent as unreadable
+                blob = _encode_error(InputFileError(f"{label}: not a readable {kind} file ({_why(exc)})"))
+            with os.fdopen(wfd, "wb") as out:
+                out.write(blob)
+        finally:
+            os._exit(0)  # no atexit handlers, no flushing of the parent's buffers
+    os.close(wfd)
+    chunks: list[bytes] = []
+    deadline = time.monotonic() + timeout
+    done = False
+    try:
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0.0 or not select.select([rfd], [], [], left)[0]:
+                break
+            chunk = os.read(rfd, 1 << 20)
+            if not chunk:
+                done = True
+                break
+            chunks.append(chunk)
+    finally:
+        os.close(rfd)
+        if not done:
+            os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    if not done:
+        raise InputFileError(
+            f"{label}: not a readable {kind} file (the HDF5 library did not finish reading it "
+            f"within {timeout:.0f} s; the file is probably damaged)"
+        )
+    return _decode_raw(b"".join(chunks), label, kind)
+
+
+def _encode_raw(raw: _Raw) -> bytes:
+    def unit(v: object) -> object:
+        return v if v is None or isinstance(v, str) else {"repr": repr(v)}
+
+    blobs, vectors = [], []
+    for ch, (arr, shown, src) in raw.vectors.items():
+        buf = io.BytesIO()
+        np.save(buf, arr, allow_pickle=False)
+        blobs.append(buf.getvalue())
+        vectors.append([ch, list(shown), src, len(blobs[-1])])
+    head = json.dumps({"q_unit": unit(raw.q_unit), "u_unit": unit(raw.u_unit), "vectors": vectors}).encode()
+    return b"R" + struct.pack("<Q", len(head)) + head + b"".join(blobs)
+
+
+def _encode_error(exc: CommissionError) -> bytes:
+    name = type(exc).__name__ if type(exc).__name__ in _CHILD_ERRORS else "InputFileError"
+    return b"E" + json.dumps({"class": name, "message": str(exc)}).encode()
+
+
+def _decode_raw(blob: bytes, label: str, kind: str) -> _Raw:
+    if blob[:1] == b"E":
+        err = json.loads(blob[1:])
+        raise _CHILD_ERRORS[err["class"]](err["message"])
+    if blob[:1] != b"R" or len(blob) < 9:
+        raise InputFileError(f"{label}: not a readable {kind} file (the HDF5 reader stopped without a result)")
+    (n,) = struct.unpack("<Q", blob[1:9])
+    head = json.loads(blob[9:9 + n])
+
+    def unit(v: object) -> object:
+        return _Unparsed(v["repr"]) if isinstance(v, dict) else v
+
+    vectors, pos = {}, 9 + n
+    for ch, shown, src, size in head["vectors"]:
+        arr = np.load(io.BytesIO(blob[pos:pos + size]), allow_pickle=False)
+        vectors[ch] = (arr, tuple(shown), src)
+        pos += size
+    return _Raw(vectors, unit(head["q_unit"]), unit(head["u_unit"]))
+
+
+def _read_hdf5_here(
     data: bytes, label: str, kind: str, mapping: Mapping[str, str], need_t: bool, *, matlab: bool
 ) -> _Raw:
     try:
