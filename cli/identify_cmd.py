@@ -24,6 +24,8 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
+Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
+               "default m. Refused when it contradicts the file's attribute.")
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
                  "with a warning; stribeck: refuse a log that does not support it.")
 
@@ -103,6 +105,7 @@ def identify_command(
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
     u_unit: Optional[str] = typer.Option(None, "--u-unit", help="Unit of u after --input-gain (V, N, A); default: the file's."),
     sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
+    q_unit: Optional[str] = typer.Option(None, "--q-unit", help=Q_UNIT_HELP),
     friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
     ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="Force-ripple pitch P in m: fits sin/cos(2πq/P)."),
     validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="Second log for the cross-test relative error."),
@@ -126,6 +129,7 @@ def identify_command(
             str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
             friction=friction.value, ripple_pitch=ripple_pitch,
             validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
+            q_unit=q_unit,
         )
     write_json_atomic(out, outcome.ident.to_dict())
     print_summary(outcome, console)

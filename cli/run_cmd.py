@@ -9,7 +9,7 @@ import typer
 from rich.console import Console
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
-from commission.cli.identify_cmd import FRICTION_HELP, Friction
+from commission.cli.identify_cmd import FRICTION_HELP, Q_UNIT_HELP, Friction
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import print_summary
@@ -26,6 +26,7 @@ def run_command(
     map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
     sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
+    q_unit: Optional[str] = typer.Option(None, "--q-unit", help=Q_UNIT_HELP),
     friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
     gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),
@@ -46,7 +47,7 @@ def run_command(
             bar.update(stages.get(stage, stage), done, total)
 
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                          friction=friction.value, spec_path=spec, gate_path=gate, force=force, seed=seed,
+                          friction=friction.value, q_unit=q_unit, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
     pid_note = pid_pole_note(outcome.validation.tuning)
     for note in (*outcome.notes, *(() if pid_note is None else (pid_note,))):

@@ -115,6 +115,7 @@ def identify_log(
     validate_on: str | None = None,
     bounds: BoundsOptions = BoundsOptions(),
     u_unit: str | None = None,
+    q_unit: str | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log.
 
@@ -141,6 +142,9 @@ def identify_log(
         Declared operating range.
     u_unit : {"V", "N", "A"}, optional
         Unit of ``u`` after ``input_gain``; default the file's unit.
+    q_unit : {"m", "mm", "um"}, optional
+        Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m.
+        Applies to ``validate_on`` too.
 
     Returns
     -------
@@ -152,7 +156,7 @@ def identify_log(
         raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
     if u_unit is not None and u_unit not in U_UNITS:
         raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
-    log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate)
+    log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit)
     checks = check_log(log)
     unit_warnings = []
     if u_unit is None and input_gain != 1.0:
@@ -161,7 +165,8 @@ def identify_log(
     val_log = None
     if validate_on is not None:
         # Load and check the second log before the (long) fit: bad input fails fast.
-        val_log = load_log(validate_on, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate)
+        val_log = load_log(validate_on, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+                           q_unit=q_unit)
         check_log(val_log)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
@@ -201,6 +206,7 @@ def identify_log(
             "sample_rate": float(log.sample_rate),
             "input_gain": float(input_gain),
             "mapping": dict(mapping or {}),
+            "q_unit": log.q_unit_in_file,
         },
         "validation_source": (
             {"path": str(validate_on), "sha256": val_log.sha256} if val_log is not None else None

@@ -246,6 +246,7 @@ def load_log(
     mapping: Mapping[str, str] | None = None,
     input_gain: float = 1.0,
     sample_rate: float | None = None,
+    q_unit: str | None = None,
 ) -> ExcitationLog:
     """Load an excitation log (CONTRACT §1) from HDF5, CSV or MATLAB.
 
@@ -255,7 +256,7 @@ def load_log(
     tab separated, ``#`` comment lines allowed); ``.mat`` (v5 read with
     :func:`scipy.io.loadmat`, v7.3 read as HDF5; the latter's root attributes
     ``q_unit``/``u_unit`` are honoured as for ``.h5``).  CSV and v5 MAT files
-    carry no unit metadata: ``q`` is in m and ``u`` in V.  Column and row
+    carry no unit metadata: ``q`` is in m (or ``q_unit``) and ``u`` in V.  Column and row
     vectors (N×1, 1×N) are flattened, since MATLAB has no 1-D arrays.
 
     Parameters
@@ -274,6 +275,10 @@ def load_log(
         (``t = arange(n) / sample_rate``).  When the file has one, the rate is
         only cross-checked: ``t`` is kept, and a rate that differs from
         ``1 / median(diff(t))`` by more than 1 % is an error.
+    q_unit : {"m", "mm", "um"}, optional
+        Unit of ``q`` (and ``q_ref``) in the file, for files without a ``q_unit``
+        attribute (CSV, v5 MAT, HDF5 without it); default m.  A file whose
+        attribute names another unit is refused (``--q-unit`` contradicts it).
 
     Returns
     -------
@@ -289,8 +294,9 @@ def load_log(
         A channel missing or not numeric, not a vector, lengths that differ,
         an unknown unit attribute, an empty log.
     UsageError
-        Bad ``mapping`` key, ``input_gain`` or ``sample_rate``, or a
-        ``sample_rate`` that contradicts ``t``.
+        Bad ``mapping`` key, ``input_gain``, ``sample_rate`` or ``q_unit``, a
+        ``sample_rate`` that contradicts ``t``, or a ``q_unit`` that contradicts
+        the file's attribute.
     """
     label = os.fspath(path)
     mapping = dict(mapping or {})
@@ -306,6 +312,8 @@ def load_log(
         sample_rate = float(sample_rate)
         if not math.isfinite(sample_rate) or sample_rate <= 0.0:
             raise UsageError(f"--sample-rate: expected a finite positive rate in Hz, got {sample_rate!r}")
+    if q_unit is not None and q_unit not in Q_UNITS:
+        raise UsageError(f"--q-unit: expected one of {', '.join(Q_UNITS)}, got {q_unit!r}")
 
     p = Path(path)
     fmt = _EXTENSIONS.get(p.suffix.lower())
@@ -333,7 +341,7 @@ def load_log(
         raw = _read_hdf5(data, label, "MATLAB v7.3", mapping, need_t, matlab=True)
     else:
         raw = _read_mat5(data, label, mapping, need_t)
-    return _assemble(raw, label, gain, sample_rate, hashlib.sha256(data).hexdigest())
+    return _assemble(raw, label, gain, sample_rate, q_unit, hashlib.sha256(data).hexdigest())
 
 
 # --------------------------------------------------------------------------- #
@@ -798,7 +806,8 @@ def _locate_bad_cell(
 # --------------------------------------------------------------------------- #
 # Common assembly: lengths, units, gain, time base.
 # --------------------------------------------------------------------------- #
-def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, digest: str) -> ExcitationLog:
+def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_unit_given: str | None,
+              digest: str) -> ExcitationLog:
     vec = raw.vectors
     q, q_shape, q_src = vec["q"]
     n = q.shape[0]
@@ -811,10 +820,12 @@ def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, dig
     if n == 0:
         raise DataError(f"{label}: {_what('q', q_src)} is empty")
 
-    q_unit = "m" if raw.q_unit is None else raw.q_unit
+    q_unit = (q_unit_given or "m") if raw.q_unit is None else raw.q_unit
     u_unit = "V" if raw.u_unit is None else raw.u_unit
     if not isinstance(q_unit, str) or q_unit not in Q_UNITS:
         raise DataError(f"{label}: attribute q_unit={q_unit!r} not supported (expected m, mm or um)")
+    if q_unit_given is not None and q_unit != q_unit_given:
+        raise UsageError(f"--q-unit {q_unit_given} disagrees with {label}: its attribute q_unit={q_unit!r}")
     if not isinstance(u_unit, str) or u_unit not in U_UNITS:
         raise DataError(f"{label}: attribute u_unit={u_unit!r} not supported (expected V, N or A)")
 

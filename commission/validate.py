@@ -550,7 +550,7 @@ class RunOutcome:
 
 def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
             mapping: Mapping[str, str] | None = None, input_gain: float = 1.0,
-            sample_rate: float | None = None, friction: str = "auto",
+            sample_rate: float | None = None, friction: str = "auto", q_unit: str | None = None,
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
@@ -572,8 +572,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     log_path : path
         Excitation log (CONTRACT §1).
     out_dir : path
-    mapping, input_gain, sample_rate, friction
-        As ``commission identify`` (``--map``, ``--input-gain``, ``--sample-rate``, ``--friction``).
+    mapping, input_gain, sample_rate, friction, q_unit
+        As ``commission identify`` (``--map``, ``--input-gain``, ``--sample-rate``, ``--friction``,
+        ``--q-unit``).
     spec_path : path, optional
         Tuning spec (``commission tune --spec``); default: the paper's setting.
     gate_path : path, optional
@@ -617,7 +618,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
 
     stage("identify")(0, 1)
     ident_out = identify_log(os.fspath(log_path), mapping=mapping, input_gain=input_gain,
-                             sample_rate=sample_rate, friction=friction)  # type: ignore[arg-type]
+                             sample_rate=sample_rate, friction=friction,  # type: ignore[arg-type]
+                             q_unit=q_unit)
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))

@@ -187,3 +187,29 @@ def test_friction_auto_falls_back_to_coulomb_where_stribeck_refuses(tmp_path):
     out2 = tmp_path / "strict.json"
     r = runner.invoke(app, ["identify", str(tmp_path / "fast.h5"), "--friction", "stribeck", "--out", str(out2)])
     assert r.exit_code == 2 and "too few samples below 3*vs" in r.output and not out2.exists()
+
+
+def test_csv_in_millimetres_with_q_unit_identifies_as_the_metre_log(tmp_path):
+    # The bundled CSV (metres) rewritten in mm: with --q-unit mm the fit must not change.
+    table = np.genfromtxt(SAMPLE / "axis_excitation.csv", delimiter=",", names=True)
+    mm = tmp_path / "axis_mm.csv"
+    cols = [table["t"], table["q"] * 1e3, table["u"], table["q_ref"] * 1e3]
+    np.savetxt(mm, np.column_stack(cols), delimiter=",", header="t,q,u,q_ref", comments="", fmt="%.17g")
+    out_m, out_mm = tmp_path / "m.json", tmp_path / "mm.json"
+    assert invoke(["identify", str(SAMPLE / "axis_excitation.csv"), "--out", str(out_m)]).exit_code == 0
+    r = invoke(["identify", str(mm), "--q-unit", "mm", "--out", str(out_mm)])
+    assert r.exit_code == 0, r.output
+    dm, dmm = (json.loads(p.read_text()) for p in (out_m, out_mm))
+    assert (dm["source"]["q_unit"], dmm["source"]["q_unit"]) == ("m", "mm")
+    pm, pmm = dm["parameters"], dmm["parameters"]
+    for k in ("M", "B", "fc", "offset"):
+        assert pmm[k]["value"] == pytest.approx(pm[k]["value"], rel=1e-9), k
+
+
+def test_q_unit_contradicting_the_file_is_exit_2_and_writes_nothing(tmp_path):
+    out = tmp_path / "ident.json"
+    r = runner.invoke(app, ["identify", str(SAMPLE / "axis_excitation.h5"), "--q-unit", "mm", "--out", str(out)])
+    assert r.exit_code == 2
+    assert not out.exists()
+    r2 = runner.invoke(app, ["identify", str(SAMPLE / "axis_excitation.h5"), "--q-unit", "in", "--out", str(out)])
+    assert r2.exit_code == 2 and "--q-unit: expected one of m, mm, um, got 'in'" in r2.output

@@ -384,6 +384,28 @@ def test_unknown_unit_attributes(tmp_path, attrs, match):
         load_log(path)
 
 
+@pytest.mark.parametrize("ext, unit, per_metre", [("csv", "mm", 1e3), ("mat", "um", 1e6), ("h5", "m", 1.0)])
+def test_q_unit_option_converts_files_without_the_attribute(tmp_path, ext, unit, per_metre):
+    a = reference_arrays(40)
+    scaled = {**a, "q": a["q"] * per_metre, "q_ref": a["q_ref"] * per_metre}
+    path = tmp_path / f"log.{ext}"
+    WRITERS[ext](path, scaled)
+    log = load_log(path, q_unit=unit)
+    assert log.q_unit_in_file == unit
+    np.testing.assert_allclose(log.q, a["q"], rtol=1e-15, atol=0.0)
+    np.testing.assert_allclose(log.q_ref, a["q_ref"], rtol=1e-15, atol=0.0)
+
+
+def test_q_unit_option_must_agree_with_the_attribute(tmp_path):
+    path = tmp_path / "units.h5"
+    write_h5(path, reference_arrays(10), attrs={"q_unit": "mm"})
+    assert load_log(path, q_unit="mm").q_unit_in_file == "mm"
+    with pytest.raises(UsageError, match=r"^--q-unit um disagrees with .*units\.h5: its attribute q_unit='mm'$"):
+        load_log(path, q_unit="um")
+    with pytest.raises(UsageError, match=r"^--q-unit: expected one of m, mm, um, got 'in'$"):
+        load_log(path, q_unit="in")
+
+
 def test_non_text_unit_attribute_is_named_by_its_value(tmp_path):
     # Crosses the isolated HDF5 reader as a repr, not as a string: still refused, same message.
     path = tmp_path / "units.h5"
