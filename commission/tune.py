@@ -78,7 +78,7 @@ import datetime as _dt
 import math
 import os
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -1187,14 +1187,20 @@ class HoldoutChoice:
 
 
 def select_on_holdout(res: SearchResult, base: ArcGains, hg: HoldoutGate,
-                      feasible: Callable[[ArcGains], FeasibilityReport]) -> HoldoutChoice:
+                      feasible: Callable[[ArcGains], FeasibilityReport],
+                      memo: dict[tuple[str, bytes], Any] | None = None) -> HoldoutChoice:
     """Choose among the best feasible candidates by validate's default gate on unseen plants.
 
     The objective is a smooth surrogate, scored on the tuning scenarios only.  So the
     :data:`HOLDOUT_CANDIDATES` lowest-cost candidates whose discrete feasibility holds are
     judged by ``hg`` (the default gate over the tuning scenarios and the hold-out plants):
     the candidate with the fewest failures wins, ties going to the lower cost.
+
+    ``memo`` (keyed by a candidate's relative free gains) keeps feasibility reports and
+    judgements across calls with the same ``hg``: after the search's extension most of
+    the six best were judged already, and a judgement depends only on the gains.
     """
+    memo = {} if memo is None else memo
     order: list[int] = []
     reps: dict[int, FeasibilityReport] = {}
     for i in range(len(res.costs)):
@@ -1202,14 +1208,20 @@ def select_on_holdout(res: SearchResult, base: ArcGains, hg: HoldoutGate,
             break
         if any(r.diverged for r in res.scores[i]):
             continue
-        rep = res.feasibility[i] or feasible(apply_free(base, res.x[i]))
-        reps[i] = rep
+        key = ("feasibility", res.x[i].tobytes())
+        rep = res.feasibility[i] or memo.get(key) or feasible(apply_free(base, res.x[i]))
+        memo[key] = reps[i] = rep
         if rep.holds:
             order.append(i)
     if not order:  # nothing feasible: report the best candidate, failing
         i = res.best if res.best is not None else 0
         return HoldoutChoice(i, 0, (), reps.get(i, res.feasibility[i]))
-    judged = hg.judge([apply_free(base, res.x[i]) for i in order], [res.scores[i] for i in order])
+    keys = {i: ("judgement", res.x[i].tobytes()) for i in order}
+    todo = [i for i in order if keys[i] not in memo]
+    if todo:
+        for i, j in zip(todo, hg.judge([apply_free(base, res.x[i]) for i in todo], [res.scores[i] for i in todo])):
+            memo[keys[i]] = j
+    judged = [memo[keys[i]] for i in order]
     best = min(range(len(order)), key=lambda k: (judged[k][1], k))
     return HoldoutChoice(order[best], hg.n_plants, tuple(j[1] for j in judged), reps[order[best]],
                          judged[best][2])
@@ -1502,13 +1514,14 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     run.advance(spec.budget, rng, progress, total)
     res = run.result()
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
-    holdout = select_on_holdout(res, base, hg, feasible)
+    memo: dict[tuple[str, bytes], Any] = {}
+    holdout = select_on_holdout(res, base, hg, feasible, memo)
     extended = 0
     if extension > 0 and holdout.failures and min(holdout.failures) > 0:
         # The surrogate's best still fail the gate on unseen plants: search on, then choose again among all.
         run.advance(extension, rng, progress, total)
         res, extended = run.result(), extension
-        holdout = select_on_holdout(res, base, hg, feasible)
+        holdout = select_on_holdout(res, base, hg, feasible, memo)
     chosen_i = holdout.chosen
     chosen_rep = holdout.feasibility or feasible(apply_free(base, res.x[chosen_i]))
     x_chosen, arc_scores = res.x[chosen_i], res.scores[chosen_i]
@@ -1523,7 +1536,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     chosen = apply_free(base, x_chosen)
     if repaired is not None and repaired.observer_pole != spec.observer_pole:
         observer = observer_design(repaired.observer_pole, spec.period)
-        chosen = with_observer(chosen, repaired.observer_pole)
+        chosen = dataclasses.replace(chosen, k1=observer.k1, k2=observer.k2)  # as with_observer, designed once
     if progress is not None:
         progress(n_search + 1 + n_repair, total)
     pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,

@@ -378,6 +378,37 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     assert ch.chosen == 1
 
 
+def test_holdout_selection_judges_each_candidate_once_with_a_memo(holdout_setup):
+    """After the search's extension the six best are chosen again: the ones judged before
+    come from the memo, and the choice equals judging all of them afresh."""
+    ident, spec, base, ev, hg = holdout_setup
+    judged: list[int] = []
+
+    class Spy:
+        n_plants = hg.n_plants
+
+        def judge(self, gains, tune_scores=None):
+            judged.append(len(gains))
+            return hg.judge(gains, tune_scores)
+
+    holds = SimpleNamespace(holds=True)
+    x2 = np.array([BAD_X, [1.0] * 9])
+    x3 = np.array([BAD_X, [1.2, 0.8, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0], [1.0] * 9])
+
+    def result(x):
+        scores = ev.scores(KIND_ARC, [arc_pack(apply_free(base, xi)) for xi in x])
+        costs = np.arange(len(x), dtype=float)
+        return SearchResult(x=x, costs=costs, scores=scores, feasibility=[holds] * len(x), cost_initial=0.0,
+                            history=tuple(costs), best=0)
+
+    memo: dict = {}
+    select_on_holdout(result(x2), base, Spy(), lambda g: holds, memo)
+    again = select_on_holdout(result(x3), base, Spy(), lambda g: holds, memo)
+    assert judged == [2, 1]  # the middle candidate is the only new one
+    fresh = select_on_holdout(result(x3), base, hg, lambda g: holds)
+    assert (again.chosen, again.failures, again.excess) == (fresh.chosen, fresh.failures, fresh.excess)
+
+
 def test_repair_coordinates_move_a_cap_and_keep_g():
     """Closed form of the repair's coordinates: a round trip is the identity inside the box,
     a lower k2 cap keeps the absolute g2 while g2 fits under it, and then clips g2 to the cap."""
