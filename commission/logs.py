@@ -462,8 +462,7 @@ class _Unparsed:
 
 
 def _read_hdf5(
-    data: bytes, label: str, kind: str, mapping: Mapping[str, str], need_t: bool, *, matlab: bool,
-    timeout: float | None = None,
+    data: bytes, label: str, kind: str, mapping: Mapping[str, str], need_t: bool, *, matlab: bool
 ) -> _Raw:
     """Read an HDF5 (or MATLAB v7.3) log in a forked child process, with a deadline.
 
@@ -472,15 +471,14 @@ def _read_hdf5(
     record of the global heap that holds a variable-length string attribute
     (``q_unit``) does it with h5py 3.16 / HDF5 2.0.  The child reads the file and
     sends back the validated vectors (``.npy`` bytes, never pickle) or the error;
-    past ``timeout`` seconds (default :data:`HDF5_READ_TIMEOUT` + size /
-    :data:`HDF5_READ_RATE`) it is killed and the file refused.  A child that dies
+    past :data:`HDF5_READ_TIMEOUT` + size / :data:`HDF5_READ_RATE` seconds it is
+    killed and the file refused.  A child that dies
     (a crash in the library) is refused the same way.  Without ``os.fork``
     (Windows) the file is read in this process, unguarded.
     """
     if not hasattr(os, "fork"):
         return _read_hdf5_here(data, label, kind, mapping, need_t, matlab=matlab)
-    if timeout is None:
-        timeout = HDF5_READ_TIMEOUT + len(data) / HDF5_READ_RATE
+    timeout = HDF5_READ_TIMEOUT + len(data) / HDF5_READ_RATE
     rfd, wfd = os.pipe()
     pid = os.fork()
     if pid == 0:  # pragma: no cover - the child; its result is checked through the parent
