@@ -211,6 +211,24 @@ def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> A
                      noise_std=noise_std, u_max=10.0)
 
 
+def write_random_axis_log(seed: int, path: str | os.PathLike[str]) -> AxisTruth:
+    """Draw random axis ``seed`` and write its commissioning log (HDF5) to ``path``.
+
+    The axis is ``random_axis(default_rng(seed))``; its log is :func:`simulate_excitation`
+    with the default :class:`ExcitationPlan` and ``default_rng(seed + 1000)``.  This is the
+    numbering of the random-axes tests and of ``benchmarks/sweep_random_axes.py``
+    ("axis 16" is seed 16).
+
+    Returns
+    -------
+    AxisTruth
+        The known truth (not used by the pipeline).
+    """
+    truth = random_axis(np.random.default_rng(seed))
+    write_log_h5(path, simulate_excitation(truth, ExcitationPlan(), np.random.default_rng(seed + 1000)))
+    return truth
+
+
 # --------------------------------------------------------------------------- plan
 
 

@@ -51,7 +51,7 @@ import pytest
 from commission.gate import GateSpec
 from commission.identification import identify_log
 from commission.jsonio import write_json_atomic
-from commission.synth import ExcitationPlan, random_axis, simulate_excitation, write_log_h5
+from commission.synth import write_random_axis_log
 from commission.tune import run_tune
 from commission.validate import validate
 
@@ -61,8 +61,7 @@ pytestmark = pytest.mark.slow
 def _pipeline(seed: int, tmp_path_factory):
     """Simulate axis ``seed``'s log, identify, tune (seed 0), validate (seed 0)."""
     d = tmp_path_factory.mktemp(f"axis{seed}")
-    truth = random_axis(np.random.default_rng(seed))
-    write_log_h5(d / "log.h5", simulate_excitation(truth, ExcitationPlan(), np.random.default_rng(seed + 1000)))
+    truth = write_random_axis_log(seed, d / "log.h5")
     ident = identify_log(str(d / "log.h5")).ident
     write_json_atomic(d / "ident.json", ident.to_dict())
     tuning = run_tune(d / "ident.json", d / "tuning.json", seed=0)

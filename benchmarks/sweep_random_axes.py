@@ -1,0 +1,87 @@
+"""Must-show 2 of issue #4 as a measurement: random axes -> identify -> tune -> validate.
+
+For each seed, :func:`commission.synth.write_random_axis_log` draws an axis the repository
+does not contain and simulates its commissioning log; the product then identifies it
+(defaults), tunes it (default spec, ``--tune-seed``) and validates the tuning against the
+default gate on the full matrix (12 fixed scenarios + 64 Monte-Carlo plants, seed 0).
+One line per axis: passed or not, failures by criterion, the first failures, the tune
+time; then "N of M pass".  Refused axes (exit-2 errors) are counted as not passing.
+
+About two minutes per axis on 2 cores (tune <= 120 s, validate ~20 s); seeds 0-29 take
+about an hour.  Nothing is asserted: the tests run a fixed subset
+(``tests/test_tune_random_axes.py``).
+
+Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-29] [--tune-seed 0] [--workdir DIR]``
+(``--seeds`` takes ``A-B`` and/or comma lists; ``--workdir`` keeps log.h5, ident.json and
+tuning.json of each axis under ``DIR/axisN``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import pathlib
+import tempfile
+import time
+
+from commission.errors import CommissionError
+from commission.gate import GateSpec
+from commission.identification import identify_log
+from commission.jsonio import write_json_atomic
+from commission.synth import write_random_axis_log
+from commission.tune import run_tune
+from commission.validate import validate
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"0-3,16"`` -> ``[0, 1, 2, 3, 16]``."""
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def sweep_axis(seed: int, workdir: pathlib.Path, tune_seed: int) -> tuple[bool, str]:
+    """Identify, tune and validate random axis ``seed``; ``(passed, one-line summary)``."""
+    d = workdir / f"axis{seed}"
+    d.mkdir(parents=True, exist_ok=True)
+    truth = write_random_axis_log(seed, d / "log.h5")
+    head = (f"axis {seed:2d}: {truth.sample_rate / 1e3:g} kHz, M {truth.M:.3g} V s^2/m, "
+            f"encoder {truth.lsb * 1e6:.2g} um")
+    t0 = time.perf_counter()
+    try:
+        ident = identify_log(str(d / "log.h5")).ident
+        write_json_atomic(d / "ident.json", ident.to_dict())
+        tuning = run_tune(d / "ident.json", d / "tuning.json", seed=tune_seed)
+    except CommissionError as exc:
+        return False, f"{head}: REFUSED ({exc})"
+    t_tune = time.perf_counter() - t0
+    res = validate(tuning, GateSpec(), seed=0)
+    fails = res.verdict.failures
+    if not fails:
+        return True, f"{head}: pass (tune {t_tune:.0f} s)"
+    by = collections.Counter(f.criterion for f in fails)
+    first = "; ".join(f"{f.scenario} {f.criterion} {f.detail}" for f in fails[:2])
+    return False, f"{head}: FAIL {len(fails)} {dict(by)} (tune {t_tune:.0f} s); {first}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="0-29")
+    ap.add_argument("--tune-seed", type=int, default=0)
+    ap.add_argument("--workdir", type=pathlib.Path, default=None)
+    args = ap.parse_args()
+    seeds = parse_seeds(args.seeds)
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = args.workdir or pathlib.Path(tmp)
+        passed = 0
+        for seed in seeds:
+            ok, line = sweep_axis(seed, workdir, args.tune_seed)
+            passed += ok
+            print(line, flush=True)
+    print(f"{passed} of {len(seeds)} pass validate's default gate")
+
+
+if __name__ == "__main__":
+    main()
