@@ -80,8 +80,21 @@ def test_run_tunes_the_same_inputs_as_identify_then_tune(tmp_path, monkeypatch):
 
     (``run`` used to leave ``observer_free`` False, so its hold-out repair could never move a
     defaulted observer pole where ``tune``'s could.)  The tuning itself is stopped at its start.
+    identify's clock is frozen: ident.json's sha256 covers its ``created_utc``, and the two
+    identifications may fall in different seconds on a loaded machine.
     """
+    import datetime
+    from types import SimpleNamespace
+
+    from commission import identification as identification_mod
     from commission import tune as tune_mod
+
+    class _Frozen(datetime.datetime):
+        @classmethod
+        def now(cls, tz=None):
+            return datetime.datetime(2026, 1, 1, tzinfo=datetime.timezone.utc)
+
+    monkeypatch.setattr(identification_mod, "_dt", SimpleNamespace(datetime=_Frozen, timezone=datetime.timezone))
 
     seen = []
 
