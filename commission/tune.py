@@ -54,7 +54,7 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    (:func:`cost`): weighted mean over the scenarios of ln(e_rms /
    targets.e_rms), plus penalties for e_F above ``targets.e_f``, c_u above
    ``targets.c_u``, the input reaching u_max, e_rms not below PID_MARGIN x
-   the PID baseline's, divergence; plus the worst ARC/PID e_rms ratio; plus
+   the PID baseline's, e_M above the PID baseline's, divergence; plus the worst ARC/PID e_rms ratio; plus
    :data:`W_GATE` per check of the default gate failed on these scenarios.
 5. Discrete feasibility (:func:`controllers.design.discrete_feasibility`:
    the sampled loop linearised at the 8 corners of the theta box along both
@@ -705,6 +705,7 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
         + W_SATURATION [|u| reached u_max]                           input limit
         + W_CHATTER ln(e_rms / (m e_rms_ref))^+ + W_STEP [e_rms > m ref]   better than the PID
                                                                      by the margin m = PID_MARGIN
+        + W_CHATTER ln(e_M / e_M_ref)^+ + W_STEP [e_M > e_M_ref]     and on the transient
 
     averaged over the scenarios with ``weights`` (default equal), plus
     ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))``: the scenario where the ARC gains least
@@ -742,6 +743,10 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
                 ref = PID_MARGIN * r.e_rms
                 if ref < s.e_rms:
                     j += W_STEP + W_CHATTER * math.log(s.e_rms / ref)
+            if not r.diverged and math.isfinite(r.e_M) and 0 < r.e_M < s.e_M:
+                # The transient too (the start-up against unlearnt estimates): e_rms alone let the
+                # search trade the empty axis's start-up for a softer command.
+                j += W_STEP + W_CHATTER * math.log(s.e_M / r.e_M)
         if s.e_F > 0:
             j += W_TARGET * max(0.0, math.log(s.e_F / spec.e_f))
         if not (math.isfinite(s.c_u) and s.c_u >= 0):

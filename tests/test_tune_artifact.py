@@ -36,8 +36,12 @@ from commission.tune import (
     HoldoutGate,
     SearchResult,
     SearchRun,
+    PID_MARGIN,
+    W_CHATTER,
+    W_STEP,
     apply_free,
     base_arc_gains,
+    cost,
     deployable_pid,
     free_of_repair,
     load_tune_inputs,
@@ -505,3 +509,30 @@ def test_pid_pole_note_only_when_the_baseline_moved(small):
     moved = dataclasses.replace(t, pid_pole=0.8 * t.spec.pid_pole)
     note = pid_pole_note(moved)
     assert note is not None and "pid.pole = 240 rad/s instead of the defaulted 300" in note
+
+
+def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
+    """Closed form of the two ARC-vs-PID terms of :func:`cost` on one scenario (no gate, all
+    other terms zero: e_rms at its target, e_F and c_u below theirs, u below u_max):
+    e_M above the PID's costs W_STEP + W_CHATTER ln(e_M / e_M_pid), e_rms above PID_MARGIN x
+    the PID's costs W_STEP + W_CHATTER ln(e_rms / (m e_rms_pid)); the minimax term is
+    ln(e_rms / e_rms_pid).  Session 11's soft tuning lost the reference axis's start-up to the
+    PID (e_M 34 against 15 um) because only the second term existed."""
+    spec = default_spec()
+
+    def score(e_M: float, e_rms: float) -> Score:
+        return Score(e_M=e_M, e_F=0.1 * spec.e_f, e_rms=e_rms, u_rms=1.0, du_rms=0.1 * spec.c_u,
+                     c_u=0.1 * spec.c_u, u_peak=0.5 * spec.u_max, diverged=False)
+
+    pid = [score(20e-6, 2 * spec.e_rms)]
+    minimax = math.log(0.5)
+    assert cost([score(10e-6, spec.e_rms)], spec, pid) == pytest.approx(minimax)
+    assert cost([score(20e-6, spec.e_rms)], spec, pid) == pytest.approx(minimax)  # a tie is no loss
+    assert cost([score(50e-6, spec.e_rms)], spec, pid) == pytest.approx(
+        minimax + W_STEP + W_CHATTER * math.log(2.5))
+    worse = 1.5 * 2 * spec.e_rms
+    assert cost([score(10e-6, worse)], spec, pid) == pytest.approx(
+        math.log(worse / spec.e_rms) + W_STEP + W_CHATTER * math.log(worse / (PID_MARGIN * 2 * spec.e_rms))
+        + math.log(1.5))
+    # without a reference there is nothing to lose to
+    assert cost([score(50e-6, spec.e_rms)], spec) == pytest.approx(0.0)

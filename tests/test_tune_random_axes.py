@@ -32,15 +32,20 @@ gate by itself at the defaulted pole (c_u 1.17 at 480 rad/s): tune now compares 
 fastest PID of the paper's family that meets the gate's c_u
 (:func:`commission.tune.deployable_pid`), and the ARC tuned against it passes (session 8).
 
-Axis 11 (1 kHz) is the case of a search whose best candidates fail the gate on tune's
-hold-out plants: a defaulted search then continues, within the work of the slowest
-default search (:func:`test_a_search_whose_best_fail_the_holdout_continues`, session 9).
+Axis 11 (1 kHz) was the case of a search whose best candidates fail the gate on tune's
+hold-out plants (session 9).  Since the eta filter interpolates y between samples
+(session 12), its first 96 candidates pass there; the continued search is now tested on
+axis 16 (:func:`test_a_search_whose_best_fail_the_holdout_continues`), which still
+continues by 40 candidates and then repairs.
 
-Not every random axis passes.  Of seeds 0-29, session 9: 28 pass; 0 and 16 fail (light
-axes on 0.55-0.82 um encoders at 4-5 kHz): 0 by one ARC-vs-PID check (0.567 um against a
-limit of 0.564 um on one Monte-Carlo plant, although its tuning passed all of tune's hold-out
-plants), 16 by 12 checks (10 c_u on Case 1, 2 ARC-vs-PID e_rms; no candidate of its search
-meets both, where the PID tracks within half an encoder step at c_u 0.84).
+Not every random axis passes.  Of seeds 0-29, session 12
+(``python benchmarks/sweep_random_axes.py --seeds 0-29``): 29 pass; 16 fails one check,
+c_u 1.04 on case1/friction_low, where its PID baseline reaches 0.97 (a light axis on a
+0.55 um encoder at 5 kHz: both controllers track within an encoder step, and each
+encoder step reaches the command through the loop's gain).  Until session 12, with the
+eta filter holding y over the sample, 28 passed: axis 0 failed one ARC-vs-PID check and
+16 failed 12 (10 c_u, 2 ARC-vs-PID).  Holding y lagged eta by half a sample, which left
+a direction-dependent offset of +-1.06 encoder steps in every Case-2 cruise on axis 16.
 """
 
 from __future__ import annotations
@@ -75,41 +80,47 @@ def validated(request, tmp_path_factory):
     return _pipeline(request.param, tmp_path_factory)
 
 
-@pytest.mark.parametrize("seed", [19, 27], ids=["axis19-4kHz-0.78um", "axis27-4kHz-0.84um-pid-lowered"])
+@pytest.mark.parametrize("seed", [19, 27, 0], ids=["axis19-4kHz-0.78um", "axis27-4kHz-0.84um-pid-lowered",
+                                                  "axis0-4kHz-0.82um-pid-lowered"])
 def test_a_light_axis_on_a_coarse_encoder_passes_the_gate(seed, tmp_path_factory):
-    """Axes 19 and 27 (module docstring): the default gate passes, c_u included.
+    """Axes 19, 27 and 0 (module docstring): the default gate passes, c_u included.
 
     Both controllers track within an encoder step here, so the ARC is level with the PID
     (axis 19: median e_rms ratio 1.03 over the matrix, session 7) rather than better on most
     of it: the median check of :func:`test_arc_vs_pid_on_the_matrix` does not apply, the
     gate's comparison (within the quantization noise of the PID, scenario by scenario) does.
-    On axis 27 the defaulted PID pole (480 rad/s) chatters beyond the gate's c_u by itself,
-    so the baseline runs lower, and within that limit on every tuning scenario; on axis 19
-    it does not, and the pole is kept.
+    On axes 27 and 0 the defaulted PID pole (480 rad/s) chatters beyond the gate's c_u by
+    itself, so the baseline runs lower (axis 0: 391 rad/s), and within that limit on every
+    tuning scenario; on axis 19 it does not, and the pole is kept.  Axis 0 passes since
+    session 12 (with eta holding y it failed one ARC-vs-PID check, module docstring).
     """
     truth, tuning, result, _ = _pipeline(seed, tmp_path_factory)
     assert tuning.spec.sample_rate == pytest.approx(truth.sample_rate, rel=1e-6)
     assert result.passed, [f.detail for f in result.verdict.failures]
     moved = tuning.pid_pole < tuning.spec.pid_pole
-    assert moved == (seed == 27)
+    assert moved == (seed in (27, 0))
     if moved:
         assert max(r["pid"].c_u for r in tuning.scores.values()) <= 1.0
 
 
 def test_a_search_whose_best_fail_the_holdout_continues(tmp_path_factory):
-    """Axis 11 (1 kHz, 0.32 um encoder; module docstring): the search continues, and its best then pass.
+    """Axis 16 (5 kHz, 0.55 um encoder; module docstring): the search continues, then repairs.
 
-    The best of the first 96 candidates fail the default gate on tune's hold-out plants
-    (6 checks, session 9), and one candidate simulates a fifth of the slowest default
-    search's work, so the defaulted search continues by 96 candidates
-    (:func:`commission.tune.search_extension`); the best of the 192 pass there without
-    the repair, and validate's gate (other plants) passes.
+    The best of the first 96 candidates fail the default gate on tune's hold-out plants,
+    so the defaulted search continues by 40 candidates
+    (:func:`commission.tune.search_extension`: the light 4-5 kHz axes fill the slowest
+    default search's work with 40); the best of the 136 still fail there, so the
+    repair runs, and it does not end with more hold-out failures than it started from.
+    (Validate's gate is not asserted: this axis still fails it, module docstring.  Until
+    session 12 this test ran axis 11, whose search no longer needs to continue.)
     """
-    _, tuning, result, _ = _pipeline(11, tmp_path_factory)
-    se = tuning.search
-    assert (se.budget, se.extension, se.n_evaluations) == (96, 96, 192)
-    assert min(se.holdout_failures) == 0 and se.repair_failures is None
-    assert result.passed, [f.detail for f in result.verdict.failures]
+    d = tmp_path_factory.mktemp("axis16")
+    write_random_axis_log(16, d / "log.h5")
+    write_json_atomic(d / "ident.json", identify_log(str(d / "log.h5")).ident.to_dict())
+    se = run_tune(d / "ident.json", d / "tuning.json", seed=0).search
+    assert (se.budget, se.extension, se.n_evaluations) == (96, 40, 136)
+    assert min(se.holdout_failures) > 0
+    assert se.repair_failures is not None and se.repair_failures <= min(se.holdout_failures)
 
 
 def test_tuning_uses_the_logs_rate_and_is_feasible(validated):
