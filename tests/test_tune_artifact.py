@@ -36,7 +36,10 @@ from commission.tune import (
     HoldoutGate,
     SearchResult,
     SearchRun,
+    N_FREE,
     PID_MARGIN,
+    REPAIR_CAP_FACTORS,
+    REPAIR_POP,
     W_CHATTER,
     W_STEP,
     apply_free,
@@ -536,3 +539,45 @@ def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
         + math.log(1.5))
     # without a reference there is nothing to lose to
     assert cost([score(50e-6, spec.e_rms)], spec) == pytest.approx(0.0)
+
+
+def test_repair_first_lowers_the_caps_when_the_gains_chatter():
+    """A stub hold-out gate whose only failure is chatter unless the k2 cap is 0.87-0.93 x the
+    chosen one (below that the ARC would lose to the PID): the narrow band of random axis 16.
+
+    When a tuning scenario's c_u exceeds the gate's, the repair's first round is the line
+    search of :data:`REPAIR_CAP_FACTORS` (the k2 cap, then both caps; every other gain kept),
+    which lands in the band; without chatter the first round is the random joint draw."""
+    spec = default_spec()
+    base = base_arc_gains(ref_ident(), spec)
+    x0 = np.ones(N_FREE)
+    g0 = apply_free(base, x0)
+    seen: list[ArcGains] = []
+
+    def judge(gains):
+        seen.extend(gains)
+        out = []
+        for g in gains:
+            r = g.k2s_max / g0.k2s_max
+            out.append(([], 0 if 0.87 < r < 0.93 else 1, abs(math.log(r / 0.9))))
+        return out
+
+    hg = SimpleNamespace(judge=judge, limits=SimpleNamespace(c_u=1.0))
+    holds = SimpleNamespace(holds=True)
+
+    def chat(c_u):
+        return [Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u, c_u=c_u, u_peak=1.0, diverged=False)]
+
+    rep = repair_on_holdout(x0, chat(1.04), 1, 0.04, holds, base, hg, spec, lambda g: holds,
+                            np.random.default_rng(0), observer_free=False, budget=2 * REPAIR_POP)
+    first = seen[:REPAIR_POP]
+    assert [g.k2s_max / g0.k2s_max for g in first] == pytest.approx(list(REPAIR_CAP_FACTORS) * 2)
+    assert [g.k1s_max / g0.k1s_max for g in first] == pytest.approx([1.0] * 4 + list(REPAIR_CAP_FACTORS))
+    for g in first:
+        assert (g.Gamma, g.w2, g.theta0, g.k1, g.k2) == (g0.Gamma, g0.w2, g0.theta0, g0.k1, g0.k2)
+        assert g.g2 == pytest.approx(min(g0.g2, g.k2s_max))
+    assert rep.moves[0] == "k2 /1.11" and rep.failures == 0
+    seen.clear()
+    repair_on_holdout(x0, chat(0.5), 1, 0.04, holds, base, hg, spec, lambda g: holds,
+                      np.random.default_rng(0), observer_free=False, budget=2 * REPAIR_POP)
+    assert all(g.Gamma != g0.Gamma for g in seen[:REPAIR_POP])
