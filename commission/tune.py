@@ -1405,8 +1405,9 @@ def repair_on_holdout(x0: np.ndarray, scores0: Sequence[Score], failures0: int, 
         # ARC-vs-PID limit (axis 16 of commission.synth.random_axis: the k2 cap x0.95 or x0.89
         # alone passes validate, x0.82 loses to the PID).  So the first round is a line search:
         # the k2 cap, and both caps, lowered by REPAIR_CAP_FACTORS, every other gain kept.
+        k1, k2 = REPAIR_NAMES.index("k1"), REPAIR_NAMES.index("k2")
         cand = []
-        for idx in ((1,), (0, 1)):
+        for idx in ((k2,), (k1, k2)):
             for f in REPAIR_CAP_FACTORS:
                 c = z.copy()
                 c[list(idx)] += math.log(f)
