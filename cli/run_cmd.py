@@ -15,7 +15,8 @@ from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import print_summary
 from commission.logs import parse_mapping
 from commission.tune import pid_pole_note
-from commission.validate import DEFAULT_MONTE_CARLO, run_all
+from commission.pipeline import run_all
+from commission.validate import DEFAULT_MONTE_CARLO
 
 
 @app.command("run")

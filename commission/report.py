@@ -16,7 +16,7 @@ import numpy as np
 
 from commission.gate import CRITERIA
 from commission.scenarios import CASES, VARIANTS
-from commission.tuning import Score, Tuning
+from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
 TABLE1_ROWS = (
@@ -264,8 +264,6 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     L.append("## Provenance")
     L.append("")
     pv = tuning.provenance
-    from commission.validate import log_sha256_of
-
     L.append(f"- excitation log sha256: {log_sha256_of(tuning) or 'not recorded'}")
     L.append(f"- ident.json sha256: {pv.ident_sha256}")
     if tuning_sha256:

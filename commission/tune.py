@@ -1726,7 +1726,7 @@ def tune_inputs(rs: ResolvedSpec, *, ident_path: str, ident_sha256: str, log_sha
     """The :class:`TuneInputs` of a resolved spec.
 
     ``commission tune`` (:func:`load_tune_inputs`) and ``commission run``
-    (:func:`commission.validate.run_all`) both build their inputs here and tune them with
+    (:func:`commission.pipeline.run_all`) both build their inputs here and tune them with
     :func:`tune_from`, so that the same log and spec give the same tuning either way
     (``observer_free`` and ``pid_free`` included).
     """

@@ -516,3 +516,13 @@ def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:
 
 def _nan(x: float | None) -> float:
     return math.nan if x is None else x
+
+
+def log_sha256_of(tuning: Tuning) -> str | None:
+    """sha256 of the excitation log: the tuning's provenance, else ident.json's ``source.sha256``."""
+    if tuning.provenance.log_sha256:
+        return tuning.provenance.log_sha256
+    src = tuning.identification.extra.get("source")
+    if isinstance(src, dict) and isinstance(src.get("sha256"), str):
+        return src["sha256"]
+    return None

@@ -49,12 +49,12 @@ from commission.controllers.plant import P_B, P_M, P_OFFSET
 from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
-from commission.errors import SpecError, UsageError
+from commission.errors import UsageError
 from commission.gate import GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, resolve_gate
 from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
-from commission.scenarios import plant_substeps, resolve_quantization, scenario_matrix
-from commission.tuning import Score, Tuning
+from commission.scenarios import plant_substeps, scenario_matrix
+from commission.tuning import Score, Tuning, log_sha256_of
 
 Progress = Callable[[int, int], None]
 
@@ -373,16 +373,6 @@ def validated_record(result: ValidationResult) -> dict[str, Any]:
     }
 
 
-def log_sha256_of(tuning: Tuning) -> str | None:
-    """sha256 of the excitation log: the tuning's provenance, else ident.json's ``source.sha256``."""
-    if tuning.provenance.log_sha256:
-        return tuning.provenance.log_sha256
-    src = tuning.identification.extra.get("source")
-    if isinstance(src, dict) and isinstance(src.get("sha256"), str):
-        return src["sha256"]
-    return None
-
-
 def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: str,
                       created_utc: str | None = None) -> ControllerConfig:
     """The deployable controller of a passed validation.
@@ -524,132 +514,8 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
     return written
 
 
-IDENT_NAME = "ident.json"
-TUNING_NAME = "tuning.json"
-StageProgress = Callable[[str, int, int], None]
-
-
-@dataclass(frozen=True)
-class RunOutcome:
-    """What :func:`run_all` wrote.
-
-    Attributes
-    ----------
-    ident : Path
-    tuning : Path
-    validation : ValidateOutcome
-    notes : tuple of str
-        Spec defaults lowered for this axis (:func:`commission.tune.resolve_spec`).
-    """
-
-    ident: Path
-    tuning: Path
-    validation: ValidateOutcome
-    notes: tuple[str, ...] = ()
-
-
-def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
-            mapping: Mapping[str, str] | None = None, input_gain: float = 1.0,
-            sample_rate: float | None = None, friction: str = "auto", q_unit: str | None = None,
-            spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
-            force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
-            progress: StageProgress | None = None, workers: int | None = None,
-            figures: FigureWriter | None = None) -> RunOutcome:
-    """``commission run``: identify, tune and validate one log into ``out_dir``.
-
-    Every check of the inputs (flags, spec, gate, the log, the spec against the
-    identified axis, the output folder) happens before anything is written;
-    the three stages then run in memory and the files -- ident.json,
-    tuning.json, validation.json, the figures, report.md and (gate passed)
-    controller.json -- are written at the end.  The files are byte for byte
-    what ``commission identify``, ``tune`` and ``validate`` would write (up to
-    time stamps): ident.json and tuning.json are round-tripped through their
-    JSON form before the next stage uses them, and their sha256 are those of
-    the files written.
-
-    Parameters
-    ----------
-    log_path : path
-        Excitation log (CONTRACT §1).
-    out_dir : path
-    mapping, input_gain, sample_rate, friction, q_unit
-        As ``commission identify`` (``--map``, ``--input-gain``, ``--sample-rate``, ``--friction``,
-        ``--q-unit``).
-    spec_path : path, optional
-        Tuning spec (``commission tune --spec``); default: the paper's setting.
-    gate_path : path, optional
-        Gate TOML; default: :mod:`commission.gate` defaults.
-    force : bool
-        Overwrite existing outputs.
-    seed : int
-        Seed of the tuning search and of the validation's Monte-Carlo sample.
-    n_monte_carlo : int
-    progress : callable(stage, done, total), optional
-        ``stage`` is ``"identify"``, ``"tune"`` or ``"validate"``.
-    workers : int, optional
-    figures : callable, optional
-        As in :func:`run_validate`.
-
-    Raises
-    ------
-    InputFileError, DataError, SchemaError, SpecError, UsageError
-        Bad input (exit 2); nothing is written.
-    """
-    from commission.artifacts import Identification
-    from commission.controllers.design import DesignError
-    from commission.identification import identify_log
-    from commission.jsonio import canonical_json, sha256_json
-    from commission.spec import read_spec_toml, spec_from_mapping
-    from commission.tune import resolve_spec, tune_from, tune_inputs
-
-    if seed < 0:
-        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
-    if n_monte_carlo < 0:
-        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
-    if friction not in ("auto", "coulomb", "stribeck"):
-        raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
-    gate = load_gate(gate_path)
-    spec_data, spec_src = read_spec_toml(spec_path)
-    spec = spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
-    out = check_out_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), force)
-
-    def stage(name: str) -> Progress:
-        return lambda done, total: progress(name, done, total) if progress is not None else None
-
-    stage("identify")(0, 1)
-    ident_out = identify_log(os.fspath(log_path), mapping=mapping, input_gain=input_gain,
-                             sample_rate=sample_rate, friction=friction,  # type: ignore[arg-type]
-                             q_unit=q_unit)
-    stage("identify")(1, 1)
-    ident_doc = ident_out.ident.to_dict()
-    ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
-    rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
-    spec, notes = rs.spec, rs.notes
-    resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
-    # The same inputs and call as ``commission tune`` on the ident.json written below.
-    inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=sha256_json(ident_doc),
-                         log_sha256=ident_out.log.sha256, seed=seed)
-    try:
-        tuned = tune_from(inputs, progress=stage("tune"), workers=workers)
-    except DesignError as exc:
-        raise SpecError(f"{spec_src}: {exc}") from None
-    tuning_doc = tuned.to_dict()
-    tuning = Tuning.from_dict(json.loads(canonical_json(tuning_doc)), source=str(out / TUNING_NAME))
-    result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
-                      workers=workers)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(out / IDENT_NAME, ident_doc)
-    write_json_atomic(out / TUNING_NAME, tuning_doc)
-    written = write_outputs(result, tuning, sha256_json(tuning_doc), out, figures=figures,
-                            sources={"tuning": str(out / TUNING_NAME),
-                                     "gate": os.fspath(gate_path) if gate_path else None})
-    ctrl = out / CONTROLLER_NAME
-    vo = ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
-    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
-
-
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
     "controller_config", "validated_record", "run_validate", "write_outputs", "check_out_dir", "output_names",
-    "deployable_gains", "run_all", "RunOutcome", "log_sha256_of",
+    "deployable_gains", "log_sha256_of",
 ]

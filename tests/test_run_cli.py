@@ -21,7 +21,8 @@ from commission.runtime import load_controller
 from commission.scenarios import case1_trajectory, case2_trajectory
 from commission.spec import load_spec
 from commission.synth import ExcitationPlan, random_axis, simulate_excitation, write_log_h5
-from commission.validate import FIGURE_NAMES, run_all
+from commission.pipeline import run_all
+from commission.validate import FIGURE_NAMES
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
 OUTPUTS = ("ident.json", "tuning.json", "validation.json", "report.md", "controller.json", *FIGURE_NAMES)
