@@ -81,7 +81,7 @@ class Scenario:
     Attributes
     ----------
     name : str
-    plant_p : ndarray, shape (9,)
+    plant_p : ndarray, shape (NP,)
         Plant vector.
     traj : Trajectory
         Desired motion at the controller rate.

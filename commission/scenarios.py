@@ -57,6 +57,7 @@ import numpy as np
 from commission.artifacts import Identification
 from commission.controllers import trajectory as _traj
 from commission.controllers.plant import (
+    NP,
     P_B,
     P_FC,
     P_FS,
@@ -184,7 +185,7 @@ class Scenario:
     name : str
         Unique name, e.g. ``"case1/payload_heavy"`` or ``"mc/007"``.
     plant : numpy.ndarray
-        float64[9] plant vector (:func:`commission.controllers.plant.plant_vector`
+        float64[NP] plant vector (:func:`commission.controllers.plant.plant_vector`
         layout), read-only.
     trajectory : TrajectorySpec
         Desired motion.
@@ -209,8 +210,8 @@ class Scenario:
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
-        if p.shape != (9,):
-            raise ValueError(f"Scenario {self.name}: plant must have 9 entries, got shape {p.shape}")
+        if p.shape != (NP,):
+            raise ValueError(f"Scenario {self.name}: plant must have {NP} entries, got shape {p.shape}")
         p.setflags(write=False)
         object.__setattr__(self, "plant", p)
         object.__setattr__(self, "tags", tuple(self.tags))
@@ -375,7 +376,7 @@ def clip_to_box(plants: np.ndarray, ident: Identification) -> np.ndarray:
 
 
 def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` plant vectors from the theta box (identified friction curve), shape (n, 9).
+    """``n`` plant vectors from the theta box (identified friction curve), shape (n, NP).
 
     theta1 is uniform in the box (M = 1/theta1); the viscous coefficient B is
     uniform in :func:`viscous_range` and the disturbance force d_n = -offset

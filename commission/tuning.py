@@ -50,7 +50,7 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.pid import PidGains
-from commission.controllers.plant import NP
+from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, write_json_atomic
 from commission.spec import Spec, spec_from_mapping
@@ -59,7 +59,6 @@ TUNING_KIND = "tuning"
 TUNING_SCHEMA_VERSION = 1
 
 #: Plant-vector names in controllers.plant order.
-PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch")
 SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
 #: ArcGains fields that may be infinite (stored as JSON null).
 _ARC_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
@@ -289,7 +288,7 @@ class Tuning:
     identification : Identification
         The identification the gains were tuned for.
     plant : numpy.ndarray
-        float64[9] identified plant vector (controllers.plant layout), read-only.
+        float64[NP] identified plant vector (controllers.plant layout), read-only.
     quantization : float
         Encoder resolution used in simulation, m.
     arc : ArcGains
@@ -397,7 +396,10 @@ class Tuning:
             # re-anchor the path under $.identification
             raise SchemaError(str(exc).replace(f"{source}: $", f"{source}: $.identification")) from None
         plr = r.obj("plant")
-        plant = np.array([plr.num(n) for n in PLANT_NAMES], dtype=np.float64)
+        # The mode and delay entries were added later: absent means a rigid, delay-free plant.
+        default = plant_vector(1.0, 0.0)
+        plant = np.array([plr.num(n) if i < 9 or plr.has(n) else default[i] for i, n in enumerate(PLANT_NAMES)],
+                         dtype=np.float64)
         quant = plr.num("quantization", nonneg=True)
         arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
         pidr = r.obj("pid")
