@@ -188,8 +188,8 @@ def plant_advance(p, x, v, u, h, n):
         else:
             a = (F - p[P_B] * v - stribeck(p, v)) / M
             v_new = v + a * h
-            if v_new * v < 0.0:
-                v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip
+            if v_new * v < 0.0 and p[P_FS] > 0.0:
+                v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip (only static friction can hold it)
             v = v_new
         x += v * h
     return x, v
@@ -254,7 +254,7 @@ def plant_step(p, st, u, h, n):
                 v1n = (F - math.copysign(p[P_FS], F)) / m1 * hh
         else:
             v1n = v1 + (F - p[P_B] * v1 - stribeck(p, v1)) / m1 * hh
-            if v1n * v1 < 0.0:
+            if v1n * v1 < 0.0 and p[P_FS] > 0.0:
                 v1n = 0.0
         v2 = v2 + fk / m2 * hh
         v1 = v1n
