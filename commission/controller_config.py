@@ -44,7 +44,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from commission.controllers.arc import ArcGains
+from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, sha256_json
 
@@ -63,7 +63,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
 }
 _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
 #: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
-RUNTIME_FIELDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation")
+RUNTIME_FIELDS = RUNTIME_GUARDS
 _INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max",
            "dy_max", "dy_fault", "n_reject_max", "e_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")

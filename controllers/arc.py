@@ -251,6 +251,10 @@ S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA
              S_YPREV, S_USPREV)
 
 
+#: ArcGains fields of the runtime guards (optional everywhere: absent = off).
+RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation")
+
+
 def _vec3(name: str, v) -> tuple[float, float, float]:
     t = tuple(float(x) for x in v)
     if len(t) != 3:
