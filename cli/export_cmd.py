@@ -9,7 +9,6 @@ import typer
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
-from commission.errors import UsageError
 
 
 @app.command("export")
@@ -17,7 +16,7 @@ from commission.errors import UsageError
 def export_command(
     controller: Path = typer.Argument(..., help="controller.json written by `commission validate`."),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for the C sources, test vectors and README."),
-    target: str = typer.Option("c", "--target", help="Output language: c (C99)."),
+    target: str = typer.Option("c", "--target", help="c (C99 step, params, test vectors, replay program) or st (IEC 61131-3 function block FB_CommissionArc/FB_CommissionPid)."),
     kind: str = typer.Option("arc", "--controller", help="arc (controller.json) or pid (the validated PID baseline; needs --tuning)."),
     tuning: Optional[Path] = typer.Option(None, "--tuning", help="The tuning.json controller.json was validated from (sha256 checked): the test vectors then run on the validated scenarios; required for --controller pid."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing files in --out-dir."),
@@ -30,7 +29,5 @@ def export_command(
     """
     from commission.export import export_c
 
-    if target != "c":
-        raise UsageError(f"--target: expected 'c', got {target!r}")
-    for p in export_c(controller, out_dir, kind=kind, tuning_path=tuning, force=force):
+    for p in export_c(controller, out_dir, kind=kind, tuning_path=tuning, force=force, target=target):
         typer.echo(f"wrote {p}")

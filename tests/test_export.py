@@ -97,9 +97,14 @@ def test_export_writes_every_file_and_the_vectors(axis):
     assert "2500.0 Hz" in params
 
 
+@pytest.fixture(scope="module")
+def replay_exe(axis):
+    return build_replay(axis["out"], "arc", axis["dir"] / "replay")
+
+
 @needs_cc
-def test_c_replays_the_python_runtime_bit_for_bit(axis, tmp_path):
-    exe = build_replay(axis["out"], "arc", tmp_path / "replay")
+def test_c_replays_the_python_runtime_bit_for_bit(axis, replay_exe):
+    exe = replay_exe
     r = subprocess.run([str(exe), str(axis["out"] / "test_vectors.csv")], capture_output=True, text=True)
     rows = len(_vectors(axis["out"] / "test_vectors.csv"))
     assert r.stdout.split() == ["rows", str(rows), "max_abs_diff", "0", "unequal", "0", "fault_mismatch", "0"]
@@ -107,7 +112,7 @@ def test_c_replays_the_python_runtime_bit_for_bit(axis, tmp_path):
 
 
 @needs_cc
-def test_replay_detects_a_one_ulp_difference(axis, tmp_path):
+def test_replay_detects_a_one_ulp_difference(axis, tmp_path, replay_exe):
     """The replay program is not blind: one command moved by one ulp is reported."""
     lines = (axis["out"] / "test_vectors.csv").read_text().splitlines()
     i = next(k for k, ln in enumerate(lines) if ln.startswith("case2,") and float(ln.split(",")[6]) != 0.0)
@@ -116,8 +121,7 @@ def test_replay_detects_a_one_ulp_difference(axis, tmp_path):
     lines[i] = ",".join(f)
     bad = tmp_path / "v.csv"
     bad.write_text("\n".join(lines) + "\n")
-    exe = build_replay(axis["out"], "arc", tmp_path / "replay")
-    r = subprocess.run([str(exe), str(bad)], capture_output=True, text=True)
+    r = subprocess.run([str(replay_exe), str(bad)], capture_output=True, text=True)
     assert r.returncode == 1 and "unequal 1 " in r.stdout
 
 
@@ -212,7 +216,7 @@ def test_export_refuses_a_foreign_tuning_and_pid_without_one(axis, tmp_path):
     r = runner.invoke(app, ["export", str(axis["dir"] / "controller.json"), "--out-dir", str(out),
                             "--controller", "pid"])
     assert r.exit_code == 2 and "--tuning" in r.output and not out.exists()
-    r = runner.invoke(app, ["export", str(axis["dir"] / "controller.json"), "--out-dir", str(out), "--target", "st"])
+    r = runner.invoke(app, ["export", str(axis["dir"] / "controller.json"), "--out-dir", str(out), "--target", "vhdl"])
     assert r.exit_code == 2 and "--target" in r.output and not out.exists()
     r = _invoke_export(axis["dir"] / "controller.json", axis["out"])  # exists
     assert r.exit_code == 2 and "--force" in r.output
@@ -285,3 +289,37 @@ def test_sample_pipeline_export_matches_validate(tmp_path):
                                    identified_plant(tuning.identification), traj, g.Ts, plant_substeps(1.0 / g.Ts),
                                    tuning.quantization, spec.u_max, spec.travel)
         assert (idx[0], idx[1], idx[2]) == (nominal[case]["e_M"], nominal[case]["e_F"], nominal[case]["e_rms"])
+
+
+@pytest.mark.slow  # blark builds its lark grammar on first use: about 20 s
+@pytest.mark.parametrize("kind", ["arc", "pid"])
+def test_structured_text_function_block_parses_and_carries_the_params(axis, tmp_path, kind):
+    blark = pytest.importorskip("blark", reason="blark (the ST parser) is not installed")
+    import re
+    from commission.export.c_target import TARGETS
+    from commission.export.st_target import st_source
+
+    if kind == "arc":
+        r = runner.invoke(app, ["export", str(axis["dir"] / "controller.json"), "--target", "st",
+                                "--out-dir", str(tmp_path)])
+        assert r.exit_code == 0, r.output
+        src = (tmp_path / "FB_CommissionArc.st").read_text()
+        p = A.arc_pack(axis["g"])
+    else:
+        p = P.pid_pack(pid_baseline(axis["ident"], axis["spec"])[0])
+        src = st_source(TARGETS["pid"], p, ["test"])
+    res = blark.parse_source_code(src)
+    assert res.exception is None, res.exception
+    fb = "FB_CommissionArc" if kind == "arc" else "FB_CommissionPid"
+    assert f"FUNCTION_BLOCK {fb}" in src and "METHOD Init" in src and "METHOD Step : LREAL" in src
+    # the parameters, written by Init, read back exactly (inf as the INF member)
+    got = {int(i): v for i, v in re.findall(r"^p\[(\d+)\] := (\S+);$", src, flags=re.M)}
+    assert sorted(got) == list(range(p.shape[0]))
+    for i, v in got.items():
+        assert (math.isinf(p[i]) and v == "INF") or float(v) == p[i]
+    # the packed layout is the Python module's
+    mod = A if kind == "arc" else P
+    for name in ("S_FAULT", "NS"):
+        assert f"    {name} : DINT := {getattr(mod, name)};" in src
+    # a method per translated function
+    assert src.count("(* translated from ") == len(TARGETS[kind].functions)

@@ -56,8 +56,10 @@ VECTOR_STEPS = 25_000
 VECTORS_NAME = "test_vectors.csv"
 
 
-def output_names(kind: str) -> tuple[str, ...]:
-    """Every file ``export --controller kind`` writes."""
+def output_names(kind: str, target: str = "c") -> tuple[str, ...]:
+    """Every file ``export --target target --controller kind`` writes."""
+    if target == "st":
+        return (f"FB_Commission{kind.capitalize()}.st",)
     b = f"commission_{kind}"
     return (f"{b}.h", f"{b}.c", f"{b}_params.c", VECTORS_NAME, "test_main.c", "README.md")
 
@@ -221,7 +223,8 @@ disable the drive or engage the brake on the fault flag, since 0 does not hold a
 
 
 def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, kind: str = "arc",
-             tuning_path: str | os.PathLike[str] | None = None, force: bool = False) -> list[Path]:
+             tuning_path: str | os.PathLike[str] | None = None, force: bool = False,
+             target: str = "c") -> list[Path]:
     """Write the C export of a validated controller (module docstring).
 
     Parameters
@@ -238,6 +241,9 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
         match ``provenance.tuning_sha256``).
     force : bool
         Overwrite existing files.
+    target : {"c", "st"}
+        C99 (module docstring), or the IEC 61131-3 Structured Text function
+        block of :mod:`commission.export.st_target` (one ``.st`` file).
 
     Returns
     -------
@@ -253,6 +259,8 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     """
     from commission.validate import check_out_dir  # the one output-folder policy
 
+    if target not in ("c", "st"):
+        raise UsageError(f"--target: expected 'c' or 'st', got {target!r}")
     if kind not in TARGETS:
         raise UsageError(f"--controller: expected one of {sorted(TARGETS)}, got {kind!r}")
     cpath = os.fspath(controller_path)
@@ -270,7 +278,7 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     if kind == "pid" and tuning is None:
         raise UsageError("--controller pid: needs --tuning (controller.json holds the ARC; the PID baseline "
                          "validate simulated is in the tuning.json it records)")
-    out = check_out_dir(out_dir, output_names(kind), force)
+    out = check_out_dir(out_dir, output_names(kind, target), force)
     if kind == "arc":
         p = arc_pack(config.gains)
     else:
@@ -279,10 +287,15 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
             raise UsageError(f"--tuning: PID sample period {tuning.pid.Ts} s differs from the controller's "
                              f"{config.gains.Ts} s")
         p = pid_pack(tuning.pid)
-    files = render(kind, p, config, tuning, tuning_sha)
+    if target == "st":
+        from commission.export.st_target import st_source
+
+        files = {output_names(kind, "st")[0]: st_source(TARGETS[kind], p, _params_comment(config, kind, p, tuning_sha))}
+    else:
+        files = render(kind, p, config, tuning, tuning_sha)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    for name in output_names(kind):
+    for name in output_names(kind, target):
         write_text_atomic(out / name, files[name])
         written.append(out / name)
     return written

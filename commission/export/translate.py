@@ -29,6 +29,9 @@ producing different C:
   ``math.pi``, ``math.inf``, ``X.shape[0]`` of a state array, calls of the
   other translated functions, and module constants (ints and floats).
 
+:class:`StTranslator` emits the same functions as methods of an IEC 61131-3
+Structured Text function block (:mod:`commission.export.st_target`).
+
 Every local is a ``double`` (Python floats are IEEE doubles, as numba
 compiles them) except ``for`` loop counters and locals assigned an index
 expression (int literals, int module constants and + - * of them), which are
@@ -362,3 +365,204 @@ def translate(module: Any, functions: Sequence[str], arrays: Mapping[str, tuple[
     code = t.translate()
     return code, dict(t.used_constants)
 
+
+
+# --------------------------------------------------------------------------- IEC 61131-3 Structured Text
+
+#: Words an ST identifier may not be (case-insensitive); a local of that name gets a suffix.
+_ST_RESERVED = {"at", "by", "do", "if", "of", "or", "to", "and", "mod", "not", "xor", "var", "end", "int", "real",
+                "lreal", "dint", "bool", "time", "date", "then", "else", "elsif", "for", "while", "case", "return",
+                "exit", "step", "init", "fault", "this", "super", "method", "array", "string", "word", "byte",
+                "true", "false", "repeat", "until", "constant", "retain", "function", "program", "task"}
+
+
+def st_float(x: float) -> str:
+    """An ST LREAL literal (digits '.' digits [E exponent]) that reads back as exactly ``x`` (finite)."""
+    if not math.isfinite(x):
+        raise ValueError(f"ST has no literal for {x}")
+    r = repr(float(x))
+    mant, _, exp = r.partition("e")
+    if "." not in mant:
+        mant += ".0"
+    return f"{mant}E{exp}" if exp else mant
+
+
+@dataclass
+class StTranslator(Translator):
+    """The same functions as METHODs of one IEC 61131-3 function block (TwinCAT/CODESYS dialect).
+
+    Differences from the C: the packed arrays ``p`` and ``s`` are members of
+    the function block (array parameters are dropped from the signatures and
+    calls); a tuple is returned through the member array ``ret``; names
+    are made unique case-insensitively (ST is case-insensitive: ``k1`` and
+    ``K1`` of the Python become ``k1`` and ``K1_2``); ``math.isfinite(x)`` is
+    ``(x - x) = 0.0`` (true exactly for finite IEEE values); ``math.inf`` is
+    the member ``INF``, made infinite at ``Init`` (ST has no literal for it).
+    """
+
+    def _names(self, f: _Func) -> dict[str, str]:
+        # the packed arrays are the function block's members p and s; ret and INF are members too
+        seen: dict[str, str] = {"p": "p", "s": "s", "ret": "ret", "inf": "INF"}
+        out: dict[str, str] = {a: a for a in f.arrays}
+        for node in ast.walk(f.node):
+            n = node.arg if isinstance(node, ast.arg) else node.id if isinstance(node, ast.Name) else None
+            if n is None or n in out or (isinstance(node, ast.Name) and not (n in self._params or self._is_local(f, n))):
+                continue
+            new = n
+            k = 2
+            while new.lower() in seen or new.lower() in _ST_RESERVED or new.endswith("_"):
+                new = f"{n.rstrip('_')}_{k}"
+                k += 1
+            seen[new.lower()] = n
+            out[n] = new
+        return out
+
+    def _is_local(self, f: _Func, n: str) -> bool:
+        return not isinstance(getattr(self.module, n, None), (int, float)) and n not in ("math", "abs", "range") \
+            and n not in self._funcs
+
+    def func_name(self, name: str) -> str:
+        return f"k_{name.lstrip('_')}"
+
+    def expr(self, f: _Func, e: ast.AST) -> str:
+        if isinstance(e, ast.Constant) and isinstance(e.value, float):
+            return st_float(e.value)
+        if isinstance(e, ast.Name) and (e.id in self._locals or e.id in self._params):
+            return self._map[e.id]
+        if isinstance(e, ast.Name):
+            val = getattr(self.module, e.id, None)
+            if isinstance(val, float):
+                self.used_constants[e.id] = val
+                return st_float(val)
+            return super().expr(f, e)
+        if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not):
+            return f"(NOT {self.expr(f, e.operand)})"
+        if isinstance(e, ast.BoolOp):
+            op = " AND " if isinstance(e.op, ast.And) else " OR "
+            return "(" + op.join(self.expr(f, v) for v in e.values) + ")"
+        if isinstance(e, ast.Compare) and len(e.ops) == 1 and isinstance(e.ops[0], (ast.Eq, ast.NotEq)):
+            op = "=" if isinstance(e.ops[0], ast.Eq) else "<>"
+            return f"({self.expr(f, e.left)} {op} {self.expr(f, e.comparators[0])})"
+        if isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name) and e.value.id == "math":
+            if e.attr == "pi":
+                return st_float(math.pi)
+            if e.attr == "inf":
+                return "INF"
+        if isinstance(e, ast.Subscript) and isinstance(e.value, ast.Name) and e.value.id in self._tuples:
+            return f"{self._map.get(e.value.id, e.value.id)}[{self.expr(f, e.slice)}]"
+        return super().expr(f, e)
+
+    def call(self, f: _Func, e: ast.Call) -> str:
+        fn = e.func
+        if isinstance(fn, ast.Attribute) and isinstance(fn.value, ast.Name) and fn.value.id == "math":
+            if fn.attr == "isfinite":
+                x = self.expr(f, e.args[0])
+                return f"(({x} - {x}) = 0.0)"
+            if fn.attr == "atan":
+                return f"ATAN({self.expr(f, e.args[0])})"
+        if isinstance(fn, ast.Name) and fn.id == "abs":
+            return f"ABS({self.expr(f, e.args[0])})"
+        if isinstance(fn, ast.Name) and fn.id in self._funcs:
+            callee = self._funcs[fn.id]
+            args = [self.expr(f, a) for a, p in zip(e.args, callee.node.args.args) if p.arg not in callee.arrays]
+            return f"{self.func_name(fn.id)}({', '.join(args)})"
+        return super().call(f, e)
+
+    def target(self, f: _Func, t: ast.AST, value: ast.AST | None = None) -> str:
+        name = super().target(f, t, value)
+        if isinstance(t, ast.Name):
+            return self._map[t.id]
+        return name
+
+    def stmts(self, f: _Func, body: Sequence[ast.stmt], ind: int) -> list[str]:
+        out: list[str] = []
+        pad = "    " * ind
+        for st in body:
+            if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant) and isinstance(st.value.value, str):
+                continue
+            if isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Tuple):
+                t, v = st.targets[0], st.value
+                if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self._funcs
+                        and self._funcs[v.func.id].tuple_len == len(t.elts)):
+                    raise self.fail(f, st, "tuple unpacking of anything but a translated tuple-returning call")
+                out.append(f"{pad}{self.call(f, v)};")
+                for i, el in enumerate(t.elts):
+                    out.append(f"{pad}{self.target(f, el)} := ret[{i}];")
+            elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name) and isinstance(st.value, ast.Tuple):
+                name = st.targets[0].id
+                self._tuples[name] = len(st.value.elts)
+                self._map.setdefault(name, name)
+                for i, el in enumerate(st.value.elts):
+                    out.append(f"{pad}{self._map[name]}[{i}] := {self.expr(f, el)};")
+            elif isinstance(st, ast.Assign):
+                rhs = self.expr(f, st.value)
+                out.append(f"{pad}{self.target(f, st.targets[0], st.value)} := {rhs};")
+            elif isinstance(st, ast.AugAssign) and type(st.op) in (ast.Add, ast.Sub):
+                tgt = self.target(f, st.target)
+                out.append(f"{pad}{tgt} := ({tgt} {_BINOPS[type(st.op)]} {self.expr(f, st.value)});")
+            elif isinstance(st, ast.If):
+                out.append(f"{pad}IF {self.expr(f, st.test)} THEN")
+                out.extend(self.stmts(f, st.body, ind + 1))
+                orelse = st.orelse
+                while len(orelse) == 1 and isinstance(orelse[0], ast.If):
+                    out.append(f"{pad}ELSIF {self.expr(f, orelse[0].test)} THEN")
+                    out.extend(self.stmts(f, orelse[0].body, ind + 1))
+                    orelse = orelse[0].orelse
+                if orelse:
+                    out.append(f"{pad}ELSE")
+                    out.extend(self.stmts(f, orelse, ind + 1))
+                out.append(f"{pad}END_IF;")
+            elif isinstance(st, ast.For):
+                if not (isinstance(st.target, ast.Name) and isinstance(st.iter, ast.Call)
+                        and isinstance(st.iter.func, ast.Name) and st.iter.func.id == "range"
+                        and 1 <= len(st.iter.args) <= 2 and not st.orelse):
+                    raise self.fail(f, st, "a loop other than `for i in range(a[, b])`")
+                self._locals[st.target.id] = "int"
+                i = self._map[st.target.id]
+                a, b = ("0", self.expr(f, st.iter.args[0])) if len(st.iter.args) == 1 else (
+                    self.expr(f, st.iter.args[0]), self.expr(f, st.iter.args[1]))
+                out.append(f"{pad}FOR {i} := {a} TO {b} - 1 DO")
+                out.extend(self.stmts(f, st.body, ind + 1))
+                out.append(f"{pad}END_FOR;")
+            elif isinstance(st, ast.Return):
+                if st.value is None:
+                    out.append(f"{pad}RETURN;")
+                elif isinstance(st.value, ast.Tuple):
+                    for i, el in enumerate(st.value.elts):
+                        out.append(f"{pad}ret[{i}] := {self.expr(f, el)};")
+                    out.append(f"{pad}RETURN;")
+                else:
+                    out.append(f"{pad}{self.func_name(f.name)} := {self.expr(f, st.value)};")
+                    out.append(f"{pad}RETURN;")
+            else:
+                raise self.fail(f, st, f"the statement {type(st).__name__}")
+        return out
+
+    def function(self, f: _Func) -> str:
+        self._params = {a.arg for a in f.node.args.args}
+        self._locals = {}
+        self._tuples = {}
+        self._tmp = 0
+        self._map = self._names(f)
+        body = self.stmts(f, f.node.body, 1)
+        name = self.func_name(f.name)
+        head = f"METHOD PRIVATE {name}" + (" : LREAL" if f.returns_value else "")
+        ins = [f"    {self._map[a.arg]} : LREAL;" for a in f.node.args.args if a.arg not in f.arrays]
+        loc = [f"    {self._map[n]} : {'DINT' if t == 'int' else 'LREAL'};" for n, t in self._locals.items()
+               if n not in self._tuples]
+        loc += [f"    {self._map[n]} : ARRAY[0..{k - 1}] OF LREAL;" for n, k in self._tuples.items()]
+        parts = [f"(* translated from {self.module.__name__}.{f.name} *)", head]
+        if ins:
+            parts += ["VAR_INPUT", *ins, "END_VAR"]
+        if loc:
+            parts += ["VAR", *loc, "END_VAR"]
+        return "\n".join([*parts, *body, "END_METHOD"])
+
+    def translate(self) -> str:
+        self._funcs = {}
+        for name in self.functions:
+            self._funcs[name] = self._parse(name)
+        return "\n\n".join(self.function(self._funcs[n]) for n in self.functions) + "\n"
+
+    def ret_len(self) -> int:
+        return max([f.tuple_len for f in self._funcs.values()] + [1])
