@@ -19,7 +19,8 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    releases the GIL, so they are spread over a thread pool (one thread per
    CPU by default); results do not depend on the number of threads.  The ARC
    is simulated with the gains *as read back from the controller.json
-   layout*, so what was validated is what is deployed.
+   layout*, runtime guards included (:func:`runtime_guards`), so what was
+   validated is what is deployed.
 4. The gate (:mod:`commission.gate`) is checked on every scenario.
 5. Outputs: ``validation.json`` (every index of every run, the gate and every
    check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``

@@ -176,3 +176,27 @@ def test_guard_fields_round_trip_and_default_off(tmp_path, axis):
         with pytest.raises(ValueError, match=field):
             dataclasses.replace(g, **{field: bad})
     assert math.isinf(axis["raw"].dy_max)
+
+
+def test_guards_act_only_where_the_gate_fails_on_the_validation_matrix(axis):
+    """validate's scenario matrix (12 fixed + 8 Monte-Carlo plants): with the guards the ARC runs bit for bit
+    as without them, except on a scenario the gate fails anyway (command at u_max, or e_M beyond the gate)."""
+    from commission.scenarios import scenario_matrix
+    from commission.paper import reference_identification
+
+    ident = reference_identification(delta_d=0.5)
+    spec, lim = axis["spec"], axis["limits"]
+    same = 0
+    for sc in scenario_matrix(ident, spec, rng=np.random.default_rng(0), n_monte_carlo=8):
+        traj = sc.trajectory.render(axis["g"].Ts, sc.y0)
+        d = sc.disturbance.samples(traj.t)
+        kw = dict(substeps=plant_substeps(1.0 / axis["g"].Ts), quant=sc.quantization,
+                  disturbance=d if np.any(d) else None, y0=sc.y0, u_sat=spec.u_max, e_abort=spec.travel)
+        plain = simulate(sc.plant, KIND_ARC, A.arc_pack(axis["raw"]), traj, **kw)
+        guarded = simulate(sc.plant, KIND_ARC, A.arc_pack(axis["g"]), traj, **kw)
+        if np.array_equal(plain.u, guarded.u):
+            same += 1
+            continue
+        fails_gate = plain.diverged or np.max(np.abs(plain.u)) >= spec.u_max or plain.indexes.e_M > lim.e_M
+        assert fails_gate, sc.name
+    assert same >= 18, same  # measured: 20 of 20
