@@ -24,7 +24,7 @@ from commission.cli.main import app
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.controllers import arc as A
 from commission.controllers import pid as P
-from commission.controllers.simulate import KIND_ARC, KIND_PID, _quantize, _segment, simulate
+from commission.controllers.simulate import KIND_ARC, _quantize, _segment, simulate
 from commission.controllers.plant import NX, P_DELAY, plant_output, plant_start
 from commission.controllers.metrics import FINAL_WINDOW, indexes_kernel
 from commission.export import VECTOR_STEPS, output_names, render
@@ -264,7 +264,6 @@ def test_translator_keeps_python_order_of_operations(tmp_path):
 def test_sample_pipeline_export_matches_validate(tmp_path):
     """The sample log through `commission run`, then export (ARC and PID, with --tuning): bit-exact
     replays, and the C ARC in the closed loop gives validate's nominal e_M, e_F, e_rms (controller.json)."""
-    from commission.scenarios import resolve_quantization
     from commission.tuning import Tuning
     from commission.jsonio import read_json
 

@@ -264,7 +264,9 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     if kind not in TARGETS:
         raise UsageError(f"--controller: expected one of {sorted(TARGETS)}, got {kind!r}")
     cpath = os.fspath(controller_path)
-    config = ControllerConfig.load(cpath)
+    from commission.runtime import load_controller  # refuse exactly what the runtime refuses
+
+    config = load_controller(cpath).config
     tuning = None
     tuning_sha = None
     if tuning_path is not None:
