@@ -50,9 +50,11 @@ from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
 from commission.errors import UsageError
-from commission.gate import GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, resolve_gate
+from commission.gate import (GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, margin_checks,
+                             resolve_gate)
 from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
+from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
 from commission.scenarios import plant_substeps, scenario_matrix
 from commission.tuning import Score, Tuning, log_sha256_of
 
@@ -68,7 +70,7 @@ VALIDATION_NAME = "validation.json"
 CONTROLLER_NAME = "controller.json"
 #: Figures the CLI draws (cli/plots_validate.py); listed here so that --force checks cover them.
 FIGURE_NAMES = ("tracking_case1.png", "tracking_case2.png", "theta_hat.png", "control_input.png",
-                "monte_carlo.png")
+                "monte_carlo.png", "loops.png")
 
 
 @dataclass(frozen=True)
@@ -168,6 +170,12 @@ class ValidationResult:
         Wall time of the simulations, s.
     workers : int
         Threads used.
+    margins : tuple of LoopMargins
+        Stability margins of both loops per plant (:mod:`commission.robustness`).
+    margin_floors : MarginFloors
+        The spec's floors they are held against.
+    loops : tuple of ndarray
+        ``(f_hz, L_arc, L_pid)`` on the identified plant, for the loop figure (not in JSON).
     """
 
     runs: tuple[RunRecord, ...]
@@ -182,6 +190,9 @@ class ValidationResult:
     u_sat: float
     elapsed: float
     workers: int
+    margins: tuple[LoopMargins, ...] = ()
+    margin_floors: MarginFloors = MarginFloors()
+    loops: tuple[np.ndarray, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -209,6 +220,9 @@ class ValidationResult:
             "worst": {k: c.to_dict() for k, c in self.verdict.worst().items()},
             "runs": [r.to_dict() for r in self.runs],
             "elapsed_s": self.elapsed,
+            "margins": {"floors": self.margin_floors.to_dict(), "loops": [m.to_dict() for m in self.margins],
+                        "worst": {c: (w.to_dict() if (w := worst(self.margins, c)) is not None else None)
+                                  for c in CONTROLLERS}},
         }
 
 
@@ -342,10 +356,15 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                                    u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
                                    theta_true=truth)
     verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs])
+    margins = margin_table(arc, tuning.pid, tuning.identification, spec)
+    floors = MarginFloors.from_spec(spec)
+    verdict = GateVerdict(verdict.checks + tuple(margin_checks(margins, floors)), verdict.limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
-                            e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers)
+                            e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
+                            margins=margins, margin_floors=floors,
+                            loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
 
 
 # --------------------------------------------------------------------------- controller.json
