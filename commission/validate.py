@@ -8,7 +8,8 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    is refused without ``force``).
 2. The scenario matrix (:func:`commission.scenarios.scenario_matrix`): the 12
    fixed scenarios (Case 1 and Case 2 x nominal, payload at both theta_1
-   bounds, friction +-20 %, the delta_d disturbance step) and
+   bounds, friction +-20 %, the delta_d disturbance step), the robustness
+   scenarios (one more sample of input delay; a known mode moved and less damped) and
    ``n_monte_carlo`` plants drawn from the theta box with
    ``numpy.random.default_rng(seed)``.
 3. Every scenario is simulated with the tuned ARC and with the PID baseline
@@ -20,7 +21,9 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    CPU by default); results do not depend on the number of threads.  The ARC
    is simulated with the gains *as read back from the controller.json
    layout*, so what was validated is what is deployed.
-4. The gate (:mod:`commission.gate`) is checked on every scenario.
+4. The gate (:mod:`commission.gate`) is checked on every scenario, and the
+   stability margins of the ARC on the identified plant against the spec's
+   floors (:mod:`commission.robustness`, :func:`commission.gate.margin_checks`).
 5. Outputs: ``validation.json`` (every index of every run, the gate and every
    check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``
    only when every check passed.  With ``force`` and a failing gate a
