@@ -156,6 +156,15 @@ def margin_table(arc: ArcGains, pid: PidGains, ident: Identification, spec: Spec
     return tuple(rows)
 
 
+def identified_plant_arc_margins(arc: ArcGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
+    """The ARC's loops on the identified plant only (the ones the gate holds to the floors)."""
+    name, p = margin_plants(ident, spec)[0]
+    sp = sampled_plant(p, spec.period)
+    ap = arc_pack(arc)
+    return tuple(LoopMargins(name, "arc", th, at, loop_margins(linearize_arc(ap, th), sp))  # type: ignore[arg-type]
+                 for at, th in (("initial", tuple(arc.theta0)), ("plant", _theta_of(p, ident.theta.nominal[2]))))
+
+
 def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) -> Margins | None:
     """Element-wise worst margins of ``controller`` over ``rows`` (None: no row)."""
     ms = [r.margins for r in rows if r.controller == controller]
@@ -182,5 +191,5 @@ def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
             loop_response(linearize_pid(pid_pack(pid)), sp, f))
 
 
-__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "margin_plants", "margin_table",
-           "nominal_loops", "worst"]
+__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "identified_plant_arc_margins",
+           "margin_plants", "margin_table", "nominal_loops", "worst"]

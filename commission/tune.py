@@ -99,14 +99,12 @@ from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
 from commission.controllers.simulate import simulate_batch
 from commission.errors import SpecError, UsageError
-from commission.gate import GateLimits, GateSpec, evaluate_gate, resolve_gate
+from commission.gate import GateLimits, GateSpec, evaluate_gate, margin_checks, resolve_gate
 from commission.jsonio import read_json, sha256_file
-from commission.robustness import margin_table
+from commission.robustness import MarginFloors, identified_plant_arc_margins, margin_table
 from commission.scenarios import (
     CASE1_SPEED_FRACTION,
-    CASES,
     FRICTION_SCALE,
-    VARIANTS,
     Scenario,
     case1_trajectory,
     case2_trajectory,
@@ -1119,6 +1117,8 @@ class HoldoutGate:
         self.pid_scores = [*pid_scores, *self.ev_h.scores(KIND_PID, [pid_pack(pid)])[0]]
         self.limits = default_gate_limits(ident, spec)
         self.names = [*ev.names, *self.ev_h.names]
+        self._ident, self._spec = ident, spec
+        self._floors = MarginFloors.from_spec(spec)
 
     @property
     def n_plants(self) -> int:
@@ -1135,11 +1135,15 @@ class HoldoutGate:
         ts = [list(s) for s in tune_scores] if tune_scores is not None else self.ev.scores(KIND_ARC, packs)
         hs = self.ev_h.scores(KIND_ARC, packs)
         out = []
-        for t, h in zip(ts, hs):
+        for g, t, h in zip(gains, ts, hs):
             arc = [*t, *h]
             runs = [(n, a, p, math.nan) for n, a, p in zip(self.names, arc, self.pid_scores)]
-            out.append((t, len(evaluate_gate(self.limits, runs).failures), gate_excess(self.limits, arc,
-                                                                                    self.pid_scores)))
+            # validate's margin floors, judged as validate judges them
+            missed = [c for c in margin_checks(identified_plant_arc_margins(g, self._ident, self._spec), self._floors)
+                      if not c.passed]
+            excess = sum(math.log(c.value) if math.isfinite(c.value) else REPAIR_DIVERGED_EXCESS for c in missed)
+            out.append((t, len(evaluate_gate(self.limits, runs).failures) + len(missed),
+                        gate_excess(self.limits, arc, self.pid_scores) + excess))
         return out
 
 
