@@ -180,3 +180,43 @@ def test_identify_cli_plots_the_bode_figure(identified, tmp_path_factory, tmp_pa
     assert (tmp_path / "plots" / "bode.png").stat().st_size > 10_000
     fr = json.loads((tmp_path / "ident.json").read_text())["frequency_response"]
     assert fr["model"]["mode_hz"] == pytest.approx(479.0, rel=0.05)
+
+
+# --------------------------------------------------------------------------- the numerics alone
+
+
+def test_h1_estimate_recovers_a_known_filter_and_its_coherence():
+    # White input through y_k = 0.5 y_{k-1} + u_{k-1} (scipy.signal.lfilter), plus output noise:
+    # H(e^{jw}) = e^{-jw} / (1 - 0.5 e^{-jw}) exactly, coherence S/(S+N) from the known levels.
+    from scipy import signal
+
+    from commission.identify.frf import estimate
+
+    rng = np.random.default_rng(0)
+    fs, n = 1000.0, 200_000
+    u = rng.normal(size=n)
+    y_clean = signal.lfilter([0.0, 1.0], [1.0, -0.5], u)
+    y = y_clean + rng.normal(scale=0.5, size=n)
+    f, H, coh, n_avg = estimate(y, u, fs, [(0, n // 2), (n // 2, n)], 256)
+    z = np.exp(-2j * np.pi * f / fs)
+    H_true = z / (1 - 0.5 * z)
+    assert n_avg == 2 * (1 + (n // 2 - 256) // 128)
+    assert np.median(np.abs(H / H_true - 1)) < 0.02
+    coh_true = np.abs(H_true) ** 2 / (np.abs(H_true) ** 2 + 0.25)
+    assert np.median(np.abs(coh - coh_true)) < 0.02
+
+
+def test_backed_band_ends_at_two_consecutive_disagreeing_coherent_bins():
+    from commission.identify.frf import backed_band
+
+    f = np.arange(1.0, 21.0)
+    R = np.ones(f.size, complex)
+    coh = np.ones(f.size)
+    coh[0] = 0.3  # incoherent: not part of the band
+    R[9] = 2.0  # one outlier does not end it
+    R[14:16] = 0.5  # two in a row do
+    assert backed_band(f, R, coh) == (2.0, 14.0)
+    R[6] = np.exp(1j * np.radians(45.0))  # a phase miss counts like a gain miss
+    R[7] = np.exp(1j * np.radians(45.0))
+    assert backed_band(f, R, coh) == (2.0, 6.0)
+    assert backed_band(f, R, np.zeros(f.size)) is None
