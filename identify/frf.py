@@ -520,8 +520,9 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         why = ("no broadband content in the log (no segment where the command carries a broadband "
                "injection)" if source == "whole_log" else
                f"the broadband segments give only {int(np.count_nonzero(fit_bins))} coherent bins")
-        note = (f"{why}: modes and input delay are not measured; {band_text}, and nothing is known "
-                f"about the plant above {band[1] if band else 0.0:.3g} Hz")
+        note = f"{why}: modes and input delay are not measured; {band_text}"
+        if band is not None:
+            note += f", and nothing is known about the plant above {band[1]:.3g} Hz"
         return FrequencyResponse(fit=None, note=note, **common)
     ff, Hf, cf = f[fit_bins], H[fit_bins], coh[fit_bins]
     Rf = R[fit_bins]
