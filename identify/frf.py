@@ -16,7 +16,8 @@ Method
    per window so the constant-velocity ramp drops out), averaged over the
    segments with their window counts.  Without segments the whole log is used
    (its content is then the reference's: it backs the rigid model at low
-   frequency only).  In a closed loop H1 is unbiased where the injection
+   frequency only); with segments, the whole log's estimate extends the band
+   below the segments' first bins.  In a closed loop H1 is unbiased where the injection
    dominates the command; where the feedback of encoder noise dominates it
    tends to minus the controller's inverse, which is why the segments are
    chosen by the command's broadband level and not by coherence alone.
@@ -381,7 +382,7 @@ def backed_band(f: np.ndarray, R: np.ndarray, coh: np.ndarray) -> tuple[float, f
             misses += 1
             if misses >= 2:
                 break
-    return float(f[low]), float(f[high])
+    return round(float(f[low]), 6), round(float(f[high]), 6)  # Hz; drops the round-off of 1 / median(dt)
 
 
 # --------------------------------------------------------------------------- fit
@@ -497,10 +498,10 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
             nperseg //= 2
         segs = [(a, b) for a, b in segs if b - a >= nperseg]
         source = "broadband"
+    whole_nperseg = min(int(round(fs / WHOLE_LOG_RESOLUTION_HZ)), max(u.size // 8, 16))
     if not segs:
-        total = u.size
         # 2-Hz bins: the reference's lines sit a few bins apart, each averaged over many windows.
-        nperseg = min(int(round(fs / WHOLE_LOG_RESOLUTION_HZ)), max(u.size // 8, 16))
+        nperseg = whole_nperseg
         source = "whole_log"
         ranges = [(0, u.size)]
     else:
@@ -510,6 +511,15 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
     with np.errstate(divide="ignore", invalid="ignore"):
         R = np.where(np.abs(H) > 0, H / H_rigid, 1e-300)
     band = backed_band(f, R, coh)
+    if source == "broadband" and band is not None:
+        # The rest of the log (ladder, multisine) backs the model below the segments' first bins:
+        # extend the band down where the whole log's band reaches into it.
+        fw, Hw, cw, _ = estimate(q, u, fs, [(0, u.size)], whole_nperseg)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Rw = np.where(np.abs(Hw) > 0, Hw / rigid_frequency_response(M, B, Ts, fw), 1e-300)
+        wb = backed_band(fw, Rw, cw)
+        if wb is not None and wb[0] < band[0] <= wb[1]:
+            band = (wb[0], band[1])
     seg_times = tuple((float(t[a]), float(t[b - 1])) for a, b in segs) if source == "broadband" else ()
     common = dict(f=f, H=H, coherence=coh, n_averages=n_avg, source=source, segments=seg_times,
                   H_rigid=H_rigid, M=float(M), B=B, band_hz=band, sample_rate=fs)
