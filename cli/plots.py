@@ -87,7 +87,9 @@ def bode_plot(outcome: IdentifyOutcome, path: Path) -> Path:
     good = fr.coherence >= 0.5
     Hm = np.where(good, fr.H, np.nan)
     axm.loglog(fr.f, np.abs(fr.H), color="0.8", lw=0.6, label="measured (coherence < 0.5)")
-    axm.loglog(fr.f, np.abs(Hm), color="C0", lw=1.0, label=f"measured H1 ({fr.source.replace('_', ' ')})")
+    label = "measured H1 (broadband segments)" if fr.source == "broadband" else \
+        "measured H1 (whole log; outside the band it shows the loop's answer to noise, not the plant)"
+    axm.loglog(fr.f, np.abs(Hm), color="C0", lw=1.0, label=label)
     axm.loglog(fr.f, np.abs(fr.H_rigid), "--", color="k", lw=1.0, label="rigid model 1/(M s² + B s)")
     if fr.H_model is not None:
         axm.loglog(fr.f, np.abs(fr.H_model), color="C3", lw=1.0, label=f"fitted: {fr.fit.structure.replace('_', ' ')}")  # type: ignore[union-attr]
