@@ -40,7 +40,7 @@ Method
    the peak.  The structure with the least ``cost (1 + STRUCTURE_PENALTY k)``
    (k free parameters) wins, and a mode only counts when it changes the
    fitted response by more than ``BAND_GAIN_TOL`` somewhere in the fitted
-   range.  The load ratio of a load-side mode does not show in u -> q (the
+   range and its frequency and damping are not on their bounds.  The load ratio of a load-side mode does not show in u -> q (the
    response is ``(2 zeta w s + w^2) / (M s^2 (s^2 + 2 zeta w s + w^2))`` for
    any ratio): it is reported at 0.5 with ``mode_ratio_identified`` false.
 
@@ -89,6 +89,8 @@ COHERENCE_CAP = 0.995
 STRUCTURE_PENALTY = 0.1
 #: Largest delay fitted, samples.
 MAX_DELAY_SAMPLES = 6.0
+#: Largest damping ratio fitted (a mode damped more than this is no resonance to report).
+MAX_DAMPING = 0.7
 #: Coherent bins the fit needs.
 MIN_FIT_BINS = 12
 
@@ -411,7 +413,7 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
     g2 = np.minimum(coh, COHERENCE_CAP)
     sw = np.sqrt(2.0 * n_avg * g2 / (1.0 - g2))
     logH = np.log(H)
-    fmin, fmax = float(f[0]), float(f[-1])
+    fmin = float(f[0])
 
     def resid(x: np.ndarray) -> np.ndarray:
         s, d, fr, z, r = _unpack(structure, x)
@@ -424,7 +426,7 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
     hi = [1.0, MAX_DELAY_SAMPLES]
     if structure != "rigid":
         lo += [math.log(fmin), math.log(0.002)]
-        hi += [math.log(0.5 / Ts), math.log(0.7)]
+        hi += [math.log(0.5 / Ts), math.log(MAX_DAMPING)]
     if structure == "motor_side_mode":
         lo.append(0.02)
         hi.append(0.95)
@@ -544,7 +546,7 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
                                       [np.array([lM, delay0]), np.array([lM, 0.0])])
         d0 = fits["rigid"].delay_samples
         load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
-                       for fr in res for z in (0.03, 0.15) for dd in {round(d0, 6), round(delay0, 6)}]
+                       for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6)})]
         fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
         motor_starts = []
         for fa, fr in pairs:
@@ -560,8 +562,14 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         Hm = sampled_plant(best.plant(M, B, Ts), Ts).frequency_response(ff)
         rigid_like = sampled_plant(plant_vector(M * best.mass_scale, B, delay=best.delay_samples * Ts),
                                    Ts).frequency_response(ff)
+        on_edge = (best.mode_damping >= 0.99 * MAX_DAMPING or best.mode_hz <= 1.01 * float(ff[0])  # type: ignore[operator]
+                   or best.mode_hz >= 0.99 * 0.5 * fs)  # type: ignore[operator]
         if np.max(np.abs(np.log(np.abs(Hm / rigid_like)))) <= math.log(BAND_GAIN_TOL):
             best = fits["rigid"]
             note = "the best mode changes the response by less than the band tolerance: reported as rigid"
+        elif on_edge:
+            best = fits["rigid"]
+            note = ("the best mode sits on the edge of what the data can show (damping or frequency at its "
+                    "bound): reported as rigid; see the measured response")
     H_model = sampled_plant(best.plant(M, B, Ts), Ts).frequency_response(f)
     return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, **common)
