@@ -1543,9 +1543,16 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     traj_names = ["case1", "case2"]
     trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
 
+    floors = MarginFloors.from_spec(spec)
+
     def feasible(g: ArcGains) -> FeasibilityReport:
-        return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
-                                    margin=spec.margin)
+        """Discrete feasibility over the box, and validate's margin floors on the identified plant."""
+        rep = discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
+                                   margin=spec.margin)
+        if rep.holds and not all(c.passed for c in margin_checks(identified_plant_arc_margins(g, ident, spec),
+                                                                 floors)):
+            return dataclasses.replace(rep, holds=False)
+        return rep
 
     run = SearchRun(base, ev, spec, feasible=feasible, reference=pid_scores, gate=gate)
     run.advance(spec.budget, rng, progress, total)
