@@ -90,10 +90,28 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
         f"delta_d {ident.delta_d:.4g} m/s²; friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}",
     ]
+    lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
     for line in lines:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
         console.print(f"[yellow]warning:[/] {w}")
+
+
+def frequency_summary(fr: dict | None) -> str:
+    """One line on the frequency response section of ident.json."""
+    if not fr:
+        return "frequency response: not measured"
+    band = fr.get("band_hz")
+    text = "frequency response: " + (f"rigid model backed {band[0]:.4g}-{band[1]:.4g} Hz" if band
+                                     else "no band backs the rigid model")
+    for m in fr.get("modes", []):
+        text += f"; {m['kind']} {m['frequency_hz']:.4g} Hz (damping {m['damping']:.3g})"
+    if fr.get("delay_samples") is not None:
+        text += f"; input delay {fr['delay_samples']:.2f} samples"
+    if fr.get("note"):
+        # The note states the backed band itself.
+        text = "frequency response: " + fr["note"]
+    return text
 
 
 @app.command("identify")
@@ -117,7 +135,7 @@ def identify_command(
     payload_max_kg: Optional[float] = typer.Option(None, "--payload-max-kg", help="Largest added mass in kg (needs --force-constant)."),
     force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
     disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""
     bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,

@@ -53,6 +53,7 @@ from commission.controllers.pid import PidGains
 from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.robustness import LoopMargins
 from commission.spec import Spec, spec_from_mapping
 
 TUNING_KIND = "tuning"
@@ -320,6 +321,9 @@ class Tuning:
     scores : dict
         scenario -> ``{"arc": Score, "pid": Score}``.
     search : SearchRecord
+    margins : tuple of LoopMargins
+        Stability margins of both loops per plant (:mod:`commission.robustness`);
+        empty in a tuning.json written before they were recorded.
     """
 
     provenance: Provenance
@@ -337,6 +341,7 @@ class Tuning:
     guarantees: Mapping[str, Guarantee]
     scores: Mapping[str, Mapping[str, Score]]
     search: SearchRecord
+    margins: tuple[LoopMargins, ...] = ()
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -383,6 +388,7 @@ class Tuning:
             "guarantees": {k: {"holds": g.holds, "detail": g.detail} for k, g in self.guarantees.items()},
             "scores": {s: {c: sc.to_dict() for c, sc in row.items()} for s, row in self.scores.items()},
             "search": self.search.to_dict(),
+            "margins": [m.to_dict() for m in self.margins],
         }
 
     def save(self, path: str) -> None:
@@ -459,12 +465,28 @@ class Tuning:
                    arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search)
+                   scores=scores, search=search, margins=_margins(r))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
         """Read and strictly validate ``tuning.json``."""
         return cls.from_dict(read_json(path), source=str(path))
+
+
+def _margins(r: Reader) -> tuple[LoopMargins, ...]:
+    """The optional ``margins`` list; an entry that does not parse is named by its JSON path."""
+    if not r.has("margins"):
+        return ()
+    lst = r.child("margins")
+    if not isinstance(lst.data, list):
+        raise lst.fail("expected a list")
+    out = []
+    for i, row in enumerate(lst.data):
+        try:
+            out.append(LoopMargins.from_dict(row))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
+    return tuple(out)
 
 
 def _matrix(r: Reader, key: str, rows: int, cols: int) -> tuple[tuple[float, ...], ...]:

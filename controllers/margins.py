@@ -56,17 +56,17 @@ from typing import Callable
 
 import numpy as np
 
-from commission.controllers.arc import (P_FLEVEL, P_GAMMA, P_TMAX, P_TMIN, P_TS, S_DYNAMIC, S_THETA,
+from commission.controllers.arc import (P_FLEVEL, P_GAMMA, P_K1, P_TMAX, P_TMIN, P_TS, S_DYNAMIC, S_THETA,
                                         arc_new_state, arc_reset, arc_step)
 from commission.controllers.linear import SampledPlant
-from commission.controllers.pid import G_FLEVEL, G_TS, PID_DYNAMIC, pid_new_state, pid_reset, pid_step
+from commission.controllers.pid import G_FLEVEL, PID_DYNAMIC, pid_new_state, pid_reset, pid_step
 
 #: Relative step of the central differences (states scaled by their response to 1 um).
 _REL_STEP = 1e-4
 #: Tolerance on |eigenvalue| - 1 for neutral modes (theta_hat1, theta_hat2 at rest).
 NEUTRAL_TOL = 1e-7
-#: Settling samples of the filters at the operating point before the Jacobian.
-SETTLE = 4000
+#: Time constants of the observer (1/p, p = k1/2) the filters settle for before the Jacobian.
+SETTLE_TIME_CONSTANTS = 40.0
 #: Points of the frequency grid.
 N_FREQ = 6000
 
@@ -131,8 +131,15 @@ def _scales(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...])
     return np.maximum(peak, 1e-18)
 
 
-def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
-    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring)."""
+def arc_operating_point(p: np.ndarray, theta_hat) -> tuple[np.ndarray, np.ndarray]:
+    """The ARC at rest with the estimate ``theta_hat``: ``(p_lin, s)`` to linearise about.
+
+    ``p_lin`` is ``p`` without friction compensation; ``s`` is the state after
+    the filters settled at ``y = q_d = 0`` with the estimates held, theta_hat
+    moved 0.1 % of the box inside so that the projection is inactive.  From
+    there ``arc_step(p_lin, s, 0, 0, 0, 0)`` returns 0 and the response to a
+    small ``y`` is the small-signal one :func:`linearize_arc` describes.
+    """
     p = np.array(p, dtype=np.float64)
     p[P_FLEVEL] = 0.0
     lo, hi = p[P_TMIN:P_TMIN + 3], p[P_TMAX:P_TMAX + 3]
@@ -142,9 +149,16 @@ def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
     s = arc_new_state(p)
     arc_reset(frozen, s, 0.0)
     s[S_THETA:S_THETA + 3] = th
-    for _ in range(SETTLE):  # filters (psi) to their rest values, estimates held
+    settle = int(math.ceil(SETTLE_TIME_CONSTANTS / (0.5 * p[P_K1] * p[P_TS])))
+    for _ in range(settle):  # filters (psi, lambda) to their rest values, estimates held
         arc_step(frozen, s, 0.0, 0.0, 0.0, 0.0)
     s[S_THETA:S_THETA + 3] = th
+    return p, s
+
+
+def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
+    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring)."""
+    p, s = arc_operating_point(p, theta_hat)
     return _jacobian(arc_step, p, s, S_DYNAMIC, _scales(arc_step, p, s, S_DYNAMIC), 1e-9)
 
 
