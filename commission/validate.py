@@ -386,7 +386,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         ref = refs[(s.trajectory, s.y0)]
         d = s.disturbance.samples(ref.t)
         r = simulate(s.plant, kind, ctrl[kind], ref, substeps=plant_substeps(1.0 / Ts), quant=s.quantization,
-                     disturbance=d if np.any(d) else None, y0=s.y0, u_sat=u_sat, e_abort=e_abort)
+                     disturbance=d if np.any(d) else None, noise=s.noise(ref.n), y0=s.y0, u_sat=u_sat,
+                     e_abort=e_abort)
         th = r.theta_hat
         final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
         # Monte-Carlo traces are dropped at once (memory); the fixed scenarios keep theirs for the figures.
