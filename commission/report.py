@@ -243,6 +243,14 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
              f"B_hat = {p.B_hat:.4g}")
     L.append("")
     L.extend(margins_markdown(result, tuning))
+    rl = robustness_lines(result)
+    if rl:
+        L.append("**Robustness (advisory).** The gate's criteria on the robustness scenarios (one more sample "
+                 "of input delay than identified; with a mode, its frequency x0.8 and x1.2 and half its damping) "
+                 "and the ARC's margin floors on the identified plant. They do not yet decide whether "
+                 "controller.json is written: " + rl[0])
+        L.extend(f"- {line.strip()}" for line in rl[1:])
+        L.append("")
     L.append("## Gate")
     L.append("")
     L.append("Every criterion is checked for the ARC on every scenario; errors are measured on the encoder "
@@ -328,6 +336,8 @@ def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the stdout summary: each fixed scenario, then the Monte-Carlo aggregate."""
     head = ["scenario", "ARC e_M um", "ARC e_F um", "ARC e_rms um", "ARC c_u", "ARC peak|u|", "PID e_rms um", "gate"]
     failed = {c.scenario for c in result.verdict.failures}
+    rob = getattr(result, "robustness", None)
+    advisory = {c.scenario for c in rob.failures} if rob is not None else set()
     rows: list[list[str]] = []
 
     def s(score: Score, key: str, scale: float, fmt: str) -> str:
@@ -339,7 +349,8 @@ def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
         rows.append([r.name, s(r.arc, "e_M", 1e6, "{:.3g}"), s(r.arc, "e_F", 1e6, "{:.3g}"),
                      s(r.arc, "e_rms", 1e6, "{:.3g}"), s(r.arc, "c_u", 1.0, "{:.2f}"),
                      _fmt(r.arc.u_peak, "{:.3g}", 1.0), s(r.pid, "e_rms", 1e6, "{:.3g}"),
-                     "FAIL" if r.name in failed else "ok"])
+                     ("advisory: FAIL" if r.name in advisory else "advisory: ok") if "robustness" in r.tags
+                     else ("FAIL" if r.name in failed else "ok")])
     mc = [r for r in result.runs if "monte_carlo" in r.tags]
     if mc:
         def worst(ctrl: str, key: str) -> float:
@@ -370,8 +381,23 @@ def summary_text(result: Any) -> str:
 def verdict_text(result: Any) -> str:
     """``gate PASSED`` or ``gate FAILED: N checks`` followed by one line per failure."""
     v = result.verdict
+    n = sum(1 for r in result.runs if "robustness" not in r.tags)
     if v.passed:
-        return f"gate PASSED ({len(v.checks)} checks on {len(result.runs)} scenarios)"
-    lines = [f"gate FAILED: {len(v.failures)} of {len(v.checks)} checks on {len(result.runs)} scenarios"]
-    lines += [f"  {line}" for line in failure_lines(v)]
+        lines = [f"gate PASSED ({len(v.checks)} checks on {n} scenarios)"]
+    else:
+        lines = [f"gate FAILED: {len(v.failures)} of {len(v.checks)} checks on {n} scenarios"]
+        lines += [f"  {line}" for line in failure_lines(v)]
+    lines += robustness_lines(result)
     return "\n".join(lines)
+
+
+def robustness_lines(result: Any) -> list[str]:
+    """The advisory robustness verdict (robustness scenarios and margin floors), one line per failure."""
+    rob = getattr(result, "robustness", None)
+    if rob is None:
+        return []
+    if rob.passed:
+        return [f"robustness (advisory) PASSED ({len(rob.checks)} checks: one more sample of delay, "
+                f"the mode's variants, margin floors)"]
+    return ([f"warning: robustness (advisory, not yet required for controller.json): {len(rob.failures)} of "
+             f"{len(rob.checks)} checks fail"] + [f"  {line}" for line in failure_lines(rob)])

@@ -83,7 +83,8 @@ def test_matrix_contents():
     assert (d.amplitude, d.t_on, d.t_off) == (pytest.approx(0.5), pytest.approx(2.2), pytest.approx(7.2))
     t = np.arange(25000) / 2500.0
     assert np.count_nonzero(d.samples(t)) == 12500
-    assert all("tune" in by[n].tags for n in names[:14])
+    assert all("tune" in by[n].tags for n in names[:12])
+    assert all("robustness" in by[n].tags and "tune" not in by[n].tags for n in names[12:14])
     assert all("monte_carlo" in by[n].tags for n in names[14:])
     for case in ("case1", "case2"):
         late = by[f"{case}/delay+1"].plant
@@ -124,7 +125,7 @@ def test_tuning_set_adds_the_corners():
     offsets = offset_scenarios(ident, spec)
     payloads = payload_scenarios(ident, spec)
     assert [s.name for s in ts] == [s.name for s in scenario_matrix(ident, spec, rng=np.random.default_rng(0),
-                                                                     n_monte_carlo=0)] + \
+                                                                     n_monte_carlo=0) if "tune" in s.tags] + \
         [s.name for s in corners] + [s.name for s in offsets] + [s.name for s in payloads]
     assert len(corners) == 16 and len(offsets) == 4 and len(payloads) == 6
     # interior payloads: geometric steps from the identified mass to the heaviest, nothing else changed
