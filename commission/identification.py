@@ -91,6 +91,14 @@ def _fit_with_context(log: ExcitationLog, *, friction: str,
         try:
             model = "stribeck" if friction == "auto" else friction
             fit = fit_axis(log.t, log.q, log.u, friction=model, ripple_pitch=ripple_pitch)  # type: ignore[arg-type]
+            fc, fs = fit.parameters.get("fc"), fit.parameters.get("fs")
+            if friction == "auto" and fc is not None and fs is not None and fs[0] < fc[0]:
+                # Anti-Stribeck (friction rising towards low speed) is outside the model the
+                # controller compensates; auto keeps the model it can trust.
+                note = (f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs[0]:.4g} < fc = {fc[0]:.4g}: "
+                        "friction rises at low speed); the Coulomb model was fitted instead "
+                        "(--friction stribeck keeps the Stribeck fit)")
+                return fit_axis(log.t, log.q, log.u, friction="coulomb", ripple_pitch=ripple_pitch), [note]
             return fit, []
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":
