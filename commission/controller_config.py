@@ -19,6 +19,11 @@ validated against and where it came from::
     adaptation         Gamma (3): the diagonal adaptation rate of (19)
     initial_estimates  theta0 (3)
     friction_compensation  level (u-unit), slope (s/m): F_hat(v) = level (2/pi) atan(slope v)
+    runtime            OPTIONAL (absent: every guard off): the runtime guards of the
+                       compiled step (:mod:`commission.controllers.arc`, "Runtime guards"):
+                       dy_max (m), dy_fault (m), n_reject_max (count), e_max (m),
+                       freeze_on_saturation (bool); written by validate, which
+                       simulated with exactly these
     validated          what validate checked: the resolved gate, the worst value of
                        each criterion with its scenario, the ARC's indexes on the
                        identified plant (nominal, per trajectory), scenario count, seed
@@ -39,7 +44,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from commission.controllers.arc import ArcGains
+from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, sha256_json
 
@@ -57,7 +62,10 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "initial_estimates": ("theta0",),
 }
 _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
-_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
+#: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
+RUNTIME_FIELDS = RUNTIME_GUARDS
+_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max",
+           "dy_max", "dy_fault", "n_reject_max", "e_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
 #: Allowed relative mismatch between sample_period and 1/sample_rate.
 _PERIOD_RTOL = 1e-9
@@ -127,6 +135,10 @@ class ControllerConfig:
         for section, names in SECTIONS.items():
             doc[section] = {n: _out(getattr(g, n)) for n in names}
         doc["friction_compensation"] = {k: getattr(g, a) for k, a in _FRICTION.items()}
+        if any(getattr(g, n) != f.default for n, f in _RUNTIME_DEFAULTS.items()):
+            # only when set, so that a file written before the guards existed keeps its checksum
+            doc["runtime"] = {n: (bool(getattr(g, n)) if n == "freeze_on_saturation" else _out(getattr(g, n)))
+                              for n in RUNTIME_FIELDS}
         doc["validated"] = dict(self.validated)
         doc["provenance"] = self.provenance.to_dict()
         return doc
@@ -154,7 +166,7 @@ class ControllerConfig:
         if ctype != CONTROLLER_TYPE:
             raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
         known = {"kind", "schema_version", "controller", "sample_rate", "sample_period", "units",
-                 "friction_compensation", "validated", "provenance", "checksum", *SECTIONS}
+                 "friction_compensation", "validated", "provenance", "checksum", "runtime", *SECTIONS}
         for k in r.keys():
             if k not in known:
                 raise r.fail("unknown field", f"$.{k}")
@@ -181,6 +193,18 @@ class ControllerConfig:
         fr = r.obj("friction_compensation")
         for k, attr in _FRICTION.items():
             kw[attr] = fr.num(k, nonneg=True)
+        if r.has("runtime"):
+            rr = r.obj("runtime")
+            for k in rr.keys():
+                if k not in RUNTIME_FIELDS:
+                    raise rr.fail("unknown field", f"{rr.path}.{k}")
+            for n in RUNTIME_FIELDS:
+                if n == "freeze_on_saturation":
+                    kw[n] = rr.bool_(n)
+                elif rr.child(n).data is None:
+                    kw[n] = math.inf
+                else:
+                    kw[n] = rr.num(n)
         try:
             gains = ArcGains(**kw)
         except ValueError as exc:
@@ -203,6 +227,9 @@ class ControllerConfig:
         return cls.from_dict(read_json(path), source=str(path))
 
 
+_RUNTIME_DEFAULTS = {f.name: f for f in dataclasses.fields(ArcGains) if f.name in RUNTIME_FIELDS}
+
+
 def _out(v: Any) -> Any:
     if isinstance(v, tuple):
         return [float(x) for x in v]
@@ -220,6 +247,8 @@ def _gain_path(msg: str) -> str:
             return f"$.friction_compensation.{'level' if name == 'fric_level' else 'slope'}"
         if name == "Ts":
             return "$.sample_period"
+        if name in RUNTIME_FIELDS:
+            return f"$.runtime.{name}"
     return "$"
 
 
