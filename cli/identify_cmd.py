@@ -136,6 +136,7 @@ def identify_command(
     force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
     disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
+    log_format: Optional[str] = typer.Option(None, "--format", help="Force the log format: hdf5, csv, mat or epos (default: from the content, then the extension)."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""
     bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
@@ -147,7 +148,7 @@ def identify_command(
             str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
             friction=friction.value, ripple_pitch=ripple_pitch,
             validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
-            q_unit=q_unit,
+            q_unit=q_unit, fmt=log_format,
         )
     write_json_atomic(out, outcome.ident.to_dict())
     print_summary(outcome, console)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import List, Optional
 
@@ -9,7 +10,7 @@ import typer
 from rich.console import Console
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
-from commission.cli.identify_cmd import FRICTION_HELP, Q_UNIT_HELP, Friction
+from commission.cli.identify_cmd import FRICTION_HELP, Q_UNIT_HELP, Friction, bounds_options
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import print_summary
@@ -35,12 +36,26 @@ def run_command(
     seed: int = typer.Option(0, "--seed", help="Seed of the tuning search and of the Monte-Carlo plants."),
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+    u_unit: Optional[str] = typer.Option(None, "--u-unit", help="As identify: unit of u after --input-gain."),
+    ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="As identify: force-ripple pitch in m."),
+    validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="As identify: second log for the cross-test relative error."),
+    k_sigma: float = typer.Option(3.0, "--k-sigma", help="As identify: standard deviations covered by the theta box."),
+    model_margin: float = typer.Option(0.2, "--model-margin", help="As identify: relative margin on M and B."),
+    payload_min: Optional[float] = typer.Option(None, "--payload-min", help="As identify: least added mass, u-unit·s²/m."),
+    payload_max: Optional[float] = typer.Option(None, "--payload-max", help="As identify: largest added mass, u-unit·s²/m."),
+    payload_min_kg: Optional[float] = typer.Option(None, "--payload-min-kg", help="As identify (needs --force-constant)."),
+    payload_max_kg: Optional[float] = typer.Option(None, "--payload-max-kg", help="As identify (needs --force-constant)."),
+    force_constant: Optional[float] = typer.Option(None, "--force-constant", help="As identify: N per u-unit."),
+    disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="As identify: largest load force, u-unit."),
+    log_format: Optional[str] = typer.Option(None, "--format", help="As identify: force the log format."),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
     mapping = parse_mapping(map_)
+    bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
+                            payload_max_kg, force_constant, disturbance_bound)
     stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
     with StageProgress(err) as bar:
 
@@ -49,7 +64,11 @@ def run_command(
 
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, q_unit=q_unit, spec_path=spec, gate_path=gate, force=force, seed=seed,
-                          n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
+                          n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
+                          u_unit=u_unit, ripple_pitch=ripple_pitch, validate_on=validate_on, bounds=bounds,
+                          fmt=log_format)
+    for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
+        err.print(f"warning: {w}", highlight=False)
     pid_note = pid_pole_note(outcome.validation.tuning)
     for note in (*outcome.notes, *(() if pid_note is None else (pid_note,))):
         err.print(f"note: {note}", highlight=False)

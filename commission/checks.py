@@ -249,6 +249,9 @@ def check_log(
             "resampled or filtered, so the encoder resolution is unknown"
         )
 
+    if log.q_unit_in_file != "rad":
+        warns += plausibility_warnings(t, q, step)
+
     return CheckReport(
         source=src, n=n, sample_rate=rate, duration=duration,
         dt_max_deviation=dt_max_dev, dt_relative_std=dt_rel_std,
@@ -309,3 +312,29 @@ def _rail_runs(u: np.ndarray, rail: float, min_run: int) -> tuple[int, int | Non
     if not keep.any():
         return 0, None
     return int(lengths[keep].sum()), int(starts[keep][0])
+
+
+#: Speed [m/s] above which a linear axis's log is implausible: positioning axes stay well below it,
+#: while a log in mm read as metres reads 1000 times too fast.
+PLAUSIBLE_SPEED = 10.0
+#: Encoder step [m] above which the declared unit is implausible for a precision axis.
+PLAUSIBLE_STEP = 1e-4
+
+
+def plausibility_warnings(t: np.ndarray, q: np.ndarray, step: float | None) -> list[str]:
+    """Warnings, with the figure, when speed or encoder step are implausible for q in metres.
+
+    The peak speed is the 99.9th percentile of ``|dq/dt|`` (a single glitch does not count).
+    The remedy named is ``--q-unit`` (the usual cause: a log in mm read as m).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.abs(np.diff(q) / np.diff(t))
+    speed = speed[np.isfinite(speed)]
+    out = []
+    if speed.size and (peak := float(np.percentile(speed, 99.9))) > PLAUSIBLE_SPEED:
+        out.append(f"q: peak speed {peak:.3g} m/s is implausible for a positioning axis (> {PLAUSIBLE_SPEED:g} "
+                   "m/s); if the file's q is in mm or um, pass --q-unit mm (or um)")
+    if step is not None and step > PLAUSIBLE_STEP:
+        out.append(f"q: encoder step {step:.3g} m is implausibly coarse (> {PLAUSIBLE_STEP:g} m); if the file's "
+                   "q is in mm or um, pass --q-unit mm (or um)")
+    return out

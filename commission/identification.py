@@ -27,7 +27,7 @@ from commission.logs import ExcitationLog, load_log
 
 
 #: Command units of CONTRACT §1.
-U_UNITS = ("V", "N", "A")
+U_UNITS = ("V", "N", "A", "Nm", "%")
 
 
 @dataclass(frozen=True)
@@ -91,6 +91,14 @@ def _fit_with_context(log: ExcitationLog, *, friction: str,
         try:
             model = "stribeck" if friction == "auto" else friction
             fit = fit_axis(log.t, log.q, log.u, friction=model, ripple_pitch=ripple_pitch)  # type: ignore[arg-type]
+            fc, fs = fit.parameters.get("fc"), fit.parameters.get("fs")
+            if friction == "auto" and fc is not None and fs is not None and fs[0] < fc[0]:
+                # Anti-Stribeck (friction rising towards low speed) is outside the model the
+                # controller compensates; auto keeps the model it can trust.
+                note = (f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs[0]:.4g} < fc = {fc[0]:.4g}: "
+                        "friction rises at low speed); the Coulomb model was fitted instead "
+                        "(--friction stribeck keeps the Stribeck fit)")
+                return fit_axis(log.t, log.q, log.u, friction="coulomb", ripple_pitch=ripple_pitch), [note]
             return fit, []
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":
@@ -118,6 +126,7 @@ def identify_log(
     bounds: BoundsOptions = BoundsOptions(),
     u_unit: str | None = None,
     q_unit: str | None = None,
+    fmt: str | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log.
 
@@ -147,6 +156,9 @@ def identify_log(
     q_unit : {"m", "mm", "um"}, optional
         Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m.
         Applies to ``validate_on`` too.
+    fmt : {"hdf5", "csv", "mat", "epos"}, optional
+        Forces the log format (``--format``); default: recognised from the content
+        (EPOS recorder files) or the extension.  Applies to ``validate_on`` too.
 
     Returns
     -------
@@ -158,7 +170,8 @@ def identify_log(
         raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
     if u_unit is not None and u_unit not in U_UNITS:
         raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
-    log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit)
+    log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
+                   fmt=fmt)
     checks = check_log(log)
     unit_warnings = []
     if u_unit is None and input_gain != 1.0:
@@ -168,7 +181,7 @@ def identify_log(
     if validate_on is not None:
         # Load and check the second log before the (long) fit: bad input fails fast.
         val_log = load_log(validate_on, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                           q_unit=q_unit)
+                           q_unit=q_unit, fmt=fmt)
         check_log(val_log)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
@@ -246,13 +259,20 @@ def identify_log(
         "frequency_response": freq.to_dict(),
         "warnings": warnings,
     }
+    try:
+        theta = ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
+    except ValueError as exc:
+        # E.g. a negative B from a log the rigid model does not explain: no controller can use it.
+        raise DataError(f"{path}: the identified parameters give no usable theta box ({exc}); "
+                        f"M = {fit.parameters['M'][0]:.4g}, B = {fit.parameters['B'][0]:.4g}, relative error "
+                        f"{fit.relative_error:.3g}: the model does not explain this log") from None
     ident = Identification(
-        units={"u": u_unit or log.u_unit, "q": "m"},
+        units={"u": u_unit or log.u_unit, "q": "rad" if log.q_unit_in_file == "rad" else "m"},
         parameters=params,
         relative_error=fit.relative_error,
         condition_number=fit.condition_number,
         validation_relative_error=val_err,
-        theta=ThetaBox(tb.nominal, tb.theta_min, tb.theta_max),
+        theta=theta,
         delta_d=tb.delta_d,
         fric_level=comp.level,
         fric_slope=comp.slope,

@@ -11,9 +11,12 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import TYPE_CHECKING, Callable, Mapping
 
 from commission.errors import SpecError, UsageError
+
+if TYPE_CHECKING:
+    from commission.identification import BoundsOptions
 from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.scenarios import resolve_quantization
@@ -51,7 +54,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
-            figures: FigureWriter | None = None) -> RunOutcome:
+            figures: FigureWriter | None = None, u_unit: str | None = None,
+            ripple_pitch: float | None = None, validate_on: str | os.PathLike[str] | None = None,
+            bounds: BoundsOptions | None = None, fmt: str | None = None) -> RunOutcome:
     """``commission run``: identify, tune and validate one log into ``out_dir``.
 
     Every check of the inputs (flags, spec, gate, the log, the spec against the
@@ -86,6 +91,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     workers : int, optional
     figures : callable, optional
         As in :func:`run_validate`.
+    u_unit, ripple_pitch, validate_on, bounds, fmt
+        As ``commission identify`` (``--u-unit``, ``--ripple-pitch``, ``--validate-on``, the
+        bound flags, ``--format``); ``bounds`` default :class:`BoundsOptions`'s defaults.
 
     Raises
     ------
@@ -94,7 +102,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     """
     from commission.artifacts import Identification
     from commission.controllers.design import DesignError
-    from commission.identification import identify_log
+    from commission.identification import BoundsOptions, identify_log
     from commission.jsonio import canonical_json, sha256_json
     from commission.spec import read_spec_toml, spec_from_mapping
     from commission.tune import resolve_spec, tune_from, tune_inputs
@@ -116,7 +124,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     stage("identify")(0, 1)
     ident_out = identify_log(os.fspath(log_path), mapping=mapping, input_gain=input_gain,
                              sample_rate=sample_rate, friction=friction,  # type: ignore[arg-type]
-                             q_unit=q_unit)
+                             q_unit=q_unit, u_unit=u_unit, ripple_pitch=ripple_pitch,
+                             validate_on=os.fspath(validate_on) if validate_on is not None else None,
+                             bounds=bounds if bounds is not None else BoundsOptions(), fmt=fmt)
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))

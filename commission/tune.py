@@ -261,14 +261,33 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
     d = drive_need(ident)
     need = d.need(spec.v_max, spec.a_max, spec.beta1)
     if need > spec.u_max:
-        a_ok = d.a_max(spec.u_max, spec.v_max)
-        hint = (f"largest trajectory.a_max at this v_max: {a_ok:.3g} m/s^2" if a_ok > 0 else
-                f"even at rest the plant needs {d.const:.3g}")
         u = ident.units.get("u", "u-unit")
+        # Remedies in order: a smaller envelope (values that pass when followed: Case 1's start-up
+        # acceleration counts), a narrower box, and only then a larger drive.
+        a_ok = d.a_max(spec.u_max, spec.v_max)
+        a1 = spec.beta1 * CASE1_SPEED_FRACTION * spec.v_max
+        v_ok = d.v_max(spec.u_max, spec.beta1)
+        if a_ok > 0 and a_ok >= a1:
+            hint = f"set trajectory.a_max <= {_floor3(a_ok):.3g} m/s^2 at this v_max"
+        elif v_ok > 0:
+            v_fix = _floor3(v_ok)
+            hint = (f"Case 1's start-up alone needs {a1:.3g} m/s^2 at this v_max, so no a_max fits; set "
+                    f"trajectory.v_max <= {v_fix:.3g} m/s with trajectory.a_max <= "
+                    f"{_floor3(d.a_max(spec.u_max, v_fix)):.3g} m/s^2")
+        else:
+            hint = f"no envelope fits: even at rest the plant needs {d.const:.3g} {u}"
         raise SpecError(
             f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.3g} {u} needed for "
             f"trajectory.a_max = {spec.a_max:g} m/s^2 and v_max = {spec.v_max:g} m/s on the most demanding "
-            f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}")
+            f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}; else narrow the box "
+            f"(commission identify --payload-max, --disturbance-bound); raise controller.u_max only if the "
+            f"drive really has it")
+
+
+def _floor3(x: float) -> float:
+    """``x`` > 0 rounded down to 3 significant digits, so that the printed value still fits."""
+    step = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.floor(x * (1 - 1e-12) / step) * step
 
 
 #: Share of the feedforward budget (DRIVE_HEADROOM x u_max) that a *defaulted* load-force bound

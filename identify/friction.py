@@ -145,6 +145,11 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
     """
     i_fc = names0.index("fc")
     y = np.asarray(y, dtype=np.float64)
+    if not (math.isfinite(vs_bounds[0]) and math.isfinite(vs_bounds[1]) and vs_bounds[0] > 0):
+        # A stalled leg (mean speed 0) makes the lower edge 0: no Stribeck speed can be told apart.
+        raise StribeckNotIdentifiableError(
+            f"stribeck: the slowest speed seen is {vs_bounds[0]:g} m/s, so there is no search box for vs "
+            f"(a leg that does not move, or a stalled axis)")
     lo = np.array([math.log(vs_bounds[0]), xi_bounds[0]])
     hi = np.array([math.log(vs_bounds[1]), xi_bounds[1]])
     if not np.all(hi > lo):

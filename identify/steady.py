@@ -132,3 +132,60 @@ def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndar
 def _segment_means(x: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
     c = np.concatenate([[0.0], np.cumsum(x)])
     return (c[stop] - c[start]) / (stop - start)
+
+
+@dataclass(frozen=True)
+class FrictionMap:
+    """Friction map of constant-velocity legs: one entry per leg, in the log's units.
+
+    Attributes
+    ----------
+    velocity : ndarray
+        Mean velocity of the leg, ``(q[-1] - q[0]) / (t[-1] - t[0])``, m/s (rad/s on a rotary axis).
+    force : ndarray
+        Median command over the leg, u-unit (the median ignores the odd spike of a rough slow leg).
+    std : ndarray
+        Standard deviation of the command over the leg, u-unit.
+    n : ndarray of int
+        Samples in the leg.
+    """
+
+    velocity: np.ndarray
+    force: np.ndarray
+    std: np.ndarray
+    n: np.ndarray
+
+    def to_dict(self) -> dict[str, list[float] | list[int]]:
+        """``{"velocity", "force", "std", "n"}`` as JSON lists (ident.json's ``friction_map``)."""
+        return {"velocity": [float(x) for x in self.velocity], "force": [float(x) for x in self.force],
+                "std": [float(x) for x in self.std], "n": [int(x) for x in self.n]}
+
+
+def friction_map(legs: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> FrictionMap:
+    """Friction map of whole constant-velocity legs, each given as ``(t, q, u)``.
+
+    Each leg is a separate recording (e.g. one friction-test file per speed), so
+    nothing is filtered across legs: the mean velocity is the position change over
+    the leg's duration and the force is the median command.
+
+    Parameters
+    ----------
+    legs : list of (t, q, u)
+        Time [s], position [m or rad] and command [u-unit] of each leg, at least 2 samples each.
+
+    Returns
+    -------
+    FrictionMap
+        Entries in the order of ``legs``.
+    """
+    v, f, s, n = [], [], [], []
+    for t, q, u in legs:
+        t, q, u = (np.asarray(a, dtype=np.float64) for a in (t, q, u))
+        if t.size < 2 or not (t.shape == q.shape == u.shape):
+            raise ValueError(f"friction_map: a leg needs >= 2 samples of t, q, u of one length, got "
+                             f"{t.shape}, {q.shape}, {u.shape}")
+        v.append((q[-1] - q[0]) / (t[-1] - t[0]))
+        f.append(float(np.median(u)))
+        s.append(float(np.std(u)))
+        n.append(int(t.size))
+    return FrictionMap(np.array(v), np.array(f), np.array(s), np.array(n, dtype=np.int64))

@@ -25,3 +25,5 @@ def find_shared() -> Path:
 
 SHARED = find_shared()
 EMPS_DIR = SHARED / "data" / "emps"
+TRO2021_DIR = SHARED / "data" / "screwdrive-tro2021" / "experiments"
+ODRIVE_DIR = SHARED / "data" / "odrive-cogging"

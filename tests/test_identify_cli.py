@@ -212,4 +212,4 @@ def test_q_unit_contradicting_the_file_is_exit_2_and_writes_nothing(tmp_path):
     assert r.exit_code == 2
     assert not out.exists()
     r2 = runner.invoke(app, ["identify", str(SAMPLE / "axis_excitation.h5"), "--q-unit", "in", "--out", str(out)])
-    assert r2.exit_code == 2 and "--q-unit: expected one of m, mm, um, got 'in'" in r2.output
+    assert r2.exit_code == 2 and "--q-unit: expected one of m, mm, um, rad, got 'in'" in r2.output

@@ -374,8 +374,8 @@ def test_non_numeric_channels(tmp_path):
 
 
 @pytest.mark.parametrize("attrs, match", [
-    ({"q_unit": "in"}, r"units\.h5: attribute q_unit='in' not supported \(expected m, mm or um\)"),
-    ({"u_unit": "kV"}, r"units\.h5: attribute u_unit='kV' not supported \(expected V, N or A\)"),
+    ({"q_unit": "in"}, r"units\.h5: attribute q_unit='in' not supported \(expected m, mm, um, rad\)"),
+    ({"u_unit": "kV"}, r"units\.h5: attribute u_unit='kV' not supported \(expected V, N, A, Nm, %\)"),
 ])
 def test_unknown_unit_attributes(tmp_path, attrs, match):
     path = tmp_path / "units.h5"
@@ -402,7 +402,7 @@ def test_q_unit_option_must_agree_with_the_attribute(tmp_path):
     assert load_log(path, q_unit="mm").q_unit_in_file == "mm"
     with pytest.raises(UsageError, match=r"^--q-unit um disagrees with .*units\.h5: its attribute q_unit='mm'$"):
         load_log(path, q_unit="um")
-    with pytest.raises(UsageError, match=r"^--q-unit: expected one of m, mm, um, got 'in'$"):
+    with pytest.raises(UsageError, match=r"^--q-unit: expected one of m, mm, um, rad, got 'in'$"):
         load_log(path, q_unit="in")
 
 

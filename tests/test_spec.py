@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import pytest
 from typer.testing import CliRunner
@@ -160,9 +161,14 @@ def test_u_max_check_uses_the_most_demanding_plant():
     d = tune_mod.drive_need(ident)
     assert d.need(1.0, 12.0, 100.0) == pytest.approx(need, rel=1e-12)
     tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": need * 1.001}}), ident)
+    # Case 1's start-up (20 m/s^2) exceeds any a_max the limit leaves: the hint must lower v_max too,
+    # and following it must pass.
     with pytest.raises(SpecError, match=r"controller\.u_max = 3\.8 V is below .*trajectory\.a_max = 12 .*"
-                                        r"largest trajectory\.a_max at this v_max: "):
+                                        r"set trajectory\.v_max <= ([0-9.]+) m/s with trajectory\.a_max <= ") as exc:
         tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
+    m = re.search(r"v_max <= ([0-9.e-]+) m/s with trajectory\.a_max <= ([0-9.e-]+) m/s\^2", str(exc.value))
+    tune_mod.check_spec_against_ident(spec_from_mapping(
+        {"controller": {"u_max": 3.8}, "trajectory": {"v_max": float(m.group(1)), "a_max": float(m.group(2))}}), ident)
     assert math.isclose(need, 3.9036, rel_tol=1e-4)
 
 

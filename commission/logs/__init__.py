@@ -39,6 +39,7 @@ import numpy as np
 import scipy.io
 
 from commission.errors import CommissionError, DataError, InputFileError, UsageError
+from commission.logs.epos import looks_like_epos, read_epos_arrays
 
 __all__ = [
     "CHANNELS",
@@ -53,10 +54,12 @@ __all__ = [
 CHANNELS: tuple[str, ...] = ("t", "q", "u", "q_ref")
 
 #: Accepted ``q_unit`` values and how many of them make one metre.
-Q_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e3, "um": 1e6}
+#: ``rad`` marks a rotary axis (EPOS recorder files): q is an angle, taken as is.
+Q_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e3, "um": 1e6, "rad": 1.0}
 
 #: Accepted ``u_unit`` values (the command as stored in the file).
-U_UNITS: tuple[str, ...] = ("V", "N", "A")
+#: ``Nm`` is a rotary axis's torque, ``%`` a drive's torque in percent of its rating.
+U_UNITS: tuple[str, ...] = ("V", "N", "A", "Nm", "%")
 
 #: A sample rate given with ``--sample-rate`` may differ from the one implied by
 #: ``t`` by at most this fraction; more means one of the two is wrong.
@@ -64,6 +67,8 @@ SAMPLE_RATE_TOLERANCE = 0.01
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _EXTENSIONS = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv", ".mat": "mat"}
+#: Values of ``--format``: one per reader module.
+FORMATS: tuple[str, ...] = ("hdf5", "csv", "mat", "epos")
 
 
 # --------------------------------------------------------------------------- #
@@ -141,10 +146,10 @@ class ExcitationLog:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if self.u_unit not in U_UNITS:
-            raise DataError(f"{self.source}: u_unit {self.u_unit!r} not supported (expected V, N or A)")
+            raise DataError(f"{self.source}: u_unit {self.u_unit!r} not supported (expected {', '.join(U_UNITS)})")
         if self.q_unit_in_file not in Q_UNITS:
             raise DataError(
-                f"{self.source}: q_unit {self.q_unit_in_file!r} not supported (expected m, mm or um)"
+                f"{self.source}: q_unit {self.q_unit_in_file!r} not supported (expected {', '.join(Q_UNITS)})"
             )
 
     @property
@@ -247,6 +252,7 @@ def load_log(
     input_gain: float = 1.0,
     sample_rate: float | None = None,
     q_unit: str | None = None,
+    fmt: str | None = None,
 ) -> ExcitationLog:
     """Load an excitation log (CONTRACT §1) from HDF5, CSV or MATLAB.
 
@@ -279,6 +285,11 @@ def load_log(
         Unit of ``q`` (and ``q_ref``) in the file, for files without a ``q_unit``
         attribute (CSV, v5 MAT, HDF5 without it); default m.  A file whose
         attribute names another unit is refused (``--q-unit`` contradicts it).
+    fmt : {"hdf5", "csv", "mat", "epos"}, optional
+        Forces the format (``--format``).  Default: a maxon EPOS Studio
+        recorder file is recognised from its content
+        (:mod:`commission.logs.epos`: rotary axis, q in rad integrated from
+        the velocity, u in the file's unit), anything else by its extension.
 
     Returns
     -------
@@ -315,25 +326,33 @@ def load_log(
     if q_unit is not None and q_unit not in Q_UNITS:
         raise UsageError(f"--q-unit: expected one of {', '.join(Q_UNITS)}, got {q_unit!r}")
 
+    if fmt is not None and fmt not in FORMATS:
+        raise UsageError(f"--format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
     p = Path(path)
-    fmt = _EXTENSIONS.get(p.suffix.lower())
+    forced = fmt
+    fmt = fmt or _EXTENSIONS.get(p.suffix.lower())
     if not p.exists():
         raise InputFileError(f"{label}: no such file")
     if p.is_dir():
         raise InputFileError(f"{label}: is a directory, not a log file")
-    if fmt is None:
-        raise InputFileError(
-            f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
-            "(expected .h5, .hdf5, .csv or .mat)"
-        )
     try:
         # Read once: the hash is then exactly of the bytes that were parsed.
         data = p.read_bytes()
     except OSError as exc:
         raise InputFileError(f"{label}: cannot read ({exc.strerror or exc})") from None
 
+    if forced is None and looks_like_epos(data):
+        fmt = "epos"
+    if fmt is None:
+        raise InputFileError(
+            f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
+            "(expected .h5, .hdf5, .csv or .mat); EPOS recorder files are recognised from their content "
+            "and --format forces a format"
+        )
     need_t = sample_rate is None
-    if fmt == "hdf5":
+    if fmt == "epos":
+        raw = _read_epos(data, label, mapping)
+    elif fmt == "hdf5":
         raw = _read_hdf5(data, label, "HDF5", mapping, need_t, matlab=False)
     elif fmt == "csv":
         raw = _read_csv(data, label, mapping, need_t)
@@ -775,6 +794,15 @@ def _read_csv(data: bytes, label: str, mapping: Mapping[str, str], need_t: bool)
     return _Raw(vectors)
 
 
+def _read_epos(data: bytes, label: str, mapping: Mapping[str, str]) -> _Raw:
+    if mapping:
+        raise UsageError(f"{label}: --map does not apply to an EPOS recorder file (its channels are fixed)")
+    arrays = read_epos_arrays(data, label)
+    vectors = {ch: (arrays[ch], arrays[ch].shape, src)  # type: ignore[union-attr]
+               for ch, src in (("t", "time"), ("q", "integrated velocity"), ("u", "torque"))}
+    return _Raw(vectors, q_unit="rad", u_unit=arrays["u_unit"])
+
+
 def _locate_bad_cell(
     label: str, body: list[str], first_line: int, delimiter: str, cols: list[int], names: list[str]
 ) -> None:
@@ -821,11 +849,11 @@ def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_u
     q_unit = (q_unit_given or "m") if raw.q_unit is None else raw.q_unit
     u_unit = "V" if raw.u_unit is None else raw.u_unit
     if not isinstance(q_unit, str) or q_unit not in Q_UNITS:
-        raise DataError(f"{label}: attribute q_unit={q_unit!r} not supported (expected m, mm or um)")
+        raise DataError(f"{label}: attribute q_unit={q_unit!r} not supported (expected {', '.join(Q_UNITS)})")
     if q_unit_given is not None and q_unit != q_unit_given:
         raise UsageError(f"--q-unit {q_unit_given} disagrees with {label}: its attribute q_unit={q_unit!r}")
     if not isinstance(u_unit, str) or u_unit not in U_UNITS:
-        raise DataError(f"{label}: attribute u_unit={u_unit!r} not supported (expected V, N or A)")
+        raise DataError(f"{label}: attribute u_unit={u_unit!r} not supported (expected {', '.join(U_UNITS)})")
 
     # Divide by the exact power of ten: q_mm / 1000 is the correctly rounded metre value.
     per_metre = Q_UNITS[q_unit]
