@@ -39,6 +39,7 @@ import numpy as np
 import scipy.io
 
 from commission.errors import CommissionError, DataError, InputFileError, UsageError
+from commission.files import MAX_LOG_BYTES, check_input_file, read_input_bytes
 
 __all__ = [
     "CHANNELS",
@@ -317,20 +318,14 @@ def load_log(
 
     p = Path(path)
     fmt = _EXTENSIONS.get(p.suffix.lower())
-    if not p.exists():
-        raise InputFileError(f"{label}: no such file")
-    if p.is_dir():
-        raise InputFileError(f"{label}: is a directory, not a log file")
+    check_input_file(p, MAX_LOG_BYTES, "log file")  # missing, a folder, a FIFO or device, too large
     if fmt is None:
         raise InputFileError(
             f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
             "(expected .h5, .hdf5, .csv or .mat)"
         )
-    try:
-        # Read once: the hash is then exactly of the bytes that were parsed.
-        data = p.read_bytes()
-    except OSError as exc:
-        raise InputFileError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    # Read once, bounded: the hash is then exactly of the bytes that were parsed.
+    data = read_input_bytes(p, MAX_LOG_BYTES)
 
     need_t = sample_rate is None
     if fmt == "hdf5":
