@@ -12,7 +12,8 @@ from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.identify_cmd import FRICTION_HELP, Q_UNIT_HELP, Friction
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.cli.validate_cmd import print_summary
+from commission.cli.validate_cmd import SIGN_KEY_HELP, print_summary
+from commission.controller_config import load_sign_key
 from commission.logs import parse_mapping
 from commission.tune import pid_pole_note
 from commission.pipeline import run_all
@@ -34,7 +35,8 @@ def run_command(
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
     seed: int = typer.Option(0, "--seed", help="Seed of the tuning search and of the Monte-Carlo plants."),
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
+    sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
     from commission.cli.plots_validate import validation_plots
@@ -49,7 +51,8 @@ def run_command(
 
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, q_unit=q_unit, spec_path=spec, gate_path=gate, force=force, seed=seed,
-                          n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots)
+                          n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
+                          sign_key=load_sign_key(sign_key))
     pid_note = pid_pole_note(outcome.validation.tuning)
     for note in (*outcome.notes, *(() if pid_note is None else (pid_note,))):
         err.print(f"note: {note}", highlight=False)
