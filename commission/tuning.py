@@ -266,7 +266,7 @@ def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tupl
     kw: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
         raw = r.child(f.name).data
-        if isinstance(raw, list):
+        if "tuple" in str(f.type):  # the field's type decides, not the file's shape
             kw[f.name] = r.vec(f.name, 3)
         elif raw is None and f.name in inf_ok:
             kw[f.name] = math.inf
@@ -274,7 +274,7 @@ def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tupl
             kw[f.name] = r.num(f.name)
     try:
         return cls(**kw)
-    except ValueError as exc:
+    except (ValueError, TypeError) as exc:
         raise r.fail(str(exc)) from None
 
 
