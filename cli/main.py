@@ -27,17 +27,8 @@ import signal
 import sys
 
 
-def _interrupted_during_startup(signum: int, frame: object) -> None:
-    # Before main() runs nothing has been written: leave at once, quietly.
-    os.write(2, b"interrupted\n")
-    os._exit(128 + signum)
-
-
-# First thing, before the imports below (typer, rich) take their time; only in the console
-# script itself, not in a program (a test runner) that imports this module.
-if os.path.basename(sys.argv[0] if sys.argv else "").startswith("commission"):
-    signal.signal(signal.SIGINT, _interrupted_during_startup)
-    signal.signal(signal.SIGTERM, _interrupted_during_startup)
+# Ctrl-C during start-up: commission/__init__.py installs a handler (console script only)
+# before any import takes time; run() replaces it once the command line is parsed.
 
 import importlib  # noqa: E402
 import time  # noqa: E402
@@ -212,6 +203,8 @@ def run(argv: list[str] | None = None) -> int:
         cmd = typer.main.get_command(app)
         rc: Any = cmd.main(args=argv, prog_name="commission", standalone_mode=False)
         code = rc if isinstance(rc, int) else 0
+        if code == EXIT_INTERRUPTED:  # typer turns a KeyboardInterrupt into this code itself
+            _say("interrupted: no output written or replaced")
     except typer.Exit as exc:
         code = exc.exit_code
     except ClickException as exc:  # usage errors: one line naming the flag
@@ -219,10 +212,10 @@ def run(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"error: {msg} (see commission {_sub(argv)}--help)\n")
         code = 2
     except (typer.Abort, KeyboardInterrupt):
-        sys.stderr.write("\ninterrupted: no output written or replaced\n")
+        _say("interrupted: no output written or replaced")
         code = EXIT_INTERRUPTED
     except Terminated:
-        sys.stderr.write("terminated: no output written or replaced\n")
+        _say("terminated: no output written or replaced")
         code = EXIT_TERMINATED
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
@@ -236,6 +229,14 @@ def run(argv: list[str] | None = None) -> int:
     if verbose:
         sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code
+
+
+def _say(line: str) -> None:
+    # Straight to the file descriptor: a progress display may still hold sys.stderr.
+    try:
+        os.write(2, f"{line}\n".encode())
+    except OSError:
+        pass
 
 
 def _sub(argv: list[str] | None) -> str:

@@ -17,7 +17,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -27,8 +26,6 @@ from commission.errors import SchemaError
 from commission.jsonio import read_json, write_json_atomic
 from commission.paper import reference_identification
 from commission.runtime import load_controller
-from commission.spec import spec_from_mapping
-from commission.tune import tune
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"
@@ -38,14 +35,17 @@ LOOSE_GATE = ('[gate]\ne_F = "1 m"\ne_M = "1 m"\ne_rms = "1 m"\nc_u = 1000.0\nu_
               'no_divergence = false\narc_vs_pid_e_rms = 1e6\n')
 
 
+#: tuning.json of ``tune`` on the paper's axis with ``tune.budget = 1`` (tuning takes tens of seconds).
+TUNING_DOC = json.loads((Path(__file__).parent / "data" / "tuning_paper_budget1.json").read_text())
+
+
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
-    ident = reference_identification(delta_d=0.5)
-    t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
-             ident_sha256="1" * 64, log_sha256="2" * 64, ident_path="not-here/ident.json")
+    doc = copy.deepcopy(TUNING_DOC)
+    doc["provenance"]["ident_path"] = "not-here/ident.json"  # no ident.json at hand: no provenance check
     path = d / "tuning.json"
-    t.save(str(path))
+    write_json_atomic(path, doc)
     return path
 
 
@@ -264,23 +264,32 @@ def _commission(*args, **kw):
     return subprocess.Popen([*head, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
-@pytest.mark.parametrize("delay", [0.0, 0.05, 0.2])
+@pytest.mark.parametrize("delay", [0.0, 0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.2])
 def test_ctrl_c_during_start_up_is_clean(tmp_path, delay):
     p = _commission("identify", SAMPLE, "--out", tmp_path / "i.json", cwd=tmp_path)
     time.sleep(delay)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=60)
+    if p.returncode == 0:  # it finished before the signal (or Python dropped the interrupt in a finaliser,
+        # "Exception ignored in ...": a KeyboardInterrupt raised inside __del__ cannot propagate)
+        assert read_json(tmp_path / "i.json")["kind"] == "identification"
+        return
+    frames = re.findall(r'File "([^"]+)"', err)
+    if frames and not any(f.startswith(str(ROOT)) for f in frames):
+        # The signal came before the first line of this package ran: the interpreter starting
+        # ("Fatal Python error: init_...") or the launcher's import system still looking for the
+        # package. No program can handle that window (tens of ms); nothing is written in it.
+        assert p.returncode != 0 and not list(tmp_path.iterdir())
+        return
     assert "Traceback" not in err, err
-    if p.returncode != 0:  # it may have finished before the signal on a fast machine
-        # 130 once the tool runs; killed by SIGINT itself (-2) if it came before Python had started
-        assert p.returncode in (130, -signal.SIGINT), (p.returncode, err)
-        assert list(tmp_path.iterdir()) == []
+    # 130 once the tool runs; killed by SIGINT itself (-2) if it came before Python had started
+    assert p.returncode in (130, -signal.SIGINT), (p.returncode, err)
+    if p.returncode == 130:
+        assert err.strip().splitlines()[-1] in ("interrupted", "interrupted: no output written or replaced"), err
+    assert list(tmp_path.iterdir()) == []
 
 
 # --------------------------------------------------------------------------- must-show 2
-
-FULL_SET = None
-
 
 def _names(d: Path) -> list[str]:
     return sorted(p.name for p in d.iterdir()) if d.exists() else []
@@ -459,15 +468,14 @@ def test_validate_signs_with_a_key_file_or_the_environment(tuned, tmp_path, monk
 
 
 def test_validate_checks_the_provenance_chain(tmp_path):
-    ident = reference_identification(delta_d=0.5)
-    ipath = tmp_path / "ident.json"
-    write_json_atomic(ipath, ident.to_dict())
     from commission.jsonio import sha256_file
 
-    t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
-             ident_sha256=sha256_file(ipath), log_sha256=None, ident_path=str(ipath))
+    doc = copy.deepcopy(TUNING_DOC)
+    ipath = tmp_path / "ident.json"
+    write_json_atomic(ipath, doc["identification"])  # the identification this tuning was made from
+    doc["provenance"].update(ident_path=str(ipath), ident_sha256=sha256_file(ipath))
     tpath = tmp_path / "tuning.json"
-    t.save(str(tpath))
+    write_json_atomic(tpath, doc)
     r = invoke("validate", tpath, "--out-dir", tmp_path / "ok", "--gate", _loose(tmp_path), "--monte-carlo", 0)
     assert r.exit_code == 0, r.output
     ctrl = read_json(tmp_path / "ok" / "controller.json")
