@@ -105,13 +105,17 @@ class LazyGroup(typer.core.TyperGroup):
             importlib.import_module(module)  # registers the command on ``app``
             for info in app.registered_commands:
                 if info.name == name:
-                    cmd = typer.main.get_command_from_info(
+                    self.add_command(typer.main.get_command_from_info(
                         info, pretty_exceptions_short=app.pretty_exceptions_short,
-                        rich_markup_mode=app.rich_markup_mode)
-                    cmd.context_settings = {**HELP_SETTINGS, **(cmd.context_settings or {})}
-                    self.add_command(_readable_metavars(cmd), name)
+                        rich_markup_mode=app.rich_markup_mode), name)
                     break
-        return super().get_command(ctx, name)
+        cmd = super().get_command(ctx, name)
+        if cmd is not None and not isinstance(cmd, _Placeholder):
+            # also for a command typer built itself (its module was imported before this group)
+            if "help_option_names" not in (cmd.context_settings or {}):
+                cmd.context_settings = {**HELP_SETTINGS, **(cmd.context_settings or {})}
+            _readable_metavars(cmd)
+        return cmd
 
     def format_help(self, ctx: _Context, formatter: Any) -> None:
         # typer's rich help asks every command for its help text, which would import them all:
