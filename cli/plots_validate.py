@@ -11,7 +11,9 @@ every number comes from the pipeline, nothing is computed here but unit scaling.
 * ``theta_hat.png`` -- convergence of theta_hat on the nominal and payload
   scenarios, with the plant's values dashed;
 * ``control_input.png`` -- u of ARC and PID on the nominal scenarios;
-* ``monte_carlo.png`` -- e_rms of ARC against PID on every scenario.
+* ``monte_carlo.png`` -- e_rms of ARC against PID on every scenario;
+* ``loops.png`` -- the loop transfers of ARC and PID on the identified plant:
+  Bode magnitude and phase, and the Nyquist curves near -1.
 """
 
 from __future__ import annotations
@@ -183,6 +185,46 @@ def _scatter(result: ValidationResult, path: Path) -> Path:
     return path
 
 
+def _loops(result: ValidationResult, path: Path) -> Path:
+    f, l_arc, l_pid = result.loops
+    fig = plt.figure(figsize=(10, 5.2))
+    ax_m = fig.add_subplot(2, 2, 1)
+    ax_p = fig.add_subplot(2, 2, 3, sharex=ax_m)
+    ax_n = fig.add_subplot(1, 2, 2)
+    for L, style in ((l_pid, _PID), (l_arc, _ARC)):
+        ax_m.semilogx(f, 20 * np.log10(np.abs(L)), **style)
+        ph = np.degrees(np.unwrap(np.angle(L)))
+        cross = np.nonzero(np.abs(L) < 1)[0]
+        at = ph[cross[0]] if cross.size else ph[0]
+        ph -= 360.0 * np.ceil(at / 360.0)  # the phase at the crossover in (-360, 0]: -180 is the critical line
+        ax_p.semilogx(f, ph, **{**style, "label": None})
+        ax_n.plot(L.real, L.imag, **style)
+    ax_m.axhline(0.0, color="k", lw=0.6)
+    ax_p.axhline(-180.0, color="k", lw=0.6)
+    ax_m.set_ylabel("|L| [dB]")
+    ax_p.set_ylabel("angle L [deg]")
+    ax_p.set_xlabel("f [Hz]")
+    ax_m.legend(loc="lower left", fontsize=8)
+    mm = result.margin_floors.modulus
+    th = np.linspace(0, 2 * np.pi, 200)
+    ax_n.plot(-1 + mm * np.cos(th), mm * np.sin(th), color="k", lw=0.6, ls="--",
+              label=f"|1 + L| = {mm:g} (modulus floor)")
+    ax_n.plot([-1], [0], "k+", ms=10)
+    ax_n.set_xlim(-3, 1.5)
+    ax_n.set_ylim(-2.5, 2.0)
+    ax_n.set_aspect("equal")
+    ax_n.set_xlabel("Re L")
+    ax_n.set_ylabel("Im L")
+    ax_n.legend(loc="lower right", fontsize=7)
+    for ax in (ax_m, ax_p, ax_n):
+        ax.grid(alpha=0.3)
+    fig.suptitle("Loop transfer at the plant input, identified plant (ARC at theta_hat(0))", fontsize=10)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.92, bottom=0.1, wspace=0.25, hspace=0.15)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path]:
     """Write the validation figures into ``out_dir``; return their paths (names as in
     :data:`commission.validate.FIGURE_NAMES`)."""
@@ -194,4 +236,6 @@ def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path
     paths.append(_theta(result, out / "theta_hat.png"))
     paths.append(_inputs(result, out / "control_input.png"))
     paths.append(_scatter(result, out / "monte_carlo.png"))
+    if result.loops:
+        paths.append(_loops(result, out / "loops.png"))
     return paths

@@ -106,7 +106,7 @@ DEFAULT_ARC_VS_PID_SLACK_LSB = 1.0 / math.sqrt(12.0)
 SATURATION_TOL = 1e-9
 
 #: Criterion names, in report order.
-CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms")
+CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms", "margins")
 _ERROR_KEYS = ("e_F", "e_M", "e_rms")
 _KEYS = ("e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms", "arc_vs_pid_slack")
 _UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
@@ -609,3 +609,38 @@ FLOORS: tuple[Floor, ...] = (
 def check_floors(ctx: FloorContext) -> list[Check]:
     """Every check of every floor of :data:`FLOORS`."""
     return [c for f in FLOORS for c in f.check(ctx)]
+
+
+#: The loops whose margins the gate holds to the floors: the ARC on the identified plant
+#: (with its mode and delay), at both linearisation points.  The box corners are reported, not
+#: gated: a payload range is a design choice, and at its heaviest corner the paper's own PID keeps
+#: about 17 deg of phase.
+GATED_PLANT = "nominal"
+
+
+def margin_checks(rows: Sequence[Any], floors: Any) -> list[Check]:
+    """Gate checks (criterion ``"margins"``) of the ARC loops on the identified plant.
+
+    ``rows`` are :class:`commission.robustness.LoopMargins`, ``floors`` a
+    :class:`commission.robustness.MarginFloors`.
+    One check per loop and floor; ``value`` is floor / margin (at most 1 passes;
+    inf for a margin at or below zero), ``limit`` 1.
+    """
+    out = []
+    for r in rows:
+        if r.controller != "arc" or r.plant != GATED_PLANT:
+            continue
+        m = r.margins
+        where = f"margins/{r.plant}/arc(theta_hat {r.theta_hat_at})"
+        out.append(Check("margins", where, 0.0 if m.stable else math.inf, 1.0, m.stable,
+                         f"closed loop {'stable' if m.stable else 'UNSTABLE'} "
+                         f"(spectral radius {m.spectral_radius:.4f})"))
+        for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
+                                       ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
+                                       ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
+                                       ("modulus margin", m.modulus_margin, floors.modulus, "")):
+            ok = bool(val >= floor)
+            ratio = floor / val if val > 0 else math.inf
+            out.append(Check("margins", where, ratio, 1.0, ok,
+                             f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+    return out

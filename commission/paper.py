@@ -45,14 +45,15 @@ PAPER_TABLE1: dict[str, dict[str, dict[str, float]]] = {
 }
 
 
-def reference_plant(M: float = 0.027) -> np.ndarray:
+def reference_plant(M: float = 0.027, **dynamics: float) -> np.ndarray:
     """The CONTRACT sec. 5 stand-in plant with mass ``M`` (V s^2/m).
 
     B = 0.273 V s/m; Stribeck fc = 0.10 V, fs = 0.12 V, vs = 0.01 m/s, xi = 2;
-    ripple 0.01 V sin(2 pi q / 0.03 m); no offset.
+    ripple 0.01 V sin(2 pi q / 0.03 m); no offset.  ``dynamics``: a structural
+    mode or input delay (keywords of :func:`plant_vector`); rigid by default, as in the contract.
     """
     return plant_vector(M=M, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0,
-                        ripple_amp=0.01, ripple_pitch=0.03)
+                        ripple_amp=0.01, ripple_pitch=0.03, **dynamics)  # type: ignore[arg-type]
 
 
 def reference_identification(*, delta_d: float = 0.5 / 0.027, **extra: object) -> Identification:
@@ -81,7 +82,7 @@ class Scenario:
     Attributes
     ----------
     name : str
-    plant_p : ndarray, shape (9,)
+    plant_p : ndarray, shape (NP,)
         Plant vector.
     traj : Trajectory
         Desired motion at the controller rate.

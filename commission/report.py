@@ -15,7 +15,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from commission.gate import CRITERIA
-from commission.scenarios import CASES, VARIANTS
+from commission.robustness import floor_violations
+from commission.scenarios import CASES, VARIANTS, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
@@ -36,6 +37,7 @@ _CRITERION_TEXT = {
     "c_u": "c_u (chattering)",
     "u_peak": "peak command below u_max",
     "arc_vs_pid_e_rms": "ARC ‖e‖rms / PID ‖e‖rms",
+    "margins": "ARC stability margins, identified plant (floor / margin)",
 }
 
 
@@ -93,12 +95,20 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.c_u:.3g}"
     if key == "u_peak":
         return f"{limits.u_max:.4g}"
+    if key == "margins":
+        return "1 (every floor met)"
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
     return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} um" if slack > 0 else "")
 
 
 def _basis_key(key: str) -> str:
     return {"divergence": "no_divergence", "u_peak": "u_max"}.get(key, key)
+
+
+def _basis_text(key: str, limits: Any) -> str:
+    if key == "margins":
+        return "spec.toml [margins]"
+    return limits.basis.get(_basis_key(key), "")
 
 
 def _value_text(c: Any) -> str:
@@ -123,7 +133,7 @@ def gate_table_markdown(verdict: Any) -> str:
         nfail = sum(1 for c in checks if not c.passed)
         where = w.scenario if not (key == "divergence" and w.passed) else "-"
         lines.append(f"| {_CRITERION_TEXT[key]} | {_limit_text(key, verdict.limits)} | "
-                     f"{verdict.limits.basis.get(_basis_key(key), '')} | {where} | {_value_text(w)} | "
+                     f"{_basis_text(key, verdict.limits)} | {where} | {_value_text(w)} | "
                      f"{nfail} of {len(checks)} |")
     return "\n".join(lines)
 
@@ -131,6 +141,41 @@ def gate_table_markdown(verdict: Any) -> str:
 def failure_lines(verdict: Any) -> list[str]:
     """Every failed check as ``criterion  scenario: detail``."""
     return [f"{c.criterion} {c.scenario}: {c.detail}" for c in verdict.failures]
+
+
+def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
+    """The report's stability-margin section: the plant model, then one row per loop."""
+    rows = getattr(result, "margins", ())
+    if not rows:
+        return []
+    fl = result.margin_floors
+    dyn = plant_dynamics(tuning.identification, tuning.spec)
+    Ts = tuning.spec.period
+    if dyn.get("mode_hz"):
+        side = "load" if dyn.get("mode_load_side") else "motor"
+        mode = (f"a structural mode at {dyn['mode_hz']:.4g} Hz, damping {dyn.get('mode_damping', 0.02):.3g}, "
+                f"load fraction {dyn.get('mode_ratio', 0.5):.2f}, encoder on the {side} side")
+    else:
+        mode = "no structural mode (rigid body)"
+    L = ["## Stability margins", "",
+         f"Plant model: {mode}; input delay {dyn.get('delay', 0.0) / Ts:.2f} samples beyond the hold. "
+         "Both loops are linearised at rest from the compiled step that runs on the machine "
+         "(ARC: theta_hat at its initial value and at the plant's own theta, adaptation and robust gains "
+         "at their rest values, friction compensation left out; `commission.controllers.margins`). "
+         f"Floors: gain {fl.gain_db:g} dB, phase {fl.phase_deg:g} deg, delay {fl.delay_samples:g} samples "
+         f"beyond the identified delay, modulus {fl.modulus:g}.", "",
+         "| Plant | Loop | gain margin (dB) | phase margin (deg) | delay margin (samples) | modulus margin "
+         "| crossover (Hz) | stable | floors |",
+         "|---|---|---:|---:|---:|---:|---:|---|---|"]
+    for r in rows:
+        m = r.margins
+        loop = "PID" if r.controller == "pid" else f"ARC (theta_hat {r.theta_hat_at})"
+        miss = floor_violations(m, fl)
+        L.append(f"| {r.plant} | {loop} | {m.gain_margin_db:.1f} | {m.phase_margin_deg:.0f} | "
+                 f"{m.delay_margin_samples:.2f} | {m.modulus_margin:.2f} | {m.crossover_hz:.0f} | "
+                 f"{'yes' if m.stable else '**no**'} | {'met' if not miss else '**' + '; '.join(miss) + '**'} |")
+    L.append("")
+    return L
 
 
 def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
@@ -197,6 +242,7 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     L.append(f"- PID baseline (57): Kp = {p.Kp:.4g}, Ki = {p.Ki:.4g}, Kd = {p.Kd:.4g}, M_hat = {p.M_hat:.4g}, "
              f"B_hat = {p.B_hat:.4g}")
     L.append("")
+    L.extend(margins_markdown(result, tuning))
     L.append("## Gate")
     L.append("")
     L.append("Every criterion is checked for the ARC on every scenario; errors are measured on the encoder "
@@ -254,6 +300,9 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
             "theta_hat.png": "Convergence of the ARC parameter estimates theta_hat (dashed: the plant's values).",
             "control_input.png": "Control input u of ARC and PID on the nominal scenarios.",
             "monte_carlo.png": "e_rms of ARC against PID on every scenario (below the diagonal: ARC better).",
+            "loops.png": "Loop transfers L = -K P of ARC and PID on the identified plant (mode and delay "
+                         "included): Bode magnitude and phase, and the Nyquist curves near -1 with the "
+                         "modulus-margin circle.",
         }
         for f in figures:
             L.append("")

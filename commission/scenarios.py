@@ -23,6 +23,14 @@ back-and-forth moves), both scaled to the spec's envelope:
     The identified plant with an input step of ``delta_d * M`` u-unit (the
     Assumption-1 bound, as an input) on from 22 % to 72 % of the run (the
     paper's 2.2 s to 7.2 s of 10 s).
+``<case>/delay+1``
+    The identified plant with one more sample of input delay than identified
+    (a drive's computation or bus delay that the log cannot show).
+``<case>/mode_low``, ``<case>/mode_high``, ``<case>/mode_damping_half``
+    When the plant has a structural mode: its frequency at 0.8 and 1.2 times
+    and its damping halved (what the identification's errors and a changed
+    load can do to it).  Without a known mode, the stability margins
+    (:mod:`commission.robustness`) stand in for it.
 ``mc/NNN``
     ``n_monte_carlo`` plants from the theta box, alternating case1 and case2,
     drawn from the passed Generator: theta1 uniform in the box (M = 1/theta1),
@@ -57,6 +65,10 @@ import numpy as np
 from commission.artifacts import Identification
 from commission.controllers import trajectory as _traj
 from commission.controllers.plant import (
+    NP,
+    P_DELAY,
+    P_MODE_DAMPING,
+    P_MODE_HZ,
     P_B,
     P_FC,
     P_FS,
@@ -184,7 +196,7 @@ class Scenario:
     name : str
         Unique name, e.g. ``"case1/payload_heavy"`` or ``"mc/007"``.
     plant : numpy.ndarray
-        float64[9] plant vector (:func:`commission.controllers.plant.plant_vector`
+        float64[NP] plant vector (:func:`commission.controllers.plant.plant_vector`
         layout), read-only.
     trajectory : TrajectorySpec
         Desired motion.
@@ -209,8 +221,8 @@ class Scenario:
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
-        if p.shape != (9,):
-            raise ValueError(f"Scenario {self.name}: plant must have 9 entries, got shape {p.shape}")
+        if p.shape != (NP,):
+            raise ValueError(f"Scenario {self.name}: plant must have {NP} entries, got shape {p.shape}")
         p.setflags(write=False)
         object.__setattr__(self, "plant", p)
         object.__setattr__(self, "tags", tuple(self.tags))
@@ -259,12 +271,51 @@ def _ripple(ident: Identification) -> tuple[float, float]:
     return 0.0, 0.0
 
 
-def identified_plant(ident: Identification) -> np.ndarray:
+def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]:
+    """The structural mode and input delay of the plant (:func:`plant_vector` keywords).
+
+    From ident.json's ``frequency_response.model`` (what ``commission identify``
+    found in the log's broadband content), each entry overridden by the spec's
+    ``[plant]`` section when given there; rigid and delay-free when neither says
+    otherwise.  Every scenario plant of ``tune`` and ``validate`` carries them (a
+    payload moves the mass, not the mode: its frequency and load fraction are kept).
+    """
+    out: dict[str, float] = {}
+    fr = ident.extra.get("frequency_response")
+    model = fr.get("model") if isinstance(fr, dict) else None
+    if isinstance(model, dict):
+        f = _num(model.get("mode_hz"))
+        if f is not None and f > 0:
+            out["mode_hz"] = f
+            for key in ("mode_damping", "mode_ratio"):
+                v = _num(model.get(key))
+                if v is not None:
+                    out[key] = v
+            out["mode_load_side"] = bool(model.get("mode_load_side"))
+        d = _num(model.get("delay_s"))
+        if d is not None and d > 0:
+            out["delay"] = d
+    if spec is not None:
+        if spec.plant_mode_hz is not None:
+            out["mode_hz"] = spec.plant_mode_hz
+        if spec.plant_mode_damping is not None:
+            out["mode_damping"] = spec.plant_mode_damping
+        if spec.plant_mode_ratio is not None:
+            out["mode_ratio"] = spec.plant_mode_ratio
+        if spec.plant_encoder is not None:
+            out["mode_load_side"] = spec.plant_encoder == "load"
+        if spec.plant_delay_samples is not None:
+            out["delay"] = spec.plant_delay_samples * spec.period
+    return out
+
+
+def identified_plant(ident: Identification, spec: Spec | None = None) -> np.ndarray:
     """The plant vector of the identified model (CONTRACT §2 parameters).
 
     A Coulomb-only model (``fs`` absent) gets ``fs = fc`` (vs, xi then
     irrelevant).  Ripple comes from ``ident.extra["ripple"]`` =
-    ``{"amplitude": u-unit, "pitch": m}`` when present.
+    ``{"amplitude": u-unit, "pitch": m}`` when present.  The mode and the input
+    delay are :func:`plant_dynamics` of ``ident`` and ``spec``.
     """
     par = ident.parameters
     fc = max(ident.value("fc"), 0.0)
@@ -274,7 +325,8 @@ def identified_plant(ident: Identification) -> np.ndarray:
     amp, pitch = _ripple(ident)
     return plant_vector(M=ident.value("M"), B=max(ident.value("B"), 0.0), fc=fc, fs=max(fs, 0.0),
                         vs=vs if vs > 0 else 0.01, xi=xi if xi > 0 else 2.0,
-                        offset=ident.value("offset"), ripple_amp=amp, ripple_pitch=pitch)
+                        offset=ident.value("offset"), ripple_amp=amp, ripple_pitch=pitch,
+                        **plant_dynamics(ident, spec))  # type: ignore[arg-type]
 
 
 def resolve_quantization(ident: Identification, spec: Spec) -> float:
@@ -389,8 +441,9 @@ def clip_to_box(plants: np.ndarray, ident: Identification) -> np.ndarray:
     return out
 
 
-def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` plant vectors from the theta box (identified friction curve), shape (n, 9).
+def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator,
+                       spec: Spec | None = None) -> np.ndarray:
+    """``n`` plant vectors from the theta box (identified friction curve), shape (n, NP).
 
     theta1 is uniform in the box (M = 1/theta1); the viscous coefficient B is
     uniform in :func:`viscous_range` and the disturbance force d_n = -offset
@@ -401,7 +454,7 @@ def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator) 
     theta1_max / theta1_min times what the box admits for the empty axis: a
     payload adds mass, not viscous friction or force.)
     """
-    base = identified_plant(ident)
+    base = identified_plant(ident, spec)
     lo = ident.theta.min[0]
     hi = ident.theta.max[0]
     u = rng.random((n, 3))
@@ -436,7 +489,7 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
     """
     if n_monte_carlo < 0:
         raise ValueError(f"n_monte_carlo: must be >= 0, got {n_monte_carlo}")
-    base = identified_plant(ident)
+    base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
     trajs = {"case1": case1_trajectory(spec), "case2": case2_trajectory(spec)}
     out: list[Scenario] = []
@@ -446,12 +499,46 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
             dist = disturbance_step(ident, tr.duration) if variant == "disturbance" else NO_DISTURBANCE
             out.append(Scenario(f"{case}/{variant}", _variant(base, variant, ident), tr, dist, 0.0,
                                 (case, variant, "tune"), qz))
+    out.extend(robustness_scenarios(ident, spec))
     if n_monte_carlo:
-        plants = monte_carlo_plants(ident, n_monte_carlo, rng)
+        plants = monte_carlo_plants(ident, n_monte_carlo, rng, spec)
         for i in range(n_monte_carlo):
             case = CASES[i % 2]
             out.append(Scenario(f"mc/{i:03d}", plants[i], trajs[case], NO_DISTURBANCE, 0.0,
                                 (case, "monte_carlo"), qz))
+    return out
+
+
+#: Factors on the mode's frequency in the robustness scenarios.
+MODE_FREQUENCY_FACTORS = (0.8, 1.2)
+#: Factor on its damping.
+MODE_DAMPING_FACTOR = 0.5
+
+
+def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
+    """Dynamics the identified model may have wrong, on both trajectories (module docstring).
+
+    Tagged ``"robustness"`` and ``"tune"``: ``tune`` optimises on them as
+    ``validate`` gates them.
+    """
+    base = identified_plant(ident, spec)
+    qz = resolve_quantization(ident, spec)
+    variants: list[tuple[str, np.ndarray]] = []
+    p = base.copy()
+    p[P_DELAY] += spec.period
+    variants.append(("delay+1", p))
+    if base[P_MODE_HZ] > 0:
+        for name, k in zip(("mode_low", "mode_high"), MODE_FREQUENCY_FACTORS):
+            p = base.copy()
+            p[P_MODE_HZ] *= k
+            variants.append((name, p))
+        p = base.copy()
+        p[P_MODE_DAMPING] *= MODE_DAMPING_FACTOR
+        variants.append(("mode_damping_half", p))
+    out = []
+    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+        for name, p in variants:
+            out.append(Scenario(f"{case}/{name}", p, tr, NO_DISTURBANCE, 0.0, (case, "robustness", "tune"), qz))
     return out
 
 
@@ -463,7 +550,7 @@ def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     M = 1/theta1, offset = -d_n.  These are the deterministic extremes of the domain that the
     validation's Monte-Carlo sample (:func:`monte_carlo_plants`) draws from.
     """
-    base = identified_plant(ident)
+    base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
     lo, hi = ident.theta.min, ident.theta.max
     b_lo, b_hi = viscous_range(ident)
@@ -492,7 +579,7 @@ def offset_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     start-up transient against an unlearnt force decides e_rms, and the ARC's
     integral action (theta3 adaptation) is limited by the stability of its loop.
     """
-    base = identified_plant(ident)
+    base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
     d_lo, d_hi = force_range(ident)
     out: list[Scenario] = []
@@ -521,7 +608,7 @@ def payload_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     are fine.  The validation's Monte-Carlo sample draws such plants; the box corners alone
     do not show the drift to the search.
     """
-    base = identified_plant(ident)
+    base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
     m0, m_heavy = base[P_M], 1.0 / ident.theta.min[0]
     out: list[Scenario] = []
@@ -538,7 +625,7 @@ def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Genera
                      n_monte_carlo: int | None = None) -> list[Scenario]:
     """The set ``tune`` optimises on.
 
-    Every fixed scenario of :func:`scenario_matrix`, the 16 box corners of
+    Every fixed scenario of :func:`scenario_matrix` (robustness ones included), the 16 box corners of
     :func:`corner_scenarios` (a deterministic stand-in for the validation's
     Monte-Carlo sample, whose worst plants sit near the corners), the 4
     largest-force plants of :func:`offset_scenarios`, the 6 interior payloads of
@@ -546,7 +633,7 @@ def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Genera
     Monte-Carlo plants drawn from ``rng``.
     """
     n = spec.monte_carlo if n_monte_carlo is None else n_monte_carlo
-    fixed = scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n)
-    k = len(CASES) * len(VARIANTS)
-    return (fixed[:k] + corner_scenarios(ident, spec) + offset_scenarios(ident, spec) + payload_scenarios(ident, spec)
-            + fixed[k:])
+    matrix = scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n)
+    fixed = [s for s in matrix if "monte_carlo" not in s.tags]
+    mc = [s for s in matrix if "monte_carlo" in s.tags]
+    return fixed + corner_scenarios(ident, spec) + offset_scenarios(ident, spec) + payload_scenarios(ident, spec) + mc

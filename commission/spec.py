@@ -70,6 +70,20 @@ Keys and defaults
         (estimates frozen) must be below ``1 - margin`` at every corner of the
         theta box; with the theta3 adaptation in the loop it must be below 1.
 
+``[plant]`` (dynamics beyond the rigid body; every key optional)
+    ``mode_hz``, ``mode_damping``, ``mode_ratio``, ``encoder``
+        A structural mode (resonance Hz, damping ratio, load fraction m2/M,
+        encoder on the ``"motor"`` or ``"load"`` side; ``mode_hz = 0``: rigid).
+        Default: the mode ident.json's ``frequency_response.model`` found.
+    ``delay_samples``
+        Input delay of the drive beyond the zero-order hold, samples.  Default:
+        the identified one, else 0.
+    Both ``tune`` and ``validate`` simulate and linearise with them
+    (:func:`commission.scenarios.plant_dynamics`).
+``[margins]`` (floors of the stability margins, :mod:`commission.robustness`)
+    ``gain_db`` = 6.0, ``phase_deg`` = 30.0, ``delay_samples`` = 1.0 (beyond the
+    identified delay), ``modulus`` = 0.5.
+
 Bandwidth rule
 --------------
 A requested bandwidth omega (rad/s) needs ``omega / sample_rate <= MAX_OMEGA_T``
@@ -128,7 +142,22 @@ _SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
         "monte_carlo": (int, 0, False, ""),
         "margin": (float, 0.01, True, ""),
     },
+    "plant": {
+        "mode_hz": (float, None, False, "Hz"),
+        "mode_damping": (float, None, False, ""),
+        "mode_ratio": (float, None, True, ""),
+        "encoder": (str, None, False, ""),
+        "delay_samples": (float, None, False, "samples"),
+    },
+    "margins": {
+        "gain_db": (float, 6.0, True, "dB"),
+        "phase_deg": (float, 30.0, True, "deg"),
+        "delay_samples": (float, 1.0, True, "samples"),
+        "modulus": (float, 0.5, True, ""),
+    },
 }
+#: Allowed values of the string keys.
+_CHOICES = {("plant", "encoder"): ("motor", "load")}
 
 
 @dataclass(frozen=True)
@@ -165,6 +194,11 @@ class Spec:
         Monte-Carlo plants in the tuning subset.
     margin : float
         Required stability margin: spectral radius < 1 - margin.
+    plant_mode_hz, plant_mode_damping, plant_mode_ratio, plant_encoder, plant_delay_samples : optional
+        ``[plant]``: the structural mode (Hz, -, load fraction, ``"motor"``/``"load"``) and input
+        delay (samples) the user knows; ``None``: what ident.json's ``frequency_response`` found.
+    min_gain_margin_db, min_phase_margin_deg, min_delay_margin_samples, min_modulus_margin : float
+        ``[margins]``: the stability-margin floors, dB, deg, samples beyond the identified delay, -.
     """
 
     sample_rate: float = 2500.0
@@ -186,6 +220,15 @@ class Spec:
     budget: int = 96
     monte_carlo: int = 0
     margin: float = 0.01
+    plant_mode_hz: float | None = None
+    plant_mode_damping: float | None = None
+    plant_mode_ratio: float | None = None
+    plant_encoder: str | None = None
+    plant_delay_samples: float | None = None
+    min_gain_margin_db: float = 6.0
+    min_phase_margin_deg: float = 30.0
+    min_delay_margin_samples: float = 1.0
+    min_modulus_margin: float = 0.5
 
     @property
     def period(self) -> float:
@@ -234,6 +277,14 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("tune", "budget"): (1, 10_000),
     ("tune", "monte_carlo"): (0, 1_000),
     ("tune", "margin"): (1e-6, 0.5),
+    ("plant", "mode_hz"): (0.0, 1e5),
+    ("plant", "mode_damping"): (0.0, 10.0),
+    ("plant", "mode_ratio"): (1e-3, 1e3),
+    ("plant", "delay_samples"): (0.0, 20.0),
+    ("margins", "gain_db"): (1e-3, 40.0),
+    ("margins", "phase_deg"): (1e-3, 89.0),
+    ("margins", "delay_samples"): (1e-3, 20.0),
+    ("margins", "modulus"): (1e-3, 1.0),
 }
 
 
@@ -288,7 +339,10 @@ def check_trajectory_samples(source: str, prefix: str, sample_rate: float, durat
 
 
 # TOML key -> dataclass attribute where the names differ.
-_ATTR = {("pid", "pole"): "pid_pole"}
+_ATTR = {("pid", "pole"): "pid_pole",
+         **{("plant", k): f"plant_{k}" for k in ("mode_hz", "mode_damping", "mode_ratio", "encoder", "delay_samples")},
+         ("margins", "gain_db"): "min_gain_margin_db", ("margins", "phase_deg"): "min_phase_margin_deg",
+         ("margins", "delay_samples"): "min_delay_margin_samples", ("margins", "modulus"): "min_modulus_margin"}
 
 
 def default_spec() -> Spec:
@@ -342,6 +396,12 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
                 raise _fail(source, path, f": unknown key (known in [{section}]: {', '.join(schema)})")
             typ, _default, positive, unit = schema[key]
             u = f" {unit}" if unit else ""
+            if typ is str:
+                choices = _CHOICES[(section, key)]
+                if raw not in choices:
+                    raise _fail(source, path, f" = {raw!r}: expected one of {', '.join(map(repr, choices))}")
+                values[(section, key)] = raw
+                continue
             if typ is int:
                 if isinstance(raw, bool) or not isinstance(raw, int):
                     raise _fail(source, path, f" = {raw!r}: expected an integer")
@@ -362,6 +422,9 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
             return values.get((section, key), float(sample_rate_default))
         return values.get((section, key), _SCHEMA[section][key][1])
 
+    for key in ("mode_ratio", "mode_damping"):
+        if values.get(("plant", key), 0.0) >= 1.0:
+            raise _fail(source, f"{prefix}plant.{key}", f" = {values[('plant', key)]!r} must be below 1")
     fs = get("controller", "sample_rate")
     if ("controller", "sample_rate") not in values:  # the default may come from ident.json's log rate
         if not (isinstance(fs, (int, float)) and math.isfinite(fs) and fs > 0):
@@ -415,6 +478,8 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         budget=get("tune", "budget"),
         monte_carlo=get("tune", "monte_carlo"),
         margin=get("tune", "margin"),
+        **{_ATTR[("plant", k)]: get("plant", k) for k in _SCHEMA["plant"]},
+        **{_ATTR[("margins", k)]: get("margins", k) for k in _SCHEMA["margins"]},
     )
 
 

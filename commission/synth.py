@@ -139,7 +139,7 @@ class AxisTruth:
         return 1.0 / self.sample_rate
 
     def plant(self) -> np.ndarray:
-        """Plant vector for :mod:`commission.controllers.plant` (float64[9])."""
+        """Plant vector for :mod:`commission.controllers.plant` (float64[NP])."""
         return plant_vector(self.M, self.B, self.fc, self.fs, self.vs, self.xi,
                             self.offset, self.ripple_amp, self.ripple_pitch)
 

@@ -101,6 +101,7 @@ from commission.controllers.simulate import simulate_batch
 from commission.errors import SpecError, UsageError
 from commission.gate import GateLimits, GateSpec, evaluate_gate, resolve_gate
 from commission.jsonio import read_json, sha256_file
+from commission.robustness import margin_table
 from commission.scenarios import (
     check_run_length,
     CASE1_SPEED_FRACTION,
@@ -1113,7 +1114,7 @@ class HoldoutGate:
     def __init__(self, ident: Identification, spec: Spec, ev: Evaluator, pid: PidGains,
                  pid_scores: Sequence[Score], *, rng: np.random.Generator, workers: int | None = None,
                  n_plants: int = HOLDOUT_PLANTS) -> None:
-        plants = scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n_plants)[len(CASES) * len(VARIANTS):]
+        plants = [s for s in scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n_plants) if "monte_carlo" in s.tags]
         self.ev = ev
         self.ev_h = Evaluator(plants, spec, workers=workers)
         self.pid_scores = [*pid_scores, *self.ev_h.scores(KIND_PID, [pid_pack(pid)])[0]]
@@ -1593,10 +1594,11 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                           repair_moves=() if repaired is None else repaired.moves,
                           repair_evaluations=0 if repaired is None else repaired.evaluations,
                           repair_failures=None if repaired is None else repaired.failures)
-    out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident),
+    out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
-                 guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record)
+                 guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record,
+                 margins=margin_table(chosen, pid, ident, spec))
     if progress is not None:
         progress(total, total)
     return out

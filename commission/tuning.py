@@ -50,16 +50,16 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.pid import PidGains
-from commission.controllers.plant import NP
+from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.robustness import LoopMargins
 from commission.spec import Spec, spec_from_mapping
 
 TUNING_KIND = "tuning"
 TUNING_SCHEMA_VERSION = 1
 
 #: Plant-vector names in controllers.plant order.
-PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch")
 SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
 #: ArcGains fields that may be infinite (stored as JSON null).
 _ARC_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
@@ -289,7 +289,7 @@ class Tuning:
     identification : Identification
         The identification the gains were tuned for.
     plant : numpy.ndarray
-        float64[9] identified plant vector (controllers.plant layout), read-only.
+        float64[NP] identified plant vector (controllers.plant layout), read-only.
     quantization : float
         Encoder resolution used in simulation, m.
     arc : ArcGains
@@ -310,6 +310,9 @@ class Tuning:
     scores : dict
         scenario -> ``{"arc": Score, "pid": Score}``.
     search : SearchRecord
+    margins : tuple of LoopMargins
+        Stability margins of both loops per plant (:mod:`commission.robustness`);
+        empty in a tuning.json written before they were recorded.
     """
 
     provenance: Provenance
@@ -327,6 +330,7 @@ class Tuning:
     guarantees: Mapping[str, Guarantee]
     scores: Mapping[str, Mapping[str, Score]]
     search: SearchRecord
+    margins: tuple[LoopMargins, ...] = ()
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -373,6 +377,7 @@ class Tuning:
             "guarantees": {k: {"holds": g.holds, "detail": g.detail} for k, g in self.guarantees.items()},
             "scores": {s: {c: sc.to_dict() for c, sc in row.items()} for s, row in self.scores.items()},
             "search": self.search.to_dict(),
+            "margins": [m.to_dict() for m in self.margins],
         }
 
     def save(self, path: str) -> None:
@@ -397,7 +402,10 @@ class Tuning:
             # re-anchor the path under $.identification
             raise SchemaError(str(exc).replace(f"{source}: $", f"{source}: $.identification")) from None
         plr = r.obj("plant")
-        plant = np.array([plr.num(n) for n in PLANT_NAMES], dtype=np.float64)
+        # The mode and delay entries were added later: absent means a rigid, delay-free plant.
+        default = plant_vector(1.0, 0.0)
+        plant = np.array([plr.num(n) if i < 9 or plr.has(n) else default[i] for i, n in enumerate(PLANT_NAMES)],
+                         dtype=np.float64)
         quant = plr.num("quantization", nonneg=True)
         arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
         pidr = r.obj("pid")
@@ -446,12 +454,28 @@ class Tuning:
                    arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search)
+                   scores=scores, search=search, margins=_margins(r))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
         """Read and strictly validate ``tuning.json``."""
         return cls.from_dict(read_json(path), source=str(path))
+
+
+def _margins(r: Reader) -> tuple[LoopMargins, ...]:
+    """The optional ``margins`` list; an entry that does not parse is named by its JSON path."""
+    if not r.has("margins"):
+        return ()
+    lst = r.child("margins")
+    if not isinstance(lst.data, list):
+        raise lst.fail("expected a list")
+    out = []
+    for i, row in enumerate(lst.data):
+        try:
+            out.append(LoopMargins.from_dict(row))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
+    return tuple(out)
 
 
 def _matrix(r: Reader, key: str, rows: int, cols: int) -> tuple[tuple[float, ...], ...]:

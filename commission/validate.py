@@ -8,7 +8,8 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    is refused without ``force``).
 2. The scenario matrix (:func:`commission.scenarios.scenario_matrix`): the 12
    fixed scenarios (Case 1 and Case 2 x nominal, payload at both theta_1
-   bounds, friction +-20 %, the delta_d disturbance step) and
+   bounds, friction +-20 %, the delta_d disturbance step), the robustness
+   scenarios (one more sample of input delay; a known mode moved and less damped) and
    ``n_monte_carlo`` plants drawn from the theta box with
    ``numpy.random.default_rng(seed)``.
 3. Every scenario is simulated with the tuned ARC and with the PID baseline
@@ -20,7 +21,9 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    CPU by default); results do not depend on the number of threads.  The ARC
    is simulated with the gains *as read back from the controller.json
    layout*, so what was validated is what is deployed.
-4. The gate (:mod:`commission.gate`) is checked on every scenario.
+4. The gate (:mod:`commission.gate`) is checked on every scenario, and the
+   stability margins of the ARC on the identified plant against the spec's
+   floors (:mod:`commission.robustness`, :func:`commission.gate.margin_checks`).
 5. Outputs: ``validation.json`` (every index of every run, the gate and every
    check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``
    only when every check passed.  With ``force`` and a failing gate a
@@ -51,9 +54,11 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simul
 from commission.controllers.trajectory import Trajectory
 from commission.errors import SchemaError, UsageError
 from commission.files import Outputs
-from commission.gate import FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, resolve_gate
+from commission.gate import (FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, margin_checks,
+                             resolve_gate)
 from commission.jsonio import canonical_json, read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
+from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
 from commission.scenarios import check_run_length, plant_substeps, scenario_matrix
 from commission.spec import check_flags
 from commission.tuning import Score, Tuning, log_sha256_of
@@ -70,7 +75,7 @@ VALIDATION_NAME = "validation.json"
 CONTROLLER_NAME = "controller.json"
 #: Figures the CLI draws (cli/plots_validate.py); listed here so that --force checks cover them.
 FIGURE_NAMES = ("tracking_case1.png", "tracking_case2.png", "theta_hat.png", "control_input.png",
-                "monte_carlo.png")
+                "monte_carlo.png", "loops.png")
 
 
 @dataclass(frozen=True)
@@ -170,6 +175,12 @@ class ValidationResult:
         Wall time of the simulations, s.
     workers : int
         Threads used.
+    margins : tuple of LoopMargins
+        Stability margins of both loops per plant (:mod:`commission.robustness`).
+    margin_floors : MarginFloors
+        The spec's floors they are held against.
+    loops : tuple of ndarray
+        ``(f_hz, L_arc, L_pid)`` on the identified plant, for the loop figure (not in JSON).
     """
 
     runs: tuple[RunRecord, ...]
@@ -184,6 +195,9 @@ class ValidationResult:
     u_sat: float
     elapsed: float
     workers: int
+    margins: tuple[LoopMargins, ...] = ()
+    margin_floors: MarginFloors = MarginFloors()
+    loops: tuple[np.ndarray, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -211,6 +225,9 @@ class ValidationResult:
             "worst": {k: c.to_dict() for k, c in self.verdict.worst().items()},
             "runs": [r.to_dict() for r in self.runs],
             "elapsed_s": self.elapsed,
+            "margins": {"floors": self.margin_floors.to_dict(), "loops": [m.to_dict() for m in self.margins],
+                        "worst": {c: (w.to_dict() if (w := worst(self.margins, c)) is not None else None)
+                                  for c in CONTROLLERS}},
         }
 
 
@@ -345,10 +362,15 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                           limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
                           drive_u_max=u_sat)
     verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
+    margins = margin_table(arc, tuning.pid, tuning.identification, spec)
+    margin_floors = MarginFloors.from_spec(spec)
+    verdict = GateVerdict(verdict.checks + tuple(margin_checks(margins, margin_floors)), verdict.limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
-                            e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers)
+                            e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
+                            margins=margins, margin_floors=margin_floors,
+                            loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
 
 
 # --------------------------------------------------------------------------- controller.json

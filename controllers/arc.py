@@ -196,6 +196,10 @@ S_K2 = 19  # K2 used (after the cap), 1/s
 S_USTAR = 20  # u* (before the friction term and saturation), u-unit
 S_U = 21  # u returned, u-unit
 NS = 22
+#: The entries of s that carry the controller's dynamics from one sample to the next
+#: (the others are flags or values logged for the caller); what a linearisation perturbs.
+S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA, S_THETA + 1, S_THETA + 2,
+             S_YPREV, S_USPREV)
 
 
 def _vec3(name: str, v) -> tuple[float, float, float]:

@@ -42,6 +42,8 @@ NG = 9
 S_YPREV = 0  # previous measured position, m
 S_INT = 1  # integral of e, m s
 NS = 2
+#: The entries of the state carrying the dynamics (what a linearisation perturbs).
+PID_DYNAMIC = (S_YPREV, S_INT)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,31 @@ switch model (Karnopp/Leine) on a fixed-step semi-implicit Euler integrator.
 
 With h a small fraction of the sample period (default 10 sub-steps), this
 keeps stick-slip, reversals and break-away physical and bounded.
+
+Beyond the rigid body (paper eq. 1), two things every real axis has and that
+cap its feedback bandwidth are first-class options of the same vector:
+
+* **A structural mode**: the moving mass M splits into a motor side
+  ``m1 = (1 - r) M`` (force, friction, ripple, viscous and offset act there) and
+  a load ``m2 = r M`` coupled by a spring ``k`` and damper ``c``, chosen so that
+  the free-free mode has the resonance ``f_r`` and damping ``zeta``::
+
+      mu = m1 m2 / M,  k = (2 pi f_r)^2 mu,  c = 2 zeta (2 pi f_r) mu
+      m1 x1'' = F_motor - k (x1 - x2) - c (v1 - v2)
+      m2 x2'' = k (x1 - x2) + c (v1 - v2)
+
+  The encoder reads ``x1`` (motor side: the response u -> q has an
+  anti-resonance at ``f_r sqrt(1 - r)`` below the resonance) or ``x2`` (load
+  side: a resonance only).  The coupled equations use the same semi-implicit
+  Euler step, sub-divided so that ``2 pi f_r h <= 0.25`` (stable and within
+  0.3 % of the mode's frequency).
+* **An input delay** ``P_DELAY`` (s, fractional samples allowed): the command
+  reaches the force ``P_DELAY`` after the controller issued it.  The plant
+  itself is delay-free; the sampled loop (``controllers.simulate``) applies the
+  delay exactly by switching the held command inside the sample.
+
+Frequencies are in Hz and delays in seconds so that a plant vector does not
+depend on the controller's rate.
 """
 
 from __future__ import annotations
@@ -37,12 +62,34 @@ P_XI = 5  # Stribeck exponent, -
 P_OFFSET = 6  # constant force offset, u-unit (u_equiv = ... + offset)
 P_RIPPLE_AMP = 7  # force-ripple amplitude, u-unit
 P_RIPPLE_PITCH = 8  # force-ripple pitch, m (<= 0: no ripple)
-NP = 9
+P_MODE_HZ = 9  # structural-mode resonance, Hz (<= 0: rigid body)
+P_MODE_DAMPING = 10  # damping ratio of the mode, -
+P_MODE_RATIO = 11  # load fraction r = m2 / M of the moving mass, 0 < r < 1
+P_MODE_LOAD_SIDE = 12  # 1: the encoder reads the load x2; 0: the motor side x1
+P_DELAY = 13  # input delay, s (>= 0)
+NP = 14
+
+#: Names of the plant vector's entries, in order (the keys of ``tuning.json``'s plants).
+PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch",
+               "mode_hz", "mode_damping", "mode_ratio", "mode_load_side", "delay")
+#: Their units ("u" stands for the command unit).
+PLANT_UNITS = ("u s^2/m", "u s/m", "u", "u", "m/s", "1", "u", "u", "m", "Hz", "1", "1", "1", "s")
+
+#: Layout of the plant's integration state (float64[NX]).
+X_MOTOR = 0  # motor-side position x1, m
+V_MOTOR = 1  # motor-side velocity, m/s
+X_LOAD = 2  # load position x2, m (= x1 on a rigid plant)
+V_LOAD = 3  # load velocity, m/s
+NX = 4
+#: Largest 2 pi f_r h of one integration step of the mode.
+MODE_STEP = 0.25
 
 
 def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
                  vs: float = 0.01, xi: float = 2.0, offset: float = 0.0,
-                 ripple_amp: float = 0.0, ripple_pitch: float = 0.0) -> np.ndarray:
+                 ripple_amp: float = 0.0, ripple_pitch: float = 0.0, *, mode_hz: float = 0.0,
+                 mode_damping: float = 0.02, mode_ratio: float = 0.5, mode_load_side: bool = False,
+                 delay: float = 0.0) -> np.ndarray:
     """Pack plant parameters into the float64 vector the kernels take.
 
     Parameters
@@ -63,14 +110,31 @@ def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
         Force-ripple amplitude, u-unit.
     ripple_pitch : float
         Force-ripple pitch, m; 0 disables ripple.
+    mode_hz : float
+        Resonance of the structural mode, Hz; 0: rigid body.
+    mode_damping : float
+        Damping ratio of the mode, in [0, 1).
+    mode_ratio : float
+        Load fraction m2 / M, in (0, 1).
+    mode_load_side : bool
+        The encoder reads the load (True) or the motor side (False).
+    delay : float
+        Input delay, s.
     """
     if not (M > 0 and B >= 0 and fc >= 0 and vs > 0 and xi > 0):
         raise ValueError(f"plant_vector: need M > 0, B >= 0, fc >= 0, vs > 0, xi > 0; got M={M}, B={B}, fc={fc}, vs={vs}, xi={xi}")
+    if not (mode_hz >= 0 and 0 <= mode_damping < 1 and 0 < mode_ratio < 1 and delay >= 0
+            and math.isfinite(mode_hz) and math.isfinite(delay)):
+        raise ValueError(f"plant_vector: need mode_hz >= 0, 0 <= mode_damping < 1, 0 < mode_ratio < 1, delay >= 0; "
+                         f"got mode_hz={mode_hz}, mode_damping={mode_damping}, mode_ratio={mode_ratio}, delay={delay}")
     p = np.zeros(NP)
     p[P_M], p[P_B], p[P_FC] = M, B, fc
     p[P_FS] = fc if fs is None else fs
     p[P_VS], p[P_XI], p[P_OFFSET] = vs, xi, offset
     p[P_RIPPLE_AMP], p[P_RIPPLE_PITCH] = ripple_amp, ripple_pitch
+    p[P_MODE_HZ], p[P_MODE_DAMPING], p[P_MODE_RATIO] = mode_hz, mode_damping, mode_ratio
+    p[P_MODE_LOAD_SIDE] = 1.0 if mode_load_side else 0.0
+    p[P_DELAY] = delay
     return p
 
 
@@ -124,8 +188,79 @@ def plant_advance(p, x, v, u, h, n):
         else:
             a = (F - p[P_B] * v - stribeck(p, v)) / M
             v_new = v + a * h
-            if v_new * v < 0.0:
-                v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip
+            if v_new * v < 0.0 and p[P_FS] > 0.0:
+                v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip (only static friction can hold it)
             v = v_new
         x += v * h
     return x, v
+
+
+@njit(cache=True, nogil=True)
+def plant_start(p, st, x0):
+    """Put the plant at rest at position ``x0`` (m): fill the state ``st`` (float64[NX])."""
+    st[X_MOTOR] = x0
+    st[V_MOTOR] = 0.0
+    st[X_LOAD] = x0
+    st[V_LOAD] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def plant_output(p, st):
+    """Position the encoder reads, m: the load on a load-side encoder, else the motor side."""
+    if p[P_MODE_HZ] > 0.0 and p[P_MODE_LOAD_SIDE] > 0.5:
+        return st[X_LOAD]
+    return st[X_MOTOR]
+
+
+@njit(cache=True, nogil=True)
+def plant_step(p, st, u, h, n):
+    """Advance the plant state ``st`` in place over ``n`` sub-steps of ``h`` s under the held input ``u``.
+
+    A rigid plant (``p[P_MODE_HZ] <= 0``) is :func:`plant_advance`, with the load
+    coordinates kept equal to the motor's; a plant with a mode integrates the
+    two coupled masses (module docstring) with the same stiction scheme on the
+    motor side.
+    """
+    if p[P_MODE_HZ] <= 0.0:
+        x, v = plant_advance(p, st[X_MOTOR], st[V_MOTOR], u, h, n)
+        st[X_MOTOR] = x
+        st[V_MOTOR] = v
+        st[X_LOAD] = x
+        st[V_LOAD] = v
+        return
+    M = p[P_M]
+    r = p[P_MODE_RATIO]
+    m1 = (1.0 - r) * M
+    m2 = r * M
+    mu = m1 * m2 / M
+    w = 2.0 * math.pi * p[P_MODE_HZ]
+    k = w * w * mu
+    c = 2.0 * p[P_MODE_DAMPING] * w * mu
+    split = int(math.ceil(w * h / MODE_STEP))
+    if split < 1:
+        split = 1
+    hh = h / split
+    x1 = st[X_MOTOR]
+    v1 = st[V_MOTOR]
+    x2 = st[X_LOAD]
+    v2 = st[V_LOAD]
+    for _ in range(n * split):
+        fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
+        F = u - p[P_OFFSET] - ripple(p, x1) - fk
+        if v1 == 0.0:
+            if abs(F) <= p[P_FS]:
+                v1n = 0.0
+            else:
+                v1n = (F - math.copysign(p[P_FS], F)) / m1 * hh
+        else:
+            v1n = v1 + (F - p[P_B] * v1 - stribeck(p, v1)) / m1 * hh
+            if v1n * v1 < 0.0 and p[P_FS] > 0.0:
+                v1n = 0.0
+        v2 = v2 + fk / m2 * hh
+        v1 = v1n
+        x1 += v1 * hh
+        x2 += v2 * hh
+    st[X_MOTOR] = x1
+    st[V_MOTOR] = v1
+    st[X_LOAD] = x2
+    st[V_LOAD] = v2

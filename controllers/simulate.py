@@ -6,8 +6,9 @@ One sample ``k`` (``t_k = k Ts``) of the loop, all inside one compiled kernel::
     abort if q(t_k) or y_k is not finite or |q(t_k) - qd_k| > e_abort
     c_k = step(ctrl, y_k, qd_k, dqd_k, ddqd_k)  # PID (kind 0) or ARC (kind 1)
     abort if c_k is not finite or |c_k| > u_abort
-    u_k = clip(c_{k-1} if delay else c_k, +-u_sat)   # delay: one-sample computation delay, c_{-1} = 0
-    plant over [t_k, t_k + Ts) under u_k + d_k,  `substeps` sub-steps of the plant kernel
+    u_k = clip(c_k, +-u_sat), held over [t_k, t_k + Ts), delayed by the plant's input delay
+          (plus one sample with ``delay``: a computation delay), c_{j<0} = 0
+    plant over [t_k, t_k + Ts) under u + d_k,  `substeps` sub-steps of the plant kernel
 
 ``d_k`` is the input disturbance (u-unit) held over the sample.  The recorded
 ``u`` is the held actuator command ``u_k`` (after delay and saturation,
@@ -37,7 +38,7 @@ from commission.controllers.arc import S_THETA, arc_new_state, arc_reset, arc_st
 from commission.controllers.metrics import FINAL_WINDOW, Indexes, indexes_kernel
 from commission.controllers.pid import G_TS as PID_P_TS
 from commission.controllers.pid import pid_new_state, pid_reset, pid_step
-from commission.controllers.plant import NP, plant_advance
+from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step
 from commission.controllers.trajectory import Trajectory
 
 KIND_PID = 0
@@ -60,26 +61,53 @@ def _quantize(q, quant):
 
 
 @njit(cache=True, nogil=True)
+def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts):
+    """Hold the saturated command ``c`` (+ disturbance ``d``) on the plant for ``t_len`` s; returns it."""
+    if c > u_sat:
+        c = u_sat
+    elif c < -u_sat:
+        c = -u_sat
+    if t_len > 0.0:
+        m = int(math.ceil(substeps * t_len / Ts - 1e-9))
+        if m < 1:
+            m = 1
+        plant_step(plant_p, st, c + d, t_len / m, m)
+    return c
+
+
+@njit(cache=True, nogil=True)
 def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, quant, dist, noise,
                        delay, y0, u_sat, e_abort, u_abort, y_out, q_out, u_out, th_out):
     """Run the loop; fill the first ``n_done`` rows of the outputs.
 
     ``dist`` and ``noise`` have length N or 0 (none).  ``th_out`` has shape
     (N, 3) and is written only for ARC.  Returns ``(n_done, diverged)``.
+
+    The input delay is the plant's ``P_DELAY`` plus one sample when ``delay``:
+    with ``tau = (n_d + f) Ts`` (``0 <= f < 1``) the plant receives
+    ``c_{k - n_d - 1}`` over ``[t_k, t_k + f Ts)`` and ``c_{k - n_d}`` over the
+    rest of the sample (commands before the start are 0).  The recorded ``u``
+    is the command held at the end of the sample.
     """
     n = qd.shape[0]
-    h = Ts / substeps
     has_d = dist.shape[0] > 0
     has_n = noise.shape[0] > 0
-    x = y0
-    v = 0.0
-    y = _quantize(x + (noise[0] if has_n else 0.0), quant)
+    tau = plant_p[P_DELAY] / Ts + (1.0 if delay else 0.0)
+    n_d = int(math.floor(tau + 1e-9))
+    f = tau - n_d
+    if f < 1e-9:
+        f = 0.0
+    hist = np.zeros(n_d + 2)  # hist[j % len] = c_j
+    nh = n_d + 2
+    st = np.empty(NX)
+    plant_start(plant_p, st, y0)
+    y = _quantize(plant_output(plant_p, st) + (noise[0] if has_n else 0.0), quant)
     if kind == 0:
         pid_reset(ctrl_p, s, y)
     else:
         arc_reset(ctrl_p, s, y)
-    c_prev = 0.0
     for k in range(n):
+        x = plant_output(plant_p, st)
         if k > 0:
             y = _quantize(x + (noise[k] if has_n else 0.0), quant)
         if not (math.isfinite(x) and math.isfinite(y)) or abs(x - qd[k]) > e_abort:
@@ -90,19 +118,17 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
             c = arc_step(ctrl_p, s, y, qd[k], dqd[k], ddqd[k])
         if not math.isfinite(c) or abs(c) > u_abort:
             return k, True
-        ua = c_prev if delay else c
-        c_prev = c
-        if ua > u_sat:
-            ua = u_sat
-        elif ua < -u_sat:
-            ua = -u_sat
+        hist[k % nh] = c
+        c_late = hist[(k - n_d) % nh] if k >= n_d else 0.0
+        c_early = hist[(k - n_d - 1) % nh] if k >= n_d + 1 else 0.0
+        d = dist[k] if has_d else 0.0
         y_out[k] = y
         q_out[k] = x
-        u_out[k] = ua
         if kind == 1:
             for j in range(3):
                 th_out[k, j] = s[S_THETA + j]
-        x, v = plant_advance(plant_p, x, v, ua + (dist[k] if has_d else 0.0), h, substeps)
+        _segment(plant_p, st, c_early, u_sat, d, f * Ts, substeps, Ts)
+        u_out[k] = _segment(plant_p, st, c_late, u_sat, d, (1.0 - f) * Ts, substeps, Ts)
     return n, False
 
 
@@ -297,7 +323,7 @@ def simulate(plant_p: np.ndarray, kind: int, ctrl_p: np.ndarray, traj: Trajector
 
     Parameters
     ----------
-    plant_p : ndarray, shape (9,)
+    plant_p : ndarray, shape (NP,)
         Plant vector (:func:`commission.controllers.plant.plant_vector`).
     kind : int
         0 PID (``ctrl_p`` from ``pid_pack``), 1 ARC (``ctrl_p`` from ``arc_pack``).
@@ -314,7 +340,7 @@ def simulate(plant_p: np.ndarray, kind: int, ctrl_p: np.ndarray, traj: Trajector
     noise : ndarray, shape (N,), optional
         Position noise per sample added before quantization, m (pre-generated).
     delay : bool
-        Apply each command one sample late.
+        Apply each command one more sample late (on top of the plant's own input delay).
     y0 : float
         Initial true position, m (at rest).
     u_sat : float
@@ -417,7 +443,7 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
 
     Parameters
     ----------
-    plants : ndarray, shape (m, 9)
+    plants : ndarray, shape (m, NP)
         Plant vectors.
     kind : int
         0 PID, 1 ARC.

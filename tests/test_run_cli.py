@@ -48,6 +48,14 @@ def test_run_on_the_sample_log_passes_and_leaves_every_file(tmp_path):
     assert ctrl["provenance"]["tuning_sha256"] == sha256_file(out / "tuning.json")
     assert read_json(out / "tuning.json")["provenance"]["ident_sha256"] == sha256_file(out / "ident.json")
     load_controller(out / "controller.json")
+    # both loops' stability margins, per plant, in validation.json and tuning.json, and in the report
+    val = read_json(out / "validation.json")["margins"]
+    assert {r["controller"] for r in val["loops"]} == {"arc", "pid"} and len(val["loops"]) == 15
+    assert val["worst"]["pid"]["delay_margin_samples"] > 0 and val["floors"]["modulus_margin"] == 0.5
+    assert len(read_json(out / "tuning.json")["margins"]) == 15
+    report = (out / "report.md").read_text()
+    assert "## Stability margins" in report and "![loops.png](loops.png)" in report
+    assert report.count("| nominal | ") == 3
 
 
 def test_run_refuses_bad_input_before_writing(tmp_path):

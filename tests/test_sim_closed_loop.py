@@ -193,7 +193,7 @@ def test_input_errors_name_field_and_shape():
     traj = sinusoid(1.0, TS)
     p = plant_vector(M, B)
     g = pid_pack(LIN_GAINS)
-    with pytest.raises(SimulationError, match=r"plant_p: expected shape \(9,\), got \(8,\)"):
+    with pytest.raises(SimulationError, match=rf"plant_p: expected shape \({p.size},\), got \(8,\)"):
         simulate(p[:8], KIND_PID, g, traj)
     with pytest.raises(SimulationError, match=r"disturbance: expected shape \(2500,\), got \(2499,\)"):
         simulate(p, KIND_PID, g, traj, disturbance=np.zeros(2499))
@@ -205,7 +205,7 @@ def test_input_errors_name_field_and_shape():
         simulate(p, KIND_PID, pid_pack(dataclasses.replace(LIN_GAINS, Ts=1e-3)), traj)
     with pytest.raises(SimulationError, match="kind"):
         simulate(p, 7, g, traj)
-    with pytest.raises(SimulationError, match=r"plants: expected shape \(m, 9\)"):
+    with pytest.raises(SimulationError, match=rf"plants: expected shape \(m, {p.size}\)"):
         simulate_batch(p, KIND_PID, g, traj)
     with pytest.raises(SimulationError, match=r"noise: expected shape \(2500,\) or \(2, 2500\)"):
         simulate_batch(np.stack([p, p]), KIND_PID, g, traj, noise=np.zeros((3, traj.n)))

@@ -118,7 +118,8 @@ def test_cli_writes_a_schema_versioned_tuning(small):
                  "sampled_data_stability", "input_limit"):
         assert name in doc["guarantees"]
     assert doc["guarantees"]["robust_gains_37_47"]["holds"] is False  # traded: capped gains
-    assert len(doc["scores"]) == 12 + 16 + 4 + 6  # fixed scenarios, box corners, largest-force plants, payloads
+    # fixed scenarios, one more sample of delay, box corners, largest-force plants, payloads
+    assert len(doc["scores"]) == 12 + 2 + 16 + 4 + 6
     assert doc["search"]["free"]["theta1_0"] == doc["arc"]["theta0"][0]
     assert doc["search"]["n_evaluations"] == 3
     # the winner was chosen by the default gate on fresh Monte-Carlo plants among the feasible candidates
@@ -134,6 +135,17 @@ def test_cli_writes_a_schema_versioned_tuning(small):
         assert 0 < se["repair_evaluations"] and se["repair_failures"] <= min(fails)
     assert "Chosen gains" in output and "case1/nominal" in output
     assert "fresh plants" in output and "default gate, hold-out" in output
+    # stability margins per plant: the identified one and the four (theta1, theta2) box corners;
+    # the PID once, the ARC at theta_hat(0) and at the plant's theta
+    rows = doc["margins"]
+    plants = {r["plant"] for r in rows}
+    assert plants == {"nominal"} | {f"theta1_{a}/theta2_{b}" for a in ("min", "max") for b in ("min", "max")}
+    for plant in plants:
+        mine = [(r["controller"], r["theta_hat_at"]) for r in rows if r["plant"] == plant]
+        assert sorted(mine) == [("arc", "initial"), ("arc", "plant"), ("pid", "")]
+    nominal_pid = next(r for r in rows if r["plant"] == "nominal" and r["controller"] == "pid")
+    # the paper's PID on the paper's (rigid) plant: stable with room (delay margin in samples)
+    assert nominal_pid["stable"] and nominal_pid["delay_margin_samples"] > 1 and nominal_pid["gain_margin_db"] > 6
 
 
 def test_roundtrip_and_strict_loading(small):
@@ -205,12 +217,12 @@ def test_repair_budget_grows_as_a_simulation_gets_cheaper():
 
 def test_default_budgets_shrink_with_the_work_of_a_candidate():
     ident = ref_ident()
-    # closed form of the work: 19 scenarios on each trajectory (12 fixed, 16 corners, 4 offsets, 6 payloads),
-    # every sample one ARC step plus the plant's sub-steps
+    # closed form of the work: 20 scenarios on each trajectory (6 fixed variants, one more sample of delay,
+    # 8 corners, 2 offsets, 3 payloads), every sample one ARC step plus the plant's sub-steps
     slow = spec_from_mapping({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}})
     n1 = round(case1_trajectory(slow).duration * 4000.0)
     n2 = round(case2_trajectory(slow).duration * 4000.0)
-    work = 19 * (n1 + n2) * (tune_mod.ARC_STEP_WORK + plant_substeps(4000.0))
+    work = 20 * (n1 + n2) * (tune_mod.ARC_STEP_WORK + plant_substeps(4000.0))
     assert tune_mod.candidate_work(ident, slow) == pytest.approx(work, rel=1e-12)
     scale = tune_mod.WORK_CAP / work
     assert 0.3 < scale < 1.0 and tune_mod.work_scale(ident, slow) == pytest.approx(scale, rel=1e-12)

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP, P_RIPPLE_PITCH
+from commission.controllers.plant import (P_B, P_DELAY, P_FC, P_FS, P_M, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
+                                          P_MODE_RATIO, P_OFFSET, P_RIPPLE_AMP, P_RIPPLE_PITCH)
 from commission.controllers.trajectory import back_and_forth, sinusoid
 from commission.paper import reference_identification
 from commission.scenarios import (
@@ -67,7 +68,8 @@ def test_matrix_contents():
     spec = default_spec()
     sc = scenario_matrix(ident, spec, rng=np.random.default_rng(0), n_monte_carlo=8)
     names = [s.name for s in sc]
-    assert len(sc) == 12 + 8 and len(set(names)) == len(names)
+    # 12 fixed, one more sample of delay on each trajectory (rigid plant: no mode variants), 8 Monte-Carlo
+    assert len(sc) == 12 + 2 + 8 and len(set(names)) == len(names)
     by = {s.name: s for s in sc}
     base = identified_plant(ident)
     assert np.array_equal(by["case1/nominal"].plant, base)
@@ -81,8 +83,12 @@ def test_matrix_contents():
     assert (d.amplitude, d.t_on, d.t_off) == (pytest.approx(0.5), pytest.approx(2.2), pytest.approx(7.2))
     t = np.arange(25000) / 2500.0
     assert np.count_nonzero(d.samples(t)) == 12500
-    assert all("tune" in by[n].tags for n in names[:12])
-    assert all("monte_carlo" in by[n].tags for n in names[12:])
+    assert all("tune" in by[n].tags for n in names[:14])
+    assert all("monte_carlo" in by[n].tags for n in names[14:])
+    for case in ("case1", "case2"):
+        late = by[f"{case}/delay+1"].plant
+        assert late[P_DELAY] == pytest.approx(spec.period) and np.array_equal(np.delete(late, P_DELAY),
+                                                                              np.delete(base, P_DELAY))
     assert all(s.quantization == 1e-6 for s in sc)
 
 
@@ -92,9 +98,10 @@ def test_monte_carlo_is_seeded_and_inside_the_box():
     a = scenario_matrix(ident, spec, rng=np.random.default_rng(5), n_monte_carlo=64)
     b = scenario_matrix(ident, spec, rng=np.random.default_rng(5), n_monte_carlo=64)
     c = scenario_matrix(ident, spec, rng=np.random.default_rng(6), n_monte_carlo=64)
-    pa = np.stack([s.plant for s in a[12:]])
-    assert np.array_equal(pa, np.stack([s.plant for s in b[12:]]))
-    assert not np.array_equal(pa, np.stack([s.plant for s in c[12:]]))
+    a, b, c = ([s for s in m if "monte_carlo" in s.tags] for m in (a, b, c))
+    pa = np.stack([s.plant for s in a])
+    assert np.array_equal(pa, np.stack([s.plant for s in b]))
+    assert not np.array_equal(pa, np.stack([s.plant for s in c]))
     th = np.column_stack([1 / pa[:, P_M], pa[:, P_B] / pa[:, P_M], -pa[:, P_OFFSET] / pa[:, P_M]])
     lo, hi = np.array(ident.theta.min), np.array(ident.theta.max)
     assert np.all(th >= lo - 1e-9) and np.all(th <= hi + 1e-9)
@@ -106,7 +113,7 @@ def test_monte_carlo_is_seeded_and_inside_the_box():
     assert np.all((pa[:, P_B] >= b_lo - 1e-12) & (pa[:, P_B] <= b_hi + 1e-12))
     # the draws spread over the box (not stuck at a point)
     assert np.ptp(th[:, 0]) > 0.7 * (hi[0] - lo[0]) and np.ptp(pa[:, P_OFFSET]) > 1.4
-    assert {s.trajectory.kind for s in a[12:]} == {"case1", "case2"}
+    assert {s.trajectory.kind for s in a} == {"case1", "case2"}
 
 
 def test_tuning_set_adds_the_corners():
@@ -168,3 +175,28 @@ def test_viscous_range_inverts_the_interval_box():
     # a box that admits no common B at every mass falls back to the identified B
     tight = dataclasses.replace(ident.theta, min=(8.3, 9.0, -50.0), max=(50.0, 11.0, 50.0))
     assert viscous_range(dataclasses.replace(ident, theta=tight)) == (0.273, 0.273)
+
+
+def test_mode_and_delay_come_from_the_identification_and_the_spec_overrides_them():
+    """ident.json's frequency_response.model gives every scenario plant its mode and delay; [plant] wins."""
+    ident = ref_ident(frequency_response={"model": {"mode_hz": 480.0, "mode_damping": 0.05, "mode_ratio": 0.3,
+                                                    "mode_load_side": True, "delay_s": 2e-4}})
+    spec = default_spec()
+    sc = scenario_matrix(ident, spec, rng=np.random.default_rng(0), n_monte_carlo=4)
+    for s in sc:
+        if s.name.split("/")[-1] not in ("mode_low", "mode_high", "mode_damping_half"):
+            assert s.plant[P_MODE_HZ] == 480.0 and s.plant[P_MODE_DAMPING] == 0.05
+        assert s.plant[P_MODE_RATIO] == 0.3 and s.plant[P_MODE_LOAD_SIDE] == 1.0
+        assert s.plant[P_DELAY] == pytest.approx(2e-4 + (spec.period if s.name.endswith("delay+1") else 0.0))
+    by = {s.name: s for s in sc}
+    # robustness variants of the mode: frequency x0.8 and x1.2, damping halved, on both trajectories
+    for case in ("case1", "case2"):
+        assert by[f"{case}/mode_low"].plant[P_MODE_HZ] == pytest.approx(384.0)
+        assert by[f"{case}/mode_high"].plant[P_MODE_HZ] == pytest.approx(576.0)
+        assert by[f"{case}/mode_damping_half"].plant[P_MODE_DAMPING] == pytest.approx(0.025)
+    assert len(sc) == 12 + 2 * 4 + 4
+    over = spec_from_mapping({"plant": {"mode_hz": 0.0, "delay_samples": 1.5}})
+    p = identified_plant(ident, over)
+    assert p[P_MODE_HZ] == 0.0 and p[P_DELAY] == pytest.approx(1.5 / 2500.0)
+    assert [s.name for s in scenario_matrix(ident, over, rng=np.random.default_rng(0), n_monte_carlo=0)
+            if "robustness" in s.tags] == ["case1/delay+1", "case2/delay+1"]

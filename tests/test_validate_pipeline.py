@@ -80,7 +80,7 @@ def test_passing_validation_writes_report_figures_and_controller(tuned, tmp_path
         assert f"]({name})" in report
 
     val = read_json(out / "validation.json")
-    assert val["passed"] is True and len(val["runs"]) == 12 + MC and val["monte_carlo"] == MC
+    assert val["passed"] is True and len(val["runs"]) == 12 + 2 + MC and val["monte_carlo"] == MC
     tuning = Tuning.load(str(tpath))
     ctrl_doc = read_json(out / "controller.json")
     prov = ctrl_doc["provenance"]
@@ -212,7 +212,7 @@ def test_results_do_not_depend_on_threads_and_progress_counts_every_run(tuned):
     calls = []
     r1 = validate(t, seed=3, n_monte_carlo=2, workers=1, progress=lambda d, n: calls.append((d, n)))
     r2 = validate(t, seed=3, n_monte_carlo=2, workers=2)
-    assert calls[0] == (0, 28) and calls[-1] == (28, 28) and len(calls) == 29
+    assert calls[0] == (0, 32) and calls[-1] == (32, 32) and len(calls) == 33
     d1, d2 = r1.to_dict(), r2.to_dict()
     for d in (d1, d2):
         d.pop("elapsed_s")

@@ -1,0 +1,186 @@
+"""Stability margins of the tuned loops over the identified plant set.
+
+The margins themselves (definitions, how the ARC's adaptive and robust terms
+are linearised) are :mod:`commission.controllers.margins`; this module chooses
+where to evaluate them and records them for ``tuning.json``,
+``validation.json`` and ``report.md``:
+
+* **plants**: the identified plant (its mode and input delay included,
+  :func:`commission.scenarios.plant_dynamics`) and the four (theta1, theta2)
+  corners of the Assumption-1 box (mass ``1/theta1``, viscous ``theta2/theta1``);
+* **PID**: linear but for its friction compensation, one loop per plant;
+* **ARC**: linearised twice per plant, with the estimate at its initial value
+  theta_hat(0) (the start-up, before any adaptation) and at the plant's own
+  theta (what the adaptation tends to when the motion excites it), since the
+  sampled loop's stability depends on the estimate (``controllers/arc.py``).
+
+Floors (``[margins]`` of spec.toml; defaults 6 dB, 30 deg, one sample beyond
+the identified delay and modulus 0.5, common practice for servo loops) are checked per loop; :func:`floor_violations` names each one missed,
+and :func:`commission.gate.margin_checks` turns those of the identified plant into gate checks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.linear import sampled_plant
+from commission.controllers.margins import (Margins, frequency_grid, linearize_arc, linearize_pid, loop_margins,
+                                            loop_response)
+from commission.controllers.pid import PidGains, pid_pack
+from commission.controllers.plant import P_B, P_M
+from commission.scenarios import identified_plant
+from commission.spec import Spec
+
+CONTROLLERS = ("arc", "pid")
+
+
+@dataclass(frozen=True)
+class MarginFloors:
+    """Smallest acceptable margins: dB, deg, samples beyond the identified delay, dimensionless."""
+
+    gain_db: float = 6.0
+    phase_deg: float = 30.0
+    delay_samples: float = 1.0
+    modulus: float = 0.5
+
+    @classmethod
+    def from_spec(cls, spec: Spec) -> "MarginFloors":
+        return cls(gain_db=spec.min_gain_margin_db, phase_deg=spec.min_phase_margin_deg,
+                   delay_samples=spec.min_delay_margin_samples, modulus=spec.min_modulus_margin)
+
+    def to_dict(self) -> dict[str, float]:
+        return {"gain_margin_db": self.gain_db, "phase_margin_deg": self.phase_deg,
+                "delay_margin_samples": self.delay_samples, "modulus_margin": self.modulus}
+
+
+def floor_violations(m: Margins, floors: MarginFloors) -> list[str]:
+    """The floors ``m`` misses, each as ``"name value < floor unit"`` (empty: all met)."""
+    out = []
+    if not m.stable:
+        out.append(f"unstable (spectral radius {m.spectral_radius:.4f})")
+    for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
+                                   ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
+                                   ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
+                                   ("modulus margin", m.modulus_margin, floors.modulus, "")):
+        if not val >= floor:
+            out.append(f"{name} {val:.3g} < {floor:g} {unit}".rstrip())
+    return out
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """The margins of one controller on one plant.
+
+    Attributes
+    ----------
+    plant : str
+        ``"nominal"`` or ``"theta1_min/theta2_max"`` (a box corner).
+    controller : str
+        ``"arc"`` or ``"pid"``.
+    theta_hat : tuple of 3 float or None
+        The ARC's estimate at the linearisation ([1/M, B/M, d_n/M]); None for the PID.
+    theta_hat_at : str
+        ``"initial"`` (theta_hat(0)), ``"plant"`` (the plant's theta) or ``""`` (PID).
+    margins : Margins
+    """
+
+    plant: str
+    controller: str
+    theta_hat: tuple[float, float, float] | None
+    theta_hat_at: str
+    margins: Margins
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {"plant": self.plant, "controller": self.controller, "theta_hat_at": self.theta_hat_at,
+             "theta_hat": list(self.theta_hat) if self.theta_hat is not None else None}
+        d.update(self.margins.to_dict())
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "LoopMargins":
+        def num(k: str, inf: float = math.inf) -> float:
+            v = d.get(k)
+            return inf if v is None else float(v)
+
+        m = Margins(gain_margin_db=num("gain_margin_db"), phase_margin_deg=num("phase_margin_deg"),
+                    delay_margin_samples=num("delay_margin_samples"), modulus_margin=num("modulus_margin"),
+                    crossover_hz=num("crossover_hz", math.nan), spectral_radius=float(d["spectral_radius"]),
+                    stable=bool(d["stable"]))
+        th = d.get("theta_hat")
+        return cls(plant=str(d["plant"]), controller=str(d["controller"]),
+                   theta_hat=None if th is None else tuple(float(x) for x in th),  # type: ignore[arg-type]
+                   theta_hat_at=str(d.get("theta_hat_at", "")), margins=m)
+
+
+def margin_plants(ident: Identification, spec: Spec) -> list[tuple[str, np.ndarray]]:
+    """The identified plant and the four (theta1, theta2) corners of the box, with its mode and delay."""
+    base = identified_plant(ident, spec)
+    out = [("nominal", base)]
+    lo, hi = ident.theta.min, ident.theta.max
+    for n1, t1 in (("theta1_min", lo[0]), ("theta1_max", hi[0])):
+        for n2, t2 in (("theta2_min", lo[1]), ("theta2_max", hi[1])):
+            p = base.copy()
+            p[P_M] = 1.0 / t1
+            p[P_B] = max(t2 / t1, 0.0)
+            out.append((f"{n1}/{n2}", p))
+    return out
+
+
+def _theta_of(p: np.ndarray, theta3: float) -> tuple[float, float, float]:
+    return (1.0 / p[P_M], p[P_B] / p[P_M], theta3)
+
+
+def margin_table(arc: ArcGains, pid: PidGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
+    """Margins of both loops on every plant of :func:`margin_plants` (module docstring)."""
+    Ts = spec.period
+    ap, pp = arc_pack(arc), pid_pack(pid)
+    pid_lin = linearize_pid(pp)
+    f = frequency_grid(Ts)
+    th3 = ident.theta.nominal[2]
+    arc_at: dict[tuple[float, ...], Any] = {}
+    rows: list[LoopMargins] = []
+    for name, p in margin_plants(ident, spec):
+        sp = sampled_plant(p, Ts)
+        rows.append(LoopMargins(name, "pid", None, "", loop_margins(pid_lin, sp, f)))
+        for at, th in (("initial", tuple(arc.theta0)), ("plant", _theta_of(p, th3))):
+            key = tuple(round(x, 12) for x in th)
+            if key not in arc_at:
+                arc_at[key] = linearize_arc(ap, th)
+            rows.append(LoopMargins(name, "arc", th, at, loop_margins(arc_at[key], sp, f)))  # type: ignore[arg-type]
+    return tuple(rows)
+
+
+def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) -> Margins | None:
+    """Element-wise worst margins of ``controller`` over ``rows`` (None: no row)."""
+    ms = [r.margins for r in rows if r.controller == controller]
+    if not ms:
+        return None
+    return Margins(gain_margin_db=min(m.gain_margin_db for m in ms),
+                   phase_margin_deg=min(m.phase_margin_deg for m in ms),
+                   delay_margin_samples=min(m.delay_margin_samples for m in ms),
+                   modulus_margin=min(m.modulus_margin for m in ms),
+                   crossover_hz=max((m.crossover_hz for m in ms if math.isfinite(m.crossover_hz)), default=math.nan),
+                   spectral_radius=max(m.spectral_radius for m in ms), stable=all(m.stable for m in ms))
+
+
+def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
+                  spec: Spec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(f_hz, L_arc, L_pid)``: the loop transfers on the identified plant, for a Bode or Nyquist figure.
+
+    The ARC is linearised at its initial estimate.
+    """
+    Ts = spec.period
+    sp = sampled_plant(identified_plant(ident, spec), Ts)
+    f = frequency_grid(Ts, 1500)
+    return (f, loop_response(linearize_arc(arc_pack(arc), arc.theta0), sp, f),
+            loop_response(linearize_pid(pid_pack(pid)), sp, f))
+
+
+__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "margin_plants", "margin_table",
+           "nominal_loops", "worst"]

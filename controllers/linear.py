@@ -1,0 +1,158 @@
+"""Linear model of an axis as the sampled controller sees it: u_k -> y_k.
+
+The plant of :mod:`commission.controllers.plant` without its friction, ripple
+and offset (a discontinuity and two position-dependent forces that no linear
+model holds; the controllers compensate them as feedforward), i.e. the rigid
+body ``M s^2 + B s`` or the two-mass mode, behind the actuator's zero-order
+hold and the input delay ``tau``.  The discretisation is exact (scipy.signal's
+``cont2discrete`` practice: one matrix exponential of an augmented matrix, Van
+Loan): with ``tau = (n + f) Ts``, ``0 <= f < 1``::
+
+    x_{k+1} = Phi x_k + G0 u_{k-n} + G1 u_{k-n-1}
+    G0 = int_0^{(1-f)Ts} e^{A s} ds B,   G1 = e^{A (1-f) Ts} int_0^{f Ts} e^{A s} ds B
+    y_k = C x_k
+
+(the modified z-transform).  Its frequency response is the one a spectral
+estimate from the sampled command and encoder readings measures, aliasing and
+the hold included, which is why :mod:`commission.identify.frf` fits modes and
+delay with it, and the stability margins (:mod:`commission.controllers.margins`)
+close the loop on it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
+                                          P_MODE_RATIO, plant_vector)
+
+
+def continuous_model(plant_p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Continuous state space ``(A, B, C)`` of the plant's linear part, force in u-unit, position in m.
+
+    Rigid: states (x, v).  With a mode: (x1, v1, x2, v2), the motor side
+    first; ``C`` picks the side the encoder reads.
+    """
+    M, Bv = float(plant_p[P_M]), float(plant_p[P_B])
+    if plant_p[P_MODE_HZ] <= 0:
+        return (np.array([[0.0, 1.0], [0.0, -Bv / M]]), np.array([[0.0], [1.0 / M]]), np.array([[1.0, 0.0]]))
+    r = float(plant_p[P_MODE_RATIO])
+    m1, m2 = (1.0 - r) * M, r * M
+    mu = m1 * m2 / M
+    w = 2.0 * math.pi * float(plant_p[P_MODE_HZ])
+    k, c = w * w * mu, 2.0 * float(plant_p[P_MODE_DAMPING]) * w * mu
+    A = np.array([[0.0, 1.0, 0.0, 0.0],
+                  [-k / m1, -(Bv + c) / m1, k / m1, c / m1],
+                  [0.0, 0.0, 0.0, 1.0],
+                  [k / m2, c / m2, -k / m2, -c / m2]])
+    Bm = np.array([[0.0], [1.0 / m1], [0.0], [0.0]])
+    C = np.zeros((1, 4))
+    C[0, 2 if plant_p[P_MODE_LOAD_SIDE] > 0.5 else 0] = 1.0
+    return A, Bm, C
+
+
+def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(e^{A t}, int_0^t e^{A s} ds B)`` from one exponential of the augmented matrix."""
+    n, m = B.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = A * t
+    aug[:n, n:] = B * t
+    E = expm(aug)
+    return E[:n, :n], E[:n, n:]
+
+
+@dataclass(frozen=True)
+class SampledPlant:
+    """The plant's linear part sampled at ``Ts`` behind a hold and an input delay (module docstring).
+
+    Attributes
+    ----------
+    Phi, G0, G1 : ndarray
+        ``x_{k+1} = Phi x_k + G0 u_{k-n} + G1 u_{k-n-1}``.
+    C : ndarray, shape (1, nx)
+    n : int
+        Whole samples of the delay.
+    Ts : float
+        Sample period, s.
+    """
+
+    Phi: np.ndarray
+    G0: np.ndarray
+    G1: np.ndarray
+    C: np.ndarray
+    n: int
+    Ts: float
+
+    def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
+        """``Y/U`` at ``z = exp(j 2 pi f Ts)``, m per u-unit (complex, one value per frequency)."""
+        f = np.atleast_1d(np.asarray(f_hz, dtype=float))
+        z = np.exp(1j * 2.0 * np.pi * f * self.Ts)
+        eye = np.eye(self.Phi.shape[0])
+        rhs = self.G0[:, 0] * z[:, None] ** (-self.n) + self.G1[:, 0] * z[:, None] ** (-self.n - 1)
+        x = np.linalg.solve(z[:, None, None] * eye - self.Phi, rhs[:, :, None])[:, :, 0]
+        return x @ self.C[0]
+
+    def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A delay-free realisation ``(A, B, C)`` with the past commands as extra states.
+
+        States ``[x, u_{k-1}, ..., u_{k-n-1}]``; ``y_k = C x_k`` has no direct
+        feedthrough, so the loop can be closed on it without an algebraic loop.
+        """
+        nx = self.Phi.shape[0]
+        nb = self.n + 1  # u_{k-1} .. u_{k-n-1}
+        A = np.zeros((nx + nb, nx + nb))
+        B = np.zeros((nx + nb, 1))
+        A[:nx, :nx] = self.Phi
+        # u_{k-n} enters through G0 and u_{k-n-1} through G1
+        if self.n == 0:
+            B[:nx, 0] += self.G0[:, 0]
+        else:
+            A[:nx, nx + self.n - 1] += self.G0[:, 0]
+        A[:nx, nx + self.n] += self.G1[:, 0]
+        B[nx, 0] = 1.0  # u_k becomes u_{(k+1)-1}
+        for j in range(1, nb):
+            A[nx + j, nx + j - 1] = 1.0
+        C = np.zeros((1, nx + nb))
+        C[0, :nx] = self.C[0]
+        return A, B, C
+
+
+def sampled_plant(plant_p: np.ndarray, Ts: float, extra_delay: float = 0.0) -> SampledPlant:
+    """Sample the plant's linear part at ``Ts`` (zero-order hold) with its input delay.
+
+    Parameters
+    ----------
+    plant_p : ndarray, shape (NP,)
+        Plant vector; ``P_DELAY`` (s) is the input delay.
+    Ts : float
+        Sample period, s.
+    extra_delay : float
+        More input delay, in samples (fractional allowed), on top of the plant's.
+    """
+    if not (Ts > 0 and math.isfinite(Ts)):
+        raise ValueError(f"sampled_plant: Ts must be a positive period in s, got {Ts}")
+    tau = float(plant_p[P_DELAY]) / Ts + float(extra_delay)
+    if not (tau >= 0 and math.isfinite(tau)):
+        raise ValueError(f"sampled_plant: the input delay must be >= 0 samples, got {tau}")
+    n = int(math.floor(tau + 1e-9))
+    f = tau - n
+    if f < 1e-9:
+        f = 0.0
+    A, B, C = continuous_model(plant_p)
+    Phi_a, G_a = _hold(A, B, (1.0 - f) * Ts)
+    if f > 0:
+        _, G_b = _hold(A, B, f * Ts)
+        G1 = Phi_a @ G_b
+    else:
+        G1 = np.zeros_like(G_a)
+    Phi = Phi_a @ _hold(A, B, f * Ts)[0] if f > 0 else Phi_a
+    return SampledPlant(Phi=Phi, G0=G_a, G1=G1, C=C, n=n, Ts=float(Ts))
+
+
+def rigid_frequency_response(M: float, B: float, Ts: float, f_hz: np.ndarray) -> np.ndarray:
+    """Sampled frequency response of the rigid body ``1/(M s^2 + B s)`` (no delay), m per u-unit."""
+    return sampled_plant(plant_vector(M, max(B, 0.0)), Ts).frequency_response(f_hz)

@@ -1,0 +1,278 @@
+"""Stability margins of a sampled loop: controller step x linear plant.
+
+Both controllers are linearised the same way, from the very compiled step
+that runs on the machine (``arc_step`` or ``pid_step``), by central
+differences of the map ``(s_k, y_k) -> (s_{k+1}, c_k)`` about an operating
+point at rest (``y = q_d = 0``, ``dq_d = ddq_d = 0``)::
+
+    xc_{k+1} = Ac xc_k + Bc y_k,   c_k = Cc xc_k + Dc y_k      (K(z) = c/y)
+
+What "linearised" means for the nonlinear parts of the ARC:
+
+* **adaptation**: kept, as the linear dynamics of theta_hat at the operating
+  point (its gain Gamma tau with phi evaluated at rest: theta_hat3 acts as the
+  loop's integral action; at rest the theta1, theta2 updates have no gain);
+  theta_hat sits at the point given (the initial estimate, or the plant's own
+  value), moved 0.1 % of the box inside so that the projection is inactive;
+* **robust terms**: their gains K1, K2 at rest, caps and the v-loop guard
+  included (the derivative of K z at z = 0 is K);
+* **friction compensation**: left out of both the plant and the controllers:
+  Coulomb friction is a discontinuity at rest, and at speed the compensation's
+  slope and the friction's cancel.  The PID's compensation acts on the
+  measured velocity, so keeping it would add a spurious positive velocity
+  feedback of level (2/pi) slope;
+* **saturation**: inactive (small signals).
+
+The loop is closed on the plant of :func:`commission.controllers.linear.sampled_plant`
+(rigid body or mode, hold and input delay) with ``u_k = c_k``.  The loop
+transfer at the plant input is ``L(z) = -K(z) P(z)`` (negative feedback), and
+on ``z = exp(j w Ts)``, ``0 < w <= pi/Ts``:
+
+* **gain margin** (dB): the smallest ``-20 log10 |L|`` at a phase crossover
+  (angle ``-180 deg``) above the first gain crossover -- how much more loop
+  gain the loop takes; negative when a resonance already lifts ``|L|`` above 1
+  there;
+* **phase margin** (deg): ``180 deg + angle L`` at the first gain crossover,
+  the rigid body's (at a lightly damped mode ``|L|`` can cross 1 with any
+  phase; the delay, gain and modulus margins cover those crossovers);
+* **delay margin** (samples): the smallest ``(PM mod 360 deg) / (w_c Ts)`` over
+  the gain crossovers -- the extra input delay the loop takes (a crossover at a
+  lightly damped mode can have any phase); for an unstable loop the negative
+  of the smallest lag that would have to be removed, so that the margin
+  changes sign where stability is lost;
+* **modulus margin**: ``min |1 + L|``, the distance of the Nyquist curve to
+  -1 (the disk margin that bounds both gain and phase);
+* **stable**: every eigenvalue of the closed loop inside the unit circle.
+
+The margins are read off a dense logarithmic frequency grid with the
+crossings refined by linear interpolation; eigenvalues decide stability.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from commission.controllers.arc import (P_FLEVEL, P_GAMMA, P_K1, P_TMAX, P_TMIN, P_TS, S_DYNAMIC, S_THETA,
+                                        arc_new_state, arc_reset, arc_step)
+from commission.controllers.linear import SampledPlant
+from commission.controllers.pid import G_FLEVEL, PID_DYNAMIC, pid_new_state, pid_reset, pid_step
+
+#: Relative step of the central differences (states scaled by their response to 1 um).
+_REL_STEP = 1e-4
+#: Tolerance on |eigenvalue| - 1 for neutral modes (theta_hat1, theta_hat2 at rest).
+NEUTRAL_TOL = 1e-7
+#: Time constants of the observer (1/p, p = k1/2) the filters settle for before the Jacobian.
+SETTLE_TIME_CONSTANTS = 40.0
+#: Points of the frequency grid.
+N_FREQ = 6000
+
+
+@dataclass(frozen=True)
+class LinearController:
+    """``K(z)``: ``xc+ = Ac xc + Bc y``, ``c = Cc xc + Dc y`` (u-unit per m)."""
+
+    Ac: np.ndarray
+    Bc: np.ndarray
+    Cc: np.ndarray
+    Dc: float
+    Ts: float
+
+    def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
+        """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m."""
+        f = np.atleast_1d(np.asarray(f_hz, dtype=float))
+        z = np.exp(1j * 2.0 * np.pi * f * self.Ts)
+        eye = np.eye(self.Ac.shape[0])
+        rhs = np.broadcast_to(self.Bc.astype(complex), (z.size, *self.Bc.shape))
+        x = np.linalg.solve(z[:, None, None] * eye - self.Ac, rhs)[:, :, 0]
+        return x @ self.Cc[0] + self.Dc
+
+
+def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,
+              h_y: float) -> LinearController:
+    n = len(dyn)
+    Ac, Bc, Cc = np.empty((n, n)), np.empty(n), np.empty(n)
+    Dc = 0.0
+    idx = np.array(dyn)
+
+    def run(j: int, h: float) -> tuple[np.ndarray, float]:
+        s = s0.copy()
+        y = 0.0
+        if j < 0:
+            y = h
+        else:
+            s[idx[j]] += h
+        c = step(p, s, y, 0.0, 0.0, 0.0)
+        return s[idx], c
+
+    for j in range(-1, n):
+        h = h_y if j < 0 else _REL_STEP * scale[j]
+        sp, cp = run(j, h)
+        sm, cm = run(j, -h)
+        ds, dc = (sp - sm) / (2 * h), (cp - cm) / (2 * h)
+        if j < 0:
+            Bc[:], Dc = ds, dc
+        else:
+            Ac[:, j], Cc[j] = ds, dc
+    return LinearController(Ac=Ac, Bc=Bc.reshape(-1, 1), Cc=Cc.reshape(1, -1), Dc=float(Dc), Ts=float(p[0]))
+
+
+def _scales(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...]) -> np.ndarray:
+    """Size of each state's response to 1 um of y over a few samples (the difference step's scale)."""
+    idx = np.array(dyn)
+    s = s0.copy()
+    peak = np.abs(s0[idx]) * 1e-3
+    for k in range(5):
+        step(p, s, 1e-6, 0.0, 0.0, 0.0)
+        peak = np.maximum(peak, np.abs(s[idx] - s0[idx]))
+    return np.maximum(peak, 1e-18)
+
+
+def arc_operating_point(p: np.ndarray, theta_hat) -> tuple[np.ndarray, np.ndarray]:
+    """The ARC at rest with the estimate ``theta_hat``: ``(p_lin, s)`` to linearise about.
+
+    ``p_lin`` is ``p`` without friction compensation; ``s`` is the state after
+    the filters settled at ``y = q_d = 0`` with the estimates held, theta_hat
+    moved 0.1 % of the box inside so that the projection is inactive.  From
+    there ``arc_step(p_lin, s, 0, 0, 0, 0)`` returns 0 and the response to a
+    small ``y`` is the small-signal one :func:`linearize_arc` describes.
+    """
+    p = np.array(p, dtype=np.float64)
+    p[P_FLEVEL] = 0.0
+    lo, hi = p[P_TMIN:P_TMIN + 3], p[P_TMAX:P_TMAX + 3]
+    th = np.clip(np.asarray(theta_hat, dtype=float), lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo))
+    frozen = p.copy()
+    frozen[P_GAMMA:P_GAMMA + 3] = 0.0
+    s = arc_new_state(p)
+    arc_reset(frozen, s, 0.0)
+    s[S_THETA:S_THETA + 3] = th
+    settle = int(math.ceil(SETTLE_TIME_CONSTANTS / (0.5 * p[P_K1] * p[P_TS])))
+    for _ in range(settle):  # filters (psi, lambda) to their rest values, estimates held
+        arc_step(frozen, s, 0.0, 0.0, 0.0, 0.0)
+    s[S_THETA:S_THETA + 3] = th
+    return p, s
+
+
+def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
+    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring)."""
+    p, s = arc_operating_point(p, theta_hat)
+    return _jacobian(arc_step, p, s, S_DYNAMIC, _scales(arc_step, p, s, S_DYNAMIC), 1e-9)
+
+
+def linearize_pid(p: np.ndarray) -> LinearController:
+    """Linearise the packed PID ``p`` at rest, its friction compensation left out (module docstring)."""
+    p = np.array(p, dtype=np.float64)
+    p[G_FLEVEL] = 0.0
+    s = pid_new_state(p)
+    pid_reset(p, s, 0.0)
+    return _jacobian(pid_step, p, s, PID_DYNAMIC, np.full(len(PID_DYNAMIC), 1e-6), 1e-9)
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Stability margins of one loop (module docstring for the definitions).
+
+    Attributes
+    ----------
+    gain_margin_db : float
+        dB (inf: no phase crossover above the first gain crossover).
+    phase_margin_deg : float
+        Degrees (inf: no gain crossover).
+    delay_margin_samples : float
+        Extra input delay the loop takes, samples (inf: no gain crossover).
+    modulus_margin : float
+        ``min |1 + L|``, dimensionless.
+    crossover_hz : float
+        First gain crossover, Hz (nan: none).
+    spectral_radius : float
+        Largest closed-loop eigenvalue modulus.
+    stable : bool
+    """
+
+    gain_margin_db: float
+    phase_margin_deg: float
+    delay_margin_samples: float
+    modulus_margin: float
+    crossover_hz: float
+    spectral_radius: float
+    stable: bool
+
+    def to_dict(self) -> dict:
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {"gain_margin_db": num(self.gain_margin_db), "phase_margin_deg": num(self.phase_margin_deg),
+                "delay_margin_samples": num(self.delay_margin_samples), "modulus_margin": num(self.modulus_margin),
+                "crossover_hz": num(self.crossover_hz), "spectral_radius": float(self.spectral_radius),
+                "stable": bool(self.stable)}
+
+
+def frequency_grid(Ts: float, n: int = N_FREQ) -> np.ndarray:
+    """Logarithmic grid from 1e-4 of the rate to just below Nyquist, Hz."""
+    fn = 0.5 / Ts
+    return np.geomspace(fn * 2e-4, fn * (1 - 1e-6), n)
+
+
+def loop_response(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray) -> np.ndarray:
+    """``L = -K P`` at the plant input, dimensionless."""
+    return -ctrl.frequency_response(f_hz) * plant.frequency_response(f_hz)
+
+
+def closed_loop_radius(ctrl: LinearController, plant: SampledPlant, gain: float = 1.0) -> float:
+    """Spectral radius of the closed loop ``u = gain * c`` (> 1: unstable)."""
+    Ap, Bp, Cp = plant.state_space()
+    n_p, n_c = Ap.shape[0], ctrl.Ac.shape[0]
+    A = np.zeros((n_p + n_c, n_p + n_c))
+    A[:n_p, :n_p] = Ap + gain * ctrl.Dc * (Bp @ Cp)
+    A[:n_p, n_p:] = gain * (Bp @ ctrl.Cc)
+    A[n_p:, :n_p] = ctrl.Bc @ Cp
+    A[n_p:, n_p:] = ctrl.Ac
+    return float(np.max(np.abs(np.linalg.eigvals(A))))
+
+
+def _crossings(x: np.ndarray) -> np.ndarray:
+    """Fractional indices where ``x`` changes sign."""
+    i = np.nonzero(np.sign(x[:-1]) * np.sign(x[1:]) < 0)[0]
+    return i + x[i] / (x[i] - x[i + 1])
+
+
+def _at(a: np.ndarray, fi: float) -> float:
+    i = min(int(fi), a.size - 2)
+    return float(a[i] + (fi - i) * (a[i + 1] - a[i]))
+
+
+def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray | None = None) -> Margins:
+    """Margins of the loop ``ctrl`` x ``plant`` (module docstring)."""
+    if f_hz is None:
+        f_hz = frequency_grid(plant.Ts)
+    L = loop_response(ctrl, plant, f_hz)
+    mag_db = 20 * np.log10(np.maximum(np.abs(L), 1e-300))
+    phase = np.unwrap(np.angle(L))
+    w = 2 * np.pi * f_hz
+    gc = _crossings(mag_db)
+    pm = np.array([math.remainder(_at(phase, g) + math.pi, 2 * math.pi) for g in gc])
+    wc = np.array([_at(w, g) for g in gc])
+    # phase crossovers: phase = -pi (mod 2 pi)
+    k = np.round((phase + math.pi) / (2 * math.pi))
+    pc = []
+    for kk in np.unique(k):
+        pc.extend(_crossings(phase + math.pi - 2 * math.pi * kk).tolist())
+    first_gc = gc.min() if gc.size else -1.0
+    gm_vals = [-_at(mag_db, c) for c in pc if c > first_gc]
+    radius = closed_loop_radius(ctrl, plant)
+    stable = radius < 1.0 + NEUTRAL_TOL
+    if not gc.size:
+        dm = math.inf
+    elif stable:  # the extra lag that brings a crossover's phase to -180 deg
+        dm = float((np.mod(pm, 2 * math.pi) / (wc * plant.Ts)).min())
+    else:  # signed: the lag that would have to be removed
+        dm = -float((np.mod(-pm, 2 * math.pi) / (wc * plant.Ts)).min())
+    return Margins(gain_margin_db=float(min(gm_vals)) if gm_vals else math.inf,
+                   phase_margin_deg=float(np.degrees(pm[np.argmin(gc)])) if gc.size else math.inf,
+                   delay_margin_samples=dm,
+                   modulus_margin=float(np.abs(1 + L).min()),
+                   crossover_hz=float(_at(f_hz, gc.min())) if gc.size else math.nan,
+                   spectral_radius=radius, stable=bool(stable))
