@@ -473,7 +473,7 @@ def _margins(r: Reader) -> tuple[LoopMargins, ...]:
     for i, row in enumerate(lst.data):
         try:
             out.append(LoopMargins.from_dict(row))
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
             raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
     return tuple(out)
 

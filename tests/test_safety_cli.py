@@ -1,7 +1,7 @@
 """Issue 24, must-show 1-3: every bad input is exit 2 with one line and nothing written; outputs are
 transactional and locked; the floors no gate can lower; null limits and signatures of controller.json.
 
-One short tuning (the paper's axis, search budget 8) is made once; validations run with one or two
+A stored tuning (the paper's axis, search budget 8) is validated with zero to two
 Monte-Carlo plants so that the subprocess tests (signals, two concurrent runs) stay short.
 """
 
@@ -35,8 +35,8 @@ LOOSE_GATE = ('[gate]\ne_F = "1 m"\ne_M = "1 m"\ne_rms = "1 m"\nc_u = 1000.0\nu_
               'no_divergence = false\narc_vs_pid_e_rms = 1e6\n')
 
 
-#: tuning.json of ``tune`` on the paper's axis with ``tune.budget = 1`` (tuning takes tens of seconds).
-TUNING_DOC = json.loads((Path(__file__).parent / "data" / "tuning_paper_budget1.json").read_text())
+#: tuning.json of ``tune`` on the paper's axis with ``tune.budget = 8`` (tuning takes tens of seconds).
+TUNING_DOC = json.loads((Path(__file__).parent / "data" / "tuning_paper_budget8.json").read_text())
 
 
 @pytest.fixture(scope="module")
@@ -340,9 +340,13 @@ def test_a_signal_at_any_moment_leaves_nothing_or_a_complete_set(tuned, tmp_path
             p.send_signal(sig)
             _, err = p.communicate(timeout=300)
             assert "Traceback" not in err, err
-            assert p.returncode in (0, 1, 128 + sig), (p.returncode, err)
+            # -sig: the signal came while the interpreter was shutting down after its last write
+            # (CPython restores the default handlers then); the set is complete by then.
+            assert p.returncode in (0, 1, 128 + sig, -sig), (p.returncode, err)
             names = _names(out)
             assert names in ([], full) if not existing else names == full, (frac, names)
+            if p.returncode == -sig:
+                assert names == full
             if existing and p.returncode == 128 + sig:
                 now = listing(out)
                 assert now == before or set(now) == set(before)
@@ -384,8 +388,10 @@ def test_a_gate_that_switches_off_a_floor_emits_no_controller(tuned, tmp_path, h
     assert (out / "report.md").exists() and not (out / "controller.json").exists()
     assert "floor:" in (out / "report.md").read_text()
     failures = read_json(out / "validation.json")["failures"]
-    assert failures and all(c["criterion"].startswith("floor:") for c in failures), \
-        "the loose gate itself must pass: only the floors refuse"
+    # The loose gate file's own criteria all pass: what refuses is a floor (and, where the loop
+    # itself is broken, the spec's stability-margin floors, which gate.toml cannot set either).
+    assert any(c["criterion"].startswith("floor:") for c in failures)
+    assert all(c["criterion"].startswith("floor:") or c["criterion"] == "margins" for c in failures), failures
 
 
 @pytest.fixture(scope="module")
