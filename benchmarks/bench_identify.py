@@ -3,7 +3,8 @@
 Target: at most 5 s (median) on 2 cores for the default path (friction ladder
 present, ``friction="stribeck"``, with a ripple pitch).  Also prints the Coulomb
 fit and, for information, the whole-log Stribeck fallback (``use_steady=False``),
-and what reading an HDF5 log in the isolated child process costs against reading
+the frequency response of that log (no broadband content) and of a short log
+with a broadband injection and a mode (``identify/frf.py``), and what reading an HDF5 log in the isolated child process costs against reading
 it in this process (the same 10^6-sample log written to a temporary .h5).
 
 Run: ``python benchmarks/bench_identify.py [--runs 3]``
@@ -22,7 +23,8 @@ import h5py
 import numpy as np
 
 from commission import logs
-from commission.identify import fit_axis
+from commission.identify import fit_axis, frequency_response
+from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation
 
 TARGET_S = 5.0
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -67,6 +69,16 @@ def main() -> None:
     print(f"fit_axis coulomb  (method {fit.method}): median {med:.2f} s")
     med, fit = _median_time(lambda: fit_axis(t, q, u, friction="stribeck", ripple_pitch=0.03, use_steady=False), 1)
     print(f"fit_axis stribeck whole-log fallback (use_steady=False): {med:.2f} s (1 run, information only)")
+
+    med, fr = _median_time(lambda: frequency_response(t, q, u, fit.value("M"), fit.value("B")), args.runs)
+    print(f"frequency_response (no broadband content, whole log): median {med:.2f} s; band {fr.band_hz}")
+    plan = ExcitationPlan(n_speeds=5, ms_duration=6.0, leg_max_time=0.8, injection_s=3.0)
+    axis = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=2500.0,
+                     mode_hz=479.0, mode_damping=0.07, mode_ratio=0.3, mode_load_side=True)
+    d = simulate_excitation(axis, plan, np.random.default_rng(3))
+    med, fr = _median_time(lambda: frequency_response(d["t"], d["q"], d["u"], axis.M, axis.B), args.runs)
+    print(f"frequency_response (3 s of PRBS at 2.5 kHz, mode fit): median {med:.2f} s; "
+          f"mode {fr.fit.mode_hz:.1f} Hz (truth 479)")
 
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "log.h5"

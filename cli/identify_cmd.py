@@ -26,7 +26,7 @@ class Friction(str, enum.Enum):
 
 
 #: Figures of ``--plot`` (:func:`commission.cli.plots.identification_plots`).
-PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png")
+PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
                "default m. Refused when it contradicts the file's attribute.")
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
@@ -93,10 +93,28 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
         f"delta_d {ident.delta_d:.4g} m/s²; friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}",
     ]
+    lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
     for line in lines:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
         console.print(f"[yellow]warning:[/] {w}")
+
+
+def frequency_summary(fr: dict | None) -> str:
+    """One line on the frequency response section of ident.json."""
+    if not fr:
+        return "frequency response: not measured"
+    band = fr.get("band_hz")
+    text = "frequency response: " + (f"rigid model backed {band[0]:.4g}-{band[1]:.4g} Hz" if band
+                                     else "no band backs the rigid model")
+    for m in fr.get("modes", []):
+        text += f"; {m['kind']} {m['frequency_hz']:.4g} Hz (damping {m['damping']:.3g})"
+    if fr.get("delay_samples") is not None:
+        text += f"; input delay {fr['delay_samples']:.2f} samples"
+    if fr.get("note"):
+        # The note states the backed band itself.
+        text = "frequency response: " + fr["note"]
+    return text
 
 
 @app.command("identify")
@@ -120,7 +138,7 @@ def identify_command(
     payload_max_kg: Optional[float] = typer.Option(None, "--payload-max-kg", help="Largest added mass in kg (needs --force-constant)."),
     force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
     disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""

@@ -56,6 +56,60 @@ class ThetaBox:
 
 
 @dataclass(frozen=True)
+class StructuralModel:
+    """What ``frequency_response.model`` of ident.json says beyond the rigid body.
+
+    Attributes
+    ----------
+    mode_hz : float or None
+        Resonance of the structural mode, Hz (None: no mode found).
+    mode_damping : float or None
+        Its damping ratio, -.
+    mode_ratio : float or None
+        Load fraction m2 / M, -.
+    mode_load_side : bool or None
+        The encoder reads the load (True) or the motor side (False).
+    delay_s : float
+        Input delay beyond the zero-order hold, s.
+    """
+
+    mode_hz: float | None
+    mode_damping: float | None
+    mode_ratio: float | None
+    mode_load_side: bool | None
+    delay_s: float
+
+    def plant_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`commission.controllers.plant.plant_vector` for the mode and delay."""
+        if self.mode_hz is None:
+            return {"delay": self.delay_s}
+        return {"mode_hz": self.mode_hz, "mode_damping": self.mode_damping, "mode_ratio": self.mode_ratio,
+                "mode_load_side": bool(self.mode_load_side), "delay": self.delay_s}
+
+
+def _structural_model(data: Mapping[str, Any], source: str) -> StructuralModel | None:
+    """Strictly read ``$.frequency_response.model`` (None when the section or the model is absent)."""
+    r = Reader(data, "$", source)
+    if not r.has("frequency_response"):
+        return None
+    fr = r.obj("frequency_response")
+    if not fr.has("model"):
+        return None
+    m = fr.obj("model")
+    delay = m.num("delay_s", nonneg=True)
+    if not m.has("mode_hz"):
+        return StructuralModel(None, None, None, None, delay)  # type: ignore[arg-type]
+    hz = m.num("mode_hz", positive=True)
+    zeta = m.num("mode_damping", nonneg=True)
+    ratio = m.num("mode_ratio", positive=True)
+    if not zeta < 1:  # type: ignore[operator]
+        raise m.fail(f"expected a damping ratio below 1, got {zeta!r}", f"{m.path}.mode_damping")
+    if not ratio < 1:  # type: ignore[operator]
+        raise m.fail(f"expected a load fraction below 1, got {ratio!r}", f"{m.path}.mode_ratio")
+    return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
 class Identification:
     """Result of ``commission identify`` (CONTRACT §2).
 
@@ -82,7 +136,8 @@ class Identification:
         slope in s/m.
     extra : dict
         Additive, non-contract details (provenance, ripple, quantization,
-        warnings, bound settings ...), stored under their own keys.
+        warnings, bound settings, the optional ``frequency_response`` section
+        ...), stored under their own keys.
     """
 
     units: Mapping[str, str]
@@ -101,6 +156,10 @@ class Identification:
         if est is None:
             raise KeyError(f"parameter {name!r} was not identified")
         return est.value
+
+    def structural_model(self) -> StructuralModel | None:
+        """The mode and input delay the frequency response found (None: the log did not measure them)."""
+        return _structural_model(self.extra, "ident.json")
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = dict(self.extra)
@@ -149,6 +208,7 @@ class Identification:
         fcr = r.obj("friction_compensation")
         known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}
         extra = {k: v for k, v in data.items() if k not in known}
+        _structural_model(data, source)  # a malformed optional section fails here, naming its path
         return cls(
             units=units,
             parameters=params,

@@ -342,6 +342,12 @@ class Outputs:
         """Move every staged file into place (signals held), drop stale outputs, release the locks."""
         if not self._open:
             raise RuntimeError("Outputs.commit before open()")
+        for t in self._targets:  # a file nobody declared was never checked against --force: refuse it all
+            assert t.staging is not None
+            stray = sorted(f.name for f in t.staging.iterdir() if f.name not in t.names)
+            if stray:
+                self.abort()
+                raise RuntimeError(f"{t.dest}: undeclared outputs {stray} (add them to the command's output names)")
         sigs = {signal.SIGINT, signal.SIGTERM}
         old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
         try:

@@ -22,6 +22,7 @@ from commission.identify.bounds import ThetaBounds, friction_compensation, theta
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
 from commission.identify.fit import AxisFit, evaluate, fit_axis
 from commission.identify.friction import stribeck_friction
+from commission.identify.frf import FrequencyResponse, frequency_response
 from commission.logs import ExcitationLog, load_log
 
 
@@ -77,6 +78,7 @@ class IdentifyOutcome:
     log: ExcitationLog
     checks: CheckReport
     bounds: ThetaBounds
+    frequency: FrequencyResponse
 
 
 def _fit_with_context(log: ExcitationLog, *, friction: str,
@@ -189,6 +191,8 @@ def identify_log(
     except ValueError as exc:
         raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
+    # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
+    freq = frequency_response(log.t, log.q, log.u, fit.parameters["M"][0], fit.parameters["B"][0])
 
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
@@ -239,6 +243,7 @@ def identify_log(
             "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
         },
         "friction_compensation_rms_error": comp.rms_error,
+        "frequency_response": freq.to_dict(),
         "warnings": warnings,
     }
     ident = Identification(
@@ -253,7 +258,7 @@ def identify_log(
         fric_slope=comp.slope,
         extra=extra,
     )
-    return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb)
+    return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb, frequency=freq)
 
 
 def _maybe(v: tuple[float, float] | None) -> dict[str, float] | None:

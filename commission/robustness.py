@@ -21,11 +21,13 @@ and :func:`commission.gate.margin_checks` turns those of the identified plant in
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
@@ -136,6 +138,17 @@ def _theta_of(p: np.ndarray, theta3: float) -> tuple[float, float, float]:
     return (1.0 / p[P_M], p[P_B] / p[P_M], theta3)
 
 
+def _one_thread(fn):
+    """Run ``fn`` with BLAS on one thread: its small dense problems lose more to threading than they gain."""
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        with threadpool_limits(1):
+            return fn(*args, **kwargs)
+
+    return wrapped
+
+
+@_one_thread
 def margin_table(arc: ArcGains, pid: PidGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
     """Margins of both loops on every plant of :func:`margin_plants` (module docstring)."""
     Ts = spec.period
@@ -156,6 +169,16 @@ def margin_table(arc: ArcGains, pid: PidGains, ident: Identification, spec: Spec
     return tuple(rows)
 
 
+@_one_thread
+def identified_plant_arc_margins(arc: ArcGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
+    """The ARC's loops on the identified plant only (the ones the gate holds to the floors)."""
+    name, p = margin_plants(ident, spec)[0]
+    sp = sampled_plant(p, spec.period)
+    ap = arc_pack(arc)
+    return tuple(LoopMargins(name, "arc", th, at, loop_margins(linearize_arc(ap, th), sp))  # type: ignore[arg-type]
+                 for at, th in (("initial", tuple(arc.theta0)), ("plant", _theta_of(p, ident.theta.nominal[2]))))
+
+
 def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) -> Margins | None:
     """Element-wise worst margins of ``controller`` over ``rows`` (None: no row)."""
     ms = [r.margins for r in rows if r.controller == controller]
@@ -169,6 +192,7 @@ def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) ->
                    spectral_radius=max(m.spectral_radius for m in ms), stable=all(m.stable for m in ms))
 
 
+@_one_thread
 def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
                   spec: Spec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(f_hz, L_arc, L_pid)``: the loop transfers on the identified plant, for a Bode or Nyquist figure.
@@ -182,5 +206,5 @@ def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
             loop_response(linearize_pid(pid_pack(pid)), sp, f))
 
 
-__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "margin_plants", "margin_table",
-           "nominal_loops", "worst"]
+__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "identified_plant_arc_margins",
+           "margin_plants", "margin_table", "nominal_loops", "worst"]

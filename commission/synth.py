@@ -11,9 +11,13 @@ tracks a reference made of
   (Schroeder phases, equal velocity amplitude per line) for the inertia, with
   many velocity reversals.
 
-The plant is :func:`commission.controllers.plant.plant_advance` (Stribeck
-friction with a stiction switch model, offset and ripple) under zero-order hold
-with sub-steps; the encoder quantizes ``round(x / lsb) * lsb`` after optional
+and, optionally, a **broadband injection**: a PRBS added to the command on two
+slow constant-velocity legs (``ExcitationPlan.injection_s``), from which
+:mod:`commission.identify.frf` measures the frequency response.
+
+The plant is :func:`commission.controllers.plant.plant_step` (Stribeck
+friction with a stiction switch model, offset and ripple; optionally a
+structural mode and an input delay) under zero-order hold with sub-steps; the encoder quantizes ``round(x / lsb) * lsb`` after optional
 Gaussian position noise.  :func:`write_log_h5` and :func:`write_log_csv` write
 the result in the excitation-log format of CONTRACT section 1.
 
@@ -31,7 +35,8 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from numba import njit
 
-from commission.controllers.plant import plant_advance, plant_vector
+from commission.controllers.plant import NX, P_DELAY, plant_output, plant_start, plant_vector
+from commission.controllers.simulate import _segment as hold_segment
 from commission.errors import DataError, UsageError
 from commission.jsonio import write_atomic
 
@@ -90,6 +95,18 @@ class AxisTruth:
         quantization, m (0: quantization only).
     u_max : float
         Command rail: the controller output is clipped to ``[-u_max, u_max]``, u-unit.
+    mode_hz : float
+        Resonance of a structural mode, Hz (0: rigid body; see
+        :mod:`commission.controllers.plant` for the two-mass model).
+    mode_damping : float
+        Damping ratio of the mode, in [0, 1).
+    mode_ratio : float
+        Load fraction ``m2 / M`` of the moving mass, in (0, 1).
+    mode_load_side : bool
+        The encoder reads the load (True) or the motor side (False).
+    delay : float
+        Input delay between the command the controller issues and the force, s
+        (fractional samples allowed).
     """
 
     M: float
@@ -106,8 +123,15 @@ class AxisTruth:
     u_unit: str = "V"
     noise_std: float = 0.0
     u_max: float = 10.0
+    mode_hz: float = 0.0
+    mode_damping: float = 0.02
+    mode_ratio: float = 0.5
+    mode_load_side: bool = False
+    delay: float = 0.0
 
     def __post_init__(self) -> None:
+        # JSON carries the encoder side as 0/1 (to_dict): store a bool either way.
+        object.__setattr__(self, "mode_load_side", bool(self.mode_load_side))
         nums = {k: v for k, v in asdict(self).items() if k != "u_unit"}
         _check_finite("AxisTruth", **nums)
         bad = [
@@ -125,6 +149,10 @@ class AxisTruth:
                 ("sample_rate", self.sample_rate > 0, "> 0"),
                 ("noise_std", self.noise_std >= 0, ">= 0"),
                 ("u_max", self.u_max > 0, "> 0"),
+                ("mode_hz", self.mode_hz >= 0, ">= 0"),
+                ("mode_damping", 0 <= self.mode_damping < 1, "in [0, 1)"),
+                ("mode_ratio", 0 < self.mode_ratio < 1, "in (0, 1)"),
+                ("delay", self.delay >= 0, ">= 0"),
             )
             if not ok
         ]
@@ -141,7 +169,9 @@ class AxisTruth:
     def plant(self) -> np.ndarray:
         """Plant vector for :mod:`commission.controllers.plant` (float64[NP])."""
         return plant_vector(self.M, self.B, self.fc, self.fs, self.vs, self.xi,
-                            self.offset, self.ripple_amp, self.ripple_pitch)
+                            self.offset, self.ripple_amp, self.ripple_pitch, mode_hz=self.mode_hz,
+                            mode_damping=self.mode_damping, mode_ratio=self.mode_ratio,
+                            mode_load_side=self.mode_load_side, delay=self.delay)
 
     def units(self) -> dict[str, str]:
         """Unit of every numeric field (``u`` stands for :attr:`u_unit`)."""
@@ -150,6 +180,7 @@ class AxisTruth:
             "M": f"{u} s^2/m", "B": f"{u} s/m", "fc": u, "fs": u, "vs": "m/s", "xi": "1",
             "offset": u, "ripple_amp": u, "ripple_pitch": "m", "lsb": "m",
             "sample_rate": "Hz", "noise_std": "m", "u_max": u,
+            "mode_hz": "Hz", "mode_damping": "1", "mode_ratio": "1", "mode_load_side": "1", "delay": "s",
         }
 
     def to_dict(self) -> dict[str, Any]:
@@ -266,6 +297,9 @@ class Reference:
         The friction-ladder legs, in time order.
     multisine : tuple of float
         ``(start, stop)`` of the multisine segment, s.
+    injection : tuple of (float, float)
+        ``(start, stop)`` of each constant-velocity leg that carries the broadband
+        injection, s (empty without one).
     """
 
     t: np.ndarray
@@ -274,6 +308,7 @@ class Reference:
     qdd: np.ndarray
     legs: tuple[Leg, ...]
     multisine: tuple[float, float]
+    injection: tuple[tuple[float, float], ...] = ()
 
 
 # A segment is (kind, t0, T, args); x0 is the position at t0.
@@ -285,7 +320,12 @@ class ExcitationPlan:
     """Design of a commissioning excitation run (reference and loop).
 
     The run is: dwell; friction ladder; move to the middle of the travel;
-    multisine; move back to 0; dwell.  The travel used is ``[0, travel]``.
+    multisine; move back to 0; dwell; and, with ``injection_s > 0``, a
+    broadband injection: a leg forward and one back at ``injection_velocity``,
+    each cruising ``injection_s / 2`` seconds with a PRBS added to the command
+    (the way drive vendors' frequency-response tools record one: the axis
+    moves slowly so that friction keeps one sign, and the feedback loop stays
+    closed), then a dwell.  The travel used is ``[0, travel]``.
 
     Parameters
     ----------
@@ -331,6 +371,15 @@ class ExcitationPlan:
         ``guess_factor`` times the true M, B and fc (as a datasheet guess).
     substeps : int
         Plant sub-steps per sample (zero-order hold).
+    injection_s : float
+        Total cruise time carrying the broadband injection, s (0: none; the run
+        and its log are then exactly those without the option).
+    injection_accel : float
+        Amplitude of the injected PRBS as an acceleration of the guessed mass,
+        m/s^2: the command gets ``+-guess_factor M injection_accel`` (u-unit),
+        one maximal-length-sequence bit per sample (flat spectrum up to Nyquist).
+    injection_velocity : float
+        Speed of the two injection legs, m/s.
     """
 
     travel: float = 0.3
@@ -354,6 +403,9 @@ class ExcitationPlan:
     integral_hz: float = 4.0
     guess_factor: float = 0.8
     substeps: int = 10
+    injection_s: float = 0.0
+    injection_accel: float = 20.0
+    injection_velocity: float = 0.1
 
     def __post_init__(self) -> None:
         nums = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "ms_freqs"}
@@ -363,7 +415,10 @@ class ExcitationPlan:
                      "bandwidth_hz", "damping", "guess_factor"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"ExcitationPlan: {name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("ramp_min_time", "dwell", "integral_hz", "ms_taper"):
+        for name in ("injection_accel", "injection_velocity"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"ExcitationPlan: {name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("ramp_min_time", "dwell", "integral_hz", "ms_taper", "injection_s"):
             if getattr(self, name) < 0:
                 raise ValueError(f"ExcitationPlan: {name} must be >= 0, got {getattr(self, name)!r}")
         if self.v_max < self.v_min:
@@ -475,6 +530,21 @@ class ExcitationPlan:
         move(0.0)
         if self.dwell > 0:
             add(_HOLD, self.dwell, ())
+        injection: list[tuple[float, float]] = []
+        if self.injection_s > 0:
+            v = self.injection_velocity
+            Tr = self._ramp_time(v, self.ladder_accel)
+            Tc = self.injection_s / 2.0
+            if v * (Tr + Tc) > self.travel:
+                raise ValueError(f"ExcitationPlan: the injection legs need {v * (Tr + Tc):.6g} m of travel "
+                                 f"(injection_velocity {v} m/s for injection_s / 2 = {Tc} s); travel is {self.travel} m")
+            for sgn in (1.0, -1.0):
+                add(_RAMP, Tr, (0.0, sgn * v))
+                injection.append((t, t + Tc))
+                add(_CRUISE, Tc, (sgn * v,))
+                add(_RAMP, Tr, (sgn * v, 0.0))
+                add(_HOLD, max(self.dwell, 1e-3), ())
+        object.__setattr__(self, "_injection", tuple(injection))
         object.__setattr__(self, "_legs", tuple(legs))
         object.__setattr__(self, "_ms_window", (ms_start, ms_stop))
         return tuple(segs)
@@ -567,7 +637,30 @@ class ExcitationPlan:
             else:
                 xs, vs_, as_ = self._multisine_unit(tau, args[1])
                 q[m], qd[m], qdd[m] = x0 + xs, vs_, as_
-        return Reference(t=t, q=q, qd=qd, qdd=qdd, legs=self._legs, multisine=self._ms_window)
+        return Reference(t=t, q=q, qd=qd, qdd=qdd, legs=self._legs, multisine=self._ms_window,
+                         injection=self._injection)
+
+    def injection_signal(self, t: np.ndarray) -> np.ndarray:
+        """Unit PRBS (+-1) on the injection legs and 0 elsewhere, at the sample times ``t`` (s).
+
+        One bit per sample of a maximal-length sequence (``scipy.signal.max_len_seq``,
+        deterministic), continued from one leg to the next.
+        """
+        from scipy.signal import max_len_seq
+
+        out = np.zeros(t.size)
+        masks = [(t >= a) & (t < b) for a, b in self._injection]
+        n = sum(int(np.count_nonzero(m)) for m in masks)
+        if n == 0:
+            return out
+        bits = max_len_seq(max(int(math.ceil(math.log2(n + 1))), 4))[0][:n]
+        seq = 2.0 * bits.astype(float) - 1.0
+        i = 0
+        for m in masks:
+            k = int(np.count_nonzero(m))
+            out[m] = seq[i:i + k]
+            i += k
+        return out
 
 
 # --------------------------------------------------------------------------- simulation
@@ -575,14 +668,26 @@ class ExcitationPlan:
 
 @njit(cache=True)
 def _closed_loop(p, q_ref, qd_ref, u_ff, noise, lsb, T, nsub, kp, kd, ki, u_max, q_out, u_out):
-    """PID + feedforward around the sub-stepped plant; fills q_out, u_out in place."""
-    h = T / nsub
-    x = q_ref[0]
-    v = 0.0
+    """PID + feedforward around the sub-stepped plant; fills q_out, u_out in place.
+
+    The logged ``u`` is the command the controller issues; the plant receives it
+    ``p[P_DELAY]`` later, switching the held command inside the sample as the
+    sampled loop of :func:`commission.controllers.simulate.closed_loop_kernel`
+    does (with its hold helper, so both loops apply a delay the same way).
+    """
+    tau = p[P_DELAY] / T
+    n_d = int(math.floor(tau + 1e-9))
+    f = tau - n_d
+    if f < 1e-9:
+        f = 0.0
+    nh = n_d + 2
+    hist = np.zeros(nh)  # hist[j % nh] = command issued at sample j
+    st = np.empty(NX)
+    plant_start(p, st, q_ref[0])
     integ = 0.0
-    q_prev = math.floor(x / lsb + 0.5) * lsb
+    q_prev = math.floor(plant_output(p, st) / lsb + 0.5) * lsb
     for k in range(q_ref.size):
-        qm = math.floor((x + noise[k]) / lsb + 0.5) * lsb
+        qm = math.floor((plant_output(p, st) + noise[k]) / lsb + 0.5) * lsb
         e = q_ref[k] - qm
         vel = (qm - q_prev) / T if k > 0 else 0.0  # backward difference, as on a drive
         integ_new = integ + e * T
@@ -592,7 +697,11 @@ def _closed_loop(p, q_ref, qd_ref, u_ff, noise, lsb, T, nsub, kp, kd, ki, u_max,
             integ = integ_new  # conditional integration: no wind-up on the rail
         q_out[k] = qm
         u_out[k] = u
-        x, v = plant_advance(p, x, v, u, h, nsub)
+        hist[k % nh] = u
+        u_late = hist[(k - n_d) % nh] if k >= n_d else 0.0
+        u_early = hist[(k - n_d - 1) % nh] if k >= n_d + 1 else 0.0
+        hold_segment(p, st, u_early, u_max, 0.0, f * T, nsub, T)
+        hold_segment(p, st, u_late, u_max, 0.0, (1.0 - f) * T, nsub, T)
         q_prev = qm
 
 
@@ -630,9 +739,11 @@ def simulate_excitation(truth: AxisTruth, plan: ExcitationPlan,
 
     A discrete PID (derivative on the backward-difference velocity, integral
     with anti-windup, gains from :func:`loop_gains`) plus a rough feedforward
-    tracks ``plan.reference(truth.sample_rate)``.  The command is held over
-    each sample period while :func:`~commission.controllers.plant.plant_advance`
-    advances ``plan.substeps`` sub-steps.  The encoder reads
+    tracks ``plan.reference(truth.sample_rate)``; on the injection legs a PRBS
+    of ``+-guess_factor M injection_accel`` is added to the command (and to the
+    logged ``u``).  The command is held over each sample period, ``truth.delay``
+    late, while :func:`~commission.controllers.plant.plant_step` advances
+    ``plan.substeps`` sub-steps per sample.  The encoder reads
     ``round((x + n) / lsb) * lsb`` with ``n ~ N(0, noise_std^2)`` from ``rng``.
 
     Parameters
@@ -656,6 +767,8 @@ def simulate_excitation(truth: AxisTruth, plan: ExcitationPlan,
     g = plan.guess_factor
     u_ff = (g * truth.M * ref.qdd + g * truth.B * ref.qd
             + g * truth.fc * (2.0 / np.pi) * np.arctan(900.0 * ref.qd))
+    if ref.injection:
+        u_ff = u_ff + g * truth.M * plan.injection_accel * plan.injection_signal(ref.t)
     kp, kd, ki = loop_gains(truth, plan)
     q = np.empty(n)
     u = np.empty(n)

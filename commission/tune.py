@@ -99,15 +99,13 @@ from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
 from commission.controllers.simulate import simulate_batch
 from commission.errors import SpecError, UsageError
-from commission.gate import GateLimits, GateSpec, evaluate_gate, resolve_gate
+from commission.gate import GateLimits, GateSpec, evaluate_gate, margin_checks, resolve_gate
 from commission.jsonio import read_json, sha256_file
-from commission.robustness import margin_table
+from commission.robustness import MarginFloors, identified_plant_arc_margins, margin_table
 from commission.scenarios import (
     check_run_length,
     CASE1_SPEED_FRACTION,
-    CASES,
     FRICTION_SCALE,
-    VARIANTS,
     Scenario,
     case1_trajectory,
     case2_trajectory,
@@ -1120,6 +1118,8 @@ class HoldoutGate:
         self.pid_scores = [*pid_scores, *self.ev_h.scores(KIND_PID, [pid_pack(pid)])[0]]
         self.limits = default_gate_limits(ident, spec)
         self.names = [*ev.names, *self.ev_h.names]
+        self._ident, self._spec = ident, spec
+        self._floors = MarginFloors.from_spec(spec)
 
     @property
     def n_plants(self) -> int:
@@ -1136,11 +1136,15 @@ class HoldoutGate:
         ts = [list(s) for s in tune_scores] if tune_scores is not None else self.ev.scores(KIND_ARC, packs)
         hs = self.ev_h.scores(KIND_ARC, packs)
         out = []
-        for t, h in zip(ts, hs):
+        for g, t, h in zip(gains, ts, hs):
             arc = [*t, *h]
             runs = [(n, a, p, math.nan) for n, a, p in zip(self.names, arc, self.pid_scores)]
-            out.append((t, len(evaluate_gate(self.limits, runs).failures), gate_excess(self.limits, arc,
-                                                                                    self.pid_scores)))
+            # validate's margin floors, judged as validate judges them
+            missed = [c for c in margin_checks(identified_plant_arc_margins(g, self._ident, self._spec), self._floors)
+                      if not c.passed]
+            excess = sum(math.log(c.value) if math.isfinite(c.value) else REPAIR_DIVERGED_EXCESS for c in missed)
+            out.append((t, len(evaluate_gate(self.limits, runs).failures) + len(missed),
+                        gate_excess(self.limits, arc, self.pid_scores) + excess))
         return out
 
 
@@ -1540,9 +1544,16 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     traj_names = ["case1", "case2"]
     trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
 
+    floors = MarginFloors.from_spec(spec)
+
     def feasible(g: ArcGains) -> FeasibilityReport:
-        return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
-                                    margin=spec.margin)
+        """Discrete feasibility over the box, and validate's margin floors on the identified plant."""
+        rep = discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
+                                   margin=spec.margin)
+        if rep.holds and not all(c.passed for c in margin_checks(identified_plant_arc_margins(g, ident, spec),
+                                                                 floors)):
+            return dataclasses.replace(rep, holds=False)
+        return rep
 
     run = SearchRun(base, ev, spec, feasible=feasible, reference=pid_scores, gate=gate)
     run.advance(spec.budget, rng, progress, total)

@@ -6,6 +6,7 @@ Installed as ``commission.identify``.  Never imports typer, h5py or matplotlib.
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds
 from commission.identify.errors import NotIdentifiableError, SignalError
 from commission.identify.fit import AxisFit, evaluate, fit_axis
+from commission.identify.frf import FrequencyResponse, StructureFit, frequency_response
 from commission.identify.friction import FrictionCompensation, fit_atan, friction_compensation_curve, \
     stribeck_friction
 from commission.identify.ls import LSResult, Regressor, regressor, solve
@@ -13,7 +14,7 @@ from commission.identify.signals import Preprocessed, preprocess, quantization_s
 from commission.identify.steady import SteadySegments, find_steady_segments
 
 __all__ = [
-    "AxisFit", "FrictionCompensation", "LSResult", "NotIdentifiableError", "Preprocessed", "Regressor",
+    "AxisFit", "FrequencyResponse", "FrictionCompensation", "StructureFit", "frequency_response", "LSResult", "NotIdentifiableError", "Preprocessed", "Regressor",
     "SignalError", "SteadySegments", "ThetaBounds", "evaluate", "find_steady_segments", "fit_atan", "fit_axis",
     "friction_compensation", "friction_compensation_curve", "preprocess", "quantization_step", "regressor",
     "solve", "stribeck_friction", "theta_bounds",

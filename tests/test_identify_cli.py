@@ -78,7 +78,7 @@ def test_sample_data_recovers_truth_with_plots(tmp_path):
     assert p["B"]["value"] == pytest.approx(truth["B"]["value"], rel=0.02)
     assert p["fc"]["value"] == pytest.approx(truth["fc"]["value"], rel=0.05)
     assert p["fs"]["value"] == pytest.approx(truth["fs"]["value"], rel=0.10)
-    for name in ("force_fit.png", "friction_curve.png", "residuals.png"):
+    for name in ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png"):
         png = tmp_path / "plots" / name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -15,6 +15,7 @@ from commission.errors import DataError, UsageError
 from commission.jsonio import sha256_file
 from commission.synth import (
     AxisTruth,
+    _closed_loop,
     ExcitationPlan,
     loop_gains,
     random_axis,
@@ -133,6 +134,85 @@ def test_multisine_reaches_its_design_acceleration_with_reversals():
     assert np.max(np.abs(r.q[m] - PLAN.travel / 2)) <= PLAN.ms_amplitude
     reversals = np.count_nonzero(np.diff(np.sign(r.qd[m][np.abs(r.qd[m]) > 1e-4])) != 0)
     assert reversals > 50
+
+
+def test_injection_is_appended_and_leaves_the_default_run_alone():
+    plain = PLAN.reference(2500.0)
+    inj_plan = ExcitationPlan(injection_s=2.0)
+    inj = inj_plan.reference(2500.0)
+    assert plain.injection == () and ExcitationPlan().to_dict()["injection_s"] == 0.0
+    n = plain.t.size
+    for k in ("t", "q", "qd", "qdd"):
+        assert np.array_equal(getattr(inj, k)[:n], getattr(plain, k)), k  # the same run, then the injection
+    assert len(inj.injection) == 2 and inj.injection[0][0] >= plain.t[-1]
+    for (a, b), sgn in zip(inj.injection, (1.0, -1.0)):
+        assert b - a == pytest.approx(1.0)
+        m = (inj.t >= a) & (inj.t < b)
+        assert np.allclose(inj.qd[m], sgn * inj_plan.injection_velocity)
+    assert inj.q[-1] == pytest.approx(0.0, abs=1e-12) and inj.q.max() <= inj_plan.travel
+    prbs = inj_plan.injection_signal(inj.t)
+    on = np.zeros(inj.t.size, bool)
+    for a, b in inj.injection:
+        on |= (inj.t >= a) & (inj.t < b)
+    assert set(np.unique(prbs[on])) == {-1.0, 1.0} and np.all(prbs[~on] == 0.0)
+    assert abs(prbs[on].mean()) < 0.01  # balanced: no net force
+    with pytest.raises(ValueError, match="injection legs need"):
+        ExcitationPlan(injection_s=8.0)
+    with pytest.raises(ValueError, match="injection_s"):
+        ExcitationPlan(injection_s=-1.0)
+
+
+def test_the_logged_command_carries_the_injection_while_the_axis_keeps_moving():
+    plan = ExcitationPlan(n_speeds=3, ms_duration=3.0, injection_s=2.0)
+    d = simulate_excitation(AXIS, plan, np.random.default_rng(7))
+    ref = plan.reference(AXIS.sample_rate)
+    amp = plan.guess_factor * AXIS.M * plan.injection_accel
+    for (a, b), sgn in zip(ref.injection, (1.0, -1.0)):
+        m = (d["t"] >= a) & (d["t"] < b)
+        # The PRBS dominates the sample-to-sample change of the command ...
+        du = np.diff(d["u"][m])
+        assert np.median(np.abs(du[np.abs(du) > amp])) == pytest.approx(2 * amp, rel=0.1)
+        # ... and the axis moves on at the leg's speed without stopping (friction keeps one sign).
+        v = np.diff(d["q"][m][::10]) * AXIS.sample_rate / 10
+        assert np.all(sgn * v > 0.2 * plan.injection_velocity)
+        assert np.mean(v) == pytest.approx(sgn * plan.injection_velocity, rel=0.03)
+
+
+def test_a_mode_and_a_delay_change_the_log_and_round_trip_as_truth():
+    late = AxisTruth(**{**AXIS.__dict__, "mode_hz": 400.0, "mode_damping": 0.05, "mode_ratio": 0.3,
+                        "mode_load_side": True, "delay": 0.4e-3})
+    d = late.to_dict()
+    assert d["parameters"]["mode_load_side"] == {"value": 1.0, "unit": "1"}
+    assert d["parameters"]["delay"]["unit"] == "s" and d["parameters"]["mode_hz"]["unit"] == "Hz"
+    back = AxisTruth.from_dict(json.loads(json.dumps(d)))
+    assert back == late and back.mode_load_side is True
+    p = late.plant()
+    assert (p[9], p[10], p[11], p[12], p[13]) == (400.0, 0.05, 0.3, 1.0, 0.4e-3)
+    with pytest.raises(ValueError, match="mode_ratio"):
+        AxisTruth(**{**AXIS.__dict__, "mode_ratio": 1.0})
+
+
+def test_the_logs_loop_applies_a_fractional_input_delay_inside_the_sample():
+    # Open loop (zero gains) on a frictionless unit mass: a one-sample command pulse issued at
+    # sample 10 acts from 10 T + tau to 11 T + tau.  With tau = 1.4 T the encoder sees nothing up
+    # to sample 11 and 0.5 (0.6 T)^2 at sample 12 (a delay rounded to 1 or 2 samples gives 0.5 T^2 or 0).
+    T = 1.0 / 2500.0
+    truth = AxisTruth(M=1.0, B=0.0, fc=0.0, fs=0.0, vs=0.01, xi=2.0, lsb=1e-15, sample_rate=2500.0,
+                      delay=1.4 * T)
+    n = 20
+    u_ff = np.zeros(n)
+    u_ff[10] = 1.0
+    q, u = np.empty(n), np.empty(n)
+    z = np.zeros(n)
+    _closed_loop(truth.plant(), z, z, u_ff, z, truth.lsb, T, 100, 0.0, 0.0, 0.0, 10.0, q, u)
+    assert np.array_equal(u, u_ff)  # the log holds the command as issued, not as applied
+    assert np.all(q[:12] == 0.0)
+    t = np.arange(n) * T
+    ts, te = 10 * T + 1.4 * T, 11 * T + 1.4 * T
+    exact = np.where(t < ts, 0.0, np.where(t < te, 0.5 * (t - ts) ** 2, 0.5 * T**2 + T * (t - te)))
+    # Semi-implicit Euler at T/100 leads by half a sub-step: within 2 % of T^2 of the exact path.
+    assert np.max(np.abs(q - exact)) < 0.02 * T**2
+    assert q[12] == pytest.approx(0.5 * (0.6 * T) ** 2, rel=0.05)
 
 
 def test_plan_rejects_a_leg_that_does_not_fit_the_travel():
