@@ -202,6 +202,19 @@ def _internal_error(exc: BaseException) -> int:
 def run(argv: list[str] | None = None) -> int:
     """Run the command line on ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
     old = signal.signal(signal.SIGINT, signal.default_int_handler), signal.signal(signal.SIGTERM, _on_sigterm)
+    old_hook = sys.unraisablehook
+    swallowed: list[BaseException] = []
+
+    def unraisable(u: Any) -> None:
+        # A signal's exception raised inside a finaliser (__del__, a weakref callback) cannot
+        # propagate: note it quietly instead of printing "Exception ignored ... Traceback", and end
+        # with its exit code once the command is done (its outputs are then complete).
+        if isinstance(u.exc_value, (KeyboardInterrupt, Terminated)):
+            swallowed.append(u.exc_value)
+        else:
+            old_hook(u)
+
+    sys.unraisablehook = unraisable
     start = time.perf_counter()
     try:
         cmd = typer.main.get_command(app)
@@ -226,10 +239,15 @@ def run(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that catches what escapes
         code = _internal_error(exc)
     finally:
+        sys.unraisablehook = old_hook
         verbose = verbosity.level() >= verbosity.VERBOSE
         verbosity.restore_stdout()
         signal.signal(signal.SIGINT, old[0])
         signal.signal(signal.SIGTERM, old[1])
+    if swallowed and code in (0, 1):
+        term = isinstance(swallowed[0], Terminated)
+        _say(f"{'terminated' if term else 'interrupted'} after the outputs were complete")
+        code = EXIT_TERMINATED if term else EXIT_INTERRUPTED
     if verbose:
         sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code
