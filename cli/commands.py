@@ -16,6 +16,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("commission.cli.run_cmd",
             "Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate "
             "passes, else 1."),
+    "export": ("commission.cli.export_cmd",
+               "Write the validated controller.json's step as C99 (header, source, test vectors, replay program)."),
     "paper-table": ("commission.cli.paper_cmd",
                     "Simulate Sets 1-3 and Case 2 with the paper's PID and ARC; print Table 1."),
 }

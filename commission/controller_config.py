@@ -19,6 +19,11 @@ validated against and where it came from::
     adaptation         Gamma (3): the diagonal adaptation rate of (19)
     initial_estimates  theta0 (3)
     friction_compensation  level (u-unit), slope (s/m): F_hat(v) = level (2/pi) atan(slope v)
+    runtime            OPTIONAL (absent: every guard off): the runtime guards of the
+                       compiled step (:mod:`commission.controllers.arc`, "Runtime guards"):
+                       dy_max (m), dy_fault (m), n_reject_max (count), e_max (m),
+                       freeze_on_saturation (bool); written by validate, which
+                       simulated with exactly these
     validated          what validate checked: the resolved gate, the worst value of
                        each criterion with its scenario, the ARC's indexes on the
                        identified plant (nominal, per trajectory), scenario count, seed
@@ -61,7 +66,7 @@ import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from commission.controllers.arc import ArcGains
+from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.errors import SchemaError, UsageError
 from commission.jsonio import Reader, canonical_json, read_json, sha256_json
 
@@ -84,7 +89,10 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "initial_estimates": ("theta0",),
 }
 _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
-_INF_OK = ("eps11", "eps12", "eps21", "eps22")
+#: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
+RUNTIME_FIELDS = RUNTIME_GUARDS
+#: May be null (infinite): a robust term switched off, a runtime guard off.
+_INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max")
 #: Limits that must be finite in a controller.json (null refused unless ``allow_unbounded``).
 LIMITS = ("u_max", "k1s_max", "k2s_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
@@ -156,6 +164,10 @@ class ControllerConfig:
         for section, names in SECTIONS.items():
             doc[section] = {n: _out(getattr(g, n)) for n in names}
         doc["friction_compensation"] = {k: getattr(g, a) for k, a in _FRICTION.items()}
+        if any(getattr(g, n) != f.default for n, f in _RUNTIME_DEFAULTS.items()):
+            # only when set, so that a file written before the guards existed keeps its checksum
+            doc["runtime"] = {n: (bool(getattr(g, n)) if n == "freeze_on_saturation" else _out(getattr(g, n)))
+                              for n in RUNTIME_FIELDS}
         doc["validated"] = dict(self.validated)
         doc["provenance"] = self.provenance.to_dict()
         return doc
@@ -201,7 +213,8 @@ class ControllerConfig:
         if ctype != CONTROLLER_TYPE:
             raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
         known = {"kind", "schema_version", "controller", "sample_rate", "sample_period", "units",
-                 "friction_compensation", "validated", "provenance", "checksum", "signature", *SECTIONS}
+                 "friction_compensation", "validated", "provenance", "checksum", "signature", "runtime",
+                 *SECTIONS}
         for k in r.keys():
             if k not in known:
                 raise r.fail("unknown field", f"$.{k}")
@@ -236,6 +249,18 @@ class ControllerConfig:
         fr = r.obj("friction_compensation")
         for k, attr in _FRICTION.items():
             kw[attr] = fr.num(k, nonneg=True)
+        if r.has("runtime"):
+            rr = r.obj("runtime")
+            for k in rr.keys():
+                if k not in RUNTIME_FIELDS:
+                    raise rr.fail("unknown field", f"{rr.path}.{k}")
+            for n in RUNTIME_FIELDS:
+                if n == "freeze_on_saturation":
+                    kw[n] = rr.bool_(n)
+                elif rr.child(n).data is None:
+                    kw[n] = math.inf
+                else:
+                    kw[n] = rr.num(n)
         try:
             gains = ArcGains(**kw)
         except ValueError as exc:
@@ -259,6 +284,9 @@ class ControllerConfig:
         return cls.from_dict(read_json(path), source=str(path), key=key)
 
 
+_RUNTIME_DEFAULTS = {f.name: f for f in dataclasses.fields(ArcGains) if f.name in RUNTIME_FIELDS}
+
+
 def _out(v: Any) -> Any:
     if isinstance(v, tuple):
         return [float(x) for x in v]
@@ -276,6 +304,8 @@ def _gain_path(msg: str) -> str:
             return f"$.friction_compensation.{'level' if name == 'fric_level' else 'slope'}"
         if name == "Ts":
             return "$.sample_period"
+        if name in RUNTIME_FIELDS:
+            return f"$.runtime.{name}"
     return "$"
 
 

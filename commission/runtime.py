@@ -11,6 +11,20 @@
 :func:`commission.controllers.arc.arc_pack` and calls the compiled
 :func:`commission.controllers.arc.arc_step` -- the very kernel ``commission
 validate`` simulated -- so the same inputs give the same command bit for bit.
+
+Faults and the safe output
+--------------------------
+The compiled step guards itself (:mod:`commission.controllers.arc`, "Runtime
+guards", with the limits validate chose and simulated: ``controller.json``
+``runtime``): an implausible measurement is replaced by a prediction and does
+not adapt theta_hat; a jump beyond the stroke, a run of implausible
+measurements, a tracking error beyond the watchdog or a non-finite value
+latches a fault.  Then :attr:`Controller.fault` is True,
+:attr:`Controller.fault_reason` names the cause, and :meth:`Controller.step`
+returns the **safe command 0** (no force) until :meth:`Controller.reset`;
+theta_hat keeps its last good value.  The caller should disable the drive
+(or hand over to its brake/fallback) when ``fault`` is set: 0 V on a
+vertical or inclined axis does not hold the load.
 """
 
 from __future__ import annotations
@@ -20,7 +34,8 @@ import os
 import numpy as np
 
 from commission.controller_config import ControllerConfig
-from commission.controllers.arc import S_THETA, arc_new_state, arc_pack, arc_reset, arc_step
+from commission.controllers.arc import (FAULT_REASONS, S_FAULT, S_REJECTED, S_THETA, arc_new_state, arc_pack,
+                                        arc_reset, arc_step)
 from commission.errors import UsageError
 
 
@@ -58,6 +73,26 @@ class Controller:
         """Current parameter estimates [1/M, B/M, d_n/M] (a copy)."""
         return self._s[S_THETA:S_THETA + 3].copy()
 
+    @property
+    def fault(self) -> bool:
+        """True once a fault has latched (the step then returns the safe command 0)."""
+        return self._s[S_FAULT] != 0.0
+
+    @property
+    def fault_code(self) -> int:
+        """The latched fault's reason code (``FAULT_*`` of :mod:`commission.controllers.arc`; 0: none)."""
+        return int(self._s[S_FAULT])
+
+    @property
+    def fault_reason(self) -> str:
+        """The latched fault's reason, e.g. ``"tracking error beyond e_max"`` (``"none"``: no fault)."""
+        return FAULT_REASONS[self.fault_code]
+
+    @property
+    def rejected(self) -> bool:
+        """True when the last sample's measurement was rejected as a glitch (a prediction was used)."""
+        return self._s[S_REJECTED] != 0.0
+
     def reset(self, y0: float) -> None:
         """Start at rest at the measured position ``y0`` (m): filters at rest, theta_hat = theta0."""
         y0 = float(y0)
@@ -79,8 +114,9 @@ class Controller:
         Returns
         -------
         float
-            Command, u-unit (``config.units["u"]``), within ``+-u_max``.  A
-            non-finite input latches a fault and the command is 0 until :meth:`reset`.
+            Command, u-unit (``config.units["u"]``), within ``+-u_max``.  Once a
+            fault latches (:attr:`fault`, :attr:`fault_reason`) it is the safe
+            command 0 until :meth:`reset`.
         """
         if not self._ready:
             raise UsageError("step: call reset(y0) first")

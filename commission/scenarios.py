@@ -56,6 +56,7 @@ that e_F measures the standstill accuracy.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -209,6 +210,9 @@ class Scenario:
         ``"monte_carlo"``.
     quantization : float
         Encoder resolution, m (0: none).
+    noise_std : float
+        Standard deviation of the encoder's position noise before quantization, m (0: none);
+        :meth:`noise` draws it, the same for a scenario name in ``tune`` and ``validate``.
     """
 
     name: str
@@ -218,6 +222,14 @@ class Scenario:
     y0: float = 0.0
     tags: tuple[str, ...] = ()
     quantization: float = DEFAULT_QUANTIZATION
+    noise_std: float = 0.0
+
+    def noise(self, n: int) -> np.ndarray | None:
+        """``n`` samples of encoder noise, m, seeded by the scenario's name (None when there is none)."""
+        if not self.noise_std > 0:
+            return None
+        seed = int.from_bytes(hashlib.sha256(self.name.encode()).digest()[:8], "little")
+        return np.random.default_rng(seed).normal(0.0, self.noise_std, n)
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -241,6 +253,7 @@ class Scenario:
             "y0": self.y0,
             "tags": list(self.tags),
             "quantization": self.quantization,
+            "noise_std": self.noise_std,
         }
 
 
@@ -344,6 +357,16 @@ def resolve_quantization(ident: Identification, spec: Spec) -> float:
         if v is not None and v >= 0:
             return v
     return DEFAULT_QUANTIZATION
+
+
+def resolve_encoder_noise(ident: Identification, spec: Spec) -> float:
+    """Encoder noise simulated, m rms: the spec's ``[plant] noise_std``, else ident.json's
+    ``extra["encoder"]["noise_std"]``, else 0 (quantization only)."""
+    if spec.plant_noise_std is not None:
+        return float(spec.plant_noise_std)
+    enc = ident.extra.get("encoder")
+    v = _num(enc.get("noise_std")) if isinstance(enc, dict) else None
+    return v if v is not None and v >= 0 else 0.0
 
 
 def case1_trajectory(spec: Spec) -> TrajectorySpec:
@@ -491,6 +514,7 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
         raise ValueError(f"n_monte_carlo: must be >= 0, got {n_monte_carlo}")
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
+    nz = resolve_encoder_noise(ident, spec)
     trajs = {"case1": case1_trajectory(spec), "case2": case2_trajectory(spec)}
     out: list[Scenario] = []
     for case in CASES:
@@ -498,14 +522,14 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
         for variant in VARIANTS:
             dist = disturbance_step(ident, tr.duration) if variant == "disturbance" else NO_DISTURBANCE
             out.append(Scenario(f"{case}/{variant}", _variant(base, variant, ident), tr, dist, 0.0,
-                                (case, variant, "tune"), qz))
+                                (case, variant, "tune"), qz, nz))
     out.extend(robustness_scenarios(ident, spec))
     if n_monte_carlo:
         plants = monte_carlo_plants(ident, n_monte_carlo, rng, spec)
         for i in range(n_monte_carlo):
             case = CASES[i % 2]
             out.append(Scenario(f"mc/{i:03d}", plants[i], trajs[case], NO_DISTURBANCE, 0.0,
-                                (case, "monte_carlo"), qz))
+                                (case, "monte_carlo"), qz, nz))
     return out
 
 
@@ -523,6 +547,7 @@ def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
+    nz = resolve_encoder_noise(ident, spec)
     variants: list[tuple[str, np.ndarray]] = []
     p = base.copy()
     p[P_DELAY] += spec.period
@@ -538,7 +563,7 @@ def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     out = []
     for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
         for name, p in variants:
-            out.append(Scenario(f"{case}/{name}", p, tr, NO_DISTURBANCE, 0.0, (case, "robustness", "tune"), qz))
+            out.append(Scenario(f"{case}/{name}", p, tr, NO_DISTURBANCE, 0.0, (case, "robustness", "tune"), qz, nz))
     return out
 
 
@@ -552,6 +577,7 @@ def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
+    nz = resolve_encoder_noise(ident, spec)
     lo, hi = ident.theta.min, ident.theta.max
     b_lo, b_hi = viscous_range(ident)
     d_lo, d_hi = force_range(ident)
@@ -565,7 +591,7 @@ def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
             p[P_OFFSET] = -(d_hi if bits[2] else d_lo)
             p = clip_to_box(p[None, :], ident)[0]
             out.append(Scenario(f"corner/{case}/{bits[0]}{bits[1]}{bits[2]}", p, tr, NO_DISTURBANCE, 0.0,
-                                (case, "corner", "tune"), qz))
+                                (case, "corner", "tune"), qz, nz))
     return out
 
 
@@ -581,13 +607,14 @@ def offset_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
+    nz = resolve_encoder_noise(ident, spec)
     d_lo, d_hi = force_range(ident)
     out: list[Scenario] = []
     for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
         for end, d in (("lo", d_lo), ("hi", d_hi)):
             p = base.copy()
             p[P_OFFSET] = -d
-            out.append(Scenario(f"offset/{case}/{end}", p, tr, NO_DISTURBANCE, 0.0, (case, "offset", "tune"), qz))
+            out.append(Scenario(f"offset/{case}/{end}", p, tr, NO_DISTURBANCE, 0.0, (case, "offset", "tune"), qz, nz))
     return out
 
 
@@ -610,6 +637,7 @@ def payload_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
+    nz = resolve_encoder_noise(ident, spec)
     m0, m_heavy = base[P_M], 1.0 / ident.theta.min[0]
     out: list[Scenario] = []
     for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
@@ -617,7 +645,7 @@ def payload_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
             p = base.copy()
             p[P_M] = m0 * (m_heavy / m0) ** k if m_heavy > m0 else m0
             p = clip_to_box(p[None, :], ident)[0]
-            out.append(Scenario(f"payload/{case}/{k:g}", p, tr, NO_DISTURBANCE, 0.0, (case, "payload", "tune"), qz))
+            out.append(Scenario(f"payload/{case}/{k:g}", p, tr, NO_DISTURBANCE, 0.0, (case, "payload", "tune"), qz, nz))
     return out
 
 

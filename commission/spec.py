@@ -78,6 +78,9 @@ Keys and defaults
     ``delay_samples``
         Input delay of the drive beyond the zero-order hold, samples.  Default:
         the identified one, else 0.
+    ``noise_std``
+        Encoder position noise before quantization, m rms.  Default: ident.json's
+        ``encoder.noise_std`` if present, else 0 (quantization only).
     Both ``tune`` and ``validate`` simulate and linearise with them
     (:func:`commission.scenarios.plant_dynamics`).
 ``[margins]`` (floors of the stability margins, :mod:`commission.robustness`)
@@ -148,6 +151,7 @@ _SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
         "mode_ratio": (float, None, True, ""),
         "encoder": (str, None, False, ""),
         "delay_samples": (float, None, False, "samples"),
+        "noise_std": (float, None, False, "m"),
     },
     "margins": {
         "gain_db": (float, 6.0, True, "dB"),
@@ -194,7 +198,7 @@ class Spec:
         Monte-Carlo plants in the tuning subset.
     margin : float
         Required stability margin: spectral radius < 1 - margin.
-    plant_mode_hz, plant_mode_damping, plant_mode_ratio, plant_encoder, plant_delay_samples : optional
+    plant_mode_hz, plant_mode_damping, plant_mode_ratio, plant_encoder, plant_delay_samples, plant_noise_std : optional
         ``[plant]``: the structural mode (Hz, -, load fraction, ``"motor"``/``"load"``) and input
         delay (samples) the user knows; ``None``: what ident.json's ``frequency_response`` found.
     min_gain_margin_db, min_phase_margin_deg, min_delay_margin_samples, min_modulus_margin : float
@@ -225,6 +229,7 @@ class Spec:
     plant_mode_ratio: float | None = None
     plant_encoder: str | None = None
     plant_delay_samples: float | None = None
+    plant_noise_std: float | None = None
     min_gain_margin_db: float = 6.0
     min_phase_margin_deg: float = 30.0
     min_delay_margin_samples: float = 1.0
@@ -281,6 +286,7 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("plant", "mode_damping"): (0.0, 10.0),
     ("plant", "mode_ratio"): (1e-3, 1e3),
     ("plant", "delay_samples"): (0.0, 20.0),
+    ("plant", "noise_std"): (0.0, 1e-2),
     ("margins", "gain_db"): (1e-3, 40.0),
     ("margins", "phase_deg"): (1e-3, 89.0),
     ("margins", "delay_samples"): (1e-3, 20.0),
@@ -340,7 +346,8 @@ def check_trajectory_samples(source: str, prefix: str, sample_rate: float, durat
 
 # TOML key -> dataclass attribute where the names differ.
 _ATTR = {("pid", "pole"): "pid_pole",
-         **{("plant", k): f"plant_{k}" for k in ("mode_hz", "mode_damping", "mode_ratio", "encoder", "delay_samples")},
+         **{("plant", k): f"plant_{k}" for k in ("mode_hz", "mode_damping", "mode_ratio", "encoder", "delay_samples",
+                                                 "noise_std")},
          ("margins", "gain_db"): "min_gain_margin_db", ("margins", "phase_deg"): "min_phase_margin_deg",
          ("margins", "delay_samples"): "min_delay_margin_samples", ("margins", "modulus"): "min_modulus_margin"}
 

@@ -579,6 +579,7 @@ class _Group:
     plants: np.ndarray
     dist: np.ndarray | None
     quant: float
+    noise: np.ndarray | None = None
 
 
 class Evaluator:
@@ -605,13 +606,14 @@ class Evaluator:
         self.weights = [CORNER_WEIGHT if "corner" in s.tags else 1.0 for s in self.scenarios]
         groups: dict[tuple, list[int]] = {}
         for i, s in enumerate(self.scenarios):
-            groups.setdefault((s.trajectory, s.y0, s.quantization), []).append(i)
+            groups.setdefault((s.trajectory, s.y0, s.quantization, s.noise_std > 0), []).append(i)
         self.groups: list[_Group] = []
-        for (tr, y0, qz), idx in groups.items():
+        for (tr, y0, qz, noisy), idx in groups.items():
             traj = tr.render(spec.period, y0)
             plants = np.stack([self.scenarios[i].plant for i in idx])
             d = np.stack([self.scenarios[i].disturbance.samples(traj.t) for i in idx])
-            self.groups.append(_Group(tuple(idx), traj, plants, d if np.any(d) else None, qz))
+            nz = np.stack([self.scenarios[i].noise(traj.n) for i in idx]) if noisy else None
+            self.groups.append(_Group(tuple(idx), traj, plants, d if np.any(d) else None, qz, nz))
 
     @property
     def names(self) -> list[str]:
@@ -627,8 +629,9 @@ class Evaluator:
             plants = np.tile(g.plants, (nc, 1))
             cps = np.repeat(P, m, axis=0)
             dist = None if g.dist is None else np.tile(g.dist, (nc, 1))
+            noise = None if g.noise is None else np.tile(g.noise, (nc, 1))
             r = simulate_batch(plants, kind, cps, g.traj, substeps=plant_substeps(self.spec.sample_rate),
-                               quant=g.quant, disturbance=dist, y0=self.scenarios[g.idx[0]].y0,
+                               quant=g.quant, disturbance=dist, noise=noise, y0=self.scenarios[g.idx[0]].y0,
                                u_sat=self.spec.u_max, e_abort=self.spec.travel, workers=self.workers)
             # No traces: the kernel's u_peak (recorded samples, also before an abort) is all that is needed.
             for c in range(nc):

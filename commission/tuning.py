@@ -47,7 +47,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from commission.artifacts import Identification
-from commission.controllers.arc import ArcGains
+from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.pid import PidGains
 from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
@@ -254,6 +254,11 @@ def _gains_to_dict(g: Any) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in dataclasses.fields(g):
         v = getattr(g, f.name)
+        if f.name in RUNTIME_GUARDS and isinstance(g, ArcGains):
+            if v == f.default:
+                continue  # set by validate, not by tune: absent means off
+            out[f.name] = bool(v) if isinstance(v, bool) else _num_or_null(float(v))
+            continue
         out[f.name] = [float(x) for x in v] if isinstance(v, tuple) else _num_or_null(float(v))
     return out
 
@@ -265,6 +270,12 @@ def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tupl
             raise r.fail("unknown field", f"{r.path}.{k}")
     kw: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
+        if cls is ArcGains and f.name in RUNTIME_GUARDS:
+            if r.has(f.name):
+                raw = r.child(f.name).data
+                kw[f.name] = (r.bool_(f.name) if f.name == "freeze_on_saturation"
+                              else math.inf if raw is None else r.num(f.name))
+            continue
         raw = r.child(f.name).data
         if "tuple" in str(f.type):  # the field's type decides, not the file's shape
             kw[f.name] = r.vec(f.name, 3)

@@ -20,7 +20,8 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    releases the GIL, so they are spread over a thread pool (one thread per
    CPU by default); results do not depend on the number of threads.  The ARC
    is simulated with the gains *as read back from the controller.json
-   layout*, so what was validated is what is deployed.
+   layout*, runtime guards included (:func:`runtime_guards`), so what was
+   validated is what is deployed.
 4. The gate (:mod:`commission.gate`) is checked on every scenario, and the
    stability margins of the ARC on the identified plant against the spec's
    floors (:mod:`commission.robustness`, :func:`commission.gate.margin_checks`).
@@ -39,6 +40,7 @@ import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -235,8 +237,71 @@ def _nn(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def deployable_gains(arc: ArcGains) -> ArcGains:
-    """``arc`` after a round trip through the controller.json layout (what the runtime will run)."""
+#: Speed margin of the plausibility guard: the axis is taken to move at most this
+#: many times the envelope's v_max in one sample.
+GUARD_SPEED_MARGIN = 2.0
+#: The tracking-error watchdog trips at this many times the gate's e_M.
+GUARD_E_M_FACTOR = 2.0
+#: Rejected samples in a row that latch a fault span at least this long, s.
+GUARD_REJECT_TIME = 2e-3
+
+
+def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
+    """The runtime guards of the deployed ARC (ArcGains fields), from the envelope and the gate.
+
+    * ``dy_max = 2 v_max Ts + 2 LSB``: the axis moves at most
+      :data:`GUARD_SPEED_MARGIN` x the envelope's v_max in one sample, and the
+      encoder rounds each end by half a step (doubled).  0.8 mm at 2.5 kHz and
+      1 m/s, which rejects a one-sample glitch of 1 mm.
+    * ``dy_fault = travel``: no reading can move by the whole stroke in one sample.
+    * ``n_reject_max = max(2, ceil(GUARD_REJECT_TIME / Ts))``: the prediction
+      (tracking error held) carries the loop through at most 2 ms of glitches.
+    * ``e_max = min(2 e_M, travel)`` with e_M the gate's resolved limit: a run
+      in which the watchdog trips has already failed the gate's e_M by a factor
+      2, so the watchdog never turns a passing validation into a failing one;
+      it only stops a run-away on the machine.
+    * ``freeze_on_saturation = True``: the gate fails a command that reaches
+      u_max, so in a passing validation this never acts; on the machine it keeps
+      theta_hat out of the box's corners while the drive is at its limit.
+
+    None of them acts in a validation that passes (the plausibility bound is
+    twice the envelope's speed); ``validate`` simulates with them (see
+    :func:`deployable_gains`), so what it proved is what runs.
+    """
+    return guard_values(tuning.arc.Ts, tuning.quantization, tuning.spec.v_max, tuning.spec.travel, limits.e_M)
+
+
+def guard_values(Ts: float, lsb: float, v_max: float, travel: float, e_M: float) -> dict[str, Any]:
+    """:func:`runtime_guards` from the numbers it uses.
+
+    Parameters
+    ----------
+    Ts : float
+        Sample period, s.
+    lsb : float
+        Encoder resolution, m.
+    v_max : float
+        Envelope speed, m/s.
+    travel : float
+        Envelope stroke, m.
+    e_M : float
+        The gate's resolved transient limit, m (inf: none).
+    """
+    e_max = min(GUARD_E_M_FACTOR * e_M, travel) if math.isfinite(e_M) else travel
+    return {
+        "dy_max": GUARD_SPEED_MARGIN * v_max * Ts + 2.0 * lsb,
+        "dy_fault": travel,
+        "n_reject_max": float(max(2, math.ceil(GUARD_REJECT_TIME / Ts - 1e-9))),
+        "e_max": e_max,
+        "freeze_on_saturation": True,
+    }
+
+
+def deployable_gains(arc: ArcGains, guards: Mapping[str, Any] | None = None) -> ArcGains:
+    """``arc`` with the runtime ``guards`` (:func:`runtime_guards`), after a round trip
+    through the controller.json layout (what the runtime will run)."""
+    if guards:
+        arc = dataclasses.replace(arc, **guards)
     probe = ControllerConfig(gains=arc, sample_rate=1.0 / arc.Ts, units={"u": "u", "q": "m"}, validated={},
                              provenance=ControllerProvenance(None, "0" * 64, "0" * 64, "", ""))
     doc = json.loads(json.dumps(probe.to_dict()))
@@ -301,7 +366,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max)
     scenarios = scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(seed),
                                 n_monte_carlo=n_monte_carlo)
-    arc = deployable_gains(tuning.arc)
+    arc = deployable_gains(tuning.arc, runtime_guards(tuning, limits))
     ctrl = {KIND_ARC: arc_pack(arc), KIND_PID: pid_pack(tuning.pid)}
     Ts = arc.Ts
     if abs(tuning.pid.Ts - Ts) > 1e-12 * Ts:
@@ -321,7 +386,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         ref = refs[(s.trajectory, s.y0)]
         d = s.disturbance.samples(ref.t)
         r = simulate(s.plant, kind, ctrl[kind], ref, substeps=plant_substeps(1.0 / Ts), quant=s.quantization,
-                     disturbance=d if np.any(d) else None, y0=s.y0, u_sat=u_sat, e_abort=e_abort)
+                     disturbance=d if np.any(d) else None, noise=s.noise(ref.n), y0=s.y0, u_sat=u_sat,
+                     e_abort=e_abort)
         th = r.theta_hat
         final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
         # Monte-Carlo traces are dropped at once (memory); the fixed scenarios keep theirs for the figures.
@@ -489,6 +555,18 @@ def check_provenance(tuning: Tuning, tuning_path: str) -> None:
                           f"tuning.json was edited after tune (the validated plant box would not be the identified one)")
 
 
+def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: bool) -> Path:
+    """The output-folder checks of :class:`commission.files.Outputs` without its lock and staging
+    (kept for ``commission export``, which writes its folder directly).
+
+    Raises
+    ------
+    UsageError
+        ``DIR/controller.json: exists; pass --force to overwrite``, or a folder that is a file.
+    """
+    return Outputs(force=force).add_dir(out_dir, names, "--out-dir")
+
+
 def output_names() -> tuple[str, ...]:
     """Every file ``validate`` may write into its output folder."""
     return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES)
@@ -577,6 +655,6 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
-    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance",
-    "deployable_gains", "log_sha256_of",
+    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance", "check_out_dir",
+    "deployable_gains", "runtime_guards", "guard_values", "log_sha256_of",
 ]

@@ -47,6 +47,29 @@ The state vector s is updated in place; :data:`S_THETA`, :data:`S_Z1`,
 input or intermediate value latches ``s[S_FAULT] = 1`` and the step returns 0
 (drive disabled) until :func:`arc_reset`; it never raises inside the loop.
 
+Runtime guards (what a drive engineer needs around the law)
+-----------------------------------------------------------
+Checked at the top of each sample, before anything is updated, each one
+switched off by its default (``inf``, ``False``), which leaves the law above
+unchanged bit for bit:
+
+* Measurement plausibility: a y farther than ``dy_max (1 + r)`` from the last
+  accepted measurement (r the samples rejected since) is a glitch.  The sample
+  then runs on the prediction y = q_d + e_good (the tracking error of the last
+  accepted sample held), and ``n_reject_max`` rejections in a row latch
+  :data:`FAULT_GLITCH_RUN`.  A y farther than ``dy_fault`` latches
+  :data:`FAULT_JUMP` at once.
+* Tracking-error watchdog: an accepted |y - q_d| > ``e_max`` latches
+  :data:`FAULT_TRACKING`.
+* The adaptation is frozen in a rejected sample and, with
+  ``freeze_on_saturation``, in a sample whose command is at +-u_max (the
+  errors then do not answer the command, and would drive theta_hat into a
+  corner of its box).
+* A latched fault keeps theta_hat and the filters at their last good values,
+  holds its reason code in ``s[S_FAULT]`` (``FAULT_*``, :data:`FAULT_REASONS`)
+  and the step returns the safe command 0 (no force; the caller disables the
+  drive on the flag) until :func:`arc_reset`.
+
 Why the paper's robust terms are capped (implementable gains)
 -------------------------------------------------------------
 The example robust functions (37), (38), (47) with the printed levels
@@ -172,7 +195,13 @@ P_CT2SQ = 44  # C_theta2_i^2 (3)
 P_AD = 47  # expm(A0 Ts), row-major 2x2 (4)
 P_BD = 51  # int_0^Ts expm(A0 s) ds e2 (2): held-input response
 P_BD1 = 53  # int_0^Ts expm(A0 (Ts - s)) e2 s/Ts ds (2): response to an input ramp 0 -> 1
-NP = 55
+# Runtime guards (section "Runtime guards" of the module docstring); inf / 0 switch each off.
+P_DY_MAX = 55  # largest plausible |y_k - y_good| per sample since the last accepted y, m (inf: no check)
+P_DY_FAULT = 56  # a jump |y_k - y_good| beyond this latches a fault at once, m (inf: none)
+P_NREJ_MAX = 57  # this many rejected samples in a row latch a fault (inf: never)
+P_E_MAX = 58  # tracking-error watchdog on the accepted |y - q_d|, m (inf: none)
+P_FREEZE_SAT = 59  # 1: no adaptation in a sample whose command is saturated at u_max (0: adapt)
+NP = 60
 
 #: Bound on R Ts, R = K2 - theta_hat1 d(alpha1)/dy the rate of the sampled v-loop
 #: (module docstring); applied whenever ``k2s_max`` is finite.
@@ -195,11 +224,35 @@ S_K1 = 18  # K1 used (after the cap), 1/s
 S_K2 = 19  # K2 used (after the cap), 1/s
 S_USTAR = 20  # u* (before the friction term and saturation), u-unit
 S_U = 21  # u returned, u-unit
-NS = 22
+S_YGOOD = 22  # last accepted measurement, m
+S_EGOOD = 23  # y - q_d at the last accepted measurement, m
+S_NREJ = 24  # measurements rejected in a row
+S_REJECTED = 25  # 1 when this sample's y was rejected (a glitch) and replaced by q_d + S_EGOOD
+S_FROZEN = 26  # 1 when the adaptation was frozen in this sample (y rejected, or command saturated)
+NS = 27
+
+# Fault reason codes held in s[S_FAULT] (0: no fault); latched until arc_reset.
+FAULT_NONE = 0
+FAULT_NONFINITE = 1  # an input (y, q_d, dq_d, ddq_d) or an intermediate value (u, u*, tau) not finite
+FAULT_JUMP = 2  # one measurement jumped farther than dy_fault from the last accepted one
+FAULT_GLITCH_RUN = 3  # n_reject_max measurements in a row were implausible
+FAULT_TRACKING = 4  # the accepted tracking error |y - q_d| exceeded e_max
+#: Reason code -> name (the runtime's ``fault_reason``).
+FAULT_REASONS = {
+    FAULT_NONE: "none",
+    FAULT_NONFINITE: "non-finite input or intermediate value",
+    FAULT_JUMP: "measurement jump beyond dy_fault",
+    FAULT_GLITCH_RUN: "n_reject_max implausible measurements in a row",
+    FAULT_TRACKING: "tracking error beyond e_max",
+}
 #: The entries of s that carry the controller's dynamics from one sample to the next
 #: (the others are flags or values logged for the caller); what a linearisation perturbs.
 S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA, S_THETA + 1, S_THETA + 2,
              S_YPREV, S_USPREV)
+
+
+#: ArcGains fields of the runtime guards (optional everywhere: absent = off).
+RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation")
 
 
 def _vec3(name: str, v) -> tuple[float, float, float]:
@@ -254,6 +307,26 @@ class ArcGains:
         V_LOOP_RATE_LIMIT/Ts + theta_hat1 d alpha1/dy (module docstring).
     u_max : float
         Symmetric output saturation, u-unit (``math.inf``: none).
+    dy_max : float
+        Runtime guard: largest plausible change of the measurement in one sample,
+        m; a y farther than ``dy_max (1 + r)`` from the last accepted y (r: samples
+        rejected since) is rejected as a glitch (``math.inf``: no check).
+    dy_fault : float
+        Runtime guard: a y farther than this from the last accepted y latches a
+        fault at once, m (``math.inf``: never).
+    n_reject_max : float
+        Runtime guard: this many rejected measurements in a row latch a fault
+        (a count >= 1; ``math.inf``: never).
+    e_max : float
+        Runtime guard: tracking-error watchdog on the accepted |y - q_d|, m; beyond
+        it a fault latches (``math.inf``: none).
+    freeze_on_saturation : bool
+        Runtime guard: no adaptation in a sample whose command is at ``+-u_max``.
+        The adaptation is always frozen while y is rejected.
+
+    The five runtime guards default to "off", which is the law as it was
+    before they existed bit for bit; ``commission validate`` sets them
+    (:func:`commission.validate.runtime_guards`) and simulates with them.
     """
 
     Ts: float
@@ -279,6 +352,11 @@ class ArcGains:
     k1s_max: float
     k2s_max: float
     u_max: float
+    dy_max: float = math.inf
+    dy_fault: float = math.inf
+    n_reject_max: float = math.inf
+    e_max: float = math.inf
+    freeze_on_saturation: bool = False
 
     def __post_init__(self) -> None:
         for name in ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0"):
@@ -297,6 +375,15 @@ class ArcGains:
             val = getattr(self, name)
             if not val > 0 or math.isnan(val):
                 raise ArcGainsError(f"ArcGains.{name}: must be > 0 (inf allowed), got {val}")
+        for name in ("dy_max", "dy_fault", "e_max"):
+            val = getattr(self, name)
+            if not val > 0 or math.isnan(val):
+                raise ArcGainsError(f"ArcGains.{name}: must be > 0 m (inf allowed), got {val}")
+        n = self.n_reject_max
+        if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
+            raise ArcGainsError(f"ArcGains.n_reject_max: must be an integer >= 1 (inf allowed), got {n}")
+        if not isinstance(self.freeze_on_saturation, bool):
+            raise ArcGainsError(f"ArcGains.freeze_on_saturation: must be a bool, got {self.freeze_on_saturation!r}")
         for name, floor in (("k1s_max", "g1"), ("k2s_max", "g2")):
             val = getattr(self, name)
             if math.isnan(val) or val < getattr(self, floor):
@@ -385,6 +472,8 @@ def arc_pack(g: ArcGains) -> np.ndarray:
     p[P_AD:P_AD + 4] = Ad.ravel()
     p[P_BD:P_BD + 2] = Bd
     p[P_BD1:P_BD1 + 2] = Bd1
+    p[P_DY_MAX], p[P_DY_FAULT], p[P_NREJ_MAX], p[P_E_MAX] = g.dy_max, g.dy_fault, g.n_reject_max, g.e_max
+    p[P_FREEZE_SAT] = 1.0 if g.freeze_on_saturation else 0.0
     return p
 
 
@@ -433,6 +522,7 @@ def arc_reset(p, s, y0):
     for i in range(3):
         s[S_THETA + i] = p[P_THETA0 + i]
     s[S_YPREV] = y0
+    s[S_YGOOD] = y0
     s[S_XHAT] = y0
     s[S_XHAT + 1] = p[P_THETA0 + 1] * y0
 
@@ -545,9 +635,12 @@ def alpha1_and_partials(p: np.ndarray, y: float, eta, psi2: float, qd: float, dq
 
 
 @njit(cache=True)
-def _fault(s):
-    """Latch the fault flag and return the safe command 0 (drive disabled)."""
-    s[S_FAULT] = 1.0
+def _fault(s, reason):
+    """Latch the fault with its reason code (``FAULT_*``) and return the safe command 0.
+
+    theta_hat and the filters keep the values of the last good sample.
+    """
+    s[S_FAULT] = reason
     s[S_USTAR] = 0.0
     s[S_U] = 0.0
     return 0.0
@@ -572,13 +665,35 @@ def arc_step(p, s, y, qd, dqd, ddqd):
     -------
     float
         Command u = u* + F_hat(dq_d), saturated at u_max, u-unit; held until
-        the next sample.  Always finite: after a non-finite intermediate value
-        the fault flag ``s[S_FAULT]`` latches and the step returns 0.
+        the next sample.  Always finite: once a fault latches (``s[S_FAULT]``
+        holds its ``FAULT_*`` reason code) the step returns the safe command 0
+        until :func:`arc_reset`, and theta_hat keeps its last good value.
     """
     if s[S_FAULT] != 0.0:
         return 0.0
     if not (math.isfinite(y) and math.isfinite(qd) and math.isfinite(dqd) and math.isfinite(ddqd)):
-        return _fault(s)
+        return _fault(s, 1.0)
+    # --- runtime guards: measurement plausibility, then the tracking-error watchdog
+    rejected = 0.0
+    if s[S_PRIMED] != 0.0:
+        jump = abs(y - s[S_YGOOD])
+        if jump > p[P_DY_FAULT]:
+            return _fault(s, 2.0)
+        if jump > p[P_DY_MAX] * (1.0 + s[S_NREJ]):
+            s[S_NREJ] = s[S_NREJ] + 1.0
+            if s[S_NREJ] >= p[P_NREJ_MAX]:
+                return _fault(s, 3.0)
+            # a glitch: go on with the prediction "the tracking error is what it last was"
+            y = qd + s[S_EGOOD]
+            rejected = 1.0
+        else:
+            s[S_NREJ] = 0.0
+    if rejected == 0.0:
+        s[S_YGOOD] = y
+        s[S_EGOOD] = y - qd
+    if abs(y - qd) > p[P_E_MAX]:
+        return _fault(s, 4.0)
+    s[S_REJECTED] = rejected
     k1 = p[P_K1]
     k2 = p[P_K2]
     w1 = p[P_W1]
@@ -669,30 +784,41 @@ def arc_step(p, s, y, qd, dqd, ddqd):
     u = ustar + fhat
     umax = p[P_UMAX]
     u_applied_star = ustar
+    saturated = 0.0
     if u > umax:
         u = umax
         u_applied_star = u - fhat
+        saturated = 1.0
     elif u < -umax:
         u = -umax
         u_applied_star = u - fhat
+        saturated = 1.0
     # adaptation function (50)
     tau1 = w1 * f1 * z1 + w2 * g1_ * z2
     tau2 = w1 * f2 * z1 + w2 * g2_ * z2
     tau3 = w1 * f3 * z1 + w2 * g3_ * z2
     if not (math.isfinite(u) and math.isfinite(ustar) and math.isfinite(tau1)
             and math.isfinite(tau2) and math.isfinite(tau3)):
-        return _fault(s)
-    # (19)-(20) in discrete time: a box projection keeps P1 exactly
-    tau = (tau1, tau2, tau3)
-    for i in range(3):
-        th = s[S_THETA + i] + Ts * p[P_GAMMA + i] * tau[i]
-        lo = p[P_TMIN + i]
-        hi = p[P_TMAX + i]
-        if th > hi:
-            th = hi
-        elif th < lo:
-            th = lo
-        s[S_THETA + i] = th
+        return _fault(s, 1.0)
+    # (19)-(20) in discrete time: a box projection keeps P1 exactly.  Frozen while y
+    # is a prediction (a glitch) and, with P_FREEZE_SAT, while the command is at the
+    # limit: the errors then are not the plant's response to u and would drive
+    # theta_hat into a corner of the box.
+    frozen = rejected
+    if p[P_FREEZE_SAT] != 0.0 and saturated != 0.0:
+        frozen = 1.0
+    s[S_FROZEN] = frozen
+    if frozen == 0.0:
+        tau = (tau1, tau2, tau3)
+        for i in range(3):
+            th = s[S_THETA + i] + Ts * p[P_GAMMA + i] * tau[i]
+            lo = p[P_TMIN + i]
+            hi = p[P_TMAX + i]
+            if th > hi:
+                th = hi
+            elif th < lo:
+                th = lo
+            s[S_THETA + i] = th
     # the lambda filter is driven by the u* the plant actually receives
     s[S_USPREV] = u_applied_star
     s[S_Z1] = z1

@@ -65,6 +65,16 @@ def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarra
     return E[:n, :n], E[:n, n:]
 
 
+def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts: float,
+                      f_hz: np.ndarray) -> np.ndarray:
+    """``C (zI - A)^-1 B + D`` of a single-input single-output discrete system at ``z = exp(j 2 pi f Ts)``."""
+    f = np.atleast_1d(np.asarray(f_hz, dtype=float))
+    z = np.exp(1j * 2.0 * np.pi * f * Ts)
+    rhs = np.broadcast_to(np.asarray(B, dtype=complex), (z.size, *B.shape))
+    x = np.linalg.solve(z[:, None, None] * np.eye(A.shape[0]) - A, rhs)[:, :, 0]
+    return x @ C[0] + D
+
+
 @dataclass(frozen=True)
 class SampledPlant:
     """The plant's linear part sampled at ``Ts`` behind a hold and an input delay (module docstring).
@@ -89,12 +99,8 @@ class SampledPlant:
 
     def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
         """``Y/U`` at ``z = exp(j 2 pi f Ts)``, m per u-unit (complex, one value per frequency)."""
-        f = np.atleast_1d(np.asarray(f_hz, dtype=float))
-        z = np.exp(1j * 2.0 * np.pi * f * self.Ts)
-        eye = np.eye(self.Phi.shape[0])
-        rhs = self.G0[:, 0] * z[:, None] ** (-self.n) + self.G1[:, 0] * z[:, None] ** (-self.n - 1)
-        x = np.linalg.solve(z[:, None, None] * eye - self.Phi, rhs[:, :, None])[:, :, 0]
-        return x @ self.C[0]
+        A, B, C = self.state_space()
+        return discrete_response(A, B, C, 0.0, self.Ts, f_hz)
 
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A delay-free realisation ``(A, B, C)`` with the past commands as extra states.

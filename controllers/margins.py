@@ -58,7 +58,7 @@ import numpy as np
 
 from commission.controllers.arc import (P_FLEVEL, P_GAMMA, P_K1, P_TMAX, P_TMIN, P_TS, S_DYNAMIC, S_THETA,
                                         arc_new_state, arc_reset, arc_step)
-from commission.controllers.linear import SampledPlant
+from commission.controllers.linear import SampledPlant, discrete_response
 from commission.controllers.pid import G_FLEVEL, PID_DYNAMIC, pid_new_state, pid_reset, pid_step
 
 #: Relative step of the central differences (states scaled by their response to 1 um).
@@ -83,12 +83,7 @@ class LinearController:
 
     def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
         """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m."""
-        f = np.atleast_1d(np.asarray(f_hz, dtype=float))
-        z = np.exp(1j * 2.0 * np.pi * f * self.Ts)
-        eye = np.eye(self.Ac.shape[0])
-        rhs = np.broadcast_to(self.Bc.astype(complex), (z.size, *self.Bc.shape))
-        x = np.linalg.solve(z[:, None, None] * eye - self.Ac, rhs)[:, :, 0]
-        return x @ self.Cc[0] + self.Dc
+        return discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f_hz)
 
 
 def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,

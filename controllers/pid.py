@@ -41,7 +41,8 @@ NG = 9
 # Layout of the state vector.
 S_YPREV = 0  # previous measured position, m
 S_INT = 1  # integral of e, m s
-NS = 2
+S_FAULT = 2  # 0, or 1 once an input was not finite (latched until pid_reset)
+NS = 3
 #: The entries of the state carrying the dynamics (what a linearisation perturbs).
 PID_DYNAMIC = (S_YPREV, S_INT)
 
@@ -139,6 +140,7 @@ def pid_reset(p, s, y0):
     """Start at rest at the measured position ``y0`` (m): zero velocity and integral."""
     s[S_YPREV] = y0
     s[S_INT] = 0.0
+    s[S_FAULT] = 0.0
 
 
 @njit(cache=True)
@@ -159,8 +161,15 @@ def pid_step(p, s, y, qd, dqd, ddqd):
     Returns
     -------
     float
-        Command, u-unit.
+        Command, u-unit.  A non-finite input latches ``s[S_FAULT] = 1`` and the
+        step returns the safe command 0 until :func:`pid_reset` (the state keeps
+        its last good values).
     """
+    if s[S_FAULT] != 0.0:
+        return 0.0
+    if not (math.isfinite(y) and math.isfinite(qd) and math.isfinite(dqd) and math.isfinite(ddqd)):
+        s[S_FAULT] = 1.0
+        return 0.0
     Ts = p[G_TS]
     v = (y - s[S_YPREV]) / Ts
     e = y - qd

@@ -61,7 +61,21 @@ def test_output_limit_and_reset():
     assert pid_step(p, s, 1.0, 0.0, 0.0, 0.0) == -2.5
     assert pid_step(p, s, -1.0, 0.0, 0.0, 0.0) == 2.5
     pid_reset(p, s, 0.3)
-    assert s.tolist() == [0.3, 0.0]
+    assert s.tolist() == [0.3, 0.0, 0.0]  # y_prev, integral, no fault
+
+
+def test_non_finite_input_latches_the_safe_command():
+    g = PidGains(Ts=1e-3, M_hat=0.01, B_hat=0.1, Kp=100.0, Ki=10.0, Kd=1.0, u_max=2.5)
+    p = pid_pack(g)
+    s = pid_new_state(p)
+    pid_reset(p, s, 0.0)
+    assert pid_step(p, s, 1e-3, 0.0, 0.0, 0.0) != 0.0
+    kept = s.copy()
+    assert pid_step(p, s, math.nan, 0.0, 0.0, 0.0) == 0.0
+    assert s[2] == 1.0 and s[:2].tolist() == kept[:2].tolist()  # latched, state kept
+    assert pid_step(p, s, 1e-3, 0.0, 0.0, 0.0) == 0.0  # until pid_reset
+    pid_reset(p, s, 0.0)
+    assert pid_step(p, s, 1e-3, 0.0, 0.0, 0.0) != 0.0
 
 
 def test_gains_are_validated():

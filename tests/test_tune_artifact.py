@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from commission import tune as tune_mod
 from commission.cli.main import app
-from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.arc import RUNTIME_GUARDS, ArcGains, arc_pack
 from commission.controllers.pid import G_KD, PidGains, pid_pack
 from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
@@ -100,7 +100,8 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     pv = doc["provenance"]
     assert pv["ident_sha256"] == sha256_file(d / "ident.json")
     assert pv["log_sha256"] == "ab" * 32 and pv["seed"] == 3 and pv["created_utc"].endswith("Z")
-    assert set(doc["arc"]) == {f.name for f in dataclasses.fields(ArcGains)}
+    # the runtime guards are validate's, not tune's: absent from tuning.json (= off)
+    assert set(doc["arc"]) == {f.name for f in dataclasses.fields(ArcGains)} - set(RUNTIME_GUARDS)
     assert set(doc["pid"]) == {f.name for f in dataclasses.fields(PidGains)} | {"pole", "design_mass"}
     # the observer the controller runs: the paper's pole (200 rad/s: k1 = 400, k2 = 4e4) unless the
     # hold-out repair moved the defaulted pole, within OBSERVER_FACTOR_BOUNDS

@@ -200,3 +200,17 @@ def test_mode_and_delay_come_from_the_identification_and_the_spec_overrides_them
     assert p[P_MODE_HZ] == 0.0 and p[P_DELAY] == pytest.approx(1.5 / 2500.0)
     assert [s.name for s in scenario_matrix(ident, over, rng=np.random.default_rng(0), n_monte_carlo=0)
             if "robustness" in s.tags] == ["case1/delay+1", "case2/delay+1"]
+
+
+def test_encoder_noise_is_a_plant_option_drawn_the_same_for_a_scenario_name():
+    """[plant] noise_std (or ident.json's encoder.noise_std) reaches every scenario; its draws depend on the name only."""
+    ident = ref_ident(encoder={"quantization": 1e-6, "noise_std": 2e-7})
+    a = scenario_matrix(ident, default_spec(), rng=np.random.default_rng(0), n_monte_carlo=2)
+    assert {s.noise_std for s in a} == {2e-7}
+    n1, n2 = a[0].noise(5000), a[1].noise(5000)
+    assert np.array_equal(n1, scenario_matrix(ident, default_spec(), rng=np.random.default_rng(9),
+                                              n_monte_carlo=0)[0].noise(5000))
+    assert not np.array_equal(n1, n2) and np.std(n1) == pytest.approx(2e-7, rel=0.05)
+    quiet = scenario_matrix(ident, spec_from_mapping({"plant": {"noise_std": 0.0}}), rng=np.random.default_rng(0),
+                            n_monte_carlo=0)
+    assert all(s.noise(100) is None for s in quiet)
