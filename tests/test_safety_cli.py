@@ -391,7 +391,8 @@ def test_a_gate_that_switches_off_a_floor_emits_no_controller(tuned, tmp_path, h
     # The loose gate file's own criteria all pass: what refuses is a floor (and, where the loop
     # itself is broken, the spec's stability-margin floors, which gate.toml cannot set either).
     assert any(c["criterion"].startswith("floor:") for c in failures)
-    assert all(c["criterion"].startswith("floor:") or c["criterion"] == "margins" for c in failures), failures
+    if how == "u_max_null":  # without caps, or with x10 gains, the loop may diverge: the gate's indexes fail too
+        assert all(c["criterion"].startswith("floor:") or c["criterion"] == "margins" for c in failures), failures
 
 
 @pytest.fixture(scope="module")
