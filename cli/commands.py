@@ -1,7 +1,23 @@
-"""Command registry: one import per command module."""
-from commission.cli import paper_cmd  # noqa: F401
-from commission.cli import identify_cmd  # noqa: F401
-from commission.cli import validate_cmd  # noqa: F401
-from commission.cli import run_cmd  # noqa: F401
-from commission.cli import tune_cmd  # noqa: F401
-from commission.cli import export_cmd  # noqa: F401
+"""Command registry: name -> (module, one-line help), in pipeline order.
+
+``commission --help`` lists these lines without importing any module (the
+numerics load only when a command runs: :class:`commission.cli.main.LazyGroup`).
+Each module registers its command on :data:`commission.cli.main.app` when imported.
+"""
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "identify": ("commission.cli.identify_cmd",
+                 "Identify M, B, friction and offset from a position-only excitation log; write ident.json."),
+    "tune": ("commission.cli.tune_cmd",
+             "Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis."),
+    "validate": ("commission.cli.validate_cmd",
+                 "Simulate ARC and PID on every scenario; write controller.json only if every gate passes "
+                 "(else exit 1)."),
+    "run": ("commission.cli.run_cmd",
+            "Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate "
+            "passes, else 1."),
+    "export": ("commission.cli.export_cmd",
+               "Write the validated controller.json's step as C99 (header, source, test vectors, replay program)."),
+    "paper-table": ("commission.cli.paper_cmd",
+                    "Simulate Sets 1-3 and Case 2 with the paper's PID and ARC; print Table 1."),
+}

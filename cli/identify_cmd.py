@@ -13,6 +13,7 @@ from rich.table import Table
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
+from commission.files import Outputs
 from commission.identification import BoundsOptions, IdentifyOutcome, identify_log, payload_from_kg
 from commission.jsonio import write_json_atomic
 from commission.logs import parse_mapping
@@ -24,6 +25,8 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
+#: Figures of ``--plot`` (:func:`commission.cli.plots.identification_plots`).
+PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
                "default m. Refused when it contradicts the file's attribute.")
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
@@ -136,25 +139,34 @@ def identify_command(
     force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
     disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
     log_format: Optional[str] = typer.Option(None, "--format", help="Force the log format: hdf5, csv, mat or epos (default: from the content, then the extension)."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""
     bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
                             payload_max_kg, force_constant, disturbance_bound)
     mapping = parse_mapping(map_)
+    # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
+    outputs = Outputs(force=force, inputs=(log, validate_on))
+    outputs.add_file(out, "--out")
+    if plot is not None:
+        outputs.add_dir(plot, PLOT_NAMES, "--plot")
     console = Console(stderr=False)
-    with console.status("identifying ...", spinner="dots"):
-        outcome = identify_log(
-            str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-            friction=friction.value, ripple_pitch=ripple_pitch,
-            validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
-            q_unit=q_unit, fmt=log_format,
-        )
-    write_json_atomic(out, outcome.ident.to_dict())
+    with outputs:
+        with console.status("identifying ...", spinner="dots"):
+            outcome = identify_log(
+                str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+                friction=friction.value, ripple_pitch=ripple_pitch,
+                validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
+                q_unit=q_unit, fmt=log_format,
+            )
+        write_json_atomic(outputs.path(out), outcome.ident.to_dict())
+        figures = []
+        if plot is not None:
+            from commission.cli.plots import identification_plots
+
+            figures = [outputs.final(p) for p in identification_plots(outcome, outputs.staging(plot))]
     print_summary(outcome, console)
     console.print(f"wrote {out}")
-    if plot is not None:
-        from commission.cli.plots import identification_plots
-
-        for p in identification_plots(outcome, plot):
-            console.print(f"wrote {p}")
+    for p in figures:
+        console.print(f"wrote {p}")

@@ -1,38 +1,277 @@
-"""Entry point of the ``commission`` console script."""
+"""Entry point of the ``commission`` console script.
+
+Start-up is kept light: this module imports typer and nothing numeric.  Each
+command's module (and with it numpy, scipy, numba, h5py, matplotlib) is
+imported only when that command runs or its own help is asked for
+(:class:`LazyGroup`), so that ``commission --help`` answers at once
+(``benchmarks/bench_cli_help.py``).
+
+:func:`main` is the one place that decides how the process ends (CONTRACT §4):
+
+* ``0`` success, ``1`` a validation gate failed, ``2`` bad input or usage:
+  one line on stderr naming the file, field or flag
+  (:func:`commission.cli.errors.cli_errors` for the tool's own errors, a
+  one-line rendering of click's usage errors here);
+* anything unexpected is a bug: one line on stderr saying so, with the path
+  of a log file that holds the traceback, and exit ``2``; never a traceback
+  on stderr (``--verbose`` adds it);
+* Ctrl-C exits ``130`` and SIGTERM ``143`` (128 + the signal) with one line,
+  at any moment including start-up; the outputs are then either untouched or
+  complete (:class:`commission.files.Outputs`).
+"""
 
 from __future__ import annotations
 
-import typer
+import os
+import signal
+import sys
 
-from commission import __version__
+
+# Ctrl-C during start-up: commission/__init__.py installs a handler (console script only)
+# before any import takes time; run() replaces it once the command line is parsed.
+
+import importlib  # noqa: E402
+import time  # noqa: E402
+from typing import Any, Optional  # noqa: E402
+
+import typer  # noqa: E402
+import typer.core  # noqa: E402
+import typer.main  # noqa: E402
+# typer >= 0.29 carries its own adapted copy of click; these are its names.
+from typer._click.core import Command as _Command, Context as _Context  # noqa: E402
+from typer._click.exceptions import ClickException, UsageError  # noqa: E402
+
+from commission import __version__  # noqa: E402
+from commission.cli import commands  # noqa: E402
+from commission.cli import verbosity  # noqa: E402
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(BaseException):
+    """Raised in the main thread on SIGTERM, so that ``finally`` blocks and :class:`Outputs` clean up."""
+
+
+#: ``-h`` as an alias of ``--help``, for the group and every command.
+HELP_SETTINGS = {"help_option_names": ["-h", "--help"]}
+
+
+def _type_label(p: Any, ctx: _Context) -> str:
+    if getattr(p, "is_flag", False) or getattr(p, "is_bool_flag", False):
+        return ""
+    shown = str(p.display_type(ctx) or "").strip()
+    if shown.startswith("<") and shown.endswith(">"):
+        shown = shown[1:-1]
+    if shown.startswith("list[") and shown.endswith("]"):
+        shown = shown[5:-1]
+    if "|" in shown:
+        return shown
+    return {"str": "TEXT", "int": "INTEGER", "bool": ""}.get(shown, shown.upper())
+
+
+def _readable_metavars(cmd: _Command) -> _Command:
+    """Click-style metavars (``PATH``, ``FLOAT``, ``TEXT``, ``auto|coulomb|stribeck``, ``LOG``) instead
+    of typer's ``<path>``, ``<list[str]>``, ``{log}``; flags show none."""
+    ctx = _Context(cmd, **HELP_SETTINGS)
+    for p in cmd.get_params(ctx):
+        if getattr(p, "_readable", False):
+            continue
+        label = _type_label(p, ctx)
+        p.display_type_rich = lambda ctx=None, _label=label: _label
+        if isinstance(p, typer.core.TyperArgument):
+            name = (p.name or "arg").upper()
+            p.metavar = name
+            p._usage_display_name = lambda _n=name, _req=p.required: _n if _req else f"[{_n}]"
+        p._readable = True
+    return cmd
+
+
+class LazyGroup(typer.core.TyperGroup):
+    """The command group, importing a command's module only when that command is needed.
+
+    Commands are listed in pipeline order (:data:`commission.cli.commands.COMMANDS`);
+    ``commission --help`` takes their one-line help from that table, so it imports
+    none of them.
+    """
+
+    def list_commands(self, ctx: _Context) -> list[str]:
+        extra = [n for n in super().list_commands(ctx) if n not in commands.COMMANDS]
+        return [*commands.COMMANDS, *extra]
+
+    def get_command(self, ctx: _Context, name: str) -> Optional[_Command]:
+        if name in commands.COMMANDS and name not in self.commands:
+            module, _short = commands.COMMANDS[name]
+            importlib.import_module(module)  # registers the command on ``app``
+            for info in app.registered_commands:
+                if info.name == name:
+                    self.add_command(typer.main.get_command_from_info(
+                        info, pretty_exceptions_short=app.pretty_exceptions_short,
+                        rich_markup_mode=app.rich_markup_mode), name)
+                    break
+        cmd = super().get_command(ctx, name)
+        if cmd is not None and not isinstance(cmd, _Placeholder):
+            # also for a command typer built itself (its module was imported before this group)
+            if "help_option_names" not in (cmd.context_settings or {}):
+                cmd.context_settings = {**HELP_SETTINGS, **(cmd.context_settings or {})}
+            _readable_metavars(cmd)
+        return cmd
+
+    def format_help(self, ctx: _Context, formatter: Any) -> None:
+        # typer's rich help asks every command for its help text, which would import them all:
+        # register light placeholders carrying the one-line help instead.
+        for n, (_module, short) in commands.COMMANDS.items():
+            if n not in self.commands:
+                self.commands[n] = _Placeholder(n, short)
+        _readable_metavars(self)
+        try:
+            super().format_help(ctx, formatter)
+        finally:
+            for n in list(self.commands):
+                if isinstance(self.commands[n], _Placeholder):
+                    del self.commands[n]
+
+
+class _Placeholder(typer.core.TyperCommand):
+    """A command's name and one-line help, for the group's help page only."""
+
+    def __init__(self, name: str, short: str) -> None:
+        super().__init__(name, help=short, short_help=short)
+
 
 app = typer.Typer(
     name="commission",
-    help="Commission a precision linear-motor axis: identify -> tune -> validate (Xu & Yao 2001 ARC).",
+    help="Commission a precision linear-motor axis: identify -> tune -> validate -> run (Xu & Yao 2001 ARC).",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    add_completion=False,
+    add_completion=True,
+    cls=LazyGroup,
+    context_settings=HELP_SETTINGS,
 )
 
 
 @app.callback(invoke_without_command=True)
 def _root(
     version: bool = typer.Option(False, "--version", help="Print the version and exit."),
+    quiet: bool = typer.Option(False, "--quiet", "-q",
+                               help="Print only errors and warnings: no tables, progress bars or 'wrote' lines."),
+    verbose: bool = typer.Option(False, "--verbose", "-v",
+                                 help="Also print the elapsed time, and the traceback of an internal error."),
 ) -> None:
     if version:
         typer.echo(__version__)
         raise typer.Exit(0)
+    if quiet and verbose:
+        raise UsageError("--quiet and --verbose exclude each other")
+    verbosity.set_level(verbosity.QUIET if quiet else verbosity.VERBOSE if verbose else verbosity.NORMAL)
 
 
-def _register() -> None:
-    # Each command module adds itself to ``app``; imported here so that
-    # ``commission --help`` lists every command.
-    from commission.cli import commands  # noqa: F401
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
 
 
-_register()
+def _crash_log(exc: BaseException) -> str:
+    """Write the traceback of an unexpected error to a log file; return its path."""
+    import tempfile
+    import traceback
+
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    fd, path = tempfile.mkstemp(prefix=f"commission-crash-{stamp}-", suffix=".log")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(f"commission {__version__}, python {sys.version.split()[0]}\n")
+        fh.write(f"argv: {sys.argv!r}\n\n")
+        fh.write("".join(traceback.format_exception(type(exc), exc, exc.__traceback__)))
+    return path
+
+
+def _internal_error(exc: BaseException) -> int:
+    what = "out of memory" if isinstance(exc, MemoryError) else f"internal error ({type(exc).__name__}: {exc})"
+    what = " ".join(what.split())[:300]
+    try:
+        where = f"please report it with the log {_crash_log(exc)}"
+    except OSError as log_exc:
+        where = f"please report it (the log could not be written: {log_exc.strerror or log_exc})"
+    if verbosity.level() >= verbosity.VERBOSE:
+        import traceback
+
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    sys.stderr.write(f"error: {what}; {where}\n")
+    return 2
+
+
+def run(argv: list[str] | None = None) -> int:
+    """Run the command line on ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler), signal.signal(signal.SIGTERM, _on_sigterm)
+    old_hook = sys.unraisablehook
+    swallowed: list[BaseException] = []
+
+    def unraisable(u: Any) -> None:
+        # A signal's exception raised inside a finaliser (__del__, a weakref callback) cannot
+        # propagate: note it quietly instead of printing "Exception ignored ... Traceback", and end
+        # with its exit code once the command is done (its outputs are then complete).
+        if isinstance(u.exc_value, (KeyboardInterrupt, Terminated)):
+            swallowed.append(u.exc_value)
+        else:
+            old_hook(u)
+
+    sys.unraisablehook = unraisable
+    start = time.perf_counter()
+    try:
+        cmd = typer.main.get_command(app)
+        rc: Any = cmd.main(args=argv, prog_name="commission", standalone_mode=False)
+        code = rc if isinstance(rc, int) else 0
+        if code == EXIT_INTERRUPTED:  # typer turns a KeyboardInterrupt into this code itself
+            _say("interrupted: no output written or replaced")
+    except typer.Exit as exc:
+        code = exc.exit_code
+    except ClickException as exc:  # usage errors: one line naming the flag
+        msg = " ".join(exc.format_message().split())
+        sys.stderr.write(f"error: {msg} (see commission {_sub(argv)}--help)\n")
+        code = 2
+    except (typer.Abort, KeyboardInterrupt):
+        _say("interrupted: no output written or replaced")
+        code = EXIT_INTERRUPTED
+    except Terminated:
+        _say("terminated: no output written or replaced")
+        code = EXIT_TERMINATED
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    except Exception as exc:  # noqa: BLE001 - the one place that catches what escapes
+        code = _internal_error(exc)
+    finally:
+        sys.unraisablehook = old_hook
+        verbose = verbosity.level() >= verbosity.VERBOSE
+        verbosity.restore_stdout()
+        signal.signal(signal.SIGINT, old[0])
+        signal.signal(signal.SIGTERM, old[1])
+    if swallowed and code in (0, 1):
+        term = isinstance(swallowed[0], Terminated)
+        _say(f"{'terminated' if term else 'interrupted'} after the outputs were complete")
+        code = EXIT_TERMINATED if term else EXIT_INTERRUPTED
+    if verbose:
+        sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
+    return code
+
+
+def _say(line: str) -> None:
+    # Straight to the file descriptor: a progress display may still hold sys.stderr.
+    try:
+        os.write(2, f"{line}\n".encode())
+    except OSError:
+        pass
+
+
+def _sub(argv: list[str] | None) -> str:
+    args = sys.argv[1:] if argv is None else argv
+    sub = next((a for a in args if a in commands.COMMANDS), None)
+    return f"{sub} " if sub else ""
 
 
 def main() -> None:
     """Console-script entry."""
-    app()
+    code = run()
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):  # a closed pipe (commission ... | head): nothing more to say
+        pass
+    sys.exit(code)

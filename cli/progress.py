@@ -6,6 +6,7 @@ from typing import Callable
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+from commission.cli import verbosity
 
 
 class StageProgress:
@@ -31,6 +32,8 @@ class StageProgress:
 
     def update(self, stage: str, done: int, total: int) -> None:
         """Report ``done`` of ``total`` steps of ``stage``."""
+        if verbosity.level() == verbosity.QUIET:
+            return
         if self._bar is None:
             if done <= 0:
                 return  # nothing done yet: inputs may still be refused

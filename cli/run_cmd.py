@@ -13,7 +13,8 @@ from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.identify_cmd import FRICTION_HELP, Q_UNIT_HELP, Friction, bounds_options
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.cli.validate_cmd import print_summary
+from commission.cli.validate_cmd import SIGN_KEY_HELP, print_summary
+from commission.controller_config import load_sign_key
 from commission.logs import parse_mapping
 from commission.tune import pid_pole_note
 from commission.pipeline import run_all
@@ -35,7 +36,8 @@ def run_command(
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
     seed: int = typer.Option(0, "--seed", help="Seed of the tuning search and of the Monte-Carlo plants."),
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
+    sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
     u_unit: Optional[str] = typer.Option(None, "--u-unit", help="As identify: unit of u after --input-gain."),
     ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="As identify: force-ripple pitch in m."),
     validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="As identify: second log for the cross-test relative error."),
@@ -65,8 +67,8 @@ def run_command(
         outcome = run_all(log, out_dir, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                           friction=friction.value, q_unit=q_unit, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
-                          u_unit=u_unit, ripple_pitch=ripple_pitch, validate_on=validate_on, bounds=bounds,
-                          fmt=log_format)
+                          sign_key=load_sign_key(sign_key), u_unit=u_unit, ripple_pitch=ripple_pitch,
+                          validate_on=validate_on, bounds=bounds, fmt=log_format)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
         err.print(f"warning: {w}", highlight=False)
     pid_note = pid_pole_note(outcome.validation.tuning)

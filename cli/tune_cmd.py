@@ -13,6 +13,8 @@ from rich.table import Table
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
+from commission.files import Outputs
+from commission.spec import check_flags
 from commission.tune import load_tune_inputs, pid_chatter, pid_pole_note, run_tune
 from commission.tuning import Tuning
 
@@ -100,15 +102,19 @@ def tune_command(
     out: Path = typer.Option(..., "--out", help="Where to write tuning.json."),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Spec TOML (see above; default: the paper's setting)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the gain search (results are deterministic for a seed)."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file."),
 ) -> None:
     out_console = Console()
     err = Console(stderr=True)
+    check_flags(workers=workers)
     inputs = load_tune_inputs(ident, spec_path=spec, seed=seed)  # every check before any simulation
+    outputs = Outputs(force=force, inputs=(ident, spec))
+    outputs.add_file(out, "--out")
     for note in inputs.notes:
         err.print(f"note: {note}", highlight=False)
-    with StageProgress(err) as bar:
-        t = run_tune(ident, out, progress=bar.callback("tuning"), workers=workers, inputs=inputs)
+    with outputs, StageProgress(err) as bar:  # locked and proved writable before the search
+        t = run_tune(ident, outputs.path(out), progress=bar.callback("tuning"), workers=workers, inputs=inputs)
     print_summary(t, out_console)
     out_console.print(f"wrote {out}", highlight=False)
     pid_note = pid_pole_note(t)

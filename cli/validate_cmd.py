@@ -12,8 +12,13 @@ from rich.console import Console
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
+from commission.controller_config import load_sign_key
 from commission.report import summary_text
 from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
+
+
+SIGN_KEY_HELP = ("Key file: sign controller.json with HMAC-SHA256 (default: the file named by $COMMISSION_SIGN_KEY; "
+                 "load_controller(path, key=...) then refuses files not signed with it).")
 
 
 def print_summary(result: ValidationResult) -> None:
@@ -35,8 +40,9 @@ def validate_command(
     gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults; see commission.gate)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
     seed: int = typer.Option(0, "--seed", help="Seed of the Monte-Carlo plants."),
-    monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads (default: one per CPU)."),
+    monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box (0-10000)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
+    sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
 ) -> None:
     """Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
 
@@ -45,9 +51,11 @@ def validate_command(
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
+    key = load_sign_key(sign_key)
     with StageProgress(err) as bar:
         outcome = run_validate(tuning, out_dir, gate_path=gate, force=force, seed=seed, n_monte_carlo=monte_carlo,
-                               progress=bar.callback("simulating"), workers=workers, figures=validation_plots)
+                               progress=bar.callback("simulating"), workers=workers, figures=validation_plots,
+                               sign_key=key)
     print_summary(outcome.result)
     for p in outcome.written:
         typer.echo(f"wrote {p}")

@@ -31,27 +31,54 @@ validated against and where it came from::
     checksum           {"algorithm": "sha256", "value": hex}: sha256 of the canonical JSON
                        (sorted keys, 2-space indent) of every other field
 
-``null`` stands for infinity where a limit may be absent (eps: term off;
-k1s_max, k2s_max, u_max: no cap).  Numbers round-trip exactly through JSON
-(shortest repr), so the loaded controller packs to the very vector validate
-simulated.
+    signature          optional {"algorithm": "hmac-sha256", "value": hex}: a keyed
+                       signature of every field but checksum and signature
+
+``null`` stands for infinity where a term may be off (eps11 ... eps22).  The
+output limit ``u_max`` and the gain caps ``k1s_max``, ``k2s_max`` are always
+finite: this tool never emits a controller without them, and
+:meth:`ControllerConfig.from_dict` refuses a file where they are null.
+Numbers round-trip exactly through JSON (shortest repr), so the loaded
+controller packs to the very vector validate simulated.
+
+What the checksum protects, and what it does not
+------------------------------------------------
+The checksum is an unkeyed sha256 of the file's own content.  It detects
+accidental damage -- a truncated copy, a flipped bit, a hand edit that forgot
+to recompute it -- and then the file is refused.  It does **not** show who
+wrote the file: anyone can edit a number and recompute the sha256.  A site that
+must refuse controllers it did not produce signs them: ``commission validate``
+and ``run`` with ``--sign-key KEYFILE`` (or the environment variable
+:data:`SIGN_KEY_ENV` naming the key file) add an HMAC-SHA256 signature under a
+secret key, and ``load_controller(path, key=...)`` refuses a file that is
+unsigned, signed under another key, or edited after signing.  The key must stay
+secret (anyone holding it can sign); the signature says nothing about whether
+the gains are good, only that a holder of the key emitted them.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import hmac
 import math
+import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
-from commission.errors import SchemaError
-from commission.jsonio import Reader, read_json, sha256_json
+from commission.errors import SchemaError, UsageError
+from commission.jsonio import Reader, canonical_json, read_json, sha256_json
 
 CONTROLLER_KIND = "controller"
 CONTROLLER_SCHEMA_VERSION = 1
 CONTROLLER_TYPE = "arc-output-feedback"
 CHECKSUM_ALGORITHM = "sha256"
+SIGNATURE_ALGORITHM = "hmac-sha256"
+#: Environment variable naming the signing key file (``--sign-key`` takes precedence).
+SIGN_KEY_ENV = "COMMISSION_SIGN_KEY"
+#: Shortest accepted key, bytes (HMAC-SHA256 keys should carry at least 128 bits).
+MIN_KEY_BYTES = 16
 
 #: ArcGains fields by section of controller.json (every field exactly once, Ts aside).
 SECTIONS: dict[str, tuple[str, ...]] = {
@@ -64,8 +91,10 @@ SECTIONS: dict[str, tuple[str, ...]] = {
 _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
 #: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
 RUNTIME_FIELDS = RUNTIME_GUARDS
-_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max",
-           "dy_max", "dy_fault", "n_reject_max", "e_max")
+#: May be null (infinite): a robust term switched off, a runtime guard off.
+_INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max")
+#: Limits that must be finite in a controller.json (null refused unless ``allow_unbounded``).
+LIMITS = ("u_max", "k1s_max", "k2s_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
 #: Allowed relative mismatch between sample_period and 1/sample_rate.
 _PERIOD_RTOL = 1e-9
@@ -143,22 +172,40 @@ class ControllerConfig:
         doc["provenance"] = self.provenance.to_dict()
         return doc
 
-    def to_dict(self) -> dict[str, Any]:
-        """The document written to disk: :meth:`body` plus its checksum."""
+    def to_dict(self, sign_key: bytes | None = None) -> dict[str, Any]:
+        """The document written to disk: :meth:`body`, its signature under ``sign_key`` if given,
+        and its checksum (module docstring)."""
         doc = self.body()
+        if sign_key is not None:
+            doc["signature"] = {"algorithm": SIGNATURE_ALGORITHM, "value": _hmac(sign_key, doc)}
         doc["checksum"] = {"algorithm": CHECKSUM_ALGORITHM, "value": sha256_json(doc)}
         return doc
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "controller.json") -> "ControllerConfig":
-        """Strict load: the schema, then the checksum; errors name the JSON path.
+    def from_dict(cls, data: Any, source: str = "controller.json", *, key: bytes | None = None,
+                  allow_unbounded: bool = False) -> "ControllerConfig":
+        """Strict load: the schema, then the checksum, then (``key`` given) the signature.
+
+        Parameters
+        ----------
+        data : object
+            The parsed JSON.
+        source : str
+            File name for the messages.
+        key : bytes, optional
+            The site's signing key: the file must carry a valid HMAC-SHA256 signature under it.
+        allow_unbounded : bool
+            Accept null ``u_max``, ``k1s_max``, ``k2s_max`` (infinite limits).  Only for
+            ``validate``'s round trip of a tuning, whose floors then refuse to emit it.
 
         Raises
         ------
         SchemaError
             ``controller.json: $.gains.g1: ...`` naming the first field that is
-            missing, mistyped or out of range, or ``controller.json: $.checksum:
-            ...`` when the content does not match its checksum (edited or corrupted).
+            missing, mistyped or out of range (a null or non-finite limit
+            included), ``controller.json: $.checksum: ...`` when the content does
+            not match its checksum (edited or corrupted), or ``$.signature: ...``
+            when a key is given and the file is unsigned or signed under another key.
         """
         r = Reader(data, "$", source)
         r.header(CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION)
@@ -166,7 +213,8 @@ class ControllerConfig:
         if ctype != CONTROLLER_TYPE:
             raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
         known = {"kind", "schema_version", "controller", "sample_rate", "sample_period", "units",
-                 "friction_compensation", "validated", "provenance", "checksum", "runtime", *SECTIONS}
+                 "friction_compensation", "validated", "provenance", "checksum", "signature", "runtime",
+                 *SECTIONS}
         for k in r.keys():
             if k not in known:
                 raise r.fail("unknown field", f"$.{k}")
@@ -188,6 +236,14 @@ class ControllerConfig:
                     kw[n] = sr.vec(n, 3)
                 elif n in _INF_OK and sr.child(n).data is None:
                     kw[n] = math.inf
+                elif n in LIMITS and allow_unbounded and sr.child(n).data is None:
+                    kw[n] = math.inf
+                elif n in LIMITS:
+                    v = sr.child(n).data
+                    if v is None:
+                        raise sr.fail(f"null: a controller without a finite {n} is refused (no limit)",
+                                      f"{sr.path}.{n}")
+                    kw[n] = sr.num(n, positive=True)
                 else:
                     kw[n] = sr.num(n)
         fr = r.obj("friction_compensation")
@@ -219,12 +275,13 @@ class ControllerConfig:
             created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
         )
         verify_checksum(data, source)
+        verify_signature(data, source, key)
         return cls(gains=gains, sample_rate=rate, units=units, validated=validated, provenance=prov)
 
     @classmethod
-    def load(cls, path: str) -> "ControllerConfig":
-        """Read and strictly validate ``controller.json``."""
-        return cls.from_dict(read_json(path), source=str(path))
+    def load(cls, path: str, key: bytes | None = None) -> "ControllerConfig":
+        """Read and strictly validate ``controller.json`` (and its signature under ``key``, if given)."""
+        return cls.from_dict(read_json(path), source=str(path), key=key)
 
 
 _RUNTIME_DEFAULTS = {f.name: f for f in dataclasses.fields(ArcGains) if f.name in RUNTIME_FIELDS}
@@ -276,3 +333,71 @@ def verify_checksum(data: Any, source: str = "controller.json") -> None:
     if actual != value:
         raise cr.fail(f"mismatch: the file says {value!s:.16}..., its content hashes to {actual[:16]}...; "
                       f"the file was edited or corrupted after validation", "$.checksum")
+
+
+def _hmac(key: bytes, doc: Mapping[str, Any]) -> str:
+    """HMAC-SHA256 (hex) of the canonical JSON of ``doc`` without its checksum and signature."""
+    body = {k: v for k, v in doc.items() if k not in ("checksum", "signature")}
+    return hmac.new(key, canonical_json(body).encode(), hashlib.sha256).hexdigest()
+
+
+def verify_signature(data: Any, source: str = "controller.json", key: bytes | None = None) -> None:
+    """Check ``$.signature``: well-formed when present; valid under ``key`` when a key is given.
+
+    Raises
+    ------
+    SchemaError
+        A malformed signature; with a key: no signature (unsigned), or one that
+        does not match (signed under another key, or edited after signing).
+    """
+    r = Reader(data, "$", source)
+    if "signature" not in r.keys():
+        if key is not None:
+            raise r.fail("missing: the file is not signed, and a signing key was given", "$.signature")
+        return
+    sr = r.obj("signature")
+    for k in sr.keys():
+        if k not in ("algorithm", "value"):
+            raise sr.fail("unknown field", f"$.signature.{k}")
+    algo = sr.str_("algorithm")
+    if algo != SIGNATURE_ALGORITHM:
+        raise sr.fail(f"unsupported algorithm {algo!r} (expected {SIGNATURE_ALGORITHM!r})", "$.signature.algorithm")
+    value = sr.str_("value")
+    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
+        raise sr.fail(f"expected 64 lowercase hex digits, got {value!r}", "$.signature.value")
+    if key is None:
+        return
+    try:
+        expected = _hmac(key, data)
+    except ValueError as exc:  # NaN or inf smuggled into the file
+        raise r.fail(f"content is not canonical JSON ({exc})", "$") from None
+    if not hmac.compare_digest(expected, value):
+        raise sr.fail("does not match the signing key: signed under another key, or edited after signing",
+                      "$.signature")
+
+
+def load_sign_key(path: str | os.PathLike[str] | None = None, *, flag: str = "--sign-key") -> bytes | None:
+    """The signing key: the file ``path``, else the file named by :data:`SIGN_KEY_ENV`, else None.
+
+    The key is the file's bytes without trailing whitespace (a key written by
+    ``openssl rand -hex 32 > site.key`` ends in a newline); at least
+    :data:`MIN_KEY_BYTES` bytes.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing, not a regular file, or over 64 KiB.
+    UsageError
+        The key is shorter than :data:`MIN_KEY_BYTES`.
+    """
+    from commission.files import read_input_bytes
+
+    if path is None:
+        env = os.environ.get(SIGN_KEY_ENV)
+        if not env:
+            return None
+        path, flag = env, SIGN_KEY_ENV
+    key = read_input_bytes(path, 64 * 1024).rstrip()
+    if len(key) < MIN_KEY_BYTES:
+        raise UsageError(f"{flag} {os.fspath(path)}: the key has {len(key)} bytes; give at least {MIN_KEY_BYTES}")
+    return key

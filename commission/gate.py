@@ -19,6 +19,16 @@ first.
     arc_vs_pid_e_rms = 1.0  # ARC e_rms <= this factor x PID e_rms + arc_vs_pid_slack, scenario by scenario
     arc_vs_pid_slack = "0.2887 lsb"  # a length, as the error limits
 
+Floors
+------
+The gate decides what is *good enough*; the floors (:data:`FLOORS`) decide
+what may be *deployed at all*, and no ``gate.toml`` can lower them: no
+scenario diverges, the peak |u| stays below a finite ``u_max`` (the command
+never clipped), and ``u_max``, ``k1s_max``, ``k2s_max`` are finite.  A gate that
+switches a criterion off (``no_divergence = false``) or loosens it (``u_max =
+1e9``) still gives a report, but ``controller.json`` is written only when
+every floor holds.
+
 Errors are measured on the encoder (``e = y - q_d``, as in the paper).
 Error limits take a number (metres) or a string ``"<number> <unit>"`` with
 unit ``m``, ``mm``, ``um`` (or ``µm``), ``nm``, ``lsb`` (encoder steps of the
@@ -76,15 +86,11 @@ import math
 import os
 import re
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
-from commission.errors import InputFileError, SpecError
+from commission.errors import SpecError
+from commission.files import read_toml
 from commission.tuning import Score
-
-try:  # Python >= 3.11
-    import tomllib as _toml
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as _toml  # type: ignore[no-redef]
 
 DEFAULT_E_F_LSB = 30.0
 DEFAULT_E_F_TRAVEL = 1e-4
@@ -305,14 +311,7 @@ def load_gate(path: str | os.PathLike[str] | None) -> GateSpec:
     if path is None:
         return GateSpec()
     name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise InputFileError(f"{name}: no such file")
-    try:
-        with open(name, "rb") as fh:
-            data = _toml.load(fh)
-    except _toml.TOMLDecodeError as exc:
-        raise SpecError(f"{name}: not valid TOML ({exc})") from None
-    return gate_from_mapping(data, name)
+    return gate_from_mapping(read_toml(name), name)
 
 
 _DEFAULT_ERR = {
@@ -455,7 +454,8 @@ def _um(x: float) -> str:
     return f"{x * 1e6:.3g} um" if math.isfinite(x) else "n/a"
 
 
-def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> GateVerdict:
+def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]],
+                  floors: FloorContext | None = None) -> GateVerdict:
     """Check every criterion on every scenario.
 
     Parameters
@@ -464,6 +464,9 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
     runs : sequence of (scenario, arc, pid, t_abort)
         Scores of the ARC and the PID on each scenario, and the time (s) at
         which the ARC run aborted (NaN if it did not).
+
+    floors : FloorContext, optional
+        When given, the checks of every floor (:data:`FLOORS`) are part of the verdict.
 
     Returns
     -------
@@ -505,7 +508,107 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
             detail = (f"ARC {_um(arc.e_rms)} vs PID {_um(pid.e_rms)}: ratio {ratio:.3g} "
                       f"(limit {limits.arc_vs_pid_e_rms:.3g} x PID{slack})")
         checks.append(Check("arc_vs_pid_e_rms", name, ratio, limits.arc_vs_pid_e_rms, ok, detail))
+    if floors is not None:
+        checks.extend(check_floors(floors))
     return GateVerdict(tuple(checks), limits)
+
+
+# --------------------------------------------------------------------------- floors
+
+
+@dataclass(frozen=True)
+class FloorContext:
+    """What the floors look at.
+
+    Attributes
+    ----------
+    runs : sequence of (scenario, arc, t_abort)
+        The ARC's score on every scenario of the validation and the time (s) its run aborted
+        (NaN if it did not).
+    limits : mapping of str to float
+        The deployed controller's output and gain limits: ``u_max`` (u-unit), ``k1s_max``,
+        ``k2s_max`` (1/s); ``math.inf`` where absent.
+    drive_u_max : float
+        The drive's input limit the validation simulated (the tuning spec's ``controller.u_max``), u-unit.
+
+    A floor that needs more (the stability margins of the linearised sampled loop, say) adds
+    an optional field here and an entry in :data:`FLOORS`.
+    """
+
+    runs: Sequence[tuple[str, Score, float]]
+    limits: Mapping[str, float]
+    drive_u_max: float
+
+
+@dataclass(frozen=True)
+class Floor:
+    """A condition every emitted ``controller.json`` meets, whatever ``gate.toml`` says.
+
+    Attributes
+    ----------
+    name : str
+        Its checks are reported as criterion ``floor:<name>``.
+    rule : str
+        One line for the report and the documentation.
+    check : callable(FloorContext) -> list of Check
+        Every check of the floor (one per scenario, or one for the controller).
+    """
+
+    name: str
+    rule: str
+    check: Callable[[FloorContext], list[Check]]
+
+
+def _floor_no_divergence(ctx: FloorContext) -> list[Check]:
+    out = []
+    for name, arc, t_abort in ctx.runs:
+        out.append(Check("floor:no_divergence", name, t_abort if arc.diverged else math.nan, math.nan,
+                         not arc.diverged, f"ARC aborted at t = {t_abort:.4g} s" if arc.diverged
+                         else "ARC stayed bounded"))
+    return out
+
+
+def _floor_u_peak(ctx: FloorContext) -> list[Check]:
+    u_max = min(ctx.limits.get("u_max", math.inf), ctx.drive_u_max)
+    out = []
+    for name, arc, _t in ctx.runs:
+        # As the gate's u_peak: reaching the limit means the command relied on clipping.
+        ok = math.isfinite(u_max) and math.isfinite(arc.u_peak) and arc.u_peak < u_max * (1.0 - SATURATION_TOL)
+        out.append(Check("floor:u_peak", name, arc.u_peak, u_max, ok,
+                         f"peak |u| {arc.u_peak:.4g} (floor: below the finite u_max {u_max:.4g})"))
+    return out
+
+
+def _floor_finite_limits(ctx: FloorContext) -> list[Check]:
+    out = []
+    for key in ("u_max", "k1s_max", "k2s_max"):
+        v = ctx.limits.get(key, math.inf)
+        ok = math.isfinite(v) and v > 0
+        detail = f"{key} = {v:.4g}" if ok else f"{key} = {v}: the controller would have no {key} limit"
+        if key == "u_max" and ok and v > ctx.drive_u_max * (1.0 + SATURATION_TOL):
+            ok = False
+            detail = f"u_max = {v:.4g} exceeds the drive's limit {ctx.drive_u_max:.4g} that was validated"
+        out.append(Check("floor:finite_limits", key, v, math.nan, ok, detail))
+    return out
+
+
+#: The floors, in report order.  ``commission validate`` appends their checks to the gate's
+#: verdict, so a controller.json is written only when every floor holds, however loose
+#: ``gate.toml`` is.  Add a floor by appending a :class:`Floor` (and, if it needs new
+#: inputs, an optional field to :class:`FloorContext`).
+FLOORS: tuple[Floor, ...] = (
+    Floor("no_divergence", "no scenario may diverge (non-finite, |q - q_d| > travel, |u| > 1e6)",
+          _floor_no_divergence),
+    Floor("u_peak", "peak |u| below the controller's finite u_max (never clipped) on every scenario",
+          _floor_u_peak),
+    Floor("finite_limits", "u_max, k1s_max and k2s_max are finite and positive, u_max within the drive's",
+          _floor_finite_limits),
+)
+
+
+def check_floors(ctx: FloorContext) -> list[Check]:
+    """Every check of every floor of :data:`FLOORS`."""
+    return [c for f in FLOORS for c in f.check(ctx)]
 
 
 #: The loops whose margins the gate holds to the floors: the ARC on the identified plant

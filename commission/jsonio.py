@@ -16,7 +16,8 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from commission.errors import InputFileError, SchemaError, UsageError
+from commission.errors import SchemaError, UsageError
+from commission.files import MAX_JSON_BYTES, read_input_bytes
 
 
 def sha256_file(path: str | os.PathLike[str]) -> str:
@@ -78,14 +79,23 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, overwrite: bool
 
 
 def read_json(path: str | os.PathLike[str]) -> Any:
-    """Read a JSON file; a missing or malformed file raises one clear error."""
+    """Read a JSON file; a missing, oversized, non-regular or malformed file raises one clear error.
+
+    Raises
+    ------
+    InputFileError
+        Missing, a folder, FIFO or device, or larger than :data:`commission.files.MAX_JSON_BYTES`.
+    SchemaError
+        Not UTF-8, not JSON, or nested deeper than the parser's recursion limit.
+    """
     p = Path(path)
-    if not p.is_file():
-        raise InputFileError(f"{p}: no such file")
+    data = read_input_bytes(p, MAX_JSON_BYTES)  # a regular file of bounded size: no FIFO, no /dev/zero
     try:
-        return json.loads(p.read_text())
+        return json.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SchemaError(f"{p}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise SchemaError(f"{p}: not valid JSON (nested too deeply)") from None
 
 
 class Reader:

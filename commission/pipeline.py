@@ -21,8 +21,10 @@ from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.scenarios import resolve_quantization
 from commission.tuning import Tuning
+from commission.files import Outputs
+from commission.spec import check_flags
 from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWriter, Progress, ValidateOutcome,
-                                 check_out_dir, output_names, validate, write_outputs)
+                                 output_names, validate, write_outputs)
 
 IDENT_NAME = "ident.json"
 TUNING_NAME = "tuning.json"
@@ -54,16 +56,17 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
-            figures: FigureWriter | None = None, u_unit: str | None = None,
+            figures: FigureWriter | None = None, sign_key: bytes | None = None, u_unit: str | None = None,
             ripple_pitch: float | None = None, validate_on: str | os.PathLike[str] | None = None,
             bounds: BoundsOptions | None = None, fmt: str | None = None) -> RunOutcome:
     """``commission run``: identify, tune and validate one log into ``out_dir``.
 
-    Every check of the inputs (flags, spec, gate, the log, the spec against the
-    identified axis, the output folder) happens before anything is written;
-    the three stages then run in memory and the files -- ident.json,
-    tuning.json, validation.json, the figures, report.md and (gate passed)
-    controller.json -- are written at the end.  The files are byte for byte
+    Every check of the inputs (flags, spec, gate, the output folder, which is
+    then locked; then the log and the spec against the identified axis)
+    happens before anything is written; the three stages then run in memory
+    and the files -- ident.json, tuning.json, validation.json, the figures,
+    report.md and (gate and floors passed) controller.json -- are moved into
+    place together at the end (:class:`commission.files.Outputs`).  The files are byte for byte
     what ``commission identify``, ``tune`` and ``validate`` would write (up to
     time stamps): ident.json and tuning.json are round-tripped through their
     JSON form before the next stage uses them, and their sha256 are those of
@@ -91,6 +94,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     workers : int, optional
     figures : callable, optional
         As in :func:`run_validate`.
+    sign_key : bytes, optional
+        Signs controller.json (HMAC-SHA256).
     u_unit, ripple_pitch, validate_on, bounds, fmt
         As ``commission identify`` (``--u-unit``, ``--ripple-pitch``, ``--validate-on``, the
         bound flags, ``--format``); ``bounds`` default :class:`BoundsOptions`'s defaults.
@@ -100,23 +105,37 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     InputFileError, DataError, SchemaError, SpecError, UsageError
         Bad input (exit 2); nothing is written.
     """
-    from commission.artifacts import Identification
-    from commission.controllers.design import DesignError
-    from commission.identification import BoundsOptions, identify_log
-    from commission.jsonio import canonical_json, sha256_json
     from commission.spec import read_spec_toml, spec_from_mapping
-    from commission.tune import resolve_spec, tune_from, tune_inputs
 
-    if seed < 0:
-        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
-    if n_monte_carlo < 0:
-        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     gate = load_gate(gate_path)
     spec_data, spec_src = read_spec_toml(spec_path)
-    spec = spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
-    out = check_out_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), force)
+    spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
+    outputs = Outputs(force=force, inputs=(log_path, spec_path, gate_path))
+    out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), "--out-dir")
+    with outputs:  # locked and proved writable before any stage runs; moved into place at the end
+        written, result, tuning, notes = _stages(
+            log_path, out, outputs.staging(out), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+            friction=friction, q_unit=q_unit, spec_data=spec_data, spec_src=spec_src, gate=gate,
+            gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
+            figures=figures, sign_key=sign_key, u_unit=u_unit, ripple_pitch=ripple_pitch,
+            validate_on=validate_on, bounds=bounds, fmt=fmt)
+    ctrl = out / CONTROLLER_NAME
+    vo = ValidateOutcome(result, tuning, tuple(outputs.final(p) for p in written), ctrl if result.passed else None)
+    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
+
+
+def _stages(log_path, out: Path, staging: Path, *, mapping, input_gain, sample_rate, friction, q_unit,
+            spec_data, spec_src, gate, gate_path, seed, n_monte_carlo, progress, workers, figures, sign_key,
+            u_unit, ripple_pitch, validate_on, bounds, fmt):
+    """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
+    from commission.artifacts import Identification
+    from commission.controllers.design import DesignError
+    from commission.identification import BoundsOptions, identify_log
+    from commission.jsonio import canonical_json, sha256_json
+    from commission.tune import resolve_spec, tune_from, tune_inputs
 
     def stage(name: str) -> Progress:
         return lambda done, total: progress(name, done, total) if progress is not None else None
@@ -144,15 +163,12 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     tuning = Tuning.from_dict(json.loads(canonical_json(tuning_doc)), source=str(out / TUNING_NAME))
     result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
                       workers=workers)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(out / IDENT_NAME, ident_doc)
-    write_json_atomic(out / TUNING_NAME, tuning_doc)
-    written = write_outputs(result, tuning, sha256_json(tuning_doc), out, figures=figures,
+    write_json_atomic(staging / IDENT_NAME, ident_doc)
+    write_json_atomic(staging / TUNING_NAME, tuning_doc)
+    written = write_outputs(result, tuning, sha256_json(tuning_doc), staging, figures=figures,
                             sources={"tuning": str(out / TUNING_NAME),
-                                     "gate": os.fspath(gate_path) if gate_path else None})
-    ctrl = out / CONTROLLER_NAME
-    vo = ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
-    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
+                                     "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key)
+    return written, result, tuning, notes
 
 
 __all__ = ["run_all", "RunOutcome", "IDENT_NAME", "TUNING_NAME"]

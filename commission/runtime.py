@@ -123,8 +123,17 @@ class Controller:
         return float(arc_step(self._p, self._s, float(y), float(qd), float(dqd), float(ddqd)))
 
 
-def load_controller(path: str | os.PathLike[str]) -> Controller:
+def load_controller(path: str | os.PathLike[str], key: bytes | None = None) -> Controller:
     """Load ``controller.json`` and return a runnable :class:`Controller`.
+
+    Parameters
+    ----------
+    path : path
+    key : bytes, optional
+        The site's signing key (:func:`commission.controller_config.load_sign_key` reads a key
+        file): the file must then carry a valid HMAC-SHA256 signature under it.  Without a
+        key only the checksum is verified, which catches damage but not a deliberate edit
+        (see :mod:`commission.controller_config`).
 
     Raises
     ------
@@ -132,6 +141,8 @@ def load_controller(path: str | os.PathLike[str]) -> Controller:
         The file is missing.
     SchemaError
         The file is not valid JSON, a field is missing or out of range (the
-        message names its JSON path), or the checksum does not match.
+        message names its JSON path; a null or non-finite u_max, k1s_max or
+        k2s_max included), the checksum does not match, or -- with ``key`` --
+        the file is unsigned or its signature does not match the key.
     """
-    return Controller(ControllerConfig.load(os.fspath(path)))
+    return Controller(ControllerConfig.load(os.fspath(path), key=key))

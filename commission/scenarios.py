@@ -77,7 +77,7 @@ from commission.controllers.plant import (
     P_OFFSET,
     plant_vector,
 )
-from commission.spec import DEFAULT_QUANTIZATION, Spec
+from commission.spec import DEFAULT_QUANTIZATION, Spec, check_trajectory_samples
 
 #: Fraction of the run at which the disturbance step switches on / off (paper: 2.2 s, 7.2 s of 10 s).
 DISTURBANCE_ON = 0.22
@@ -398,6 +398,21 @@ def _variant(base: np.ndarray, variant: str, ident: Identification) -> np.ndarra
         for i in (P_B, P_FC, P_FS):
             p[i] *= k
     return p
+
+
+def check_run_length(spec: Spec, source: str, prefix: str = "") -> None:
+    """Refuse a spec whose Case 1 or Case 2 would exceed :data:`commission.spec.MAX_TRAJECTORY_SAMPLES`.
+
+    Called by ``tune`` (after the defaults were fitted to the axis) and ``validate``
+    (on tuning.json's spec) before any simulation.
+
+    Raises
+    ------
+    SpecError
+        Naming ``controller.sample_rate`` and the trajectory.
+    """
+    check_trajectory_samples(source, prefix, spec.sample_rate,
+                             {"Case 1": case1_trajectory(spec).duration, "Case 2": case2_trajectory(spec).duration})
 
 
 def disturbance_step(ident: Identification, duration: float) -> StepDisturbance:

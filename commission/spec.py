@@ -102,12 +102,8 @@ import os
 from dataclasses import asdict, dataclass
 from typing import Any, Mapping
 
-from commission.errors import InputFileError, SpecError
-
-try:  # Python >= 3.11
-    import tomllib as _toml
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as _toml  # type: ignore[no-redef]
+from commission.errors import SpecError, UsageError
+from commission.files import read_toml
 
 #: Default observer pole as a fraction of the sample rate: p = 0.08 f_s (rad/s per Hz).
 OBSERVER_POLE_FRACTION = 0.08
@@ -257,6 +253,97 @@ class Spec:
         return out
 
 
+#: Highest controller rate accepted, Hz (the paper: 2.5 kHz; drives run current loops at 10-40 kHz).
+MAX_SAMPLE_RATE = 100e3
+#: Most samples one simulated trajectory may hold (Case 1 or Case 2 at the controller rate):
+#: 100 s at 2.5 kHz, 12 times the paper's longest.  Every scenario of tune and validate
+#: keeps traces of this length, so this bounds their memory and time.
+MAX_TRAJECTORY_SAMPLES = 250_000
+
+#: Documented range of every number of the spec, (lowest, highest), both inclusive; the type
+#: and sign rules of ``_SCHEMA`` apply as well.  Checked before any work starts.
+RANGES: dict[tuple[str, str], tuple[float, float]] = {
+    ("controller", "sample_rate"): (1.0, MAX_SAMPLE_RATE),
+    ("controller", "u_max"): (1e-6, 1e6),
+    ("controller", "observer_pole"): (1e-3, 2 * math.pi * MAX_SAMPLE_RATE),
+    ("controller", "quantization"): (0.0, 1e-2),
+    ("controller", "theta1_0"): (1e-12, 1e12),
+    ("trajectory", "v_max"): (1e-6, 100.0),
+    ("trajectory", "a_max"): (1e-6, 1e5),
+    ("trajectory", "travel"): (1e-6, 100.0),
+    ("trajectory", "dwell"): (0.0, 60.0),
+    ("trajectory", "moves"): (1, 100),
+    ("trajectory", "beta1"): (1e-3, 1e6),
+    ("trajectory", "beta2"): (1e-3, 1e12),
+    ("targets", "e_rms"): (1e-12, 1.0),
+    ("targets", "e_f"): (1e-12, 1.0),
+    ("targets", "c_u"): (1e-6, 100.0),
+    ("pid", "pole"): (1e-3, 2 * math.pi * MAX_SAMPLE_RATE),
+    ("tune", "budget"): (1, 10_000),
+    ("tune", "monte_carlo"): (0, 1_000),
+    ("tune", "margin"): (1e-6, 0.5),
+    ("plant", "mode_hz"): (0.0, 1e5),
+    ("plant", "mode_damping"): (0.0, 10.0),
+    ("plant", "mode_ratio"): (1e-3, 1e3),
+    ("plant", "delay_samples"): (0.0, 20.0),
+    ("plant", "noise_std"): (0.0, 1e-2),
+    ("margins", "gain_db"): (1e-3, 40.0),
+    ("margins", "phase_deg"): (1e-3, 89.0),
+    ("margins", "delay_samples"): (1e-3, 20.0),
+    ("margins", "modulus"): (1e-3, 1.0),
+}
+
+
+#: Documented range of the numeric flags of tune, validate and run, (lowest, highest) inclusive.
+FLAG_RANGES: dict[str, tuple[int, int]] = {
+    "--seed": (0, 2**63 - 1),
+    "--monte-carlo": (0, 10_000),
+    "--workers": (1, 256),
+}
+
+
+def check_flags(**values: int | None) -> None:
+    """Refuse a flag outside :data:`FLAG_RANGES` (keyword = flag without dashes, ``_`` for ``-``).
+
+    Raises
+    ------
+    UsageError
+        ``--monte-carlo: must be an integer in [0, 10000], got 100000000``.
+    """
+    for key, v in values.items():
+        if v is None:
+            continue
+        flag = "--" + key.replace("_", "-")
+        lo, hi = FLAG_RANGES[flag]
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise UsageError(f"{flag}: must be an integer in [{lo}, {hi}], got {v!r}")
+
+
+def check_range(source: str, path: str, key: tuple[str, str], val: float, unit: str = "") -> None:
+    """Refuse a spec number outside its documented range (:data:`RANGES`), naming the key."""
+    lo, hi = RANGES[key]
+    if not lo <= val <= hi:
+        u = f" {unit}" if unit else ""
+        raise SpecError(f"{source}: {path} = {val!r}{u} is outside the accepted range [{lo:g}, {hi:g}]{u}")
+
+
+def check_trajectory_samples(source: str, prefix: str, sample_rate: float, durations: dict[str, float]) -> None:
+    """Refuse a rate and envelope whose trajectories exceed :data:`MAX_TRAJECTORY_SAMPLES`.
+
+    Parameters
+    ----------
+    durations : dict
+        Trajectory name -> duration, s (:func:`commission.scenarios.case1_trajectory`, ``case2_trajectory``).
+    """
+    for name, d in durations.items():
+        n = d * sample_rate
+        if not n <= MAX_TRAJECTORY_SAMPLES:
+            raise SpecError(
+                f"{source}: {prefix}controller.sample_rate = {sample_rate:g} Hz with a {name} trajectory of "
+                f"{d:.4g} s gives {n:.3g} samples per run, more than the {MAX_TRAJECTORY_SAMPLES} accepted; "
+                f"lower the rate, or trajectory.moves, dwell or travel, or raise v_max/a_max")
+
+
 # TOML key -> dataclass attribute where the names differ.
 _ATTR = {("pid", "pole"): "pid_pole",
          **{("plant", k): f"plant_{k}" for k in ("mode_hz", "mode_damping", "mode_ratio", "encoder", "delay_samples",
@@ -334,6 +421,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
                 raise _fail(source, path, f" = {val!r}{u} must be positive")
             if not positive and val < 0:
                 raise _fail(source, path, f" = {val!r}{u} must not be negative")
+            check_range(source, path, (section, key), val, unit)
             values[(section, key)] = val
 
     def get(section: str, key: str) -> Any:
@@ -345,6 +433,10 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         if values.get(("plant", key), 0.0) >= 1.0:
             raise _fail(source, f"{prefix}plant.{key}", f" = {values[('plant', key)]!r} must be below 1")
     fs = get("controller", "sample_rate")
+    if ("controller", "sample_rate") not in values:  # the default may come from ident.json's log rate
+        if not (isinstance(fs, (int, float)) and math.isfinite(fs) and fs > 0):
+            raise _fail(source, f"{prefix}controller.sample_rate", f" = {fs!r} Hz (the log's rate): not a positive rate")
+        check_range(source, f"{prefix}controller.sample_rate (the log's rate)", ("controller", "sample_rate"), fs, "Hz")
     obs_req = ("controller", "observer_pole") in values
     pid_req = ("pid", "pole") in values
     obs = get("controller", "observer_pole") if obs_req else OBSERVER_POLE_FRACTION * fs
@@ -418,13 +510,7 @@ def read_spec_toml(path: str | os.PathLike[str] | None) -> tuple[dict[str, Any],
     if path is None:
         return {}, "spec (defaults)"
     name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise InputFileError(f"{name}: no such file")
-    try:
-        with open(name, "rb") as fh:
-            return _toml.load(fh), name
-    except _toml.TOMLDecodeError as exc:
-        raise SpecError(f"{name}: not valid TOML ({exc})") from None
+    return read_toml(name), name
 
 
 def load_spec(path: str | os.PathLike[str] | None, *, sample_rate_default: float | None = None) -> Spec:

@@ -103,6 +103,7 @@ from commission.gate import GateLimits, GateSpec, evaluate_gate, resolve_gate
 from commission.jsonio import read_json, sha256_file
 from commission.robustness import margin_table
 from commission.scenarios import (
+    check_run_length,
     CASE1_SPEED_FRACTION,
     FRICTION_SCALE,
     Scenario,
@@ -1711,6 +1712,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> Reso
     budget_given = isinstance(tune_keys, dict) and "budget" in tune_keys
     spec, budget_notes = work_scaled_budget(spec, ident, budget_given)
     check_spec_against_ident(spec, ident, spec_name)
+    check_run_length(spec, spec_name)  # the envelope may have been lowered, lengthening the runs
     try:
         observer_design(spec.observer_pole, spec.period)
     except DesignError as exc:
@@ -1782,6 +1784,9 @@ def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str
         Bad input (the CLI's exit 2).
     """
     inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
-    t = tune_from(inp, progress=progress, workers=workers)
+    try:
+        t = tune_from(inp, progress=progress, workers=workers)
+    except DesignError as exc:  # a design input the spec checks let through: still bad input, exit 2
+        raise SpecError(f"{os.fspath(spec_path) if spec_path else 'spec'}: {exc}") from None
     t.save(os.fspath(out_path))
     return t

@@ -277,7 +277,7 @@ def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tupl
                               else math.inf if raw is None else r.num(f.name))
             continue
         raw = r.child(f.name).data
-        if isinstance(raw, list):
+        if "tuple" in str(f.type):  # the field's type decides, not the file's shape
             kw[f.name] = r.vec(f.name, 3)
         elif raw is None and f.name in inf_ok:
             kw[f.name] = math.inf
@@ -285,7 +285,7 @@ def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tupl
             kw[f.name] = r.num(f.name)
     try:
         return cls(**kw)
-    except ValueError as exc:
+    except (ValueError, TypeError) as exc:
         raise r.fail(str(exc)) from None
 
 
@@ -484,7 +484,7 @@ def _margins(r: Reader) -> tuple[LoopMargins, ...]:
     for i, row in enumerate(lst.data):
         try:
             out.append(LoopMargins.from_dict(row))
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
             raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
     return tuple(out)
 

@@ -57,13 +57,15 @@ from commission.controllers.plant import P_B, P_M, P_OFFSET
 from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
-from commission.errors import UsageError
-from commission.gate import (GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, margin_checks,
+from commission.errors import SchemaError, UsageError
+from commission.files import Outputs
+from commission.gate import (FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, margin_checks,
                              resolve_gate)
-from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
+from commission.jsonio import canonical_json, read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
-from commission.scenarios import plant_substeps, scenario_matrix
+from commission.scenarios import check_run_length, plant_substeps, scenario_matrix
+from commission.spec import check_flags
 from commission.tuning import Score, Tuning, log_sha256_of
 
 Progress = Callable[[int, int], None]
@@ -314,7 +316,8 @@ def deployable_gains(arc: ArcGains, guards: Mapping[str, Any] | None = None) -> 
     probe = ControllerConfig(gains=arc, sample_rate=1.0 / arc.Ts, units={"u": "u", "q": "m"}, validated={},
                              provenance=ControllerProvenance(None, "0" * 64, "0" * 64, "", ""))
     doc = json.loads(json.dumps(probe.to_dict()))
-    back = ControllerConfig.from_dict(doc, "controller.json (round trip)").gains
+    # Infinite limits pass the round trip here; the floors (commission.gate.FLOORS) then refuse to emit them.
+    back = ControllerConfig.from_dict(doc, "controller.json (round trip)", allow_unbounded=True).gains
     if not np.array_equal(arc_pack(back), arc_pack(arc)):  # pragma: no cover - a layout bug
         raise RuntimeError("controller.json layout does not reproduce the tuned ARC exactly")
     return back
@@ -368,10 +371,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     -------
     ValidationResult
     """
-    if seed < 0:
-        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
-    if n_monte_carlo < 0:
-        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     gate = GateSpec() if gate is None else gate
     spec = tuning.spec
     limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max)
@@ -436,18 +436,21 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                                    u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
                                    theta_true=truth)
     gated = [r for r in runs if "robustness" not in r.tags]
-    verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in gated])
+    floors = FloorContext(runs=[(r.name, r.arc, r.arc_t_abort) for r in gated],
+                          limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
+                          drive_u_max=u_sat)
+    verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in gated], floors)
     margins = margin_table(arc, tuning.pid, tuning.identification, spec)
-    floors = MarginFloors.from_spec(spec)
+    margin_floors = MarginFloors.from_spec(spec)
     # Robustness: the same criteria on the robustness scenarios, and the margin floors.  Advisory
     # until tune searches under them (an unconstrained search fails them on most light, fast axes).
     rob = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs if "robustness" in r.tags])
-    advisory = GateVerdict(rob.checks + tuple(margin_checks(margins, floors)), limits)
+    advisory = GateVerdict(rob.checks + tuple(margin_checks(margins, margin_floors)), limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
-                            margins=margins, margin_floors=floors, robustness=advisory,
+                            margins=margins, margin_floors=margin_floors, robustness=advisory,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
 
 
@@ -525,37 +528,76 @@ class ValidateOutcome:
 FigureWriter = Callable[[ValidationResult, Path], Sequence[Path]]
 
 
+def check_provenance(tuning: Tuning, tuning_path: str) -> None:
+    """Check tuning.json against the ident.json it names, when that file is at hand.
+
+    The file is looked for where ``provenance.ident_path`` says (relative to the
+    working folder) and beside tuning.json under the same name.  When one is
+    found, its sha256 must be ``provenance.ident_sha256``, and the
+    identification embedded in tuning.json -- which sets the plant box that
+    validate simulates -- must be that file's, up to the theta3 narrowing that
+    tune records (``bounds.narrowed_by_tune``, within the file's box).  No
+    ident.json at hand is no error: tuning.json may travel alone.
+
+    Raises
+    ------
+    SchemaError
+        Naming both files: the ident.json changed since the tuning, or
+        tuning.json's identification was edited.
+    """
+    rec = tuning.provenance.ident_path
+    cands = [Path(rec), Path(tuning_path).parent / Path(rec).name]
+    found = next((c for c in cands if c.is_file()), None)
+    if found is None:
+        return
+    actual = sha256_file(found)
+    if actual != tuning.provenance.ident_sha256:
+        raise SchemaError(f"{tuning_path}: $.provenance.ident_sha256: {tuning.provenance.ident_sha256[:16]}... is not "
+                          f"the sha256 of {found} ({actual[:16]}...): that identification is not the one this tuning "
+                          f"was made from (tune again, or validate with the matching ident.json)")
+    from commission.artifacts import Identification
+
+    ident = Identification.from_dict(read_json(found), source=str(found)).to_dict()
+    embedded = json.loads(json.dumps(tuning.identification.to_dict()))
+    narrowed = (embedded.get("bounds") or {}).pop("narrowed_by_tune", None)
+    if isinstance(narrowed, dict):
+        lo, hi = embedded["theta"]["min"][2], embedded["theta"]["max"][2]
+        t3min, t3max = narrowed.get("theta3_min"), narrowed.get("theta3_max")
+        if isinstance(t3min, (int, float)) and isinstance(t3max, (int, float)) and t3min <= lo <= hi <= t3max:
+            embedded["theta"]["min"][2], embedded["theta"]["max"][2] = t3min, t3max
+    if json.loads(canonical_json(embedded)) != json.loads(canonical_json(ident)):
+        raise SchemaError(f"{tuning_path}: $.identification: differs from {found}, whose sha256 the tuning records: "
+                          f"tuning.json was edited after tune (the validated plant box would not be the identified one)")
+
+
+def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: bool) -> Path:
+    """The output-folder checks of :class:`commission.files.Outputs` without its lock and staging
+    (kept for ``commission export``, which writes its folder directly).
+
+    Raises
+    ------
+    UsageError
+        ``DIR/controller.json: exists; pass --force to overwrite``, or a folder that is a file.
+    """
+    return Outputs(force=force).add_dir(out_dir, names, "--out-dir")
+
+
 def output_names() -> tuple[str, ...]:
     """Every file ``validate`` may write into its output folder."""
     return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES)
 
 
-def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: bool) -> Path:
-    """Refuse an output folder that is a file, or that holds one of ``names``, unless ``force``.
-
-    Raises
-    ------
-    UsageError
-        ``DIR/controller.json: exists; pass --force to overwrite``.
-    """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out-dir {out}: exists and is not a folder")
-    if not force:
-        for n in names:
-            if (out / n).exists():
-                raise UsageError(f"{out / n}: exists; pass --force to overwrite")
-    return out
-
-
 def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
                  gate_path: str | os.PathLike[str] | None = None, force: bool = False, seed: int = 0,
                  n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
-                 workers: int | None = None, figures: FigureWriter | None = None) -> ValidateOutcome:
+                 workers: int | None = None, figures: FigureWriter | None = None,
+                 sign_key: bytes | None = None) -> ValidateOutcome:
     """File-level pipeline of ``commission validate`` (module docstring).
 
-    Every input check runs before any simulation, and nothing is written
-    until the simulations are done.
+    Every input check runs before any simulation (the flags' ranges, the gate,
+    tuning.json and its provenance, the trajectories' length, the output
+    folder, which is then locked), and the files are moved into place together
+    when the simulations are done (:class:`commission.files.Outputs`).
 
     Parameters
     ----------
@@ -571,33 +613,42 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
         As in :func:`validate`.
     figures : callable(result, out_dir) -> paths, optional
         Draws the figures (the CLI passes its matplotlib writer); report.md links what it returns.
+    sign_key : bytes, optional
+        Signs controller.json with HMAC-SHA256 (:mod:`commission.controller_config`).
 
     Raises
     ------
     InputFileError, SchemaError, SpecError, UsageError
         Bad input (exit 2); nothing is written.
     """
-    if seed < 0:
-        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
-    if n_monte_carlo < 0:
-        raise UsageError(f"--monte-carlo: must be a non-negative integer, got {n_monte_carlo}")
+    check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     gate = load_gate(gate_path)
     tpath = os.fspath(tuning_path)
     tuning = Tuning.from_dict(read_json(tpath), source=tpath)
+    check_run_length(tuning.spec, tpath, "$.spec.")
+    check_provenance(tuning, tpath)
     # Resolve now so that a gate that cannot apply to this tuning fails before any simulation.
     resolve_gate(gate, lsb=tuning.quantization, travel=tuning.spec.travel, u_max=tuning.spec.u_max)
-    out = check_out_dir(out_dir, output_names(), force)
+    outputs = Outputs(force=force, inputs=(tpath, gate_path))
+    out = outputs.add_dir(out_dir, output_names(), "--out-dir")
     tuning_sha = sha256_file(tpath)
-    result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers)
-    written = write_outputs(result, tuning, tuning_sha, out, figures=figures,
-                            sources={"tuning": tpath, "gate": os.fspath(gate_path) if gate_path else None})
+    with outputs:  # locked and proved writable before the simulations; moved into place at the end
+        result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers)
+        staged = write_outputs(result, tuning, tuning_sha, outputs.staging(out), figures=figures,
+                               sources={"tuning": tpath, "gate": os.fspath(gate_path) if gate_path else None},
+                               sign_key=sign_key)
+    written = [outputs.final(p) for p in staged]
     ctrl = out / CONTROLLER_NAME
     return ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)
 
 
 def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, out: Path, *,
-                  figures: FigureWriter | None = None, sources: Mapping[str, str | None] | None = None) -> list[Path]:
-    """Write validation.json, the figures, report.md and (gate passed) controller.json into ``out``."""
+                  figures: FigureWriter | None = None, sources: Mapping[str, str | None] | None = None,
+                  sign_key: bytes | None = None) -> list[Path]:
+    """Write validation.json, the figures, report.md and (gate and floors passed) controller.json into ``out``.
+
+    ``out`` is the staging folder of :class:`commission.files.Outputs` in the commands.
+    """
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     write_json_atomic(out / VALIDATION_NAME, result.to_dict())
@@ -610,7 +661,7 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
     written.append(out / REPORT_NAME)
     ctrl = out / CONTROLLER_NAME
     if result.passed:
-        write_json_atomic(ctrl, controller_config(result, tuning, tuning_sha256).to_dict())
+        write_json_atomic(ctrl, controller_config(result, tuning, tuning_sha256).to_dict(sign_key=sign_key))
         written.append(ctrl)
     elif ctrl.exists():
         ctrl.unlink()  # never leave a deployable file next to a failing report
@@ -619,6 +670,6 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
-    "controller_config", "validated_record", "run_validate", "write_outputs", "check_out_dir", "output_names",
+    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance", "check_out_dir",
     "deployable_gains", "runtime_guards", "guard_values", "log_sha256_of",
 ]

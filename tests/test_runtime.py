@@ -90,7 +90,7 @@ def test_runtime_api(tmp_path, gains):
 
 
 def test_file_layout_and_checksum_definition(tmp_path, gains):
-    g = dataclasses.replace(gains, k1s_max=math.inf, eps11=math.inf)
+    g = dataclasses.replace(gains, eps11=math.inf)
     p = write(tmp_path, g)
     doc = read_json(p)
     for section in ("observer", "gains", "bounds", "adaptation", "initial_estimates", "friction_compensation",
@@ -98,7 +98,7 @@ def test_file_layout_and_checksum_definition(tmp_path, gains):
         assert section in doc
     assert doc["sample_rate"] == 2500.0 and doc["sample_period"] == g.Ts
     assert doc["observer"] == {"k1": g.k1, "k2": g.k2}
-    assert doc["bounds"]["k1s_max"] is None and doc["gains"]["eps11"] is None  # inf as null
+    assert doc["gains"]["eps11"] is None  # a term switched off: inf as null
     assert doc["adaptation"]["Gamma"] == list(g.Gamma)
     assert set(doc["provenance"]) == {"log_sha256", "ident_sha256", "tuning_sha256", "tool_version", "created_utc"}
     # the checksum is sha256 of the sorted, 2-space-indented JSON of everything else

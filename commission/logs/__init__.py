@@ -39,6 +39,7 @@ import numpy as np
 import scipy.io
 
 from commission.errors import CommissionError, DataError, InputFileError, UsageError
+from commission.files import MAX_LOG_BYTES, check_input_file, read_input_bytes
 from commission.logs.epos import looks_like_epos, read_epos_arrays
 
 __all__ = [
@@ -331,15 +332,9 @@ def load_log(
     p = Path(path)
     forced = fmt
     fmt = fmt or _EXTENSIONS.get(p.suffix.lower())
-    if not p.exists():
-        raise InputFileError(f"{label}: no such file")
-    if p.is_dir():
-        raise InputFileError(f"{label}: is a directory, not a log file")
-    try:
-        # Read once: the hash is then exactly of the bytes that were parsed.
-        data = p.read_bytes()
-    except OSError as exc:
-        raise InputFileError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    check_input_file(p, MAX_LOG_BYTES, "log file")  # missing, a folder, a FIFO or device, too large
+    # Read once, bounded: the hash is then exactly of the bytes that were parsed.
+    data = read_input_bytes(p, MAX_LOG_BYTES)
 
     if forced is None and looks_like_epos(data):
         fmt = "epos"

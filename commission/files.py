@@ -1,0 +1,429 @@
+"""Safe file handling for every command: bounded inputs, checked and transactional outputs.
+
+Inputs
+------
+:func:`open_input` and :func:`read_input_bytes` accept only regular files (a
+symlink is followed, but what it points to must be a regular file): a FIFO
+would block the tool forever and a device such as ``/dev/zero`` would feed it
+without end.  A file larger than its limit is refused before it is read, and
+the read itself stops at the limit (a file growing while it is read cannot
+exhaust memory).  :func:`read_toml` reads a spec or gate file (UTF-8 TOML).
+
+Outputs
+-------
+:class:`Outputs` is the one way a command writes files:
+
+1. :meth:`Outputs.add` declares a *target* -- an output file (``--out``) or
+   an output folder (``--out-dir``) and the names the command may write into
+   it -- and checks it before any computation: not the same file as an input,
+   not a folder where a file is expected (or the reverse), no existing output
+   without ``force``.
+2. :meth:`Outputs.open` takes an exclusive lock per target (``fcntl.flock`` on
+   ``.NAME.lock`` beside it; a second process is refused naming the holder's
+   pid, command and start time) and creates a staging folder
+   ``.NAME.tmp-XXXX`` beside it.  That both proves the location writable
+   before the work starts.
+3. The command writes every file into :meth:`Outputs.path`.
+4. :meth:`Outputs.commit` moves the staged files into place with SIGINT and
+   SIGTERM blocked, removes the outputs this run did not produce (so that a
+   folder never pairs a new report with an old ``controller.json``), and
+   releases the locks.  Any exception before that -- including the
+   :class:`KeyboardInterrupt` of Ctrl-C and the :class:`SystemExit` the CLI
+   raises on SIGTERM -- removes the staging folders and locks and leaves the
+   targets as they were.  An interrupted run therefore leaves either nothing
+   or a complete set, and never a temporary file.  (SIGKILL and power loss
+   can leave a staging folder; it is named so that it is plainly not an output.)
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import errno
+import fcntl
+import os
+import shutil
+import signal
+import stat
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from commission.errors import InputFileError, SpecError, UsageError
+
+try:  # Python >= 3.11
+    import tomllib as _toml
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as _toml  # type: ignore[no-redef]
+
+#: Largest excitation log read, bytes (a 10-million-sample HDF5 log of four channels is 320 MB).
+MAX_LOG_BYTES = 2 * 1024**3
+#: Largest JSON artifact read, bytes (tuning.json of a long search is below 1 MB).
+MAX_JSON_BYTES = 64 * 1024**2
+#: Largest spec or gate TOML read, bytes.
+MAX_TOML_BYTES = 1024**2
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def _mib(n: int) -> str:
+    return f"{n / 1024**2:.4g} MiB"
+
+
+def check_input_file(path: str | os.PathLike[str], limit: int, what: str = "file") -> os.stat_result:
+    """Refuse a missing input, a folder, a FIFO, a socket or a device, or one over ``limit`` bytes.
+
+    Returns
+    -------
+    os.stat_result
+        Of the file (symlinks followed).
+
+    Raises
+    ------
+    InputFileError
+        Naming the file and what it is.
+    """
+    name = os.fspath(path)
+    try:
+        st = os.stat(name)
+    except FileNotFoundError:
+        raise InputFileError(f"{name}: no such file") from None
+    except OSError as exc:
+        raise InputFileError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputFileError(f"{name}: is a directory, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a device" if stat.S_ISCHR(st.st_mode)
+                or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+        raise InputFileError(f"{name}: is {kind}; give a regular file")
+    if st.st_size > limit:
+        raise InputFileError(f"{name}: {_mib(st.st_size)} is larger than the {_mib(limit)} this tool reads")
+    return st
+
+
+def read_input_bytes(path: str | os.PathLike[str], limit: int) -> bytes:
+    """The bytes of a regular input file of at most ``limit`` bytes (:func:`check_input_file`).
+
+    The file is opened without blocking, checked again on the open descriptor
+    (it may have been swapped for a FIFO since the first check), and read up to
+    ``limit + 1`` bytes, so a file that grows while it is read is refused too.
+    """
+    name = os.fspath(path)
+    check_input_file(name, limit)
+    try:
+        fd = os.open(name, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise InputFileError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise InputFileError(f"{name}: is not a regular file; give a regular file")
+        try:
+            data = fh.read(limit + 1)
+        except OSError as exc:
+            raise InputFileError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    if len(data) > limit:
+        raise InputFileError(f"{name}: larger than the {_mib(limit)} this tool reads")
+    return data
+
+
+def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Parse a UTF-8 TOML file (a tune spec or a gate).
+
+    Raises
+    ------
+    InputFileError
+        Missing, not a regular file, or too large.
+    SpecError
+        Not UTF-8 (naming the byte offset) or not valid TOML.
+    """
+    name = os.fspath(path)
+    data = read_input_bytes(name, MAX_TOML_BYTES)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{name}: not UTF-8 text (byte {exc.start}: {data[exc.start:exc.start + 1]!r})") from None
+    try:
+        return _toml.loads(text)
+    except _toml.TOMLDecodeError as exc:
+        raise SpecError(f"{name}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise SpecError(f"{name}: nested too deeply") from None
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    """Whether two paths name the same existing file (symlinks and hard links included)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+@dataclass
+class _Target:
+    dest: Path          # the output file, or the output folder
+    names: tuple[str, ...]  # files of a folder target; (dest.name,) for a file target
+    is_dir: bool
+    flag: str
+    lock_fd: int | None = None
+    lock_path: Path | None = None
+    staging: Path | None = None
+    staged_at: Path | None = None  # the staging folder, remembered after commit for final()
+    made_dirs: list[Path] = field(default_factory=list)
+
+    @property
+    def folder(self) -> Path:
+        return self.dest if self.is_dir else self.dest.parent
+
+
+class Outputs:
+    """The files one command writes, checked up front and moved into place together (module docstring).
+
+    Parameters
+    ----------
+    force : bool
+        Overwrite existing outputs (the ``--force`` flag of every command).
+    inputs : sequence of path
+        Files the command reads; an output that is one of them is refused even with ``force``.
+    """
+
+    def __init__(self, *, force: bool, inputs: Iterable[str | os.PathLike[str] | None] = ()) -> None:
+        self.force = force
+        self.inputs = [os.fspath(p) for p in inputs if p is not None]
+        self._targets: list[_Target] = []
+        self._open = False
+
+    # -- declaration (before any computation) ------------------------------------------------
+    def add_file(self, path: str | os.PathLike[str], flag: str) -> Path:
+        """Declare an output file (``--out``); returns its final path."""
+        dest = Path(path)
+        if dest.is_dir():
+            raise UsageError(f"{flag} {dest}: is a directory; give a file name such as {dest / 'out.json'}")
+        if dest.name in ("", ".", ".."):
+            raise UsageError(f"{flag} {dest}: not a file name")
+        self._check_not_input(dest, flag)
+        if dest.exists() or dest.is_symlink():
+            if not self.force:
+                raise UsageError(f"{flag} {dest}: exists; pass --force to overwrite")
+            if not dest.is_file():
+                raise UsageError(f"{flag} {dest}: exists and is not a regular file")
+        self._check_parent(dest.parent, flag, dest)
+        self._targets.append(_Target(dest, (dest.name,), False, flag))
+        return dest
+
+    def add_dir(self, path: str | os.PathLike[str], names: Sequence[str], flag: str) -> Path:
+        """Declare an output folder (``--out-dir``) and every name the command may write into it."""
+        dest = Path(path)
+        if dest.exists() and not dest.is_dir():
+            raise UsageError(f"{flag} {dest}: exists and is not a folder")
+        for n in names:
+            p = dest / n
+            self._check_not_input(p, flag)
+            if (p.exists() or p.is_symlink()) and not self.force:
+                raise UsageError(f"{p}: exists; pass --force to overwrite")
+            if p.is_dir():
+                raise UsageError(f"{p}: is a directory; remove it")
+        self._check_parent(dest if dest.exists() else dest.parent, flag, dest)
+        self._targets.append(_Target(dest, tuple(names), True, flag))
+        return dest
+
+    def _check_not_input(self, p: Path, flag: str) -> None:
+        for src in self.inputs:
+            if same_file(p, src) or os.path.abspath(p) == os.path.abspath(src):
+                raise UsageError(f"{flag} {p}: is also an input of this command; write elsewhere")
+
+    @staticmethod
+    def _check_parent(parent: Path, flag: str, dest: Path) -> None:
+        # The nearest existing ancestor must be a folder; the lock and staging folder
+        # created by open() then prove it writable before any computation.
+        q = parent.absolute()
+        while not q.exists() and q != q.parent:
+            q = q.parent
+        if not q.is_dir():
+            raise UsageError(f"{flag} {dest}: {q} is not a folder")
+
+    # -- lock and staging ----------------------------------------------------------------------
+    def open(self) -> "Outputs":
+        """Lock every target and create its staging folder (proves the location writable)."""
+        try:
+            for t in self._targets:
+                self._lock(t)
+                t.staging = Path(tempfile.mkdtemp(prefix=f".{t.dest.name}.tmp-", dir=t.dest.parent))
+                t.staged_at = t.staging
+        except BaseException:
+            self.abort()
+            raise
+        self._open = True
+        return self
+
+    def _makedirs(self, t: _Target, folder: Path) -> None:
+        missing = []
+        q = folder.absolute()
+        while not q.exists():
+            missing.append(q)
+            q = q.parent
+        for d in reversed(missing):
+            try:
+                d.mkdir()
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise UsageError(f"{t.flag} {t.dest}: cannot create {d} ({exc.strerror or exc})") from None
+            t.made_dirs.append(d)
+
+    def _lock(self, t: _Target) -> None:
+        self._makedirs(t, t.dest.parent)
+        lock = t.dest.parent / f".{t.dest.name}.lock"
+        while True:
+            try:
+                fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise UsageError(f"{t.flag} {t.dest}: cannot write in {t.dest.parent} "
+                                 f"({exc.strerror or exc})") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = _read_holder(fd)
+                os.close(fd)
+                if exc.errno in (errno.EAGAIN, errno.EACCES):
+                    raise UsageError(f"{t.flag} {t.dest}: in use by another commission process ({holder}); "
+                                     f"wait for it or choose another output") from None
+                raise UsageError(f"{t.flag} {t.dest}: cannot lock {lock} ({exc.strerror or exc})") from None
+            # The previous holder unlinks the lock file on release: if it did so between our
+            # open and our flock, we hold a lock on a dead inode; start again.
+            try:
+                same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        cmd = " ".join(os.path.basename(a) if i == 0 else a for i, a in enumerate(sys.argv[:3]))
+        os.write(fd, f"pid {os.getpid()}, {cmd}, since {started}\n".encode())
+        t.lock_fd, t.lock_path = fd, lock
+
+    # -- writing -------------------------------------------------------------------------------
+    def path(self, dest: str | os.PathLike[str]) -> Path:
+        """Where to write the output whose final path is ``dest`` (inside the staging folder)."""
+        if not self._open:
+            raise RuntimeError("Outputs.path before open()")
+        d = Path(dest)
+        for t in self._targets:
+            assert t.staging is not None
+            if not t.is_dir and d == t.dest:
+                return t.staging / t.dest.name
+            if t.is_dir and d.parent == t.dest and d.name in t.names:
+                return t.staging / d.name
+        raise ValueError(f"{dest}: not a declared output")
+
+    def staging(self, dest: str | os.PathLike[str]) -> Path:
+        """The staging folder of the folder target ``dest`` (to hand to writers that take a folder)."""
+        for t in self._targets:
+            if t.is_dir and t.dest == Path(dest):
+                assert t.staging is not None
+                return t.staging
+        raise ValueError(f"{dest}: not a declared output folder")
+
+    def final(self, staged: str | os.PathLike[str]) -> Path:
+        """The final path of a file written into a staging folder."""
+        s = Path(staged)
+        for t in self._targets:
+            if t.staged_at is not None and s.parent == t.staged_at:
+                return t.dest if not t.is_dir else t.dest / s.name
+        raise ValueError(f"{staged}: not in a staging folder")
+
+    def commit(self) -> None:
+        """Move every staged file into place (signals held), drop stale outputs, release the locks."""
+        if not self._open:
+            raise RuntimeError("Outputs.commit before open()")
+        for t in self._targets:  # a file nobody declared was never checked against --force: refuse it all
+            assert t.staging is not None
+            stray = sorted(f.name for f in t.staging.iterdir() if f.name not in t.names)
+            if stray:
+                self.abort()
+                raise RuntimeError(f"{t.dest}: undeclared outputs {stray} (add them to the command's output names)")
+        sigs = {signal.SIGINT, signal.SIGTERM}
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+        try:
+            umask = os.umask(0)
+            os.umask(umask)
+            for t in self._targets:
+                assert t.staging is not None
+                for f in t.staging.iterdir():
+                    os.chmod(f, 0o666 & ~umask)  # mkstemp/mkdtemp create 0600/0700
+                if t.is_dir:
+                    if not t.dest.exists():
+                        os.chmod(t.staging, 0o777 & ~umask)
+                        os.rename(t.staging, t.dest)  # the whole set appears at once
+                    else:
+                        for n in t.names:
+                            src, dst = t.staging / n, t.dest / n
+                            if src.exists():
+                                os.replace(src, dst)
+                            elif dst.exists() or dst.is_symlink():
+                                dst.unlink()  # an output this run did not produce (e.g. controller.json)
+                        shutil.rmtree(t.staging, ignore_errors=True)
+                else:
+                    os.replace(t.staging / t.dest.name, t.dest)
+                    shutil.rmtree(t.staging, ignore_errors=True)
+                t.staging = None
+                t.made_dirs = []
+        finally:
+            self._release()
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    def abort(self) -> None:
+        """Remove staging folders, locks and folders this run created; leave the targets as they were."""
+        for t in self._targets:
+            if t.staging is not None:
+                shutil.rmtree(t.staging, ignore_errors=True)
+                t.staging = None
+        self._release()
+        for t in self._targets:
+            for d in reversed(t.made_dirs):
+                try:
+                    d.rmdir()
+                except OSError:
+                    break
+            t.made_dirs = []
+
+    def _release(self) -> None:
+        for t in self._targets:
+            if t.lock_fd is not None:
+                try:
+                    if t.lock_path is not None:
+                        t.lock_path.unlink()  # while still held; see the inode check in _lock
+                except OSError:
+                    pass
+                os.close(t.lock_fd)
+                t.lock_fd = None
+        self._open = False
+
+    def __enter__(self) -> "Outputs":
+        return self.open()
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            if self._open:
+                self.commit()
+        else:
+            self.abort()
+
+
+def _read_holder(fd: int) -> str:
+    try:
+        os.lseek(fd, 0, os.SEEK_SET)
+        text = os.read(fd, 300).decode("utf-8", "replace").strip()
+    except OSError:
+        text = ""
+    return text or "holder unknown"
+
+
+__all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
+           "read_toml", "same_file", "Outputs"]
