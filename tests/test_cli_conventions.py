@@ -50,12 +50,15 @@ def test_shell_completion_is_installed_by_typer(capsys):
     assert "--install-completion" in text and "--show-completion" in text
 
 
-def test_help_loads_no_numerics():
+def test_help_loads_no_numerics(tmp_path):
     probe = ("import sys; sys.argv = ['commission', '--help']; from commission.cli.main import run; "
              "import io, contextlib; f = io.StringIO(); code = None\n"
              "with contextlib.redirect_stdout(f): code = run(['--help'])\n"
              "print(code, sorted(m for m in ('numpy', 'scipy', 'numba', 'h5py', 'matplotlib') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    # run outside the checkout: `python -c` puts the working folder first on sys.path, and the source
+    # folder `commission/` would shadow the installed package (which also holds commission.cli)
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True,
+                         cwd=tmp_path).stdout
     assert out.strip() == "0 []", out
 
 
