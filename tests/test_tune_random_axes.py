@@ -133,16 +133,18 @@ def test_tuning_uses_the_logs_rate_and_is_feasible(validated):
 
 def test_the_default_gate_passes(validated):
     _, _, result, _ = validated
-    assert len(result.runs) == 12 + 64
+    # 12 fixed, one more sample of delay on each trajectory (the advisory robustness runs), 64 Monte-Carlo
+    assert len(result.runs) == 12 + 2 + 64
     assert result.passed, [f.detail for f in result.verdict.failures]
 
 
 def test_arc_vs_pid_on_the_matrix(validated):
     _, _, result, _ = validated
     slack = result.verdict.limits.arc_vs_pid_slack
+    runs = [r for r in result.runs if "robustness" not in r.tags]  # the gated matrix (robustness is advisory)
     # no worse than the PID anywhere beyond the quantization noise (the gate), and better on most of the matrix
-    assert all(r.arc.e_rms <= r.pid.e_rms + slack for r in result.runs)
-    assert np.median([r.arc.e_rms / r.pid.e_rms for r in result.runs]) < 0.85
+    assert all(r.arc.e_rms <= r.pid.e_rms + slack for r in runs)
+    assert np.median([r.arc.e_rms / r.pid.e_rms for r in runs]) < 0.85
 
 
 def test_only_a_defaulted_load_bound_that_leaves_no_envelope_is_narrowed(validated):
