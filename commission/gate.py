@@ -613,8 +613,8 @@ def check_floors(ctx: FloorContext) -> list[Check]:
 
 #: The loops whose margins the gate holds to the floors: the ARC on the identified plant
 #: (with its mode and delay), at both linearisation points.  The box corners are reported, not
-#: gated: a payload range is a design choice, and at its heaviest corner the paper's own PID keeps
-#: about 17 deg of phase.
+#: gated: a payload range is a design choice, and at its heaviest corner even the paper's own PID
+#: keeps little phase (README, "What the rigid model lacks").
 GATED_PLANT = "nominal"
 
 
