@@ -319,12 +319,7 @@ def verify_checksum(data: Any, source: str = "controller.json") -> None:
     """
     r = Reader(data, "$", source)
     cr = r.obj("checksum")
-    algo = cr.str_("algorithm")
-    if algo != CHECKSUM_ALGORITHM:
-        raise cr.fail(f"unsupported algorithm {algo!r} (expected {CHECKSUM_ALGORITHM!r})", "$.checksum.algorithm")
-    value = cr.str_("value")
-    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
-        raise cr.fail(f"expected 64 lowercase hex digits, got {value!r}", "$.checksum.value")
+    value = _digest_field(cr, CHECKSUM_ALGORITHM, "$.checksum")
     body = {k: v for k, v in data.items() if k != "checksum"}
     try:
         actual = sha256_json(body)
@@ -333,6 +328,17 @@ def verify_checksum(data: Any, source: str = "controller.json") -> None:
     if actual != value:
         raise cr.fail(f"mismatch: the file says {value!s:.16}..., its content hashes to {actual[:16]}...; "
                       f"the file was edited or corrupted after validation", "$.checksum")
+
+
+def _digest_field(r: Reader, algorithm: str, path: str) -> str:
+    """The ``value`` of a ``{"algorithm", "value"}`` object: ``algorithm`` and 64 lowercase hex digits."""
+    algo = r.str_("algorithm")
+    if algo != algorithm:
+        raise r.fail(f"unsupported algorithm {algo!r} (expected {algorithm!r})", f"{path}.algorithm")
+    value = r.str_("value")
+    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
+        raise r.fail(f"expected 64 lowercase hex digits, got {value!r}", f"{path}.value")
+    return value
 
 
 def _hmac(key: bytes, doc: Mapping[str, Any]) -> str:
@@ -359,12 +365,7 @@ def verify_signature(data: Any, source: str = "controller.json", key: bytes | No
     for k in sr.keys():
         if k not in ("algorithm", "value"):
             raise sr.fail("unknown field", f"$.signature.{k}")
-    algo = sr.str_("algorithm")
-    if algo != SIGNATURE_ALGORITHM:
-        raise sr.fail(f"unsupported algorithm {algo!r} (expected {SIGNATURE_ALGORITHM!r})", "$.signature.algorithm")
-    value = sr.str_("value")
-    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
-        raise sr.fail(f"expected 64 lowercase hex digits, got {value!r}", "$.signature.value")
+    value = _digest_field(sr, SIGNATURE_ALGORITHM, "$.signature")
     if key is None:
         return
     try:
