@@ -46,6 +46,7 @@ import signal
 import stat
 import sys
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -416,13 +417,22 @@ class Outputs:
             self.abort()
 
 
-def _read_holder(fd: int) -> str:
-    try:
-        os.lseek(fd, 0, os.SEEK_SET)
-        text = os.read(fd, 300).decode("utf-8", "replace").strip()
-    except OSError:
-        text = ""
-    return text or "holder unknown"
+def _read_holder(fd: int, wait_s: float = 1.0) -> str:
+    """The holder's ``pid ..., command, since ...`` line from its lock file.
+
+    The holder writes that line just after its ``flock`` succeeds, so a process refused in
+    between finds the file empty; it polls briefly rather than report an unknown holder.
+    """
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            os.lseek(fd, 0, os.SEEK_SET)
+            text = os.read(fd, 300).decode("utf-8", "replace").strip()
+        except OSError:
+            text = ""
+        if text or time.monotonic() >= deadline:
+            return text or "holder unknown"
+        time.sleep(0.01)
 
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
