@@ -120,7 +120,7 @@ def frequency_summary(fr: dict | None) -> str:
 @app.command("identify")
 @cli_errors
 def identify_command(
-    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv or .mat (CONTRACT §1)."),
+    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1)."),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
     map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),

@@ -141,7 +141,8 @@ class _Placeholder(typer.core.TyperCommand):
 
 app = typer.Typer(
     name="commission",
-    help="Commission a precision linear-motor axis: identify -> tune -> validate -> run (Xu & Yao 2001 ARC).",
+    help=("Commission a precision linear-motor axis: identify -> tune -> validate -> run (Xu & Yao 2001 ARC). "
+          "Log format, JSON keys with units, exit codes and the runtime API: docs/interface.md."),
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=True,

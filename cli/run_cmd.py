@@ -24,7 +24,7 @@ from commission.validate import DEFAULT_MONTE_CARLO
 @app.command("run")
 @cli_errors
 def run_command(
-    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv or .mat (CONTRACT §1)."),
+    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1)."),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for ident.json, tuning.json, report.md, figures, controller.json."),
     map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
