@@ -8,6 +8,8 @@ validated against and where it came from::
     kind               "controller"
     schema_version     1
     controller         "arc-output-feedback" (Xu & Yao 2001, §3)
+    control_law        the law in words: the paper's equations by number, the filters, the
+                       departures from the paper (:data:`CONTROL_LAW`; optional on load)
     sample_rate        Hz
     sample_period      s (the exact period simulated; 1/sample_rate up to rounding)
     units              {"u": command unit, "q": "m"}
@@ -73,6 +75,28 @@ from commission.jsonio import Reader, canonical_json, read_json, sha256_json
 CONTROLLER_KIND = "controller"
 CONTROLLER_SCHEMA_VERSION = 1
 CONTROLLER_TYPE = "arc-output-feedback"
+
+#: The law a controller.json parameterises, stated for the engineer who deploys it: the paper
+#: and its equations by number, the filter structure, and where the implementation departs
+#: from the paper (:mod:`commission.controllers.arc` gives the reasons).  Written into every
+#: file; a file whose statement differs describes a law this runtime does not run and is refused.
+CONTROL_LAW: dict[str, str] = {
+    "paper": ("Xu L., Yao B. (2001), Output feedback adaptive robust precision motion control of linear "
+              "motors, Automatica 37, sec. 3"),
+    "observer_filters": ("eta' = A0 eta + e2 y, lambda' = A0 lambda + e2 u*, psi' = A0 psi + e2 with "
+                         "A0 = [[-k1, 1], [-k2, 0]]: eqs. (10), (12), (18); advanced exactly over each sample "
+                         "period (u* zero-order hold, y first-order hold between samples)"),
+    "step1": ("z1 = y - q_d, alpha_1 = alpha_1a + alpha_1s with alpha_1s = -(K1/theta1_min) z1: "
+              "eqs. (25)-(28), (37), (38); K1 capped at bounds.k1s_max"),
+    "step2": ("z2 = v2 - alpha_1, u* = u*_a - K2 z2 with the exact partials of alpha_1: eqs. (39), (43), (47); "
+              "K2 capped at bounds.k2s_max"),
+    "adaptation": ("theta_hat <- clip(theta_hat + Ts Gamma tau, theta_min, theta_max), "
+                   "tau = w1 phi1 z1 + w2 phi2 z2: eqs. (19), (20), (50)"),
+    "output": "u = sat(u* + F_hat(dq_d), u_max), F_hat(v) = level (2/pi) atan(slope v): eq. (5)",
+    "departures": ("robust gains capped (k1s_max, k2s_max) so that the sampled loop is stable at sample_rate; "
+                   "runtime guards of the runtime section (absent: off)"),
+    "implementation": "commission.controllers.arc.arc_step, the step validate simulated",
+}
 CHECKSUM_ALGORITHM = "sha256"
 SIGNATURE_ALGORITHM = "hmac-sha256"
 #: Environment variable naming the signing key file (``--sign-key`` takes precedence).
@@ -157,6 +181,7 @@ class ControllerConfig:
             "kind": CONTROLLER_KIND,
             "schema_version": CONTROLLER_SCHEMA_VERSION,
             "controller": CONTROLLER_TYPE,
+            "control_law": dict(CONTROL_LAW),
             "sample_rate": self.sample_rate,
             "sample_period": g.Ts,
             "units": dict(self.units),
@@ -212,7 +237,10 @@ class ControllerConfig:
         ctype = r.str_("controller")
         if ctype != CONTROLLER_TYPE:
             raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
-        known = {"kind", "schema_version", "controller", "sample_rate", "sample_period", "units",
+        if "control_law" in r.keys() and data["control_law"] != CONTROL_LAW:
+            raise r.fail("describes a control law this runtime does not implement (the statement "
+                         "differs from commission.controller_config.CONTROL_LAW)", "$.control_law")
+        known = {"kind", "schema_version", "controller", "control_law", "sample_rate", "sample_period", "units",
                  "friction_compensation", "validated", "provenance", "checksum", "signature", "runtime",
                  *SECTIONS}
         for k in r.keys():

@@ -108,6 +108,20 @@ def test_file_layout_and_checksum_definition(tmp_path, gains):
     assert ControllerConfig.load(str(p)).gains == g
 
 
+def test_the_file_states_its_control_law_and_a_file_without_the_statement_loads(tmp_path, gains):
+    doc = read_json(write(tmp_path, gains))
+    law = doc["control_law"]
+    assert law["paper"].startswith("Xu L., Yao B. (2001)") and "Automatica 37" in law["paper"]
+    # equations by number, and the filter structure
+    assert "(18)" in law["observer_filters"] and "A0 = [[-k1, 1], [-k2, 0]]" in law["observer_filters"]
+    assert "(43)" in law["step2"] and "(19)" in law["adaptation"] and "(5)" in law["output"]
+    # the statement is additive: a file written before it existed still loads
+    del doc["control_law"]
+    p = tmp_path / "old.json"
+    p.write_text(json.dumps(_rehash(doc)))
+    assert load_controller(p).config.gains == gains
+
+
 def _rehash(doc):
     body = {k: v for k, v in doc.items() if k != "checksum"}
     text = json.dumps(body, sort_keys=True, indent=2) + "\n"
@@ -149,6 +163,8 @@ def test_tampered_file_is_refused_by_checksum(tmp_path, gains, edit):
         (lambda d: d["gains"].__setitem__("gamma", 1.0), r"\$\.gains\.gamma: unknown field"),
         (lambda d: d["friction_compensation"].__setitem__("level", -0.1), r"\$\.friction_compensation\.level: expected a non-negative"),
         (lambda d: d["provenance"].pop("tuning_sha256"), r"\$\.provenance\.tuning_sha256: missing required field"),
+        (lambda d: d["control_law"].__setitem__("step2", "u* = -K2 z2"),
+         r"\$\.control_law: describes a control law this runtime does not implement"),
     ],
 )
 def test_schema_broken_file_is_refused_naming_the_json_path(tmp_path, gains, edit, path):

@@ -13,7 +13,7 @@ from commission import tune as tune_mod
 from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.cli.main import app
 from commission.errors import InputFileError, SpecError
-from commission.spec import MAX_OMEGA_T, default_spec, load_spec, spec_from_mapping
+from commission.spec import MAX_OMEGA_T, default_spec, load_spec, nominal_rate, spec_from_mapping
 
 runner = CliRunner()
 
@@ -48,6 +48,22 @@ def test_derived_defaults_follow_the_sample_rate():
     assert s.observer_pole == pytest.approx(400.0) and s.pid_pole == pytest.approx(600.0)
     s2 = spec_from_mapping({}, sample_rate_default=1000.0)
     assert s2.sample_rate == 1000.0 and s2.observer_pole == pytest.approx(80.0)
+
+
+@pytest.mark.parametrize("measured, nominal", [
+    (2500.0000000058267, 2500.0),  # the sample log's rate as estimated from its time stamps
+    (1000.0000001, 1000.0),
+    (5000.02, 5000.0),             # 4 ppm: within a crystal's tolerance
+    (5000.2, 5000.2),              # 40 ppm: a different rate, kept
+    (2499.7, 2499.7),
+    (4166.666667, 4166.666667),    # no round number of 4 digits explains it
+])
+def test_a_log_rate_within_jitter_of_a_round_rate_gives_the_round_rate(measured, nominal):
+    assert nominal_rate(measured) == nominal
+    s = spec_from_mapping({}, sample_rate_default=measured)
+    assert s.sample_rate == nominal
+    # a rate the user writes is taken as written
+    assert spec_from_mapping({"controller": {"sample_rate": measured}}).sample_rate == measured
 
 
 @pytest.mark.parametrize("data, match", [
