@@ -11,9 +11,8 @@ and the desired q_d, dq_d, ddq_d; equation numbers are the paper's:
   but moves, is interpolated linearly between y_k and y_k+1 (first-order
   hold, exact while the axis moves at constant velocity between samples).
   Holding y instead lags eta by half a sample: at constant velocity the ARC
-  then tracks with a direction-dependent offset (measured on a 5 kHz random
-  axis, 0.55 um encoder, 0.38 m/s: +-1.06 encoder steps in every cruise, e_rms
-  0.62 steps; with the first-order hold +-0.01 and 0.31 steps).
+  then tracks with a direction-dependent offset of about one encoder step
+  (docs/implementability.md).
   xi_2 = -A0^2 eta, xi_1 = A0 eta, v = lambda (17).
 * State estimate (13) x_hat = xi_2 - th2 xi_1 + th1 v + th3 psi (logged only).
 * Step 1: z1 = y - q_d, alpha_1 = alpha_1a + alpha_1s with (25) and
@@ -74,70 +73,27 @@ Why the paper's robust terms are capped (implementable gains)
 -------------------------------------------------------------
 The example robust functions (37), (38), (47) with the printed levels
 eps11 = eps12 = 5e-5, eps21 = 1e-3, eps22 = 1, together with C_theta2 = 1e5 I and
-Gamma = 1e5 diag[5, 3, 20], give K1 ~ 5.6e3 and K2 ~ 1e5 at the very first sample
-(1/(4 eps12) alone is 5000) and K2 ~ 1e6 - 1e9 one sample later, because
-K2 contains (d alpha1/dy)^2/(4 eps22) ~ (K1/theta1min)^2/4 and grows with the
-error.  A continuous-time design gain K is usable at Ts = 0.4 ms only while
-K Ts is of order 1.  Measured on the CONTRACT sec. 5 reference plant (Case 1,
-Set 1, 10 ZOH sub-steps, 1 um encoder), :func:`paper_gains_as_printed` gives
-|u| = 123 V at the second sample (0.4 ms), 9e8 V at 0.8 ms, |e| > 1 mm at 1.2 ms
-and a non-finite value at the fifth sample (1.6 ms), where the fault latch stops
-it; with a +-10 V saturation it chatters between the limits from the second
-sample on and |e| exceeds 1 mm after 37 ms (Set 2: 97 ms).
+Gamma = 1e5 diag[5, 3, 20], are continuous-time gains far beyond what a
+sampled loop supports: K2 contains (d alpha1/dy)^2/(4 eps22) and grows with
+the error, while a gain K is usable at period Ts only while K Ts is of order 1.
+Three limits bound what is implementable at a given rate and encoder:
 
-Three measured limits bound what is implementable at 2.5 kHz with a 1 um encoder
-(CONTRACT sec. 5 plant, 10 ZOH sub-steps; "linearised at rest" means the one-step
-map at q = q_d = 0 with the theta3 adaptation in the loop, plants M in
-[0.02, 0.12], theta_hat over the box; measured with the first-order hold
-above; with y held instead they agree within 0.01 in c_u and 0.001 in spectral
-radius):
-
-* Noise: the direct gain from y to u is about K2 K1/theta1min (6.1e4 V/m at
-  K1 = 600, K2 = 850); the encoder's quantisation then sets c_u = ||du||/||u||
-  (0.35 on Set 1 with constant K1 = 600, K2 = 850; 0.012 without quantisation;
-  constant K2 = 1100 gives 0.50).  Gain above the paper's g1, g2 must therefore
-  be confined to transients.
-* The sampled v-loop: u* feeds back v2 = lambda_2, which integrates the held u*
-  over each period, with the rate R = K2 - th1 d(alpha1)/dy ~ K2 + th1 K1/theta1min
-  (the second part through the estimated y-derivative xi_2,2 + theta_hat^T omega
-  in alpha1_dot_c of (39)).  Its sampled pole is about 1 - R Ts.  Linearised with
-  frozen estimates the loop is unstable exactly when R Ts > 2, whatever the plant
-  (measured boundary K2 = 2/Ts - th1 K1/theta1min within -0.07 % to +1.1 %
-  over the box's plants and theta_hat2, which enters R through -th1 (th2/th1):
-  with K1 = 600, K2 < 2829-2846 at th1 = 30 and < 1385-1401 at th1 = 50; the
-  critical eigenvalue is real, near -1), and rings at the Nyquist
-  frequency well before.  This is why stability depends on the *estimate*
-  theta_hat1.  A constant cap large enough for the Set 2 start-up (K2 ~ 2500
-  while theta_hat1 ~ 20) is unstable at theta_hat1 >= 30, and a state-dependent
-  K2 that reaches it there latches into a Nyquist limit cycle (c_u 1.4 - 1.9 in
-  all four Table 1 scenarios from theta_hat1(0) = 37 or 50 or theta_hat3(0) = -50
-  with the gains of :func:`paper_gains_implementable` and no guard).  Hence the
-  guard: when ``k2s_max`` is finite, K2 <= V_LOOP_RATE_LIMIT/Ts + th1 d(alpha1)/dy
-  (floored at 0), i.e. R Ts <= 1.75.  K2 does not enter alpha_1, so the partials of
-  alpha_1 are unaffected.  With it, 156 runs (4 scenarios, friction x0.8/1/1.2,
-  13 initial estimates over the box) never diverge and stay below c_u 0.66
-  after the first second (worst 0.654: Set 1, friction x0.8, theta_hat(0) =
-  (30, 10, -50)).
+* Noise: the direct gain from y to u is about K2 K1/theta1min, so the
+  encoder's quantisation sets c_u = ||du||/||u||; gain above g1, g2 must be
+  confined to transients.
+* The sampled v-loop: u* feeds back v2 = lambda_2, which integrates the held
+  u* over each period with the rate R = K2 - th1 d(alpha1)/dy.  Its sampled
+  pole is about 1 - R Ts, so the loop is unstable when R Ts > 2 whatever the
+  plant, and stability depends on the *estimate* theta_hat1.  Hence the guard:
+  when ``k2s_max`` is finite, K2 <= V_LOOP_RATE_LIMIT/Ts + th1 d(alpha1)/dy
+  (floored at 0), i.e. R Ts <= 1.75.  K2 does not enter alpha_1, so the
+  partials of alpha_1 are unaffected.
 * The theta3 adaptation is the loop's integral action; its gain grows like
-  Gamma3/theta_hat1.  Linearised at rest (K1 = 600, K2 = 800) the loop stays
-  stable over the whole box only for Gamma3 <= ~5.5e6 (worst radius 0.998 at 5e6,
-  at theta_hat1 = 50 on the heaviest plant M = 0.12; 1.013 at 6e6, at
-  theta_hat1 = 8.3 on the lightest plant M = 0.02).
+  Gamma3/theta_hat1, which bounds Gamma3 over the box.
 
-Measured with :func:`paper_gains_implementable` (``commission.paper``, Table 1
-scenarios; PID of (57) in brackets), e_M / e_F / e_rms in um and c_u:
-Set 1 18.2 / 9.10 / 1.05, 0.33 (65.6 / 19.8 / 2.45, 0.25);
-Set 2 114 / 9.42 / 3.08, 0.25 (120 / 22.6 / 5.81, 0.21);
-Set 3 56.1 / 8.17 / 2.27, 0.22 (77.9 / 19.8 / 3.98, 0.09);
-Case 2 16.5 / 2.70 / 1.40, 0.19 (17.4 / 9.00 / 5.75, 0.10).
-(With y held instead of interpolated in the eta filter: e_rms 1.09, 3.13, 2.30
-and 1.56 um; the other figures within 1 um.)
-The Set 2 peak is the start-up transient with theta_hat1(0) = 30 against the
-true 10: the output-feedback estimate x_hat predicts 3x the acceleration the
-input produces until the adaptation has learnt the payload (theta_hat1 ~ 17
-after 10 ms); the Case 2 peak is the break-away from stiction at each start.
-The previous choice (caps = g1, g2, Gamma = [3e6, 3e5, 4e6]) gave Set 2
-e_M 192 um and Case 2 e_M 18.5 um, both worse than the PID.
+``docs/implementability.md`` records the measurements behind these limits on
+the reference plant, and the Table-1 figures of
+:func:`commission.paper.paper_gains_implementable`.
 
 Hence the caps: ``k1s_max`` bounds K1 (the whole gain of alpha_1s =
 -(K1/theta1min) z1, g1 included) and ``k2s_max`` bounds K2 (the whole gain of
