@@ -176,6 +176,7 @@ def test_roundtrip_and_strict_loading(small):
             Tuning.from_dict(bad, source="tuning.json")
 
 
+@pytest.mark.slow  # a whole tune (tens of seconds): in `pytest -m slow`
 def test_same_seed_same_tuning_different_seed_different_search():
     ident = ref_ident()
     spec = spec_from_mapping({"tune": {"budget": 6}})  # 4 structured starts + 2 random draws
@@ -191,6 +192,7 @@ def test_same_seed_same_tuning_different_seed_different_search():
     assert a.search.history[:4] == c.search.history[:4]
 
 
+@pytest.mark.slow  # a whole tune (tens of seconds): in `pytest -m slow`
 def test_spec_can_pin_theta_hat1_0():
     ident = ref_ident()
     spec = spec_from_mapping({"tune": {"budget": 6}, "controller": {"theta1_0": 30.0}})
@@ -242,6 +244,7 @@ def test_default_budgets_shrink_with_the_work_of_a_candidate():
     assert repair_budget(slow, scale) == tune_mod.MIN_REPAIR_BUDGET == 16 < repair_budget(slow, 1.0) == REPAIR_BUDGET
 
 
+@pytest.mark.slow  # a whole tune (tens of seconds): in `pytest -m slow`
 def test_progress_callback_and_base_gains():
     ident = ref_ident()
     spec = spec_from_mapping(SMALL)
@@ -451,6 +454,7 @@ def test_repair_coordinates_move_a_cap_and_keep_g():
     assert free_of_repair(repair_coordinates(x, 1.0))[0][8] == pytest.approx(1.2)
 
 
+@pytest.mark.slow  # a hold-out repair (tens of seconds): in `pytest -m slow`
 def test_repair_moves_away_from_destabilising_gains(holdout_setup):
     """Starting from :data:`BAD_X`, the repair's local search must cut the hold-out gate's failures.
 
