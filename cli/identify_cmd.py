@@ -14,7 +14,8 @@ from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
 from commission.files import Outputs
-from commission.identification import BoundsOptions, IdentifyOutcome, identify_log, payload_from_kg
+from commission.identification import (BoundsOptions, IdentifyOutcome, LegsOutcome, expand_log_paths, identify_legs,
+                                       identify_log, parse_fix, payload_from_kg)
 from commission.jsonio import write_json_atomic
 from commission.logs import parse_mapping
 
@@ -27,6 +28,8 @@ class Friction(str, enum.Enum):
 
 #: Figures of ``--plot`` (:func:`commission.cli.plots.identification_plots`).
 PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
+#: Figure of ``--plot`` for a friction test of several logs (:func:`commission.cli.plots_friction.friction_map_plot`).
+LEGS_PLOT_NAMES = ("friction_map.png",)
 Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
                "default m. Refused when it contradicts the file's attribute.")
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
@@ -100,6 +103,33 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         console.print(f"[yellow]warning:[/] {w}")
 
 
+def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
+    """One-screen summary of a friction test: the curve's parameters, the map, what is not identified."""
+    ident = outcome.ident
+    u, q = ident.units["u"], ident.units["q"]
+    units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
+    t = Table(title=f"Friction test: {len(outcome.logs) - len(outcome.excluded)} constant-speed legs "
+                    f"({ident.extra['model']['friction']})")
+    for col in ("parameter", "value", "± std", "unit"):
+        t.add_column(col, justify="right" if col != "parameter" else "left")
+    missing = ident.not_identified()
+    for name, est in ident.parameters.items():
+        if est is None:
+            if name in missing:
+                t.add_row(name, "not identified", "", units[name])
+            continue
+        fixed = name in ident.extra["model"].get("fixed", {})
+        t.add_row(name, f"{est.value:.6g}", "fixed" if fixed else f"{est.std:.3g}", units[name])
+    console.print(t)
+    console.print(f"friction map: {outcome.fmap.velocity.size} legs, speeds "
+                  f"{abs(outcome.fmap.velocity).min():.3g}-{abs(outcome.fmap.velocity).max():.3g} {q}/s; "
+                  f"relative error of the curve {ident.relative_error:.4f}")
+    for name, why in missing.items():
+        console.print(f"[yellow]not identified:[/] {name}: {why}")
+    for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
+        console.print(f"[yellow]warning:[/] {w}")
+
+
 def frequency_summary(fr: dict | None) -> str:
     """One line on the frequency response section of ident.json."""
     if not fr:
@@ -120,7 +150,9 @@ def frequency_summary(fr: dict | None) -> str:
 @app.command("identify")
 @cli_errors
 def identify_command(
-    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1)."),
+    logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
+        "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
+        "or a folder, are the constant-speed legs of a friction test, one leg per file.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
     map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
     input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
@@ -141,32 +173,60 @@ def identify_command(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
     log_format: Optional[str] = typer.Option(None, "--format", help="Force the log format: hdf5, csv, mat or epos (default: from the content, then the extension)."),
+    fix: List[str] = typer.Option([], "--fix", metavar="NAME=VALUE", help="A known parameter, e.g. M=0.027 (u-unit·s²/m): a friction test of constant-speed legs then gives theta and its box."),
 ) -> None:
-    """Identify M, B, friction and offset from a position-only excitation log; write ident.json."""
+    """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
+
+    Several logs (or a folder) are read as the legs of a friction test: the friction map and curve are
+    identified, and M is reported as not identified unless --fix gives it."""
     bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
                             payload_max_kg, force_constant, disturbance_bound)
     mapping = parse_mapping(map_)
+    fixed = parse_fix(fix)
+    files = expand_log_paths([str(p) for p in logs])
+    legs = len(files) > 1
+    if legs:
+        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch)):
+            if value is not None:
+                raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
+    elif fixed:
+        raise UsageError("--fix: applies to a friction test of several constant-speed logs (several files or a "
+                         "folder); an excitation log identifies M itself")
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
-    outputs = Outputs(force=force, inputs=(log, validate_on))
+    outputs = Outputs(force=force, inputs=(*files, validate_on))
     outputs.add_file(out, "--out")
     if plot is not None:
-        outputs.add_dir(plot, PLOT_NAMES, "--plot")
+        outputs.add_dir(plot, LEGS_PLOT_NAMES if legs else PLOT_NAMES, "--plot")
     console = Console(stderr=False)
     with outputs:
         with console.status("identifying ...", spinner="dots"):
-            outcome = identify_log(
-                str(log), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                friction=friction.value, ripple_pitch=ripple_pitch,
-                validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
-                q_unit=q_unit, fmt=log_format,
-            )
+            if legs:
+                outcome: IdentifyOutcome | LegsOutcome = identify_legs(
+                    files, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+                    friction=friction.value, fix=fixed, bounds=bounds, u_unit=u_unit, q_unit=q_unit,
+                    fmt=log_format)
+            else:
+                outcome = identify_log(
+                    files[0], mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
+                    friction=friction.value, ripple_pitch=ripple_pitch,
+                    validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
+                    q_unit=q_unit, fmt=log_format,
+                )
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:
-            from commission.cli.plots import identification_plots
+            if isinstance(outcome, LegsOutcome):
+                from commission.cli.plots_friction import friction_map_plot
 
-            figures = [outputs.final(p) for p in identification_plots(outcome, outputs.staging(plot))]
-    print_summary(outcome, console)
+                figures = [outputs.final(friction_map_plot(outcome, outputs.staging(plot) / LEGS_PLOT_NAMES[0]))]
+            else:
+                from commission.cli.plots import identification_plots
+
+                figures = [outputs.final(p) for p in identification_plots(outcome, outputs.staging(plot))]
+    if isinstance(outcome, LegsOutcome):
+        print_legs_summary(outcome, console)
+    else:
+        print_summary(outcome, console)
     console.print(f"wrote {out}")
     for p in figures:
         console.print(f"wrote {p}")

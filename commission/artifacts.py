@@ -120,17 +120,19 @@ class Identification:
     parameters : dict
         Name -> :class:`Estimate`.  M in u-unit s^2/m, B in u-unit s/m,
         fc, fs, offset in u-unit, vs in m/s, xi dimensionless.  ``fs``, ``vs``,
-        ``xi`` are ``None`` for the Coulomb model.
+        ``xi`` are ``None`` for the Coulomb model.  ``M`` is ``None`` when the log
+        carries no information on it; ``extra["not_identified"]["M"]`` then says why.
     relative_error : float
         ||y - y_hat|| / ||y|| on the identification data (fraction).
     condition_number : float
         Of the (column-scaled) regressor.
     validation_relative_error : float or None
         Same figure on the ``--validate-on`` log.
-    theta : ThetaBox
-        Nominal theta and the Assumption-1 box.
-    delta_d : float
-        Bound on |d~| = |d - d_n|/M, m/s^2.
+    theta : ThetaBox or None
+        Nominal theta and the Assumption-1 box; ``None`` when ``M`` was not
+        identified (theta1 = 1/M), e.g. from a friction test of constant-speed legs.
+    delta_d : float or None
+        Bound on |d~| = |d - d_n|/M, m/s^2; ``None`` with ``theta``.
     fric_level, fric_slope : float
         Friction compensation ``level*(2/pi)*atan(slope*v)``: level in u-unit,
         slope in s/m.
@@ -145,8 +147,8 @@ class Identification:
     relative_error: float
     condition_number: float
     validation_relative_error: float | None
-    theta: ThetaBox
-    delta_d: float
+    theta: ThetaBox | None
+    delta_d: float | None
     fric_level: float
     fric_slope: float
     extra: Mapping[str, Any] = field(default_factory=dict)
@@ -156,6 +158,21 @@ class Identification:
         if est is None:
             raise KeyError(f"parameter {name!r} was not identified")
         return est.value
+
+    def not_identified(self) -> dict[str, str]:
+        """Parameter -> why the log could not identify it (``not_identified`` in ident.json)."""
+        return dict(self.extra.get("not_identified") or {})
+
+    def tuning_gaps(self, source: str = "ident.json") -> list[str]:
+        """What ``tune`` needs and this identification lacks, one message per gap (empty: complete)."""
+        gaps = []
+        for name, why in self.not_identified().items():
+            if name == "M":
+                gaps.append(f"{source}: $.parameters.M: not identified ({why}); tune needs the mass: identify a log "
+                            "with acceleration content, or give the mass with identify --fix M=VALUE")
+            else:
+                gaps.append(f"{source}: $.parameters.{name}: not identified ({why})")
+        return gaps
 
     def structural_model(self) -> StructuralModel | None:
         """The mode and input delay the frequency response found (None: the log did not measure them)."""
@@ -174,7 +191,7 @@ class Identification:
                     "condition_number": self.condition_number,
                     "validation_relative_error": self.validation_relative_error,
                 },
-                "theta": self.theta.to_dict(),
+                "theta": self.theta.to_dict() if self.theta is not None else None,
                 "delta_d": self.delta_d,
                 "friction_compensation": {"level": self.fric_level, "slope": self.fric_slope},
             }
@@ -189,22 +206,36 @@ class Identification:
         units = {"u": units_r.str_("u"), "q": units_r.str_("q")}
         pr = r.obj("parameters")
         params: dict[str, Estimate | None] = {}
+        not_identified = data.get("not_identified") or {}
+        if not isinstance(not_identified, dict) or not all(isinstance(v, str) for v in not_identified.values()):
+            raise r.fail("expected an object of parameter -> reason", "$.not_identified")
         for name in PARAMETER_NAMES:
             required = name in ("M", "B", "fc", "offset")
+            if name in not_identified and name in pr.keys() and pr.data[name] is None:
+                params[name] = None  # reported as not identified, with its reason
+                continue
             if not required and not pr.has(name):
                 params[name] = None
                 continue
             er = pr.obj(name)
             params[name] = Estimate(er.num("value"), er.num("std", nonneg=True))
-        if params["M"].value <= 0:  # type: ignore[union-attr]
-            raise r.fail(f"expected a positive mass, got {params['M'].value!r}", "$.parameters.M.value")  # type: ignore[union-attr]
+        M = params["M"]
+        if M is not None and M.value <= 0:
+            raise r.fail(f"expected a positive mass, got {M.value!r}", "$.parameters.M.value")
         fit = r.obj("fit")
-        th = r.obj("theta")
-        nominal, lo, hi = th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3)
-        try:
-            theta = ThetaBox(nominal, lo, hi)  # type: ignore[arg-type]
-        except ValueError as exc:  # only the box's own consistency checks land here
-            raise r.fail(str(exc), "$.theta") from None
+        theta: ThetaBox | None = None
+        delta_d: float | None = None
+        if M is None and data.get("theta") is None:
+            if data.get("delta_d") is not None:
+                raise r.fail("expected null: M is not identified", "$.delta_d")
+        else:
+            th = r.obj("theta")
+            nominal, lo, hi = th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3)
+            try:
+                theta = ThetaBox(nominal, lo, hi)  # type: ignore[arg-type]
+            except ValueError as exc:  # only the box's own consistency checks land here
+                raise r.fail(str(exc), "$.theta") from None
+            delta_d = r.num("delta_d", nonneg=True)
         fcr = r.obj("friction_compensation")
         known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}
         extra = {k: v for k, v in data.items() if k not in known}
@@ -216,7 +247,7 @@ class Identification:
             condition_number=fit.num("condition_number", positive=True),  # type: ignore[arg-type]
             validation_relative_error=fit.num("validation_relative_error", optional=True, nonneg=True),
             theta=theta,
-            delta_d=r.num("delta_d", nonneg=True),  # type: ignore[arg-type]
+            delta_d=delta_d,
             fric_level=fcr.num("level", nonneg=True),  # type: ignore[arg-type]
             fric_slope=fcr.num("slope", nonneg=True),  # type: ignore[arg-type]
             extra=extra,

@@ -9,8 +9,10 @@ numerics are re-raised with the file name so that the CLI can print one line.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from dataclasses import dataclass
-from typing import Literal, Mapping
+from pathlib import Path
+from typing import Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -18,16 +20,27 @@ from commission import __version__
 from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.checks import CheckReport, check_log
 from commission.errors import DataError, IdentifiabilityError, UsageError
-from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds
+from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds, theta_bounds_from
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
-from commission.identify.fit import AxisFit, evaluate, fit_axis
-from commission.identify.friction import stribeck_friction
+from commission.identify.fit import AxisFit, MapFit, evaluate, fit_axis, fit_friction_map
+from commission.identify.friction import friction_compensation_curve, stribeck_friction
 from commission.identify.frf import FrequencyResponse, frequency_response
+from commission.identify.steady import FrictionMap, friction_map
 from commission.logs import ExcitationLog, load_log
 
 
 #: Command units of CONTRACT §1.
 U_UNITS = ("V", "N", "A", "Nm", "%")
+
+#: File extensions a folder given to ``identify`` is searched for.
+LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat")
+#: A leg of a friction test is at constant speed when its speed, smoothed over
+#: :data:`LEG_SMOOTHING` of its samples, stays within this fraction of the mean speed
+#: on 90 % of the samples (wide enough for a 1-rpm velocity quantisation at 1-2 rpm).
+LEG_SPEED_TOLERANCE = 0.5
+LEG_SMOOTHING = 0.05
+#: Parameters ``--fix`` accepts.
+FIXABLE = ("M",)
 
 
 @dataclass(frozen=True)
@@ -279,6 +292,241 @@ def identify_log(
         extra=extra,
     )
     return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb, frequency=freq)
+
+
+def expand_log_paths(paths: Sequence[str]) -> list[str]:
+    """The log files named by ``paths``: files as given, folders as their log files (sorted by name).
+
+    Raises
+    ------
+    UsageError
+        A path that does not exist, or a folder without a log file.
+    """
+    out: list[str] = []
+    for p in paths:
+        path = Path(p)
+        if path.is_dir():
+            found = sorted((f for f in path.iterdir() if f.is_file() and f.suffix.lower() in LOG_EXTENSIONS),
+                           key=lambda f: f.name)
+            if not found:
+                raise UsageError(f"{p}: a folder without log files ({', '.join(LOG_EXTENSIONS)})")
+            out.extend(str(f) for f in found)
+        elif path.exists():
+            out.append(str(p))
+        else:
+            raise UsageError(f"{p}: no such file or folder")
+    return out
+
+
+def parse_fix(items: Sequence[str]) -> dict[str, float]:
+    """``["M=0.027"]`` -> ``{"M": 0.027}`` (``--fix``; positive finite values of :data:`FIXABLE`)."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in FIXABLE:
+            raise UsageError(f"--fix {item!r}: expected NAME=VALUE with NAME one of {', '.join(FIXABLE)}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise UsageError(f"--fix {item!r}: {value!r} is not a number") from None
+        if not (math.isfinite(v) and v > 0):
+            raise UsageError(f"--fix {item!r}: {name} must be a positive finite number (u-unit·s²/m)")
+        out[name] = v
+    return out
+
+
+@dataclass(frozen=True)
+class LegsOutcome:
+    """A friction test identified from several logs, one constant-speed leg each."""
+
+    ident: Identification
+    logs: tuple[ExcitationLog, ...]
+    fmap: FrictionMap
+    fit: MapFit
+    excluded: tuple[str, ...]
+
+
+def _leg_speed_spread(log: ExcitationLog) -> float:
+    """90th percentile of |smoothed speed - mean speed| / |mean speed| over the leg (inf: no motion)."""
+    v_mean = (log.q[-1] - log.q[0]) / (log.t[-1] - log.t[0])
+    if v_mean == 0.0:
+        return math.inf
+    v = np.gradient(log.q, log.t)
+    w = max(3, int(LEG_SMOOTHING * v.size))
+    kernel = np.ones(w) / w
+    smooth = np.convolve(np.pad(v, (w // 2, w - 1 - w // 2), mode="edge"), kernel, mode="valid")
+    return float(np.quantile(np.abs(smooth - v_mean) / abs(v_mean), 0.9))
+
+
+def identify_legs(
+    paths: Sequence[str],
+    *,
+    mapping: Mapping[str, str] | None = None,
+    input_gain: float = 1.0,
+    sample_rate: float | None = None,
+    friction: Literal["coulomb", "stribeck", "auto"] = "auto",
+    fix: Mapping[str, float] | None = None,
+    bounds: BoundsOptions = BoundsOptions(),
+    u_unit: str | None = None,
+    q_unit: str | None = None,
+    fmt: str | None = None,
+) -> LegsOutcome:
+    """Identify the friction curve from a friction test: several logs, one constant-speed leg each.
+
+    Each file is its own leg, so nothing is filtered across the joins between
+    files.  Each leg gives one point of the friction map (mean speed, median
+    command, spread, samples; :func:`commission.identify.steady.friction_map`), and
+    the friction curve ``B v + Ff(v) + offset`` is fitted to the map
+    (:func:`commission.identify.fit.fit_friction_map`).  Constant speed carries no
+    information on the mass: ``M`` is reported as not identified, with the reason,
+    unless the user fixes it (``fix={"M": value}``); only then are theta, its box and
+    delta_d defined.  A leg whose mean speed is zero (a stalled run) is left out
+    with a warning; a file that is not at constant speed is refused, named.
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Log files (at least two; folders already expanded, :func:`expand_log_paths`).
+    fix : mapping, optional
+        Known parameters (``{"M": u-unit s^2/m}``).
+    mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt
+        As in :func:`identify_log`, applied to every file.
+
+    Returns
+    -------
+    LegsOutcome
+    """
+    if not input_gain > 0 or not np.isfinite(input_gain):
+        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
+    if u_unit is not None and u_unit not in U_UNITS:
+        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    if friction not in ("auto", "coulomb", "stribeck"):
+        raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
+    fix = dict(fix or {})
+    logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
+            for p in paths]
+    units = {(lg.u_unit, lg.q_unit_in_file == "rad") for lg in logs}
+    if len(units) > 1:
+        raise DataError(f"{paths[0]}: the logs of one axis must share their units; found u in "
+                        f"{sorted({u for u, _ in units})} and {'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
+    legs, excluded, warnings = [], [], []
+    for lg in logs:
+        if lg.n < 2 or not np.all(np.isfinite(lg.t)) or not np.all(np.isfinite(lg.q)) or not np.all(np.isfinite(lg.u)):
+            raise DataError(f"{lg.source}: a leg needs at least 2 finite samples of t, q and u")
+        spread = _leg_speed_spread(lg)
+        if math.isinf(spread):
+            excluded.append(lg.source)
+            warnings.append(f"{lg.source}: mean speed 0 (a stalled leg); left out of the friction map")
+            continue
+        if spread > LEG_SPEED_TOLERANCE:
+            raise DataError(f"{lg.source}: not a constant-speed leg (its smoothed speed departs from the mean by "
+                            f"{spread * 100:.0f} % or more on 10 % of the samples; at most "
+                            f"{LEG_SPEED_TOLERANCE * 100:.0f} %): several logs are identified together only as the "
+                            "constant-speed legs of a friction test; identify an excitation log on its own")
+        legs.append(lg)
+    if len(legs) < 2:
+        raise IdentifiabilityError(f"{paths[0]}: {len(legs)} usable constant-speed leg(s) of {len(logs)} files; "
+                                   "a friction map needs legs in both directions")
+    fmap = friction_map([(lg.t, lg.q, lg.u) for lg in legs])
+    try:
+        try:
+            mf = fit_friction_map(fmap.velocity, fmap.force, friction="stribeck" if friction == "auto" else friction)
+            fc, fs = mf.parameters["fc"][0], mf.parameters.get("fs", (None,))[0]
+            if friction == "auto" and fs is not None and fs < fc:
+                warnings.append(f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs:.4g} < fc = {fc:.4g}); "
+                                "the Coulomb model was fitted instead (--friction stribeck keeps the Stribeck fit)")
+                mf = fit_friction_map(fmap.velocity, fmap.force, friction="coulomb")
+        except StribeckNotIdentifiableError as exc:
+            if friction != "auto":
+                raise
+            warnings.append(f"friction auto: Stribeck curve not identifiable ({exc}); the Coulomb model was fitted "
+                            "instead (--friction stribeck refuses such a map)")
+            mf = fit_friction_map(fmap.velocity, fmap.force, friction="coulomb")
+    except NotIdentifiableError as exc:
+        raise IdentifiabilityError(f"{paths[0]}: {exc}") from None
+    warnings.extend(mf.warnings)
+
+    p = mf.parameters
+    params: dict[str, Estimate | None] = {}
+    for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
+        v = p.get(name)
+        params[name] = Estimate(float(v[0]), float(v[1])) if v is not None else None
+    not_identified: dict[str, str] = {}
+    if "M" in fix:
+        params["M"] = Estimate(fix["M"], 0.0)
+    else:
+        not_identified["M"] = ("the logs are constant-speed legs: no acceleration, so no information on the "
+                               "mass (the inertia on a rotary axis)")
+    # The controller's velocity estimate: sqrt(6) x the rms of the per-sample velocity about
+    # the leg's smoothed speed (as identify.fit does for a log not on an encoder grid).
+    v_res = float(np.median([math.sqrt(6.0) * np.std(np.diff(lg.q) / np.diff(lg.t)) for lg in legs]))
+    v_top = float(np.max(np.abs(fmap.velocity)))
+    comp = friction_compensation_curve(p["fc"][0], p["fs"][0] if "fs" in p else None,
+                                       p["vs"][0] if "vs" in p else None, p["xi"][0] if "xi" in p else None,
+                                       v_max=v_top, v_resolution=max(v_res, 1e-9))
+    theta = None
+    delta_d = None
+    tb = None
+    if "M" in fix:
+        try:
+            tb = theta_bounds_from({**p, "M": (fix["M"], 0.0)}, mf.residuals, k_sigma=bounds.k_sigma,
+                                   model_margin=bounds.model_margin, payload_min=bounds.payload_min,
+                                   payload_max=bounds.payload_max, disturbance_bound=bounds.disturbance_bound)
+            theta = ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
+        except ValueError as exc:
+            raise DataError(f"{paths[0]}: the identified friction and the fixed mass give no usable theta box "
+                            f"({exc}); B = {p['B'][0]:.4g}") from None
+        delta_d = tb.delta_d
+    first = legs[0]
+    extra: dict[str, object] = {
+        "tool": {"name": "commission", "version": __version__},
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "source": {
+            "path": [lg.source for lg in logs],
+            "sha256": [lg.sha256 for lg in logs],
+            "n_samples": int(sum(lg.n for lg in logs)),
+            "sample_rate": float(first.sample_rate),
+            "input_gain": float(input_gain),
+            "mapping": dict(mapping or {}),
+            "q_unit": first.q_unit_in_file,
+            "excluded": excluded,
+        },
+        "validation_source": None,
+        "model": {
+            "friction": mf.friction,
+            "friction_requested": friction,
+            "method": "friction-legs",
+            "legs": len(legs),
+            "fixed": {k: v for k, v in fix.items()},
+            "v_max": v_top,
+            "velocity_resolution": v_res,
+        },
+        "friction_map": fmap.to_dict(),
+        "not_identified": not_identified,
+        "friction_compensation_rms_error": comp.rms_error,
+        "warnings": warnings,
+    }
+    if tb is not None:
+        extra["bounds"] = {
+            "k_sigma": bounds.k_sigma, "model_margin": bounds.model_margin,
+            "mass_range": list(tb.mass_range), "viscous_range": list(tb.viscous_range),
+            "disturbance_range": list(tb.disturbance_range), "disturbance_bound": tb.disturbance_bound,
+            "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
+        }
+    ident = Identification(
+        units={"u": u_unit or first.u_unit, "q": "rad" if first.q_unit_in_file == "rad" else "m"},
+        parameters=params,
+        relative_error=mf.relative_error,
+        condition_number=mf.condition_number,
+        validation_relative_error=None,
+        theta=theta,
+        delta_d=delta_d,
+        fric_level=comp.level,
+        fric_slope=comp.slope,
+        extra=extra,
+    )
+    return LegsOutcome(ident=ident, logs=tuple(logs), fmap=fmap, fit=mf, excluded=tuple(excluded))
 
 
 def _maybe(v: tuple[float, float] | None) -> dict[str, float] | None:

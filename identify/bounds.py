@@ -45,7 +45,9 @@ include the error of the atan friction compensation, which the tuner may add
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -88,15 +90,28 @@ class ThetaBounds:
     disturbance_bound_defaulted: bool
 
 
-def theta_bounds(fit: AxisFit, *, k_sigma: float = 3.0, model_margin: float = 0.2, payload_min: float = 0.0,
-                 payload_max: float | None = None, disturbance_bound: float | None = None,
-                 quantile: float = 0.999) -> ThetaBounds:
-    """Nominal ``theta`` and the Assumption-1 box from an identification.
+def theta_bounds(fit: AxisFit, **kwargs: Any) -> ThetaBounds:
+    """Nominal ``theta`` and the Assumption-1 box of an :class:`AxisFit`.
+
+    :func:`theta_bounds_from` with the fit's parameters and residuals; keyword
+    arguments as there.
+    """
+    return theta_bounds_from(fit.parameters, fit.residuals, **kwargs)
+
+
+def theta_bounds_from(parameters: Mapping[str, tuple[float, float]], residuals: np.ndarray, *,
+                      k_sigma: float = 3.0, model_margin: float = 0.2, payload_min: float = 0.0,
+                      payload_max: float | None = None, disturbance_bound: float | None = None,
+                      quantile: float = 0.999) -> ThetaBounds:
+    """Nominal ``theta`` and the Assumption-1 box from identified parameters.
 
     Parameters
     ----------
-    fit : AxisFit
-        Identification result.
+    parameters : mapping of str to (float, float)
+        ``name -> (value, std)`` with at least ``M``, ``B``, ``fc`` and ``offset``
+        (:attr:`AxisFit.parameters`; ``M`` may be a value the user fixed, std 0).
+    residuals : ndarray
+        Force residuals of the fit, u-unit: their ``quantile`` over ``M`` gives ``delta_d``.
     k_sigma : float
         Standard deviations added around ``M``, ``B`` and ``offset``.
     model_margin : float
@@ -114,7 +129,7 @@ def theta_bounds(fit: AxisFit, *, k_sigma: float = 3.0, model_margin: float = 0.
     -------
     ThetaBounds
     """
-    p = fit.parameters
+    p = parameters
     M, sM = p["M"]
     B, sB = p["B"]
     off, soff = p["offset"]
@@ -140,7 +155,7 @@ def theta_bounds(fit: AxisFit, *, k_sigma: float = 3.0, model_margin: float = 0.
     dn = -off
     d_lo, d_hi = dn - k_sigma * soff - D, dn + k_sigma * soff + D
     th3 = [d_lo / m_lo, d_lo / m_hi, d_hi / m_lo, d_hi / m_hi]
-    r = np.asarray(fit.residuals)
+    r = np.asarray(residuals)
     delta_d = float(np.quantile(np.abs(r - r.mean()), quantile)) / M
     return ThetaBounds(nominal=(1.0 / M, B / M, dn / M),
                        theta_min=(1.0 / m_hi, b_lo / m_hi, min(th3)),

@@ -458,6 +458,80 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
     return params, np.column_stack([segs.velocity, F]), reversal
 
 
+@dataclass(frozen=True)
+class MapFit:
+    """Friction curve fitted to a friction map alone (legs of a friction test, no dynamics).
+
+    Attributes
+    ----------
+    friction : {"coulomb", "stribeck"}
+        Model fitted.
+    parameters : dict of str to (float, float)
+        ``B`` (u-unit s/m), ``fc`` (u-unit), Stribeck only ``fs`` (u-unit), ``vs``
+        (m/s), ``xi`` (-), and ``offset`` (u-unit): ``(value, std)``.  No ``M``: constant
+        velocity carries no information on the mass.
+    residuals : ndarray
+        Map force minus fitted curve, per leg, u-unit.
+    relative_error : float
+        ``||F - F_hat|| / ||F||`` over the legs, fraction.
+    condition_number : float
+        2-norm condition number of the column-scaled map regressor ``[v, sign v, 1]``.
+    warnings : tuple of str
+    """
+
+    friction: FrictionModel
+    parameters: dict[str, tuple[float, float]]
+    residuals: np.ndarray = field(repr=False)
+    relative_error: float
+    condition_number: float
+    warnings: tuple[str, ...]
+
+
+def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: FrictionModel) -> MapFit:
+    """Fit ``F = B v + Ff(v) + offset`` to friction-map points (one per constant-velocity leg).
+
+    The same map fit as step 1 of the ``"steady+dynamic"`` method, on legs that are
+    separate recordings (a friction test), so no mass and no inertia correction.
+
+    Parameters
+    ----------
+    velocity : ndarray
+        Mean velocity of each leg, m/s (rad/s on a rotary axis).
+    force : ndarray
+        Command of each leg (its median), u-unit.
+    friction : {"coulomb", "stribeck"}
+
+    Returns
+    -------
+    MapFit
+
+    Raises
+    ------
+    NotIdentifiableError
+        Fewer than :data:`MIN_LADDER_SPEEDS` distinct speeds in a direction.
+    StribeckNotIdentifiableError
+        The Stribeck curve is not supported by the map.
+    """
+    v = np.asarray(velocity, dtype=np.float64)
+    F = np.asarray(force, dtype=np.float64)
+    n_pos, n_neg = _distinct_speeds(v[v > 0]), _distinct_speeds(-v[v < 0])
+    need = MIN_LADDER_SPEEDS[friction]
+    if min(n_pos, n_neg) < need:
+        raise NotIdentifiableError(f"friction: legs at {n_pos} distinct speeds forward and {n_neg} backward; the "
+                                   f"{friction} curve needs {need} each way")
+    warnings: list[str] = []
+    params = _map_fit(v, F, friction, warnings)
+    ff = stribeck_friction(v, params["fc"][0], params["fs"][0] if "fs" in params else None,
+                           params["vs"][0] if "vs" in params else None, params["xi"][0] if "xi" in params else None)
+    fitted = params["B"][0] * v + ff + params["offset"][0]
+    r = F - fitted
+    X = np.column_stack([v, np.sign(v), np.ones_like(v)])
+    X = X / np.linalg.norm(X, axis=0)
+    return MapFit(friction=friction, parameters=params, residuals=r,
+                  relative_error=float(np.linalg.norm(r) / max(np.linalg.norm(F), 1e-300)),
+                  condition_number=float(np.linalg.cond(X)), warnings=tuple(warnings))
+
+
 # ----------------------------------------------------------------------------- public API
 
 def _velocity_resolution(q_raw: np.ndarray, pp: Preprocessed, quant: float | None) -> float:
