@@ -70,16 +70,20 @@ def bounds_options(
 def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     """One-screen summary: parameters +- std, fit, bounds, warnings."""
     ident, fit = outcome.ident, outcome.fit
-    u = ident.units["u"]
-    units = {"M": f"{u}·s²/m", "B": f"{u}·s/m", "fc": u, "fs": u, "vs": "m/s", "xi": "-", "offset": u}
+    u, q = ident.units["u"], ident.units["q"]
+    units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
     t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
+    missing = ident.not_identified()
+    fixed = ident.extra.get("model", {}).get("fixed", {})  # type: ignore[union-attr]
     for name, est in ident.parameters.items():
         if est is None:
+            if name in missing:
+                t.add_row(name, "not identified", "", "", units[name])
             continue
         rel = f"{abs(est.std / est.value) * 100:.2f} %" if est.value else "-"
-        t.add_row(name, f"{est.value:.6g}", f"{est.std:.3g}", rel, units[name])
+        t.add_row(name, f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel, units[name])
     ra = ident.extra.get("model", {}).get("ripple_amp")  # type: ignore[union-attr]
     if ra:
         t.add_row("ripple_amp", f"{ra['value']:.4g}", f"{ra['std']:.2g}", "", u)
@@ -91,12 +95,20 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         f"relative error {ident.relative_error:.4f}, condition number {ident.condition_number:.4g}"
         + (f", validation relative error {ident.validation_relative_error:.4f}"
            if ident.validation_relative_error is not None else ""),
-        "theta nominal [" + ", ".join(f"{x:.4g}" for x in ident.theta.nominal) + "]",
-        "theta min     [" + ", ".join(f"{x:.4g}" for x in ident.theta.min) + "]",
-        "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
-        f"delta_d {ident.delta_d:.4g} m/s²; friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}",
     ]
-    lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
+    if ident.theta is not None:
+        lines += [
+            "theta nominal [" + ", ".join(f"{x:.4g}" for x in ident.theta.nominal) + "]",
+            "theta min     [" + ", ".join(f"{x:.4g}" for x in ident.theta.min) + "]",
+            "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
+            f"delta_d {ident.delta_d:.4g} m/s²",
+        ]
+    lines.append(f"friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}")
+    if ident.theta is not None:
+        lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
+    for name, why in missing.items():
+        lines.append(f"[yellow]not identified:[/] {name}: {why}; theta, its box and the frequency response need it "
+                     "(identify --fix M=VALUE gives it)")
     for line in lines:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
@@ -173,6 +185,7 @@ def identify_command(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
     log_format: Optional[str] = typer.Option(None, "--format", help="Force the log format: hdf5, csv, mat or epos (default: from the content, then the extension)."),
+    resample: Optional[float] = typer.Option(None, "--resample", metavar="HZ", help="Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host polling)."),
     fix: List[str] = typer.Option([], "--fix", metavar="NAME=VALUE", help="A known parameter, e.g. M=0.027 (u-unit·s²/m): a friction test of constant-speed legs then gives theta and its box."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
@@ -186,12 +199,9 @@ def identify_command(
     files = expand_log_paths([str(p) for p in logs])
     legs = len(files) > 1
     if legs:
-        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch)):
+        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch), ("--resample", resample)):
             if value is not None:
                 raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
-    elif fixed:
-        raise UsageError("--fix: applies to a friction test of several constant-speed logs (several files or a "
-                         "folder); an excitation log identifies M itself")
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
     outputs = Outputs(force=force, inputs=(*files, validate_on))
     outputs.add_file(out, "--out")
@@ -210,7 +220,7 @@ def identify_command(
                     files[0], mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                     friction=friction.value, ripple_pitch=ripple_pitch,
                     validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
-                    q_unit=q_unit, fmt=log_format,
+                    q_unit=q_unit, fmt=log_format, resample=resample, fix=fixed,
                 )
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []

@@ -75,7 +75,8 @@ def identification_plots(outcome: IdentifyOutcome, out_dir: str | Path) -> list[
     fig.savefig(paths[-1], dpi=110)
     plt.close(fig)
 
-    paths.append(bode_plot(outcome, out / "bode.png"))
+    if outcome.frequency is not None:  # None: M not identified, no rigid model to compare with
+        paths.append(bode_plot(outcome, out / "bode.png"))
     return paths
 
 

@@ -189,7 +189,8 @@ def check_log(
                 f"{src}: channel t: non-uniform sampling at index {k}: t[{k}]-t[{k - 1}] = "
                 f"{float(dt[k - 1]):.6g} s is {100 * float(dev[k - 1]):.3g} % off the median step "
                 f"{dt_med:.6g} s (tolerance {100 * dt_tolerance:g} %; max deviation "
-                f"{100 * dt_max_dev:.3g} %, relative std {100 * dt_rel_std:.3g} %)"
+                f"{100 * dt_max_dev:.3g} %, relative std {100 * dt_rel_std:.3g} %); --resample HZ puts the log "
+                f"on a uniform grid by linear interpolation (its median rate is {rate:.6g} Hz)"
             )
 
     # 3. Length.

@@ -8,6 +8,7 @@ numerics are re-raised with the file name so that the CLI can print one line.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import math
 from dataclasses import dataclass
@@ -90,20 +91,23 @@ class IdentifyOutcome:
     fit: AxisFit
     log: ExcitationLog
     checks: CheckReport
-    bounds: ThetaBounds
-    frequency: FrequencyResponse
+    bounds: ThetaBounds | None
+    frequency: FrequencyResponse | None
 
 
-def _fit_with_context(log: ExcitationLog, *, friction: str,
-                      ripple_pitch: float | None) -> tuple[AxisFit, list[str]]:
+def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float | None,
+                      mass: float | None = None) -> tuple[AxisFit, list[str]]:
     """Fit ``log`` with the friction model (``"auto"``: see :func:`identify_log`); the warnings it adds.
 
-    Numerics errors come back as the pipeline's, naming the file.
+    ``mass`` given: M is known.  A log without usable acceleration content leaves M not
+    identified (:attr:`AxisFit.not_identified`) rather than refused.  Numerics errors come
+    back as the pipeline's, naming the file.
     """
+    kw = {"ripple_pitch": ripple_pitch, "mass": mass, "allow_unidentified_mass": True}
     try:
         try:
             model = "stribeck" if friction == "auto" else friction
-            fit = fit_axis(log.t, log.q, log.u, friction=model, ripple_pitch=ripple_pitch)  # type: ignore[arg-type]
+            fit = fit_axis(log.t, log.q, log.u, friction=model, **kw)  # type: ignore[arg-type]
             fc, fs = fit.parameters.get("fc"), fit.parameters.get("fs")
             if friction == "auto" and fc is not None and fs is not None and fs[0] < fc[0]:
                 # Anti-Stribeck (friction rising towards low speed) is outside the model the
@@ -111,7 +115,7 @@ def _fit_with_context(log: ExcitationLog, *, friction: str,
                 note = (f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs[0]:.4g} < fc = {fc[0]:.4g}: "
                         "friction rises at low speed); the Coulomb model was fitted instead "
                         "(--friction stribeck keeps the Stribeck fit)")
-                return fit_axis(log.t, log.q, log.u, friction="coulomb", ripple_pitch=ripple_pitch), [note]
+                return fit_axis(log.t, log.q, log.u, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
             return fit, []
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":
@@ -120,7 +124,7 @@ def _fit_with_context(log: ExcitationLog, *, friction: str,
             # leaves M, B, fc and the offset well determined: commission with the Coulomb model.
             note = (f"friction auto: Stribeck curve not identifiable ({exc}); the Coulomb model was fitted "
                     f"instead (--friction stribeck refuses such a log)")
-            return fit_axis(log.t, log.q, log.u, friction="coulomb", ripple_pitch=ripple_pitch), [note]
+            return fit_axis(log.t, log.q, log.u, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
     except NotIdentifiableError as exc:
         raise IdentifiabilityError(f"{log.source}: {exc}") from None
     except SignalError as exc:
@@ -140,6 +144,8 @@ def identify_log(
     u_unit: str | None = None,
     q_unit: str | None = None,
     fmt: str | None = None,
+    resample: float | None = None,
+    fix: Mapping[str, float] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log.
 
@@ -172,6 +178,15 @@ def identify_log(
     fmt : {"hdf5", "csv", "mat", "epos"}, optional
         Forces the log format (``--format``); default: recognised from the content
         (EPOS recorder files) or the extension.  Applies to ``validate_on`` too.
+    resample : float, optional
+        Hz: interpolate the log (and ``validate_on``) onto a uniform grid first
+        (:func:`resample_log`), for irregular time stamps.
+    fix : mapping, optional
+        Known parameters (``{"M": u-unit s^2/m}``, ``--fix``), not fitted.
+
+    A log without usable acceleration content (slow constant-speed runs) leaves M not
+    identified: ``parameters.M`` null with the reason in ``not_identified``, and no
+    theta, box or frequency response (they need M); the rest is still identified.
 
     Returns
     -------
@@ -185,6 +200,8 @@ def identify_log(
         raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
     log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
                    fmt=fmt)
+    if resample is not None:
+        log = resample_log(log, resample)
     checks = check_log(log)
     unit_warnings = []
     if u_unit is None and input_gain != 1.0:
@@ -195,30 +212,36 @@ def identify_log(
         # Load and check the second log before the (long) fit: bad input fails fast.
         val_log = load_log(validate_on, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
                            q_unit=q_unit, fmt=fmt)
+        if resample is not None:
+            val_log = resample_log(val_log, resample)
         check_log(val_log)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
-    fit, friction_warnings = _fit_with_context(log, friction=friction, ripple_pitch=ripple_pitch)
+    fix = dict(fix or {})
+    fit, friction_warnings = _fit_with_context(log, friction=friction, ripple_pitch=ripple_pitch, mass=fix.get("M"))
+    has_mass = "M" in fit.parameters
     val_err = None
     if val_log is not None:
         try:
             val_err = evaluate(fit, val_log.t, val_log.q, val_log.u)
         except (NotIdentifiableError, SignalError) as exc:
             raise DataError(f"{val_log.source}: {exc}") from None
-    try:
-        tb = theta_bounds(
-            fit,
-            k_sigma=bounds.k_sigma,
-            model_margin=bounds.model_margin,
-            payload_min=bounds.payload_min,
-            payload_max=bounds.payload_max,
-            disturbance_bound=bounds.disturbance_bound,
-        )
-    except ValueError as exc:
-        raise UsageError(f"bounds: {exc}") from None
+    tb: ThetaBounds | None = None
+    if has_mass:
+        try:
+            tb = theta_bounds(
+                fit,
+                k_sigma=bounds.k_sigma,
+                model_margin=bounds.model_margin,
+                payload_min=bounds.payload_min,
+                payload_max=bounds.payload_max,
+                disturbance_bound=bounds.disturbance_bound,
+            )
+        except ValueError as exc:
+            raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
-    freq = frequency_response(log.t, log.q, log.u, fit.parameters["M"][0], fit.parameters["B"][0])
+    freq = frequency_response(log.t, log.q, log.u, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
 
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
@@ -237,6 +260,7 @@ def identify_log(
             "input_gain": float(input_gain),
             "mapping": dict(mapping or {}),
             "q_unit": log.q_unit_in_file,
+            "resampled_hz": resample,
         },
         "validation_source": (
             {"path": str(validate_on), "sha256": val_log.sha256} if val_log is not None else None
@@ -259,7 +283,7 @@ def identify_log(
             "quantization": checks.quantization_step,
             "apparent_resolution": checks.apparent_resolution,
         },
-        "bounds": {
+        "bounds": {} if tb is None else {
             "k_sigma": bounds.k_sigma,
             "model_margin": bounds.model_margin,
             "mass_range": list(tb.mass_range),
@@ -269,16 +293,15 @@ def identify_log(
             "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
         },
         "friction_compensation_rms_error": comp.rms_error,
-        "frequency_response": freq.to_dict(),
+        "frequency_response": freq.to_dict() if freq is not None else None,
+        "not_identified": dict(fit.not_identified),
         "warnings": warnings,
     }
-    try:
-        theta = ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
-    except ValueError as exc:
-        # E.g. a negative B from a log the rigid model does not explain: no controller can use it.
-        raise DataError(f"{path}: the identified parameters give no usable theta box ({exc}); "
-                        f"M = {fit.parameters['M'][0]:.4g}, B = {fit.parameters['B'][0]:.4g}, relative error "
-                        f"{fit.relative_error:.3g}: the model does not explain this log") from None
+    if fix:
+        extra["model"]["fixed"] = dict(fix)  # type: ignore[index]
+    if tb is None:
+        del extra["bounds"], extra["frequency_response"]  # both need M
+    theta = None if tb is None else _theta_box(tb, path, fit)
     ident = Identification(
         units={"u": u_unit or log.u_unit, "q": "rad" if log.q_unit_in_file == "rad" else "m"},
         parameters=params,
@@ -286,12 +309,58 @@ def identify_log(
         condition_number=fit.condition_number,
         validation_relative_error=val_err,
         theta=theta,
-        delta_d=tb.delta_d,
+        delta_d=tb.delta_d if tb is not None else None,
         fric_level=comp.level,
         fric_slope=comp.slope,
         extra=extra,
     )
     return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb, frequency=freq)
+
+
+def _theta_box(tb: ThetaBounds, path: str, fit: AxisFit) -> ThetaBox:
+    try:
+        return ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
+    except ValueError as exc:
+        # E.g. a negative B from a log the rigid model does not explain: no controller can use it.
+        raise DataError(f"{path}: the identified parameters give no usable theta box ({exc}); "
+                        f"M = {fit.parameters['M'][0]:.4g}, B = {fit.parameters['B'][0]:.4g}, relative error "
+                        f"{fit.relative_error:.3g}: the model does not explain this log") from None
+
+
+#: Largest accepted --resample rate as a multiple of the log's median rate (interpolation adds no information).
+MAX_RESAMPLE_FACTOR = 10.0
+
+
+def resample_log(log: ExcitationLog, rate: float) -> ExcitationLog:
+    """The log on the uniform grid ``t[0] + k / rate`` by linear interpolation (``--resample``).
+
+    For logs whose time stamps are irregular (host polling over USB, dropped samples):
+    q, u (and q_ref) are interpolated linearly between the recorded samples.  A rate
+    far above the log's median rate adds samples but no information, so it is refused.
+
+    Parameters
+    ----------
+    log : ExcitationLog
+    rate : float
+        Hz.
+    """
+    if not (math.isfinite(rate) and rate > 0):
+        raise UsageError(f"--resample must be a positive rate in Hz, got {rate}")
+    t = np.asarray(log.t)
+    if t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        raise DataError(f"{log.source}: channel t: --resample needs strictly increasing finite time stamps")
+    median_rate = 1.0 / float(np.median(np.diff(t)))
+    if rate > MAX_RESAMPLE_FACTOR * median_rate:
+        raise UsageError(f"--resample {rate:g} Hz is more than {MAX_RESAMPLE_FACTOR:g} x the log's median rate "
+                         f"{median_rate:.4g} Hz")
+    n = int(math.floor((t[-1] - t[0]) * rate + 1e-9)) + 1
+    tu = t[0] + np.arange(n) / rate
+
+    def interp(x: np.ndarray | None) -> np.ndarray | None:
+        return None if x is None else np.interp(tu, t, x)
+
+    return dataclasses.replace(log, t=tu, q=interp(log.q), u=interp(log.u), q_ref=interp(log.q_ref),
+                               sample_rate=float(rate))
 
 
 def expand_log_paths(paths: Sequence[str]) -> list[str]:

@@ -18,3 +18,7 @@ class NotIdentifiableError(ValueError):
 
 class StribeckNotIdentifiableError(NotIdentifiableError):
     """The log shows no Stribeck curve it can support (the Coulomb model may still fit it)."""
+
+
+class MassNotIdentifiableError(NotIdentifiableError):
+    """The log carries no usable acceleration content: M is not identified (the rest may be)."""

@@ -67,7 +67,7 @@ from typing import Literal
 import numpy as np
 from scipy import ndimage
 
-from commission.identify.errors import NotIdentifiableError, StribeckNotIdentifiableError
+from commission.identify.errors import MassNotIdentifiableError, NotIdentifiableError, StribeckNotIdentifiableError
 from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
                                           stribeck_shape_derivatives)
 from commission.identify.ls import FrictionModel, readonly_copy, regressor, solve, stribeck_shape
@@ -143,6 +143,9 @@ class AxisFit:
         Speed below which rows were left out of the mass fit, m/s (0 for ``"dynamic"``).
     warnings : tuple of str
         Human-readable caveats.
+    not_identified : dict of str to str
+        Parameters the log carries no information on, with the reason (``M`` of a log
+        without usable acceleration, when allowed); they are absent from ``parameters``.
     """
 
     friction: FrictionModel
@@ -168,6 +171,7 @@ class AxisFit:
     ripple_pitch: float | None
     reversal_speed: float
     warnings: tuple[str, ...]
+    not_identified: dict[str, str] = field(default_factory=dict)
 
     def value(self, name: str) -> float:
         """Value of a parameter."""
@@ -183,7 +187,7 @@ def _param_values(params: dict[str, tuple[float, float]]) -> dict[str, float]:
 def model_force(p: dict[str, float], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 ripple_pitch: float | None) -> np.ndarray:
     """Full-rate model force ``M qdd + B qd + Ff(qd) + offset + ripple(q)``, u-unit."""
-    y = p["M"] * qdd + p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi"))
+    y = p.get("M", 0.0) * qdd + p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi"))
     y = y + p["offset"]
     if ripple_pitch is not None and "ripple_amp" in p:
         y = y + p["ripple_amp"] * np.sin(2.0 * np.pi * q / ripple_pitch + p["ripple_phase"])
@@ -228,7 +232,7 @@ def _check_reversals(v_dec: np.ndarray, v_noise: float, cond: float) -> None:
 
 def _check_mass(M: float, std: float, cond: float) -> None:
     if not (M > 0 and std <= MAX_REL_STD_M * M):
-        raise NotIdentifiableError(
+        raise MassNotIdentifiableError(
             f"M: no usable acceleration content (M = {M:.4g} +- {std:.2g}, need M > 0 and a relative std "
             f"below {MAX_REL_STD_M:.0%}); condition number {cond:.3g}")
 
@@ -264,14 +268,18 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
 # ----------------------------------------------------------------------------- dynamic (EMPS) method
 
 def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float | None, v_noise: float,
-                 warnings: list[str]) -> tuple[dict[str, tuple[float, float]], float]:
+                 warnings: list[str], mass: float | None = None) -> tuple[dict[str, tuple[float, float]], float]:
+    """The whole-log regression; ``mass`` given: M is known (its term moved to the left side), not fitted."""
     base = regressor(pp.qd, pp.qdd, q=pp.q, model="coulomb", ripple_pitch=ripple_pitch)
     Phi = pp.decimate(base.Phi)
     y = pp.decimate(pp.u)
+    names = base.names
+    if mass is not None:
+        y = y - mass * Phi[:, 0]
+        Phi, names = Phi[:, 1:], names[1:]
     v_dec = pp.decimate(pp.qd)
     cond = float(np.linalg.cond(Phi))
     _check_reversals(v_dec, v_noise, cond)
-    names = base.names
     if friction == "coulomb":
         res = solve(Phi, y)
         params = {nm: (float(th), float(sd)) for nm, th, sd in zip(names, res.theta, res.std)}
@@ -302,7 +310,8 @@ def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float 
         i, j = idx["ripple_sin"], idx["ripple_cos"]
         params.update(_ripple_params(params["ripple_sin"][0], params["ripple_cos"][0], cov[np.ix_([i, j], [i, j])]))
         del params["ripple_sin"], params["ripple_cos"]
-    _check_mass(params["M"][0], params["M"][1], cond)
+    if mass is None:
+        _check_mass(params["M"][0], params["M"][1], cond)
     return params, cond
 
 
@@ -398,9 +407,10 @@ def _usable_map(segs: SteadySegments, friction: FrictionModel) -> str | None:
 
 
 def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel, ripple_pitch: float | None,
-                reversal_speed: float | None,
-                warnings: list[str]) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
-    M = 0.0  # the legs' mean acceleration is ~0; the first map fit needs no mass
+                reversal_speed: float | None, warnings: list[str],
+                mass: float | None = None) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
+    """Friction from the legs, mass (and ripple) from the dynamics; ``mass`` given: M is known, not fitted."""
+    M = 0.0 if mass is None else mass  # the legs' mean acceleration is ~0; the first map fit needs no mass
     ripple_ab = np.zeros(2)
     if ripple_pitch is not None:
         ph = 2.0 * np.pi * pp.q / ripple_pitch
@@ -409,6 +419,9 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
     else:
         seg_sc = np.zeros((len(segs), 2))
         X_rip = pp.decimate(pp.qdd[:, None])
+    n_m = 1 if mass is None else 0  # columns of X_rip before the ripple's
+    if mass is not None:
+        X_rip = X_rip[:, 1:]
     y_u = pp.decimate(pp.u)
     speed = np.abs(pp.qd)
     reach = 4 * pp.decimation + 1
@@ -419,7 +432,7 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
         rows = ~pp.decimate_mask(low)
         n_rows = int(rows.sum())
         if n_rows < 10 * X_rip.shape[1]:
-            raise NotIdentifiableError(
+            raise MassNotIdentifiableError(
                 f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} m/s away from reversals "
                 "(need dynamic motion at speed for the mass)")
         return rows
@@ -444,16 +457,19 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
                     v_ex = knee if knee is not None else 0.05 * float(np.max(np.abs(segs.velocity)))
             rows = usable_rows(v_ex)
             reversal = float(v_ex)
-        y = y_u - pp.decimate(_friction_force(p, pp.qd))
+        y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
+        if X_rip.shape[1] == 0:  # known mass, no ripple: nothing to regress
+            continue
         res = solve(X_rip[rows], y[rows])
-        M = float(res.theta[0])
-        _check_mass(M, float(res.std[0]), res.condition_number)
+        if mass is None:
+            M = float(res.theta[0])
+            _check_mass(M, float(res.std[0]), res.condition_number)
         if ripple_pitch is not None:
-            ripple_ab = np.asarray(res.theta[1:3])
-    params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0]))}
+            ripple_ab = np.asarray(res.theta[n_m:n_m + 2])
+    params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0])) if mass is None else (mass, 0.0)}
     params.update(fr)
     if ripple_pitch is not None:
-        params.update(_ripple_params(ripple_ab[0], ripple_ab[1], np.asarray(res.cov)[1:3, 1:3]))
+        params.update(_ripple_params(ripple_ab[0], ripple_ab[1], np.asarray(res.cov)[n_m:n_m + 2, n_m:n_m + 2]))
     # The map points as the final friction fit saw them.
     return params, np.column_stack([segs.velocity, F]), reversal
 
@@ -547,7 +563,8 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
              ripple_pitch: float | None = None, use_steady: bool = True,
              bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
              decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
-             reversal_speed: float | None = None) -> AxisFit:
+             reversal_speed: float | None = None, mass: float | None = None,
+             allow_unidentified_mass: bool = False) -> AxisFit:
     """Identify ``M, B``, friction, offset (and ripple) of one axis from a log.
 
     Parameters
@@ -579,6 +596,13 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
         Rows that come near speeds below this are left out of the mass fit of the
         ``"steady+dynamic"`` method, m/s (default ``3 vs`` of the map's Stribeck
         curve, else 5 % of the fastest constant-velocity leg).
+    mass : float, optional
+        A known mass, u-unit s^2/m: its term is moved to the left side and the rest
+        is fitted (reported with std 0).
+    allow_unidentified_mass : bool
+        When the log has no usable acceleration content, fit the rest without the
+        mass term and report M in :attr:`AxisFit.not_identified` instead of refusing
+        the log (slow constant-speed runs: friction and ripple tests).
 
     Returns
     -------
@@ -615,13 +639,26 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
             warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "
                             "discontinuity can bias B, fc and fs (a friction ladder avoids it)")
             segs = None
-    if segs is not None:
-        method: Method = "steady+dynamic"
-        params, fmap, rev = _steady_fit(pp, segs, friction, ripple_pitch, reversal_speed, warnings)
-    else:
-        method = "dynamic"
-        params, _ = _dynamic_fit(pp, friction, ripple_pitch, v_noise, warnings)
-        fmap, rev = np.zeros((0, 2)), 0.0
+    if mass is not None and not (math.isfinite(mass) and mass > 0):
+        raise ValueError(f"mass must be a positive finite number, got {mass!r}")
+    method: Method = "steady+dynamic" if segs is not None else "dynamic"
+
+    def fit_with(m: float | None) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
+        if segs is not None:
+            return _steady_fit(pp, segs, friction, ripple_pitch, reversal_speed, warnings, mass=m)
+        return _dynamic_fit(pp, friction, ripple_pitch, v_noise, warnings, mass=m)[0], np.zeros((0, 2)), 0.0
+
+    not_identified: dict[str, str] = {}
+    try:
+        params, fmap, rev = fit_with(mass)
+    except MassNotIdentifiableError as exc:
+        if not allow_unidentified_mass:
+            raise
+        not_identified["M"] = str(exc).removeprefix("M: ")
+        params, fmap, rev = fit_with(0.0)  # the model without the mass term
+        params.pop("M", None)
+    if mass is not None:
+        params["M"] = (float(mass), 0.0)
     params = {k: params[k] for k in PARAMETER_ORDER if k in params}
 
     p = _param_values(params)
@@ -630,7 +667,8 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
     r = y - y_hat
     full = regressor(pp.qd, pp.qdd, q=pp.q, model=friction, vs=p.get("vs"), xi=p.get("xi"),
                      ripple_pitch=ripple_pitch)
-    cond = float(np.linalg.cond(pp.decimate(full.Phi)))
+    fitted_cols = pp.decimate(full.Phi)[:, (1 if (mass is not None or not_identified) else 0):]  # M is column 0
+    cond = float(np.linalg.cond(fitted_cols))
     return AxisFit(friction=friction, method=method, parameters=params,
                    relative_error=float(np.linalg.norm(r) / np.linalg.norm(y)), condition_number=cond,
                    residual_std=float(np.std(r, ddof=1)), residuals=readonly_copy(r), t_decimated=readonly_copy(pp.t_dec),
@@ -638,7 +676,8 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
                    steady_force=readonly_copy(fmap[:, 1]), quantization=quant, velocity_resolution=v_res,
                    v_max=float(np.max(np.abs(pp.qd))), sample_rate=pp.sample_rate, bandwidth_hz=float(bandwidth_hz),
                    cutoff_hz=pp.cutoff_hz, decimation=pp.decimation, trim_start=pp.trim_start,
-                   ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings))
+                   ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings),
+                   not_identified=not_identified)
 
 
 def evaluate(fit: AxisFit, t: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:

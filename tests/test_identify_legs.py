@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 from commission.artifacts import Identification
 from commission.cli.main import app
 from commission.errors import CommissionError, DataError, SchemaError, UsageError
-from commission.identification import expand_log_paths, identify_legs, parse_fix
+from commission.identification import expand_log_paths, identify_legs, identify_log, parse_fix
 from commission.identify.friction import stribeck_friction
 from commission.logs import ExcitationLog
 
@@ -211,12 +211,16 @@ def test_ident_json_with_m_null_needs_its_reason(fake_loader):
         Identification.from_dict(doc)
 
 
-def test_fix_is_refused_for_one_excitation_log(tmp_path):
-    sample = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
-    res = runner.invoke(app, ["identify", str(sample), "--fix", "M=0.03",
-                              "--out", str(tmp_path / "i.json")])
-    assert res.exit_code == 2 and "--fix: applies to a friction test" in res.output
-    assert not (tmp_path / "i.json").exists()
+def test_a_fixed_mass_on_an_excitation_log_is_kept_and_the_rest_agrees_with_the_free_fit():
+    sample = str(Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5")
+    free = identify_log(sample).ident
+    M = free.parameters["M"].value
+    fixed = identify_log(sample, fix={"M": M}).ident
+    assert fixed.parameters["M"].value == M and fixed.parameters["M"].std == 0.0
+    assert fixed.extra["model"]["fixed"] == {"M": M} and fixed.not_identified() == {}
+    for name in ("B", "fc", "offset"):
+        assert fixed.parameters[name].value == pytest.approx(free.parameters[name].value, rel=0.02, abs=1e-3)
+    assert fixed.theta.nominal[0] == pytest.approx(1 / M)
 
 
 def test_a_folder_without_logs_is_refused(tmp_path):
