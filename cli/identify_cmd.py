@@ -84,9 +84,10 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
             continue
         rel = f"{abs(est.std / est.value) * 100:.2f} %" if est.value else "-"
         t.add_row(name, f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel, units[name])
-    ra = ident.extra.get("model", {}).get("ripple_amp")  # type: ignore[union-attr]
-    if ra:
-        t.add_row("ripple_amp", f"{ra['value']:.4g}", f"{ra['std']:.2g}", "", u)
+    for h in ident.extra.get("model", {}).get("ripple_harmonics") or []:  # type: ignore[union-attr]
+        if h["amp"]:
+            t.add_row(f"ripple P={h['pitch']:.4g} {q}", f"{h['amp']['value']:.4g}", f"{h['amp']['std']:.2g}",
+                      f"phase {h['phase']['value']:+.3f} rad", u)
     console.print(t)
     q = outcome.checks.quantization_step
     lines = [
@@ -172,7 +173,7 @@ def identify_command(
     sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
     q_unit: Optional[str] = typer.Option(None, "--q-unit", help=Q_UNIT_HELP),
     friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
-    ripple_pitch: Optional[float] = typer.Option(None, "--ripple-pitch", help="Force-ripple pitch P in m: fits sin/cos(2πq/P)."),
+    ripple_pitch: List[float] = typer.Option([], "--ripple-pitch", help="Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one sinusoid per pitch (e.g. the harmonics of one cogging period)."),
     validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="Second log for the cross-test relative error."),
     k_sigma: float = typer.Option(3.0, "--k-sigma", help="Standard deviations covered by the theta box."),
     model_margin: float = typer.Option(0.2, "--model-margin", help="Relative margin on M and B for model error."),
@@ -199,7 +200,7 @@ def identify_command(
     files = expand_log_paths([str(p) for p in logs])
     legs = len(files) > 1
     if legs:
-        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch), ("--resample", resample)):
+        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch or None), ("--resample", resample)):
             if value is not None:
                 raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
@@ -218,7 +219,7 @@ def identify_command(
             else:
                 outcome = identify_log(
                     files[0], mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                    friction=friction.value, ripple_pitch=ripple_pitch,
+                    friction=friction.value, ripple_pitch=tuple(ripple_pitch) or None,
                     validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
                     q_unit=q_unit, fmt=log_format, resample=resample, fix=fixed,
                 )

@@ -26,6 +26,7 @@ from commission.identify.errors import NotIdentifiableError, SignalError, Stribe
 from commission.identify.fit import AxisFit, MapFit, evaluate, fit_axis, fit_friction_map
 from commission.identify.friction import friction_compensation_curve, stribeck_friction
 from commission.identify.frf import FrequencyResponse, frequency_response
+from commission.identify.ls import ripple_name, ripple_pitches
 from commission.identify.steady import FrictionMap, friction_map
 from commission.logs import ExcitationLog, load_log
 
@@ -95,7 +96,7 @@ class IdentifyOutcome:
     frequency: FrequencyResponse | None
 
 
-def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float | None,
+def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float | tuple[float, ...] | None,
                       mass: float | None = None) -> tuple[AxisFit, list[str]]:
     """Fit ``log`` with the friction model (``"auto"``: see :func:`identify_log`); the warnings it adds.
 
@@ -138,7 +139,7 @@ def identify_log(
     input_gain: float = 1.0,
     sample_rate: float | None = None,
     friction: Literal["coulomb", "stribeck", "auto"] = "auto",
-    ripple_pitch: float | None = None,
+    ripple_pitch: float | Sequence[float] | None = None,
     validate_on: str | None = None,
     bounds: BoundsOptions = BoundsOptions(),
     u_unit: str | None = None,
@@ -164,8 +165,9 @@ def identify_log(
         Stribeck-specific checks refuse it (no significant hump, too few slow samples, ``vs``
         on the edge of the speeds seen) the Coulomb model, with a warning in ident.json.
         ``"stribeck"`` refuses instead.
-    ripple_pitch : float, optional
-        Force-ripple pitch, m.
+    ripple_pitch : float or sequence of float, optional
+        Force-ripple pitch(es), m (``--ripple-pitch``, repeatable): one sinusoid per pitch.
+        The first is the ripple the simulator uses (``model.ripple_pitch``/``ripple_amp``).
     validate_on : str, optional
         Second log for the cross-test relative error (same mapping and gain).
     bounds : BoundsOptions
@@ -192,8 +194,11 @@ def identify_log(
     -------
     IdentifyOutcome
     """
-    if ripple_pitch is not None and not ripple_pitch > 0:
-        raise UsageError(f"--ripple-pitch must be > 0 m, got {ripple_pitch}")
+    try:
+        pitches = ripple_pitches(ripple_pitch)
+    except ValueError:
+        raise UsageError(f"--ripple-pitch must be > 0 m, got {ripple_pitch}") from None
+    ripple_pitch = (pitches[0] if len(pitches) == 1 else pitches) if pitches else None
     if not input_gain > 0 or not np.isfinite(input_gain):
         raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
     if u_unit is not None and u_unit not in U_UNITS:
@@ -269,9 +274,13 @@ def identify_log(
             "friction": fit.friction,
             "friction_requested": friction,
             "method": fit.method,
-            "ripple_pitch": ripple_pitch,
+            "ripple_pitch": pitches[0] if pitches else None,
             "ripple_amp": _maybe(fit.parameters.get("ripple_amp")),
             "ripple_phase": _maybe(fit.parameters.get("ripple_phase")),
+            "ripple_harmonics": [
+                {"pitch": p, "amp": _maybe(fit.parameters.get(ripple_name("ripple_amp", k))),
+                 "phase": _maybe(fit.parameters.get(ripple_name("ripple_phase", k)))}
+                for k, p in enumerate(pitches)],
             "residual_std": fit.residual_std,
             "steady_points": int(fit.steady_velocity.size),
             "v_max": fit.v_max,

@@ -70,7 +70,8 @@ from scipy import ndimage
 from commission.identify.errors import MassNotIdentifiableError, NotIdentifiableError, StribeckNotIdentifiableError
 from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
                                           stribeck_shape_derivatives)
-from commission.identify.ls import FrictionModel, readonly_copy, regressor, solve, stribeck_shape
+from commission.identify.ls import (FrictionModel, readonly_copy, regressor, ripple_name, ripple_pitches, solve,
+                                    stribeck_shape)
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, check_signals, default_settings,
                                          preprocess, quantization_step)
 from commission.identify.steady import SteadySegments, find_steady_segments
@@ -79,6 +80,14 @@ Method = Literal["dynamic", "steady+dynamic"]
 
 #: Order of the parameters in :attr:`AxisFit.parameters`.
 PARAMETER_ORDER = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_phase")
+
+
+def _ordered(params: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """``params`` in :data:`PARAMETER_ORDER`, then the further ripple pitches' ``ripple_amp_k``, ``ripple_phase_k``."""
+    out = {k: params[k] for k in PARAMETER_ORDER if k in params}
+    out.update({k: params[k] for k in sorted(params, key=lambda n: (len(n), n))
+                if k.startswith(("ripple_amp_", "ripple_phase_"))})
+    return out
 
 #: Least number of decimated rows on each side of zero velocity for the Coulomb level.
 MIN_ROWS_PER_DIRECTION = 5
@@ -105,7 +114,8 @@ class AxisFit:
         ``name -> (value, std)``: ``M`` (u-unit s^2/m), ``B`` (u-unit s/m),
         ``fc`` (u-unit), Stribeck only ``fs`` (u-unit), ``vs`` (m/s), ``xi`` (-),
         ``offset`` (u-unit), with a ripple pitch ``ripple_amp`` (u-unit) and
-        ``ripple_phase`` (rad, ripple = ``ripple_amp sin(2 pi q / P + ripple_phase)``).
+        ``ripple_phase`` (rad, ripple = ``ripple_amp sin(2 pi q / P + ripple_phase)``);
+        each further pitch P_k its ``ripple_amp_k``, ``ripple_phase_k`` (k = 2, 3, ...).
     relative_error : float
         ``||y - y_hat|| / ||y||`` on all decimated rows, fraction.
     condition_number : float
@@ -137,8 +147,8 @@ class AxisFit:
         Preprocessing bandwidth and Butterworth cut-off, Hz.
     decimation, trim_start : int
         Preprocessing decimation factor and samples trimmed at the start.
-    ripple_pitch : float or None
-        Force-ripple pitch used, m.
+    ripple_pitch : float, tuple of float or None
+        Force-ripple pitch(es) used, m.
     reversal_speed : float
         Speed below which rows were left out of the mass fit, m/s (0 for ``"dynamic"``).
     warnings : tuple of str
@@ -168,7 +178,7 @@ class AxisFit:
     cutoff_hz: float
     decimation: int
     trim_start: int
-    ripple_pitch: float | None
+    ripple_pitch: float | tuple[float, ...] | None
     reversal_speed: float
     warnings: tuple[str, ...]
     not_identified: dict[str, str] = field(default_factory=dict)
@@ -185,12 +195,14 @@ def _param_values(params: dict[str, tuple[float, float]]) -> dict[str, float]:
 
 
 def model_force(p: dict[str, float], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                ripple_pitch: float | None) -> np.ndarray:
+                ripple_pitch: float | tuple[float, ...] | None) -> np.ndarray:
     """Full-rate model force ``M qdd + B qd + Ff(qd) + offset + ripple(q)``, u-unit."""
     y = p.get("M", 0.0) * qdd + p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi"))
     y = y + p["offset"]
-    if ripple_pitch is not None and "ripple_amp" in p:
-        y = y + p["ripple_amp"] * np.sin(2.0 * np.pi * q / ripple_pitch + p["ripple_phase"])
+    for k, pitch in enumerate(ripple_pitches(ripple_pitch)):
+        amp = ripple_name("ripple_amp", k)
+        if amp in p:
+            y = y + p[amp] * np.sin(2.0 * np.pi * q / pitch + p[ripple_name("ripple_phase", k)])
     return y
 
 
@@ -198,15 +210,16 @@ def _friction_force(p: dict[str, float], qd: np.ndarray) -> np.ndarray:
     return p["B"] * qd + stribeck_friction(qd, p["fc"], p.get("fs"), p.get("vs"), p.get("xi")) + p["offset"]
 
 
-def _ripple_params(a: float, b: float, cov: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Amplitude and phase of ``a sin x + b cos x = A sin(x + phase)`` with delta-method std."""
+def _ripple_params(a: float, b: float, cov: np.ndarray, k: int = 0) -> dict[str, tuple[float, float]]:
+    """Amplitude and phase of ``a sin x + b cos x = A sin(x + phase)`` with delta-method std (``k``-th pitch)."""
+    amp, phase = ripple_name("ripple_amp", k), ripple_name("ripple_phase", k)
     A = math.hypot(a, b)
     if A == 0:
-        return {"ripple_amp": (0.0, float(math.sqrt(max(cov[0, 0], 0.0)))), "ripple_phase": (0.0, float("inf"))}
+        return {amp: (0.0, float(math.sqrt(max(cov[0, 0], 0.0)))), phase: (0.0, float("inf"))}
     g_amp = np.array([a / A, b / A])
     g_ph = np.array([-b / A**2, a / A**2])
-    return {"ripple_amp": (A, float(math.sqrt(max(g_amp @ cov @ g_amp, 0.0)))),
-            "ripple_phase": (math.atan2(b, a), float(math.sqrt(max(g_ph @ cov @ g_ph, 0.0))))}
+    return {amp: (A, float(math.sqrt(max(g_amp @ cov @ g_amp, 0.0)))),
+            phase: (math.atan2(b, a), float(math.sqrt(max(g_ph @ cov @ g_ph, 0.0))))}
 
 
 # ----------------------------------------------------------------------------- checks
@@ -267,7 +280,7 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
 
 # ----------------------------------------------------------------------------- dynamic (EMPS) method
 
-def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float | None, v_noise: float,
+def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float | tuple[float, ...] | None, v_noise: float,
                  warnings: list[str], mass: float | None = None) -> tuple[dict[str, tuple[float, float]], float]:
     """The whole-log regression; ``mass`` given: M is known (its term moved to the left side), not fitted."""
     base = regressor(pp.qd, pp.qdd, q=pp.q, model="coulomb", ripple_pitch=ripple_pitch)
@@ -306,10 +319,11 @@ def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float 
                         "excite slow motion or use friction='coulomb'", warnings)
         cov, cond = sep.cov, sep.condition_number
         idx = {nm: i for i, nm in enumerate(sep.names)}
-    if ripple_pitch is not None:
-        i, j = idx["ripple_sin"], idx["ripple_cos"]
-        params.update(_ripple_params(params["ripple_sin"][0], params["ripple_cos"][0], cov[np.ix_([i, j], [i, j])]))
-        del params["ripple_sin"], params["ripple_cos"]
+    for k in range(len(ripple_pitches(ripple_pitch))):
+        ns, nc = ripple_name("ripple_sin", k), ripple_name("ripple_cos", k)
+        i, j = idx[ns], idx[nc]
+        params.update(_ripple_params(params[ns][0], params[nc][0], cov[np.ix_([i, j], [i, j])], k))
+        del params[ns], params[nc]
     if mass is None:
         _check_mass(params["M"][0], params["M"][1], cond)
     return params, cond
@@ -406,16 +420,19 @@ def _usable_map(segs: SteadySegments, friction: FrictionModel) -> str | None:
     return None
 
 
-def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel, ripple_pitch: float | None,
+def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
+                ripple_pitch: float | tuple[float, ...] | None,
                 reversal_speed: float | None, warnings: list[str],
                 mass: float | None = None) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
     """Friction from the legs, mass (and ripple) from the dynamics; ``mass`` given: M is known, not fitted."""
     M = 0.0 if mass is None else mass  # the legs' mean acceleration is ~0; the first map fit needs no mass
-    ripple_ab = np.zeros(2)
-    if ripple_pitch is not None:
-        ph = 2.0 * np.pi * pp.q / ripple_pitch
-        seg_sc = np.column_stack([segs.mean_over(np.sin(ph)), segs.mean_over(np.cos(ph))])
-        X_rip = pp.decimate(np.column_stack([pp.qdd, np.sin(ph), np.cos(ph)]))
+    pitches = ripple_pitches(ripple_pitch)
+    n_r = 2 * len(pitches)  # ripple coefficients: (sin, cos) per pitch
+    ripple_ab = np.zeros(max(n_r, 2))
+    if pitches:
+        sc = [f(2.0 * np.pi * pp.q / pitch) for pitch in pitches for f in (np.sin, np.cos)]
+        seg_sc = np.column_stack([segs.mean_over(c) for c in sc])
+        X_rip = pp.decimate(np.column_stack([pp.qdd, *sc]))
     else:
         seg_sc = np.zeros((len(segs), 2))
         X_rip = pp.decimate(pp.qdd[:, None])
@@ -464,12 +481,13 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
         if mass is None:
             M = float(res.theta[0])
             _check_mass(M, float(res.std[0]), res.condition_number)
-        if ripple_pitch is not None:
-            ripple_ab = np.asarray(res.theta[n_m:n_m + 2])
+        if pitches:
+            ripple_ab = np.asarray(res.theta[n_m:n_m + n_r])
     params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0])) if mass is None else (mass, 0.0)}
     params.update(fr)
-    if ripple_pitch is not None:
-        params.update(_ripple_params(ripple_ab[0], ripple_ab[1], np.asarray(res.cov)[n_m:n_m + 2, n_m:n_m + 2]))
+    for k in range(len(pitches)):
+        i = n_m + 2 * k
+        params.update(_ripple_params(ripple_ab[2 * k], ripple_ab[2 * k + 1], np.asarray(res.cov)[i:i + 2, i:i + 2], k))
     # The map points as the final friction fit saw them.
     return params, np.column_stack([segs.velocity, F]), reversal
 
@@ -560,7 +578,7 @@ def _velocity_resolution(q_raw: np.ndarray, pp: Preprocessed, quant: float | Non
 
 
 def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionModel,
-             ripple_pitch: float | None = None, use_steady: bool = True,
+             ripple_pitch: float | tuple[float, ...] | None = None, use_steady: bool = True,
              bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
              decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
              reversal_speed: float | None = None, mass: float | None = None,
@@ -577,8 +595,9 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
         Command, u-unit (input gain already applied).
     friction : {"coulomb", "stribeck"}
         Friction model.
-    ripple_pitch : float, optional
-        Force-ripple pitch, m; fits a sinusoidal ripple of that pitch.
+    ripple_pitch : float or sequence of float, optional
+        Force-ripple pitch(es), m; fits a sinusoidal ripple of each pitch (e.g. the
+        harmonics of one cogging period: P, P/2, P/4).
     use_steady : bool
         Use constant-velocity legs for the friction curve when the log has them.
     bandwidth_hz : float
@@ -659,7 +678,7 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
         params.pop("M", None)
     if mass is not None:
         params["M"] = (float(mass), 0.0)
-    params = {k: params[k] for k in PARAMETER_ORDER if k in params}
+    params = _ordered(params)
 
     p = _param_values(params)
     y = pp.decimate(pp.u)

@@ -11,6 +11,7 @@ builds the columns and :func:`solve` estimates them.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -49,6 +50,22 @@ class Regressor:
     names: tuple[str, ...]
 
 
+def ripple_pitches(ripple_pitch: float | Sequence[float] | None) -> tuple[float, ...]:
+    """The ripple pitches as a tuple (``()`` for none), each checked positive and finite, m."""
+    if ripple_pitch is None:
+        return ()
+    out = (float(ripple_pitch),) if np.ndim(ripple_pitch) == 0 else tuple(float(p) for p in ripple_pitch)  # type: ignore[union-attr]
+    for p in out:
+        if not (np.isfinite(p) and p > 0):
+            raise ValueError(f"ripple_pitch must be > 0 m, got {p}")
+    return out
+
+
+def ripple_name(base: str, k: int) -> str:
+    """Name of the ``k``-th (0-based) ripple pitch's coefficient: ``base`` for the first, ``base_2``, ... after."""
+    return base if k == 0 else f"{base}_{k + 1}"
+
+
 def stribeck_shape(v: np.ndarray, vs: float, xi: float) -> np.ndarray:
     """Stribeck column ``exp(-|v/vs|^xi) sign(v)`` (dimensionless)."""
     return np.exp(-np.abs(v / vs) ** xi) * np.sign(v)
@@ -73,8 +90,10 @@ def regressor(qd: np.ndarray, qdd: np.ndarray, *, q: np.ndarray | None = None, m
         Stribeck velocity, m/s (Stribeck model only).
     xi : float, optional
         Stribeck exponent (Stribeck model only).
-    ripple_pitch : float, optional
-        Force-ripple pitch P, m: adds ``sin(2 pi q/P)``, ``cos(2 pi q/P)``.
+    ripple_pitch : float or sequence of float, optional
+        Force-ripple pitch P, m: adds ``sin(2 pi q/P)``, ``cos(2 pi q/P)``
+        (``ripple_sin``, ``ripple_cos``); each further pitch P_k adds its own pair
+        (``ripple_sin_k``, ``ripple_cos_k``, k = 2, 3, ...).
 
     Returns
     -------
@@ -95,17 +114,17 @@ def regressor(qd: np.ndarray, qdd: np.ndarray, *, q: np.ndarray | None = None, m
         raise ValueError(f"model must be 'coulomb' or 'stribeck', got {model!r}")
     cols.append(np.ones_like(qd))
     names.append("offset")
-    if ripple_pitch is not None:
+    pitches = ripple_pitches(ripple_pitch)
+    if pitches:
         if q is None:
             raise ValueError("ripple_pitch needs the position q")
-        if not ripple_pitch > 0:
-            raise ValueError(f"ripple_pitch must be > 0 m, got {ripple_pitch}")
         q = np.asarray(q, dtype=np.float64)
         if q.shape != qd.shape:
             raise ValueError(f"q: shape {q.shape} differs from qd {qd.shape}")
-        ph = 2.0 * np.pi * q / ripple_pitch
-        cols += [np.sin(ph), np.cos(ph)]
-        names += ["ripple_sin", "ripple_cos"]
+        for k, pitch in enumerate(pitches):
+            ph = 2.0 * np.pi * q / pitch
+            cols += [np.sin(ph), np.cos(ph)]
+            names += [ripple_name("ripple_sin", k), ripple_name("ripple_cos", k)]
     return Regressor(Phi=np.column_stack(cols), names=tuple(names))
 
 
