@@ -98,7 +98,7 @@ from commission.controllers.design import (
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
 from commission.controllers.simulate import simulate_batch
-from commission.errors import SpecError, UsageError
+from commission.errors import IdentifiabilityError, SpecError, UsageError
 from commission.gate import GateLimits, GateSpec, evaluate_gate, resolve_gate
 from commission.jsonio import read_json, sha256_file
 from commission.robustness import margin_table
@@ -1687,7 +1687,8 @@ class ResolvedSpec:
     extension: int = 0
 
 
-def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> ResolvedSpec:
+def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
+                 ident_name: str = "ident.json") -> ResolvedSpec:
     """The spec ``tune`` runs with, for this identification; no simulation runs here.
 
     The sample rate defaults to the log's (:func:`log_sample_rate`), the envelope's
@@ -1699,9 +1700,14 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification) -> Reso
 
     Raises
     ------
+    IdentifiabilityError
+        The identification lacks what tune needs (a parameter not identified), naming it.
     SpecError
         Naming the key.
     """
+    gaps = ident.tuning_gaps(ident_name)
+    if gaps:
+        raise IdentifiabilityError(gaps[0])
     spec = spec_from_mapping(spec_data, spec_name, sample_rate_default=log_sample_rate(ident))
     traj = spec_data.get("trajectory")
     given = set(traj) if isinstance(traj, dict) else set()
@@ -1740,7 +1746,7 @@ def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.
     spec_data, spec_name = read_spec_toml(spec_path)  # parse errors before reading ident.json
     spec_from_mapping(spec_data, spec_name)  # every key checked at the documented defaults
     ident = Identification.from_dict(read_json(ident_path), source=ident_path)
-    rs = resolve_spec(spec_data, spec_name, ident)
+    rs = resolve_spec(spec_data, spec_name, ident, ident_name=str(ident_path))
     return tune_inputs(rs, ident_path=ident_path, ident_sha256=sha256_file(ident_path), log_sha256=_log_sha256(ident),
                        seed=seed)
 

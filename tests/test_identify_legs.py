@@ -227,3 +227,13 @@ def test_a_folder_without_logs_is_refused(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(UsageError, match="a folder without log files"):
         expand_log_paths([str(tmp_path / "empty")])
+
+
+@tro
+def test_tune_refuses_an_identification_without_the_inertia_naming_it(drives, tmp_path):
+    path = tmp_path / "d1.json"
+    path.write_text(json.dumps(drives[1][0]))
+    res = runner.invoke(app, ["tune", str(path), "--out", str(tmp_path / "t.json")])
+    assert res.exit_code == 2
+    assert "$.parameters.M: not identified" in res.output and "--fix M=VALUE" in " ".join(res.output.split())
+    assert not (tmp_path / "t.json").exists()
