@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import enum
 from pathlib import Path
 from typing import List, Optional
 
@@ -14,57 +13,15 @@ from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
 from commission.files import Outputs
-from commission.identification import (BoundsOptions, IdentifyOutcome, LegsOutcome, expand_log_paths, identify_legs,
-                                       identify_log, parse_fix, payload_from_kg)
+from commission.cli.options import Friction, identify_options, opt
+from commission.identification import IdentifyOutcome, LegsOutcome, expand_log_paths, identify_legs, identify_log
 from commission.jsonio import write_json_atomic
-from commission.logs import parse_mapping
-
-
-class Friction(str, enum.Enum):
-    auto = "auto"
-    coulomb = "coulomb"
-    stribeck = "stribeck"
 
 
 #: Figures of ``--plot`` (:func:`commission.cli.plots.identification_plots`).
 PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 #: Figure of ``--plot`` for a friction test of several logs (:func:`commission.cli.plots_friction.friction_map_plot`).
 LEGS_PLOT_NAMES = ("friction_map.png",)
-Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
-               "default m. Refused when it contradicts the file's attribute.")
-FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
-                 "with a warning; stribeck: refuse a log that does not support it.")
-
-
-def bounds_options(
-    k_sigma: float,
-    model_margin: float,
-    payload_min: Optional[float],
-    payload_max: Optional[float],
-    payload_min_kg: Optional[float],
-    payload_max_kg: Optional[float],
-    force_constant: Optional[float],
-    disturbance_bound: Optional[float],
-) -> BoundsOptions:
-    """Turn the bound flags into :class:`BoundsOptions` (kg converted with the force constant)."""
-    if (payload_min_kg is not None or payload_max_kg is not None) and force_constant is None:
-        raise UsageError("--payload-min-kg/--payload-max-kg need --force-constant (N per u-unit)")
-    if payload_min is not None and payload_min_kg is not None:
-        raise UsageError("give either --payload-min or --payload-min-kg, not both")
-    if payload_max is not None and payload_max_kg is not None:
-        raise UsageError("give either --payload-max or --payload-max-kg, not both")
-    if payload_min_kg is not None:
-        payload_min = payload_from_kg(payload_min_kg, force_constant)  # type: ignore[arg-type]
-    if payload_max_kg is not None:
-        payload_max = payload_from_kg(payload_max_kg, force_constant)  # type: ignore[arg-type]
-    for flag, v in (("--payload-min", payload_min), ("--payload-max", payload_max),
-                    ("--disturbance-bound", disturbance_bound), ("--k-sigma", k_sigma)):
-        if v is not None and v < 0:
-            raise UsageError(f"{flag} must be >= 0, got {v}")
-    if not 0 <= model_margin < 1:
-        raise UsageError(f"--model-margin must be in [0, 1), got {model_margin}")
-    return BoundsOptions(k_sigma=k_sigma, model_margin=model_margin, payload_min=payload_min or 0.0,
-                         payload_max=payload_max, disturbance_bound=disturbance_bound)
 
 
 def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
@@ -167,40 +124,42 @@ def identify_command(
         "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
         "or a folder, are the constant-speed legs of a friction test, one leg per file.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
-    map_: List[str] = typer.Option([], "--map", help="NAME=SOURCE: contract channel -> name in the file (repeatable)."),
-    input_gain: float = typer.Option(1.0, "--input-gain", help="Multiplies u before identification (e.g. N/V)."),
-    u_unit: Optional[str] = typer.Option(None, "--u-unit", help="Unit of u after --input-gain (V, N, A); default: the file's."),
-    sample_rate: Optional[float] = typer.Option(None, "--sample-rate", help="Hz, for a file without t."),
-    q_unit: Optional[str] = typer.Option(None, "--q-unit", help=Q_UNIT_HELP),
-    friction: Friction = typer.Option(Friction.auto, "--friction", help=FRICTION_HELP),
-    ripple_pitch: List[float] = typer.Option([], "--ripple-pitch", help="Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one sinusoid per pitch (e.g. the harmonics of one cogging period)."),
-    validate_on: Optional[Path] = typer.Option(None, "--validate-on", help="Second log for the cross-test relative error."),
-    k_sigma: float = typer.Option(3.0, "--k-sigma", help="Standard deviations covered by the theta box."),
-    model_margin: float = typer.Option(0.2, "--model-margin", help="Relative margin on M and B for model error."),
-    payload_min: Optional[float] = typer.Option(None, "--payload-min", help="Least added mass, u-unit·s²/m (default 0)."),
-    payload_max: Optional[float] = typer.Option(None, "--payload-max", help="Largest added mass, u-unit·s²/m (default 3 M)."),
-    payload_min_kg: Optional[float] = typer.Option(None, "--payload-min-kg", help="Least added mass in kg (needs --force-constant)."),
-    payload_max_kg: Optional[float] = typer.Option(None, "--payload-max-kg", help="Largest added mass in kg (needs --force-constant)."),
-    force_constant: Optional[float] = typer.Option(None, "--force-constant", help="N per u-unit, to convert kg payloads."),
-    disturbance_bound: Optional[float] = typer.Option(None, "--disturbance-bound", help="Largest load force, u-unit (default 10 max(fc, fs))."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot)."),
+    map_: List[str] = opt("--map"),
+    input_gain: float = opt("--input-gain"),
+    u_unit: Optional[str] = opt("--u-unit"),
+    sample_rate: Optional[float] = opt("--sample-rate"),
+    q_unit: Optional[str] = opt("--q-unit"),
+    friction: Friction = opt("--friction"),
+    ripple_pitch: List[float] = opt("--ripple-pitch"),
+    validate_on: Optional[Path] = opt("--validate-on"),
+    k_sigma: float = opt("--k-sigma"),
+    model_margin: float = opt("--model-margin"),
+    payload_min: Optional[float] = opt("--payload-min"),
+    payload_max: Optional[float] = opt("--payload-max"),
+    payload_min_kg: Optional[float] = opt("--payload-min-kg"),
+    payload_max_kg: Optional[float] = opt("--payload-max-kg"),
+    force_constant: Optional[float] = opt("--force-constant"),
+    disturbance_bound: Optional[float] = opt("--disturbance-bound"),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot; a friction test: its map)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
-    log_format: Optional[str] = typer.Option(None, "--format", help="Force the log format: hdf5, csv, mat or epos (default: from the content, then the extension)."),
-    resample: Optional[float] = typer.Option(None, "--resample", metavar="HZ", help="Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host polling)."),
-    fix: List[str] = typer.Option([], "--fix", metavar="NAME=VALUE", help="A known parameter, e.g. M=0.027 (u-unit·s²/m): a friction test of constant-speed legs then gives theta and its box."),
+    log_format: Optional[str] = opt("--format"),
+    resample: Optional[float] = opt("--resample"),
+    fix: List[str] = opt("--fix"),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
     Several logs (or a folder) are read as the legs of a friction test: the friction map and curve are
     identified, and M is reported as not identified unless --fix gives it."""
-    bounds = bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg,
-                            payload_max_kg, force_constant, disturbance_bound)
-    mapping = parse_mapping(map_)
-    fixed = parse_fix(fix)
+    o = identify_options(map_=map_, input_gain=input_gain, u_unit=u_unit, sample_rate=sample_rate, q_unit=q_unit,
+                         friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
+                         model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
+                         payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
+                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix)
     files = expand_log_paths([str(p) for p in logs])
     legs = len(files) > 1
     if legs:
-        for flag, value in (("--validate-on", validate_on), ("--ripple-pitch", ripple_pitch or None), ("--resample", resample)):
+        for flag, value in (("--validate-on", o.validate_on), ("--ripple-pitch", o.ripple_pitch or None),
+                            ("--resample", o.resample)):
             if value is not None:
                 raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
@@ -213,16 +172,10 @@ def identify_command(
         with console.status("identifying ...", spinner="dots"):
             if legs:
                 outcome: IdentifyOutcome | LegsOutcome = identify_legs(
-                    files, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                    friction=friction.value, fix=fixed, bounds=bounds, u_unit=u_unit, q_unit=q_unit,
-                    fmt=log_format)
+                    files, mapping=o.mapping, input_gain=o.input_gain, sample_rate=o.sample_rate, friction=o.friction,
+                    fix=o.fix, bounds=o.bounds, u_unit=o.u_unit, q_unit=o.q_unit, fmt=o.fmt)
             else:
-                outcome = identify_log(
-                    files[0], mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                    friction=friction.value, ripple_pitch=tuple(ripple_pitch) or None,
-                    validate_on=str(validate_on) if validate_on else None, bounds=bounds, u_unit=u_unit,
-                    q_unit=q_unit, fmt=log_format, resample=resample, fix=fixed,
-                )
+                outcome = identify_log(files[0], **o.kwargs())  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:

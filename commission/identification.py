@@ -69,6 +69,55 @@ class BoundsOptions:
     disturbance_bound: float | None = None
 
 
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """Everything ``commission identify`` (and ``run``'s identify stage) is told about a log.
+
+    One definition for both commands; :meth:`kwargs` gives :func:`identify_log`'s keywords.
+
+    Attributes
+    ----------
+    mapping : mapping of str to str
+        Contract channel -> name in the file (``--map``).
+    input_gain : float
+        Multiplies u (``--input-gain``), u-unit per file unit.
+    sample_rate : float or None
+        Hz, for a file without ``t``.
+    friction : {"auto", "coulomb", "stribeck"}
+    ripple_pitch : tuple of float
+        Force-ripple pitches, m (rad on a rotary axis); empty: none.
+    validate_on : str or None
+        Second log for the cross-test relative error.
+    bounds : BoundsOptions
+    u_unit, q_unit, fmt : str or None
+        ``--u-unit``, ``--q-unit``, ``--format``.
+    resample : float or None
+        Hz (``--resample``).
+    fix : mapping of str to float
+        Known parameters (``--fix``).
+    """
+
+    mapping: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    input_gain: float = 1.0
+    sample_rate: float | None = None
+    friction: Literal["coulomb", "stribeck", "auto"] = "auto"
+    ripple_pitch: tuple[float, ...] = ()
+    validate_on: str | None = None
+    bounds: BoundsOptions = BoundsOptions()
+    u_unit: str | None = None
+    q_unit: str | None = None
+    fmt: str | None = None
+    resample: float | None = None
+    fix: Mapping[str, float] = dataclasses.field(default_factory=dict)
+
+    def kwargs(self) -> dict[str, object]:
+        """Keywords of :func:`identify_log`."""
+        return {"mapping": dict(self.mapping), "input_gain": self.input_gain, "sample_rate": self.sample_rate,
+                "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
+                "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
+                "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix)}
+
+
 def payload_from_kg(kg: float, force_constant: float) -> float:
     """Convert a payload in kg to the command-unit mass, u-unit s^2/m.
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Callable, Mapping
 from commission.errors import SpecError, UsageError
 
 if TYPE_CHECKING:
-    from commission.identification import BoundsOptions
+    from commission.identification import IdentifyOptions
 from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.scenarios import resolve_quantization
@@ -51,14 +51,11 @@ class RunOutcome:
 
 
 def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
-            mapping: Mapping[str, str] | None = None, input_gain: float = 1.0,
-            sample_rate: float | None = None, friction: str = "auto", q_unit: str | None = None,
+            identify: IdentifyOptions | None = None,
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
-            figures: FigureWriter | None = None, sign_key: bytes | None = None, u_unit: str | None = None,
-            ripple_pitch: float | None = None, validate_on: str | os.PathLike[str] | None = None,
-            bounds: BoundsOptions | None = None, fmt: str | None = None) -> RunOutcome:
+            figures: FigureWriter | None = None, sign_key: bytes | None = None) -> RunOutcome:
     """``commission run``: identify, tune and validate one log into ``out_dir``.
 
     Every check of the inputs (flags, spec, gate, the output folder, which is
@@ -77,9 +74,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     log_path : path
         Excitation log (CONTRACT §1).
     out_dir : path
-    mapping, input_gain, sample_rate, friction, q_unit
-        As ``commission identify`` (``--map``, ``--input-gain``, ``--sample-rate``, ``--friction``,
-        ``--q-unit``).
+    identify : IdentifyOptions, optional
+        What ``commission identify`` is told about the log (its flags); default: its defaults.
     spec_path : path, optional
         Tuning spec (``commission tune --spec``); default: the paper's setting.
     gate_path : path, optional
@@ -96,9 +92,6 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
         As in :func:`run_validate`.
     sign_key : bytes, optional
         Signs controller.json (HMAC-SHA256).
-    u_unit, ripple_pitch, validate_on, bounds, fmt
-        As ``commission identify`` (``--u-unit``, ``--ripple-pitch``, ``--validate-on``, the
-        bound flags, ``--format``); ``bounds`` default :class:`BoundsOptions`'s defaults.
 
     Raises
     ------
@@ -108,32 +101,32 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     from commission.spec import read_spec_toml, spec_from_mapping
 
     check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
-    if friction not in ("auto", "coulomb", "stribeck"):
-        raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
+    from commission.identification import IdentifyOptions
+
+    opts = identify if identify is not None else IdentifyOptions()
+    if opts.friction not in ("auto", "coulomb", "stribeck"):
+        raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {opts.friction!r}")
     gate = load_gate(gate_path)
     spec_data, spec_src = read_spec_toml(spec_path)
     spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
-    outputs = Outputs(force=force, inputs=(log_path, spec_path, gate_path))
+    outputs = Outputs(force=force, inputs=(log_path, spec_path, gate_path, opts.validate_on))
     out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), "--out-dir")
     with outputs:  # locked and proved writable before any stage runs; moved into place at the end
         written, result, tuning, notes = _stages(
-            log_path, out, outputs.staging(out), mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-            friction=friction, q_unit=q_unit, spec_data=spec_data, spec_src=spec_src, gate=gate,
+            log_path, out, outputs.staging(out), opts=opts, spec_data=spec_data, spec_src=spec_src, gate=gate,
             gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
-            figures=figures, sign_key=sign_key, u_unit=u_unit, ripple_pitch=ripple_pitch,
-            validate_on=validate_on, bounds=bounds, fmt=fmt)
+            figures=figures, sign_key=sign_key)
     ctrl = out / CONTROLLER_NAME
     vo = ValidateOutcome(result, tuning, tuple(outputs.final(p) for p in written), ctrl if result.passed else None)
     return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
 
 
-def _stages(log_path, out: Path, staging: Path, *, mapping, input_gain, sample_rate, friction, q_unit,
-            spec_data, spec_src, gate, gate_path, seed, n_monte_carlo, progress, workers, figures, sign_key,
-            u_unit, ripple_pitch, validate_on, bounds, fmt):
+def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, gate, gate_path, seed, n_monte_carlo,
+            progress, workers, figures, sign_key):
     """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
     from commission.artifacts import Identification
     from commission.controllers.design import DesignError
-    from commission.identification import BoundsOptions, identify_log
+    from commission.identification import identify_log
     from commission.jsonio import canonical_json, sha256_json
     from commission.tune import resolve_spec, tune_from, tune_inputs
 
@@ -141,11 +134,7 @@ def _stages(log_path, out: Path, staging: Path, *, mapping, input_gain, sample_r
         return lambda done, total: progress(name, done, total) if progress is not None else None
 
     stage("identify")(0, 1)
-    ident_out = identify_log(os.fspath(log_path), mapping=mapping, input_gain=input_gain,
-                             sample_rate=sample_rate, friction=friction,  # type: ignore[arg-type]
-                             q_unit=q_unit, u_unit=u_unit, ripple_pitch=ripple_pitch,
-                             validate_on=os.fspath(validate_on) if validate_on is not None else None,
-                             bounds=bounds if bounds is not None else BoundsOptions(), fmt=fmt)
+    ident_out = identify_log(os.fspath(log_path), **opts.kwargs())  # type: ignore[arg-type]
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))

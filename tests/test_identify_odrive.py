@@ -107,3 +107,12 @@ def test_several_harmonics_of_one_period_each_match_the_static_fit(log_h5, tmp_p
         rel, rad = tolerance[harmonics[i]]
         assert h["amp"]["value"] == pytest.approx(ref_amp, rel=rel), harmonics[i]
         assert abs(math.remainder(h["phase"]["value"] - ref_phase, 2 * math.pi)) < rad, harmonics[i]
+
+
+def test_run_takes_identify_s_options_and_stops_at_tune_naming_the_missing_inertia(log_h5, tmp_path):
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["run", str(log_h5), "--resample", "400", "--ripple-pitch", repr(PITCH_7),
+                              "--out-dir", str(out)])
+    assert res.exit_code == 2
+    assert "$.parameters.M: not identified" in res.output
+    assert not out.exists() or not any(out.iterdir())  # nothing half-written

@@ -1,0 +1,111 @@
+"""Options shared by ``commission identify`` and ``commission run``: one definition of each flag.
+
+Each factory returns a fresh ``typer.Option`` (typer reads the parameter's default to
+build the command); :func:`identify_options` turns the parsed flags into one
+:class:`commission.identification.IdentifyOptions`, with every check in one place.
+"""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import Any, List, Optional
+
+import typer
+
+from commission.errors import UsageError
+from commission.identification import BoundsOptions, IdentifyOptions, parse_fix, payload_from_kg
+from commission.logs import parse_mapping
+
+
+class Friction(str, enum.Enum):
+    auto = "auto"
+    coulomb = "coulomb"
+    stribeck = "stribeck"
+
+
+Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
+               "default m. Refused when it contradicts the file's attribute.")
+FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
+                 "with a warning; stribeck: refuse a log that does not support it.")
+
+#: flag -> (default, help, metavar or None); the identify options in the order --help lists them.
+_IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
+    "--map": ([], "NAME=SOURCE: contract channel -> name in the file (repeatable).", "NAME=SOURCE"),
+    "--input-gain": (1.0, "Multiplies u before identification (e.g. N/V).", None),
+    "--u-unit": (None, "Unit of u after --input-gain (V, N, A, Nm, %); default: the file's.", None),
+    "--sample-rate": (None, "Hz, for a file without t.", "HZ"),
+    "--q-unit": (None, Q_UNIT_HELP, None),
+    "--friction": (Friction.auto, FRICTION_HELP, None),
+    "--ripple-pitch": ([], "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one "
+                           "sinusoid per pitch (e.g. the harmonics of one cogging period).", "P"),
+    "--validate-on": (None, "Second log for the cross-test relative error.", "LOG2"),
+    "--k-sigma": (3.0, "Standard deviations covered by the theta box.", None),
+    "--model-margin": (0.2, "Relative margin on M and B for model error.", None),
+    "--payload-min": (None, "Least added mass, u-unit·s²/m (default 0).", None),
+    "--payload-max": (None, "Largest added mass, u-unit·s²/m (default 3 M).", None),
+    "--payload-min-kg": (None, "Least added mass in kg (needs --force-constant).", None),
+    "--payload-max-kg": (None, "Largest added mass in kg (needs --force-constant).", None),
+    "--force-constant": (None, "N per u-unit, to convert kg payloads.", None),
+    "--disturbance-bound": (None, "Largest load force, u-unit (default 10 max(fc, fs)).", None),
+    "--format": (None, "Force the log format: hdf5, csv, mat or epos (default: from the content, then the "
+                       "extension).", None),
+    "--resample": (None, "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
+                         "polling).", "HZ"),
+    "--fix": ([], "A known parameter, e.g. M=0.027 (u-unit·s²/m): not fitted; a log without acceleration content "
+                  "then still gives theta and its box.", "NAME=VALUE"),
+}
+
+
+def opt(flag: str) -> Any:
+    """A fresh ``typer.Option`` for the identify flag ``flag`` (see :data:`_IDENTIFY`)."""
+    default, help_, metavar = _IDENTIFY[flag]
+    return typer.Option(list(default) if isinstance(default, list) else default, flag, help=help_,
+                        **({"metavar": metavar} if metavar else {}))
+
+
+def bounds_options(
+    k_sigma: float,
+    model_margin: float,
+    payload_min: Optional[float],
+    payload_max: Optional[float],
+    payload_min_kg: Optional[float],
+    payload_max_kg: Optional[float],
+    force_constant: Optional[float],
+    disturbance_bound: Optional[float],
+) -> BoundsOptions:
+    """Turn the bound flags into :class:`BoundsOptions` (kg converted with the force constant)."""
+    if (payload_min_kg is not None or payload_max_kg is not None) and force_constant is None:
+        raise UsageError("--payload-min-kg/--payload-max-kg need --force-constant (N per u-unit)")
+    if payload_min is not None and payload_min_kg is not None:
+        raise UsageError("give either --payload-min or --payload-min-kg, not both")
+    if payload_max is not None and payload_max_kg is not None:
+        raise UsageError("give either --payload-max or --payload-max-kg, not both")
+    if payload_min_kg is not None:
+        payload_min = payload_from_kg(payload_min_kg, force_constant)  # type: ignore[arg-type]
+    if payload_max_kg is not None:
+        payload_max = payload_from_kg(payload_max_kg, force_constant)  # type: ignore[arg-type]
+    for flag, v in (("--payload-min", payload_min), ("--payload-max", payload_max),
+                    ("--disturbance-bound", disturbance_bound), ("--k-sigma", k_sigma)):
+        if v is not None and v < 0:
+            raise UsageError(f"{flag} must be >= 0, got {v}")
+    if not 0 <= model_margin < 1:
+        raise UsageError(f"--model-margin must be in [0, 1), got {model_margin}")
+    return BoundsOptions(k_sigma=k_sigma, model_margin=model_margin, payload_min=payload_min or 0.0,
+                         payload_max=payload_max, disturbance_bound=disturbance_bound)
+
+
+def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str], sample_rate: Optional[float],
+                     q_unit: Optional[str], friction: Friction, ripple_pitch: List[float],
+                     validate_on: Optional[Path], k_sigma: float, model_margin: float,
+                     payload_min: Optional[float], payload_max: Optional[float], payload_min_kg: Optional[float],
+                     payload_max_kg: Optional[float], force_constant: Optional[float],
+                     disturbance_bound: Optional[float], log_format: Optional[str], resample: Optional[float],
+                     fix: List[str]) -> IdentifyOptions:
+    """The parsed identify flags as one :class:`IdentifyOptions` (bad values: :class:`UsageError`)."""
+    return IdentifyOptions(
+        mapping=parse_mapping(map_), input_gain=input_gain, sample_rate=sample_rate, friction=friction.value,
+        ripple_pitch=tuple(ripple_pitch), validate_on=str(validate_on) if validate_on is not None else None,
+        bounds=bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg, payload_max_kg,
+                              force_constant, disturbance_bound),
+        u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix))
