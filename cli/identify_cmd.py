@@ -14,12 +14,13 @@ from commission.cli.main import app
 from commission.errors import UsageError
 from commission.files import Outputs
 from commission.cli.options import Friction, identify_options, opt
-from commission.identification import IdentifyOutcome, LegsOutcome, expand_log_paths, identify_legs, identify_log
+from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOutcome, LegsOutcome, expand_log_paths,
+                                       identify_legs, identify_log)
 from commission.jsonio import write_json_atomic
 
 
 #: Figures of ``--plot`` (:func:`commission.cli.plots.identification_plots`).
-PLOT_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
+PLOT_NAMES = IDENT_FIGURE_NAMES
 #: Figure of ``--plot`` for a friction test of several logs (:func:`commission.cli.plots_friction.friction_map_plot`).
 LEGS_PLOT_NAMES = ("friction_map.png",)
 

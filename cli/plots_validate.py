@@ -5,11 +5,12 @@ every number comes from the pipeline, nothing is computed here but unit scaling.
 
 * ``tracking_case1.png`` -- tracking error of ARC and PID on each Case-1
   scenario (the paper's Figs. 2-4: nominal, payload, disturbance, plus the
-  friction variants);
+  friction variants); no controller's peak is clipped (:func:`fit_error_axis`);
 * ``tracking_case2.png`` -- the Case-2 trajectory (Fig. 5) and the tracking
   errors on each Case-2 scenario (Fig. 6);
-* ``theta_hat.png`` -- convergence of theta_hat on the nominal and payload
-  scenarios, with the plant's values dashed;
+* ``theta_hat.png`` -- theta_hat on every fixed scenario of each case, with
+  the plant's values dashed and the box shaded (it converges only under
+  persistent excitation; the report says how far it got);
 * ``control_input.png`` -- u of ARC and PID on the nominal scenarios;
 * ``monte_carlo.png`` -- e_rms of ARC against PID on every scenario;
 * ``loops.png`` -- the loop transfers of ARC and PID on the identified plant:
@@ -61,7 +62,37 @@ def _plot(ax, t: np.ndarray, y: np.ndarray, **kw) -> None:
     ax.plot(*_envelope(t, y), **kw)
 
 
+#: Above this ratio of the two controllers' peak errors the axis turns symmetric-log, linear within the smaller peak.
+LOG_RATIO = 20.0
+
+
+def fit_error_axis(ax, *errors: np.ndarray) -> None:
+    """Limits that hold every controller's peak error (never clipped), readable for both.
+
+    Linear when the peaks are within :data:`LOG_RATIO` of each other; otherwise a
+    symmetric-log axis, linear up to the smaller peak, so the smaller error keeps its
+    shape and the larger one is shown whole.
+    """
+    peaks = [float(np.max(np.abs(e[np.isfinite(e)]))) for e in errors if np.any(np.isfinite(e))]
+    peaks = [p for p in peaks if p > 0]
+    if not peaks:
+        return
+    hi, lo = max(peaks), min(peaks)
+    lim = 1.1 * hi
+    if hi > LOG_RATIO * lo:
+        ax.set_yscale("symlog", linthresh=1.1 * lo)
+    ax.set_ylim(-lim, lim)
+
+
 def _tracking(result: ValidationResult, case: str, path: Path, with_trajectory: bool) -> Path:
+    fig = tracking_figure(result, case, with_trajectory)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def tracking_figure(result: ValidationResult, case: str, with_trajectory: bool):
+    """The tracking-error figure of one case (every fixed scenario: ARC and PID), not yet saved."""
     names = [f"{case}/{v}" for v in VARIANTS if f"{case}/{v}" in result.traces]
     rows = len(names) + (1 if with_trajectory else 0)
     fig, axes = plt.subplots(rows, 1, figsize=(9, 1.8 * rows + 0.6), sharex=True, squeeze=False)
@@ -82,42 +113,41 @@ def _tracking(result: ValidationResult, case: str, path: Path, with_trajectory: 
         flag = " (ARC diverged)" if r.arc.diverged else ""
         ax.set_title(f"{name}{flag}", fontsize=9, loc="left")
         ax.set_ylabel("e [um]")
-        # Clip the view to the ARC's range (as the paper's Fig. 3 chops the PID error).
-        ea = np.abs(tr.e_arc[np.isfinite(tr.e_arc)])
-        ep = np.abs(tr.e_pid[np.isfinite(tr.e_pid)])
-        lim = max(np.max(ea) if ea.size else 0.0, np.percentile(ep, 99) if ep.size else 0.0) * 1.1e6
-        if lim > 0 and math.isfinite(lim):
-            ax.set_ylim(-lim, lim)
+        fit_error_axis(ax, tr.e_arc * 1e6, tr.e_pid * 1e6)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
-    axes[k].legend(loc="upper right", fontsize=8, ncol=2)
-    fig.subplots_adjust(left=0.1, right=0.97, top=0.94, bottom=0.08, hspace=0.55)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    handles, labels = axes[k].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", fontsize=8, ncol=2, frameon=False)
+    fig.subplots_adjust(left=0.1, right=0.97, top=0.93, bottom=0.08, hspace=0.65)
+    return fig
 
 
 def _theta(result: ValidationResult, path: Path) -> Path:
-    names = [n for n in ("case1/nominal", "case1/payload_heavy", "case1/payload_light", "case2/nominal")
-             if n in result.traces]
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=False)
-    labels = ("theta_1 = 1/M", "theta_2 = B/M [1/s]", "theta_3 = d_n/M [m/s^2]")
-    for j, ax in enumerate(axes):
-        for c, name in enumerate(names):
-            tr = result.traces[name]
-            th = tr.theta_hat
-            if th.shape[0] == 0:
-                continue
-            _plot(ax, tr.t, th[:, j], color=f"C{c}", lw=0.9, label=name)
-            ax.axhline(tr.theta_true[j], color=f"C{c}", lw=0.8, ls="--")
-        g = result.arc_gains
-        ax.axhspan(g.theta_min[j], g.theta_max[j], color="0.9", zorder=-1)
-        ax.set_ylabel(labels[j])
-        ax.grid(alpha=0.3)
-    axes[0].set_title("ARC parameter estimates (dashed: plant value; grey: the theta box)")
-    axes[0].legend(fontsize=7, loc="upper right")
-    axes[-1].set_xlabel("t [s]")
-    fig.subplots_adjust(left=0.1, right=0.97, top=0.94, bottom=0.08, hspace=0.55)
+    """theta_hat on every fixed scenario of each case (one column per case), legends below the data."""
+    tags = {r.name: r.tags for r in result.runs}
+    unit, q = result.units.get("u", "u"), result.units.get("q", "m")
+    labels = (f"theta_1 = 1/M [{q}/({unit}·s²)]", "theta_2 = B/M [1/s]", f"theta_3 = d_n/M [{q}/s²]")
+    fig, axes = plt.subplots(3, len(CASES), figsize=(13, 8.5), sharex="col", squeeze=False)
+    g = result.arc_gains
+    for c, case in enumerate(CASES):
+        names = [f"{case}/{v}" for v in VARIANTS if f"{case}/{v}" in result.traces
+                 and "robustness" not in tags.get(f"{case}/{v}", ())]
+        for j in range(3):
+            ax = axes[j, c]
+            ax.axhspan(g.theta_min[j], g.theta_max[j], color="0.92", zorder=-1)
+            for k, name in enumerate(names):
+                tr = result.traces[name]
+                if tr.theta_hat.shape[0] == 0:
+                    continue
+                _plot(ax, tr.t, tr.theta_hat[:, j], color=f"C{k}", lw=0.9, label=name.split("/")[1])
+                ax.axhline(tr.theta_true[j], color=f"C{k}", lw=0.8, ls="--")
+            if c == 0:
+                ax.set_ylabel(labels[j], fontsize=8)
+            ax.grid(alpha=0.3)
+        axes[0, c].set_title(f"{case}: theta_hat (solid), plant (dashed), box (grey)", fontsize=9)
+        axes[-1, c].set_xlabel("t [s]")
+        axes[-1, c].legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), fontsize=8, ncol=3, frameon=False)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.95, bottom=0.14, hspace=0.3, wspace=0.25)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

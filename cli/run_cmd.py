@@ -53,6 +53,7 @@ def run_command(
     fix: List[str] = opt("--fix"),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
+    from commission.cli.plots import identification_plots
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
@@ -69,7 +70,7 @@ def run_command(
 
         outcome = run_all(log, out_dir, identify=o, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
-                          sign_key=load_sign_key(sign_key))
+                          sign_key=load_sign_key(sign_key), ident_figures=identification_plots)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
         err.print(f"warning: {w}", highlight=False)
     pid_note = pid_pole_note(outcome.validation.tuning)

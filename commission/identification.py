@@ -34,6 +34,8 @@ from commission.logs import ExcitationLog, load_log
 #: Command units of CONTRACT §1.
 U_UNITS = ("V", "N", "A", "Nm", "%")
 
+#: Figures of one identified log (``identify --plot``; ``run`` writes them beside its report).
+IDENT_FIGURE_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 #: File extensions a folder given to ``identify`` is searched for.
 LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat")
 #: A leg of a friction test is at constant speed when its speed, smoothed over

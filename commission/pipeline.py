@@ -11,17 +11,15 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Mapping
+from typing import Callable, Sequence
 
 from commission.errors import SpecError, UsageError
-
-if TYPE_CHECKING:
-    from commission.identification import IdentifyOptions
 from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.scenarios import resolve_quantization
 from commission.tuning import Tuning
 from commission.files import Outputs
+from commission.identification import IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome
 from commission.spec import check_flags
 from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWriter, Progress, ValidateOutcome,
                                  output_names, validate, write_outputs)
@@ -29,6 +27,7 @@ from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWri
 IDENT_NAME = "ident.json"
 TUNING_NAME = "tuning.json"
 StageProgress = Callable[[str, int, int], None]
+IdentFigureWriter = Callable[[IdentifyOutcome, Path], Sequence[Path]]
 
 
 @dataclass(frozen=True)
@@ -55,7 +54,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
             spec_path: str | os.PathLike[str] | None = None, gate_path: str | os.PathLike[str] | None = None,
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
-            figures: FigureWriter | None = None, sign_key: bytes | None = None) -> RunOutcome:
+            figures: FigureWriter | None = None, sign_key: bytes | None = None,
+            ident_figures: IdentFigureWriter | None = None) -> RunOutcome:
     """``commission run``: identify, tune and validate one log into ``out_dir``.
 
     Every check of the inputs (flags, spec, gate, the output folder, which is
@@ -76,6 +76,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     out_dir : path
     identify : IdentifyOptions, optional
         What ``commission identify`` is told about the log (its flags); default: its defaults.
+    ident_figures : callable(IdentifyOutcome, folder) -> list of paths, optional
+        Draws the identification figures (``identify --plot``'s) into the out-dir; the
+        report links them.
     spec_path : path, optional
         Tuning spec (``commission tune --spec``); default: the paper's setting.
     gate_path : path, optional
@@ -101,8 +104,6 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     from commission.spec import read_spec_toml, spec_from_mapping
 
     check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
-    from commission.identification import IdentifyOptions
-
     opts = identify if identify is not None else IdentifyOptions()
     if opts.friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {opts.friction!r}")
@@ -110,19 +111,19 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     spec_data, spec_src = read_spec_toml(spec_path)
     spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
     outputs = Outputs(force=force, inputs=(log_path, spec_path, gate_path, opts.validate_on))
-    out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *output_names()), "--out-dir")
+    out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *IDENT_FIGURE_NAMES, *output_names()), "--out-dir")
     with outputs:  # locked and proved writable before any stage runs; moved into place at the end
         written, result, tuning, notes = _stages(
             log_path, out, outputs.staging(out), opts=opts, spec_data=spec_data, spec_src=spec_src, gate=gate,
             gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
-            figures=figures, sign_key=sign_key)
+            figures=figures, sign_key=sign_key, ident_figures=ident_figures)
     ctrl = out / CONTROLLER_NAME
     vo = ValidateOutcome(result, tuning, tuple(outputs.final(p) for p in written), ctrl if result.passed else None)
     return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
 
 
 def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, gate, gate_path, seed, n_monte_carlo,
-            progress, workers, figures, sign_key):
+            progress, workers, figures, sign_key, ident_figures):
     """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
     from commission.artifacts import Identification
     from commission.controllers.design import DesignError
@@ -154,9 +155,11 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
                       workers=workers)
     write_json_atomic(staging / IDENT_NAME, ident_doc)
     write_json_atomic(staging / TUNING_NAME, tuning_doc)
+    ident_figs = list(ident_figures(ident_out, staging)) if ident_figures is not None else []
     written = write_outputs(result, tuning, sha256_json(tuning_doc), staging, figures=figures,
                             sources={"tuning": str(out / TUNING_NAME),
-                                     "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key)
+                                     "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key,
+                            extra_figures=ident_figs)
     return written, result, tuning, notes
 
 

@@ -644,16 +644,18 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
 
 def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, out: Path, *,
                   figures: FigureWriter | None = None, sources: Mapping[str, str | None] | None = None,
-                  sign_key: bytes | None = None) -> list[Path]:
+                  sign_key: bytes | None = None, extra_figures: Sequence[Path] = ()) -> list[Path]:
     """Write validation.json, the figures, report.md and (gate and floors passed) controller.json into ``out``.
 
-    ``out`` is the staging folder of :class:`commission.files.Outputs` in the commands.
+    ``out`` is the staging folder of :class:`commission.files.Outputs` in the commands;
+    ``extra_figures`` are figures already written there (``run``'s identification
+    figures), which the report links.
     """
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     write_json_atomic(out / VALIDATION_NAME, result.to_dict())
     written.append(out / VALIDATION_NAME)
-    figs = list(figures(result, out)) if figures is not None else []
+    figs = [*extra_figures, *(figures(result, out) if figures is not None else [])]
     written.extend(figs)
     text = report_markdown(result, tuning, figures=[p.name for p in figs], sources=sources or {},
                            tuning_sha256=tuning_sha256)
