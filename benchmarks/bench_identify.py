@@ -22,7 +22,7 @@ import time
 import h5py
 import numpy as np
 
-from commission import logs
+from commission.logs import hdf5 as logs
 from commission.identify import fit_axis, frequency_response
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation
 

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-import commission.logs as logs_mod
+import commission.logs.hdf5 as hdf5_mod
 from commission.errors import CommissionError, DataError, InputFileError, UsageError
 from commission.logs import ExcitationLog, load_log, parse_mapping
 
@@ -438,7 +438,7 @@ def _damaged_heap_h5(path) -> None:
 def test_hdf5_file_that_hangs_the_library_is_refused_at_the_deadline(tmp_path, monkeypatch):
     path = tmp_path / "damaged.h5"
     _damaged_heap_h5(path)
-    monkeypatch.setattr(logs_mod, "HDF5_READ_TIMEOUT", 2.0)
+    monkeypatch.setattr(hdf5_mod, "HDF5_READ_TIMEOUT", 2.0)
     with pytest.raises(InputFileError, match=r"damaged\.h5: not a readable HDF5 file \("):
         load_log(path)
 
@@ -451,8 +451,8 @@ def test_hdf5_reader_child_that_never_returns_is_killed(tmp_path, monkeypatch):
         while True:
             time.sleep(1.0)
 
-    monkeypatch.setattr(logs_mod, "_read_hdf5_here", stuck)
-    monkeypatch.setattr(logs_mod, "HDF5_READ_TIMEOUT", 0.5)
+    monkeypatch.setattr(hdf5_mod, "_read_hdf5_here", stuck)
+    monkeypatch.setattr(hdf5_mod, "HDF5_READ_TIMEOUT", 0.5)
     with pytest.raises(InputFileError, match=r"log\.h5: not a readable HDF5 file \(the HDF5 library did not "
                                              r"finish reading it within 1 s; the file is probably damaged\)$"):
         load_log(path)
@@ -461,7 +461,7 @@ def test_hdf5_reader_child_that_never_returns_is_killed(tmp_path, monkeypatch):
 def test_hdf5_reader_child_that_dies_is_reported(tmp_path, monkeypatch):
     path = tmp_path / "log.h5"
     write_h5(path, reference_arrays(10))
-    monkeypatch.setattr(logs_mod, "_read_hdf5_here", lambda *args, **kwargs: os._exit(3))
+    monkeypatch.setattr(hdf5_mod, "_read_hdf5_here", lambda *args, **kwargs: os._exit(3))
     with pytest.raises(InputFileError, match=r"log\.h5: not a readable HDF5 file \(the HDF5 reader stopped "
                                              r"without a result\)$"):
         load_log(path)
@@ -473,8 +473,8 @@ def test_hdf5_isolated_read_equals_the_in_process_read(tmp_path):
     write_h5(path, a, attrs={"q_unit": "mm", "u_unit": "A"})
     data = path.read_bytes()
     args = (data, "log.h5", "HDF5", {}, True)
-    here = logs_mod._read_hdf5_here(*args, matlab=False)
-    there = logs_mod._read_hdf5(*args, matlab=False)
+    here = hdf5_mod._read_hdf5_here(*args, matlab=False)
+    there = hdf5_mod._read_hdf5(*args, matlab=False)
     assert (there.q_unit, there.u_unit) == (here.q_unit, here.u_unit) == ("mm", "A")
     assert there.vectors.keys() == here.vectors.keys() == {"t", "q", "u", "q_ref"}
     for ch, (arr, shown, src) in here.vectors.items():
