@@ -126,8 +126,8 @@ def no_simulation(monkeypatch):
         calls.append(1)
         raise AssertionError("a simulation ran before the spec was rejected")
 
-    monkeypatch.setattr(tune_mod, "tune", boom)
-    monkeypatch.setattr(tune_mod, "simulate_batch", boom)
+    monkeypatch.setattr("commission.tune.api.tune", boom)
+    monkeypatch.setattr("commission.tune.objective.simulate_batch", boom)
     return calls
 
 

@@ -360,7 +360,7 @@ def test_search_extension_fills_the_work_of_the_slowest_default_search(monkeypat
                            (WORK_CAP * 96 / 176, 80),
                            (WORK_CAP / 3, 96),  # room 192: at most the budget again
                            (WORK_CAP, 0), (2 * WORK_CAP, 0)):
-        monkeypatch.setattr(tune_mod, "candidate_work", lambda i, s, w=work: w)
+        monkeypatch.setattr("commission.tune.optimiser.candidate_work", lambda i, s, w=work: w)
         assert search_extension(spec, ident, given=False) == expected, work
         assert search_extension(spec, ident, given=True) == 0
 

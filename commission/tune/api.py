@@ -1,0 +1,345 @@
+"""The entry points of ``commission tune``: resolve the spec for this identification
+(:func:`resolve_spec`), load the inputs (:func:`load_tune_inputs`), run :func:`tune`, and
+write tuning.json (:func:`run_tune`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import os
+from dataclasses import dataclass
+from typing import Any
+import numpy as np
+import commission
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.design import (
+    KIND_ARC,
+    KIND_PID,
+    DesignError,
+    FeasibilityReport,
+    discrete_feasibility,
+    observer_design,
+    theorem1_check,
+)
+from commission.controllers.pid import pid_pack
+from commission.errors import IdentifiabilityError, SpecError, UsageError
+from commission.jsonio import read_json, sha256_file
+from commission.robustness import margin_table
+from commission.scenarios import (
+    check_run_length,
+    case1_trajectory,
+    case2_trajectory,
+    identified_plant,
+    resolve_quantization,
+    tuning_scenarios,
+)
+from commission.spec import Spec, read_spec_toml, spec_from_mapping
+from commission.tuning import Provenance, SearchRecord, Tuning
+from commission.tune.defaults import (
+    check_spec_against_ident,
+    fit_disturbance_to_drive,
+    rate_scaled_envelope,
+    default_envelope,
+    default_gate_limits,
+    log_sample_rate,
+)
+from commission.tune.gains import base_arc_gains, apply_free, free_gains
+from commission.tune.objective import Progress, Evaluator, cost, HoldoutGate
+from commission.tune.baseline import deployable_pid
+from commission.tune.optimiser import (
+    SearchRun,
+    repair_budget,
+    work_scale,
+    work_scaled_budget,
+    search_extension,
+    select_on_holdout,
+    RepairResult,
+    repair_on_holdout,
+)
+from commission.tune.guarantees import _summary, guarantees
+
+
+def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
+         ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
+         workers: int | None = None, created_utc: str | None = None, observer_free: bool = False,
+         pid_free: bool = False, extension: int = 0) -> Tuning:
+    """Tune the ARC (and the PID baseline) for an identified axis.
+
+    Parameters
+    ----------
+    ident : Identification
+    spec : Spec
+        Already validated (:func:`commission.spec.load_spec`).
+    rng : numpy.random.Generator
+        The only source of randomness (search and Monte-Carlo plants).
+    seed : int
+        Recorded in the provenance.
+    ident_sha256 : str
+        sha256 of ident.json.
+    ident_path : str
+        Recorded in the provenance.
+    log_sha256 : str, optional
+        Of the excitation log, when known.
+    progress : callable(done, total), optional
+        Called after each search generation and each final stage.
+    workers : int, optional
+        Batch-simulator threads.
+    created_utc : str, optional
+        Time stamp (default: now).
+    observer_free : bool
+        ``spec.observer_pole`` was defaulted, not given: the hold-out repair may move it
+        (:func:`repair_on_holdout`).  The pole used is the one recorded in ``observer``.
+    pid_free : bool
+        ``spec.pid_pole`` was defaulted: the PID baseline may run at a lower pole
+        (:func:`deployable_pid`), recorded in ``pid_pole``.
+    extension : int
+        Candidates the search continues with when its best fail the hold-out gate
+        (:func:`search_extension`; 0: never).
+
+    Returns
+    -------
+    Tuning
+    """
+    check_spec_against_ident(spec, ident)
+    scen = tuning_scenarios(ident, spec, rng=rng)
+    ev = Evaluator(scen, spec, workers=workers)
+    observer = observer_design(spec.observer_pole, spec.period)
+    base = base_arc_gains(ident, spec)
+    # progress steps: the search's candidates (with its extension), the hold-out, the repair's candidates,
+    # two reports
+    n_repair = repair_budget(spec, work_scale(ident, spec))
+    n_search = spec.budget + extension
+    total = n_search + 1 + n_repair + 2
+    gate = default_gate_limits(ident, spec)
+    baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
+    pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
+    traj_names = ["case1", "case2"]
+    trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
+
+    def feasible(g: ArcGains) -> FeasibilityReport:
+        return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
+                                    margin=spec.margin)
+
+    run = SearchRun(base, ev, spec, feasible=feasible, reference=pid_scores, gate=gate)
+    run.advance(spec.budget, rng, progress, total)
+    res = run.result()
+    hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
+    memo: dict[tuple[str, bytes], Any] = {}
+    holdout = select_on_holdout(res, base, hg, feasible, memo)
+    extended = 0
+    if extension > 0 and holdout.failures and min(holdout.failures) > 0:
+        # The surrogate's best still fail the gate on unseen plants: search on, then choose again among all.
+        run.advance(extension, rng, progress, total)
+        res, extended = run.result(), extension
+        holdout = select_on_holdout(res, base, hg, feasible, memo)
+    chosen_i = holdout.chosen
+    chosen_rep = holdout.feasibility or feasible(apply_free(base, res.x[chosen_i]))
+    x_chosen, arc_scores = res.x[chosen_i], res.scores[chosen_i]
+    if progress is not None:
+        progress(n_search + 1, total)
+    repaired: RepairResult | None = None
+    if holdout.failures and min(holdout.failures) > 0 and chosen_rep.holds:
+        repaired = repair_on_holdout(
+            x_chosen, arc_scores, min(holdout.failures), holdout.excess, chosen_rep, base, hg, spec, feasible, rng,
+            observer_free=observer_free, budget=n_repair, progress=None if progress is None else (lambda k: progress(n_search + 1 + k, total)))
+        x_chosen, arc_scores, chosen_rep = repaired.x, repaired.scores, repaired.feasibility
+    chosen = apply_free(base, x_chosen)
+    if repaired is not None and repaired.observer_pole != spec.observer_pole:
+        observer = observer_design(repaired.observer_pole, spec.period)
+        chosen = dataclasses.replace(chosen, k1=observer.k1, k2=observer.k2)  # as with_observer, designed once
+    if progress is not None:
+        progress(n_search + 1 + n_repair, total)
+    pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
+                                   margin=spec.margin)
+    if progress is not None:
+        progress(total - 1, total)
+    t1 = theorem1_check(chosen.w1, chosen.w2, chosen.C_phi1, chosen.C_phi2, chosen.C_theta2)
+    robust = discrete_feasibility(KIND_ARC, arc_pack(chosen), ident.theta.min, ident.theta.max, trajs,
+                                  margin=spec.margin, estimate_corners=True)
+    feas = {"arc": _summary(chosen_rep, traj_names, robust), "pid": _summary(pid_rep, traj_names)}
+    scores = {name: {"arc": a, "pid": p} for name, a, p in zip(ev.names, arc_scores, pid_scores)}
+    prov = Provenance(ident_sha256=ident_sha256, log_sha256=log_sha256, tool_version=commission.__version__,
+                      created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                      seed=int(seed), ident_path=ident_path)
+    record = SearchRecord(n_evaluations=len(res.costs), budget=spec.budget, seed=int(seed),
+                          cost_initial=res.cost_initial,
+                          cost_best=float(res.costs[chosen_i]) if repaired is None else cost(
+                              arc_scores, spec, pid_scores, ev.weights, gate),
+                          free=free_gains(chosen).as_dict(), history=res.history,
+                          holdout_plants=holdout.n_plants, holdout_failures=holdout.failures, extension=extended,
+                          repair_moves=() if repaired is None else repaired.moves,
+                          repair_evaluations=0 if repaired is None else repaired.evaluations,
+                          repair_failures=None if repaired is None else repaired.failures)
+    out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
+                 quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
+                 pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
+                 guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record,
+                 margins=margin_table(chosen, pid, ident, spec))
+    if progress is not None:
+        progress(total, total)
+    return out
+
+
+def _log_sha256(ident: Identification) -> str | None:
+    """The excitation log's sha256 if ident.json records one (``extra.source.sha256``)."""
+    src = ident.extra.get("source")
+    if isinstance(src, dict) and isinstance(src.get("sha256"), str):
+        return src["sha256"]
+    v = ident.extra.get("log_sha256")
+    return v if isinstance(v, str) else None
+
+
+@dataclass(frozen=True)
+class TuneInputs:
+    """Everything ``commission tune`` reads, checked (see :func:`load_tune_inputs`)."""
+
+    ident: Identification
+    spec: Spec
+    ident_path: str
+    ident_sha256: str
+    log_sha256: str | None
+    seed: int
+    notes: tuple[str, ...] = ()
+    observer_free: bool = False
+    pid_free: bool = False
+    extension: int = 0
+
+
+@dataclass(frozen=True)
+class ResolvedSpec:
+    """What ``tune`` runs with, after the defaults were fitted to the axis (:func:`resolve_spec`).
+
+    Attributes
+    ----------
+    spec : Spec
+    ident : Identification
+        The identification tune designs for: the input one, or a copy whose theta3 box was
+        narrowed to the drive (:func:`fit_disturbance_to_drive`).
+    notes : tuple of str
+        One line per default that was lowered or narrowed.
+    observer_free : bool
+        ``controller.observer_pole`` was not given: tune's hold-out repair may move it.
+    pid_free : bool
+        ``pid.pole`` was not given: tune may lower the PID baseline's pole (:func:`deployable_pid`).
+    extension : int
+        :func:`search_extension` (0 where ``tune.budget`` was given).
+    """
+
+    spec: Spec
+    ident: Identification
+    notes: tuple[str, ...]
+    observer_free: bool = False
+    pid_free: bool = False
+    extension: int = 0
+
+
+def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
+                 ident_name: str = "ident.json") -> ResolvedSpec:
+    """The spec ``tune`` runs with, for this identification; no simulation runs here.
+
+    The sample rate defaults to the log's (:func:`log_sample_rate`), the envelope's
+    defaulted keys are scaled to that rate (:func:`rate_scaled_envelope`), a defaulted
+    load-force bound that leaves no room for any envelope is narrowed
+    (:func:`fit_disturbance_to_drive`), the envelope's defaulted keys are lowered to
+    what the drive can move (:func:`default_envelope`),
+    then :func:`check_spec_against_ident` and the observer design check the result.
+
+    Raises
+    ------
+    IdentifiabilityError
+        The identification lacks what tune needs (a parameter not identified), naming it.
+    SpecError
+        Naming the key.
+    """
+    gaps = ident.tuning_gaps(ident_name)
+    if gaps:
+        raise IdentifiabilityError(gaps[0])
+    spec = spec_from_mapping(spec_data, spec_name, sample_rate_default=log_sample_rate(ident))
+    traj = spec_data.get("trajectory")
+    given = set(traj) if isinstance(traj, dict) else set()
+    spec, rate_notes = rate_scaled_envelope(spec, given)
+    ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
+    spec, notes = default_envelope(spec, ident, given, spec_name)
+    tune_keys = spec_data.get("tune")
+    budget_given = isinstance(tune_keys, dict) and "budget" in tune_keys
+    spec, budget_notes = work_scaled_budget(spec, ident, budget_given)
+    check_spec_against_ident(spec, ident, spec_name)
+    check_run_length(spec, spec_name)  # the envelope may have been lowered, lengthening the runs
+    try:
+        observer_design(spec.observer_pole, spec.period)
+    except DesignError as exc:
+        raise SpecError(f"{spec_name}: controller.observer_pole: {exc}") from None
+    ctrl = spec_data.get("controller")
+    observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
+    pid = spec_data.get("pid")
+    pid_free = not (isinstance(pid, dict) and "pole" in pid)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free,
+                        search_extension(spec, ident, budget_given))
+
+
+def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
+                     seed: int = 0) -> TuneInputs:
+    """Read and check every input of ``commission tune``; no simulation runs here.
+
+    Raises
+    ------
+    InputFileError, SchemaError, SpecError, UsageError
+        Bad input (the CLI's exit 2), naming the file and the key.
+    """
+    if seed < 0:
+        raise UsageError(f"--seed: must be a non-negative integer, got {seed}")
+    ident_path = os.fspath(ident_path)
+    spec_data, spec_name = read_spec_toml(spec_path)  # parse errors before reading ident.json
+    spec_from_mapping(spec_data, spec_name)  # every key checked at the documented defaults
+    ident = Identification.from_dict(read_json(ident_path), source=ident_path)
+    rs = resolve_spec(spec_data, spec_name, ident, ident_name=str(ident_path))
+    return tune_inputs(rs, ident_path=ident_path, ident_sha256=sha256_file(ident_path), log_sha256=_log_sha256(ident),
+                       seed=seed)
+
+
+def tune_inputs(rs: ResolvedSpec, *, ident_path: str, ident_sha256: str, log_sha256: str | None,
+                seed: int) -> TuneInputs:
+    """The :class:`TuneInputs` of a resolved spec.
+
+    ``commission tune`` (:func:`load_tune_inputs`) and ``commission run``
+    (:func:`commission.pipeline.run_all`) both build their inputs here and tune them with
+    :func:`tune_from`, so that the same log and spec give the same tuning either way
+    (``observer_free`` and ``pid_free`` included).
+    """
+    return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=ident_sha256,
+                      log_sha256=log_sha256, seed=int(seed), notes=rs.notes, observer_free=rs.observer_free,
+                      pid_free=rs.pid_free, extension=rs.extension)
+
+
+def tune_from(inp: TuneInputs, *, progress: Progress | None = None, workers: int | None = None) -> Tuning:
+    """:func:`tune` on checked inputs, seeded with ``inp.seed`` (a fresh ``numpy.random.default_rng``)."""
+    return tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
+                ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
+                progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free,
+                extension=inp.extension)
+
+
+def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
+             spec_path: str | os.PathLike[str] | None = None, seed: int = 0,
+             progress: Progress | None = None, workers: int | None = None,
+             inputs: TuneInputs | None = None) -> Tuning:
+    """File-level pipeline of ``commission tune``: read, check, tune, write.
+
+    Every input check (:func:`load_tune_inputs`: ident.json schema, spec keys
+    and values, spec against the identification) runs before any simulation;
+    nothing is written unless tuning completes.  ``inputs`` (already loaded)
+    skips the reading.
+
+    Raises
+    ------
+    InputFileError, SchemaError, SpecError, UsageError
+        Bad input (the CLI's exit 2).
+    """
+    inp = inputs if inputs is not None else load_tune_inputs(ident_path, spec_path=spec_path, seed=seed)
+    try:
+        t = tune_from(inp, progress=progress, workers=workers)
+    except DesignError as exc:  # a design input the spec checks let through: still bad input, exit 2
+        raise SpecError(f"{os.fspath(spec_path) if spec_path else 'spec'}: {exc}") from None
+    t.save(os.fspath(out_path))
+    return t

@@ -1,0 +1,327 @@
+"""Spec defaulting against the identified axis, before any simulation.
+
+The tuning spec's defaults are the paper's; here they are fitted to this axis: the
+envelope to the sample rate (:func:`rate_scaled_envelope`) and to what the drive can
+move on the heaviest plant of the box (:class:`DriveNeed`, :func:`default_envelope`),
+a defaulted load-force bound that leaves the drive no room is narrowed
+(:func:`fit_disturbance_to_drive`), and a given spec is checked against the axis
+(:func:`check_spec_against_ident`).  Every change is returned as a note for the user.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from commission.artifacts import Identification
+from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
+from commission.errors import SpecError
+from commission.gate import GateLimits, GateSpec, resolve_gate
+from commission.scenarios import (
+    CASE1_SPEED_FRACTION,
+    FRICTION_SCALE,
+    force_range,
+    identified_plant,
+    resolve_quantization,
+    viscous_range,
+)
+from commission.spec import Spec
+
+
+#: The paper's axis: theta1 = 37 at 2.5 kHz; the reference of the gain scaling.
+PAPER_THETA1 = 37.0
+
+
+PAPER_RATE = 2500.0
+
+
+#: When the spec leaves the envelope to its defaults, the feedforward of the worst plant may use at
+#: most this fraction of u_max (the rest is left to the feedback: start-up transients, unlearnt loads).
+DRIVE_HEADROOM = 0.7
+
+
+#: Smallest envelope :func:`default_envelope` derives (m/s, m/s^2); below it the box is refused instead.
+MIN_DEFAULT_V_MAX = 0.1
+
+
+MIN_DEFAULT_A_MAX = 1.0
+
+
+@dataclass(frozen=True)
+class DriveNeed:
+    """Feedforward input the most demanding plant of the validation matrix needs, u-unit.
+
+    ``need(v, a, beta1) = mass max(a, a1) + viscous v + const`` bounds the |u| needed
+    along the envelope (v_max ``v`` m/s, a_max ``a`` m/s^2) by any plant of
+    :mod:`commission.scenarios`: the heaviest mass of the box, the largest viscous
+    coefficient (:func:`~commission.scenarios.viscous_range` or the +20 % friction
+    scenario), the +20 % friction level plus the ripple, and the largest constant
+    force (:func:`~commission.scenarios.force_range`, or the identified offset plus
+    the delta_d-sized disturbance step).  ``a1 = beta1 CASE1_SPEED_FRACTION v`` is Case 1's
+    start-up acceleration: filter (58) starts at rest under a moving reference.
+
+    Attributes
+    ----------
+    mass : float
+        1/theta1_min, u-unit s^2/m.
+    viscous : float
+        u-unit s/m.
+    const : float
+        Friction level, ripple and constant force, u-unit.
+    """
+
+    mass: float
+    viscous: float
+    const: float
+
+    def need(self, v: float, a: float, beta1: float) -> float:
+        """|u| needed for v_max ``v`` (m/s), a_max ``a`` (m/s^2), filter (58) ``beta1`` (1/s), u-unit."""
+        return self.mass * max(a, beta1 * CASE1_SPEED_FRACTION * v) + self.viscous * v + self.const
+
+    def a_max(self, u: float, v: float) -> float:
+        """Largest a_max (m/s^2) with ``mass a + viscous v + const <= u``; <= 0 when none."""
+        return (u - self.viscous * v - self.const) / self.mass
+
+    def v_max(self, u: float, beta1: float) -> float:
+        """Largest v_max (m/s) whose Case-1 start-up and viscous terms fit in ``u``; <= 0 when none."""
+        return (u - self.const) / (self.mass * beta1 * CASE1_SPEED_FRACTION + self.viscous)
+
+
+def drive_need(ident: Identification) -> DriveNeed:
+    """The :class:`DriveNeed` of an identification's scenario matrix."""
+    p = identified_plant(ident)
+    k = 1.0 + FRICTION_SCALE
+    d_lo, d_hi = force_range(ident)
+    force = max(abs(d_lo), abs(d_hi), abs(p[P_OFFSET]) + ident.delta_d * p[P_M])
+    return DriveNeed(mass=1.0 / ident.theta.min[0], viscous=max(viscous_range(ident)[1], k * p[P_B]),
+                     const=k * max(p[P_FC], p[P_FS]) + p[P_RIPPLE_AMP] + force)
+
+
+def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "spec.toml") -> None:
+    """Reject a spec whose input limit cannot drive the envelope on the most demanding plant of the box.
+
+    Needed |u| (u-unit): :meth:`DriveNeed.need` at (v_max, a_max) (:func:`drive_need`).
+    Raises :class:`SpecError` naming ``controller.u_max`` and ``trajectory.a_max`` (with the
+    largest a_max the limit allows), or ``controller.theta1_0`` outside the box.
+    """
+    if spec.theta1_0 is not None and not ident.theta.min[0] <= spec.theta1_0 <= ident.theta.max[0]:
+        raise SpecError(
+            f"{source}: controller.theta1_0 = {spec.theta1_0:g} lies outside the identified theta1 box "
+            f"[{ident.theta.min[0]:.4g}, {ident.theta.max[0]:.4g}]")
+    d = drive_need(ident)
+    need = d.need(spec.v_max, spec.a_max, spec.beta1)
+    if need > spec.u_max:
+        u = ident.units.get("u", "u-unit")
+        # Remedies in order: a smaller envelope (values that pass when followed: Case 1's start-up
+        # acceleration counts), a narrower box, and only then a larger drive.
+        a_ok = d.a_max(spec.u_max, spec.v_max)
+        a1 = spec.beta1 * CASE1_SPEED_FRACTION * spec.v_max
+        v_ok = d.v_max(spec.u_max, spec.beta1)
+        if a_ok > 0 and a_ok >= a1:
+            hint = f"set trajectory.a_max <= {_floor3(a_ok):.3g} m/s^2 at this v_max"
+        elif v_ok > 0:
+            v_fix = _floor3(v_ok)
+            hint = (f"Case 1's start-up alone needs {a1:.3g} m/s^2 at this v_max, so no a_max fits; set "
+                    f"trajectory.v_max <= {v_fix:.3g} m/s with trajectory.a_max <= "
+                    f"{_floor3(d.a_max(spec.u_max, v_fix)):.3g} m/s^2")
+        else:
+            hint = f"no envelope fits: even at rest the plant needs {d.const:.3g} {u}"
+        raise SpecError(
+            f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.3g} {u} needed for "
+            f"trajectory.a_max = {spec.a_max:g} m/s^2 and v_max = {spec.v_max:g} m/s on the most demanding "
+            f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}; else narrow the box "
+            f"(commission identify --payload-max, --disturbance-bound); raise controller.u_max only if the "
+            f"drive really has it")
+
+
+def _floor3(x: float) -> float:
+    """``x`` > 0 rounded down to 3 significant digits, so that the printed value still fits."""
+    step = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.floor(x * (1 - 1e-12) / step) * step
+
+
+#: Share of the feedforward budget (DRIVE_HEADROOM x u_max) that a *defaulted* load-force bound
+#: is narrowed to when, at its default, not even the smallest default envelope fits (see
+#: :func:`fit_disturbance_to_drive`).
+DISTURBANCE_SHARE = 0.5
+
+
+def fit_disturbance_to_drive(spec: Spec, ident: Identification,
+                             given: set[str]) -> tuple[Identification, tuple[str, ...]]:
+    """Narrow the theta3 box of a *defaulted* load-force bound to what the drive can reject.
+
+    ``commission identify`` bounds the load force by ``10 max(fc, fs)`` when the user does not
+    say (``--disturbance-bound``): the paper's box allows about eleven times its stiction.  On a
+    heavy axis with high friction that default alone can exceed the drive (10 x 1.1 V of
+    stiction on a 10 V rail): no controller rejects a load the motor cannot push, and the
+    spec used to be refused.  When the bound was defaulted (``bounds.disturbance_bound_defaulted``
+    in ident.json) and even the smallest default envelope (:data:`MIN_DEFAULT_V_MAX`,
+    :data:`MIN_DEFAULT_A_MAX`) does not fit in the feedforward budget ``DRIVE_HEADROOM x u_max``
+    on the most demanding plant, the force range is narrowed symmetrically about the identified
+    offset force until friction, ripple and constant force take :data:`DISTURBANCE_SHARE` of the
+    budget; the rest is left to the envelope (:func:`default_envelope`).  theta3's bounds
+    follow at the lightest mass, where they bind (:func:`commission.scenarios.force_range`).
+
+    A bound the user gave, an envelope the user set in full, or an ident.json written before
+    the flag existed is never narrowed; :func:`default_envelope` and
+    :func:`check_spec_against_ident` then decide as before.  The narrowed box is what ``tune``
+    designs for and ``validate`` tests (it is stored in tuning.json's identification, with
+    ``bounds.narrowed_by_tune``); a note says so.
+
+    Returns
+    -------
+    ident : Identification
+        With the narrowed theta3 box (the same object when nothing changed).
+    notes : tuple of str
+        One line when the box was narrowed.
+    """
+    bounds = ident.extra.get("bounds")
+    if not (isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True):
+        return ident, ()
+    if {"v_max", "a_max"} <= given:
+        return ident, ()
+    budget = DRIVE_HEADROOM * spec.u_max
+    d = drive_need(ident)
+    v_min = min(spec.v_max, MIN_DEFAULT_V_MAX)
+    a_min = min(spec.a_max, MIN_DEFAULT_A_MAX)
+    if d.need(v_min, a_min, spec.beta1) <= budget:
+        return ident, ()
+    p = identified_plant(ident)
+    d_lo, d_hi = force_range(ident)
+    step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
+    force = max(abs(d_lo), abs(d_hi), step)
+    fixed = d.const - force  # friction (+20 %) and ripple
+    allowed = DISTURBANCE_SHARE * budget - fixed  # largest |constant force| left for the box
+    dn = -p[P_OFFSET]
+    reach = allowed - abs(dn)  # half-width of the narrowed force range about d_n
+    if not (reach > 0 and allowed >= step and max(abs(d_lo), abs(d_hi)) > allowed):
+        return ident, ()  # friction alone is too much: default_envelope refuses, naming u_max
+    m_light = 1.0 / ident.theta.max[0]
+    lo = max(ident.theta.min[2], (dn - reach) / m_light)
+    hi = min(ident.theta.max[2], (dn + reach) / m_light)
+    theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
+    u = ident.units.get("u", "u-unit")
+    old_bound = bounds.get("disturbance_bound")
+    new_bounds = dict(bounds)
+    new_bounds["narrowed_by_tune"] = {
+        "theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
+        "force_range": [d_lo, d_hi], "narrowed_force_range": [lo * m_light, hi * m_light],
+        "u_max": spec.u_max}
+    extra = dict(ident.extra)
+    extra["bounds"] = new_bounds
+    out = dataclasses.replace(ident, theta=theta, extra=extra)
+    was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
+    note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
+            f"m/s^2 (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
+            f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} m/s, "
+            f"a_max = {a_min:g} m/s^2 on the most demanding plant; it now takes {DISTURBANCE_SHARE:g} of the "
+            f"{budget:.3g} {u} feedforward budget.  State the real load with commission identify "
+            f"--disturbance-bound")
+    return out, (note,)
+
+
+def rate_scaled_envelope(spec: Spec, given: set[str]) -> tuple[Spec, tuple[str, ...]]:
+    """Scale a *defaulted* envelope to a sample rate below the paper's 2.5 kHz.
+
+    The defaults (1 m/s, 12 m/s^2) are the paper's envelope at its 2.5 kHz.  Every loop
+    gain that can be implemented scales with the rate r = f_s / 2.5 kHz (observer poles,
+    caps, the PID's poles), so the tracking error of a given trajectory grows as 1/r^2
+    for the acceleration-driven part and 1/r for the velocity-driven part.  Below 2.5 kHz a
+    defaulted a_max is therefore scaled by r^2 and v_max by r, which keeps the demand
+    relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2).  Without
+    it, 1 kHz axes of :func:`commission.synth.random_axis` miss the default gate's e_rms
+    limit (20 um) by 1.1-2x on their heavy plants, with the ARC still ahead of the PID.
+    Keys the user set are kept; at or above 2.5 kHz nothing changes.
+    """
+    r = spec.sample_rate / PAPER_RATE
+    if r >= 1.0:
+        return spec, ()
+    v = spec.v_max if "v_max" in given else spec.v_max * r
+    a = spec.a_max if "a_max" in given else spec.a_max * r * r
+    return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
+        spec, v, a, f"the sample rate {spec.sample_rate:g} Hz is {r:.3g} x the paper's {PAPER_RATE:g} Hz "
+                    f"(the envelope scales as r for v_max, r^2 for a_max)")
+
+
+def _envelope_notes(spec: Spec, v: float, a: float, why: str) -> tuple[str, ...]:
+    """One note per envelope key that (v, a) changes from ``spec``'s."""
+    return tuple(f"trajectory.{k} defaulted to {new:.3g} {unit} instead of {old:g}: {why}"
+                 for k, old, new, unit in (("v_max", spec.v_max, v, "m/s"), ("a_max", spec.a_max, a, "m/s^2"))
+                 if new != old)
+
+
+def default_envelope(spec: Spec, ident: Identification, given: set[str],
+                     source: str = "spec (defaults)") -> tuple[Spec, tuple[str, ...]]:
+    """Lower the *defaulted* envelope (v_max, a_max) to what the drive can move on the worst plant.
+
+    The paper's 1 m/s and 12 m/s^2 ask a heavy axis (with its payload bound) for more
+    than a +-10 V drive gives.  A key the user set (``given`` holds ``"v_max"``,
+    ``"a_max"``) is never changed: :func:`check_spec_against_ident` then accepts or
+    rejects it.  Defaulted keys are lowered so that the worst plant's feedforward
+    (:func:`drive_need`) uses at most :data:`DRIVE_HEADROOM` x u_max: a_max first; v_max
+    too when the viscous term alone would take more than half of that budget or v_max
+    could not be reached within ``travel``.
+
+    Returns
+    -------
+    spec : Spec
+        With the lowered envelope (the same object when nothing changed).
+    notes : tuple of str
+        One line per lowered key, for the user.
+
+    Raises
+    ------
+    SpecError
+        Naming ``controller.u_max`` when the limit cannot even hold the worst plant's
+        friction and forces with the headroom.
+    """
+    d = drive_need(ident)
+    budget = DRIVE_HEADROOM * spec.u_max
+    if d.need(spec.v_max, spec.a_max, spec.beta1) <= budget or {"v_max", "a_max"} <= given:
+        return spec, ()
+    free = budget - d.const
+    u = ident.units.get("u", "u-unit")
+    refuse = SpecError(
+        f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
+        f"plant (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs {d.const:.3g} {u} for friction and constant forces "
+        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} m/s, a_max = {MIN_DEFAULT_A_MAX:g} m/s^2 within "
+        f"{DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
+        f"(commission identify --payload-max, --disturbance-bound)")
+    if free <= 0:
+        raise refuse
+    v, a = spec.v_max, spec.a_max
+    if "v_max" not in given:
+        v = min(v, d.v_max(budget, spec.beta1))
+        if d.viscous * v > 0.5 * free:
+            v = 0.5 * free / d.viscous
+    if "a_max" not in given:
+        a = min(a, d.a_max(budget, v))
+        if "v_max" not in given and a > 0:
+            v = min(v, math.sqrt(a * spec.travel))  # v_max reachable within the travel
+    if not (a > 0 and v > 0):
+        return spec, ()  # the set key cannot be met: check_spec_against_ident names it
+    if ("v_max" not in given and v < MIN_DEFAULT_V_MAX) or ("a_max" not in given and a < MIN_DEFAULT_A_MAX):
+        raise refuse
+    if v * v / a > spec.travel:
+        raise SpecError(
+            f"{source}: trajectory.v_max = {v:g} m/s cannot be reached within trajectory.travel = "
+            f"{spec.travel:g} m at the a_max = {a:.3g} m/s^2 this drive allows on the most demanding plant "
+            f"of the theta box (need v_max^2/a_max <= travel)")
+    return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
+        spec, v, a, f"the most demanding plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs "
+                    f"<= {DRIVE_HEADROOM:g} x controller.u_max = {budget:.3g} {u} of feedforward")
+
+
+def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
+    """validate's default gate (an empty ``gate.toml``) resolved for this axis and spec."""
+    return resolve_gate(GateSpec(), lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
+
+
+def log_sample_rate(ident: Identification) -> float | None:
+    """The excitation log's sample rate (Hz) if ident.json records one (``extra.source.sample_rate``)."""
+    src = ident.extra.get("source")
+    if isinstance(src, dict):
+        v = src.get("sample_rate")
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0:
+            return float(v)
+    return None
