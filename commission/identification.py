@@ -43,6 +43,10 @@ LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat")
 #: on 90 % of the samples (wide enough for a 1-rpm velocity quantisation at 1-2 rpm).
 LEG_SPEED_TOLERANCE = 0.5
 LEG_SMOOTHING = 0.05
+#: A fit leaving more than this fraction of the command unexplained is flagged (EMPS: 0.04).
+POOR_FIT_RELATIVE_ERROR = 0.3
+#: A parameter whose standard deviation exceeds this multiple of its value is flagged as not determined.
+UNDETERMINED_REL_STD = 1.0
 #: Parameters ``--fix`` accepts.
 FIXABLE = ("M",)
 
@@ -304,7 +308,9 @@ def identify_log(
         v = fit.parameters.get(name)
         params[name] = Estimate(float(v[0]), float(v[1])) if v is not None else None
 
-    warnings = unit_warnings + friction_warnings + list(checks.warnings) + list(fit.warnings)
+    warnings = (unit_warnings + friction_warnings + list(checks.warnings) + list(fit.warnings)
+                + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
+                                       fit.relative_error, fit.condition_number))
     extra: dict[str, object] = {
         "tool": {"name": "commission", "version": __version__},
         "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
@@ -575,6 +581,7 @@ def identify_legs(
     except NotIdentifiableError as exc:
         raise IdentifiabilityError(f"{paths[0]}: {exc}") from None
     warnings.extend(mf.warnings)
+    warnings.extend(fit_quality_warnings(mf.parameters, mf.relative_error, mf.condition_number))
 
     p = mf.parameters
     params: dict[str, Estimate | None] = {}
@@ -656,6 +663,29 @@ def identify_legs(
         extra=extra,
     )
     return LegsOutcome(ident=ident, logs=tuple(logs), fmap=fmap, fit=mf, excluded=tuple(excluded))
+
+
+def fit_quality_warnings(parameters: Mapping[str, tuple[float, float]], relative_error: float,
+                         condition_number: float) -> list[str]:
+    """Warnings, with the figures, when the fit does not explain the log or leaves a parameter undetermined.
+
+    Flagged, not refused: the numbers are still the best the log gives, and the
+    user decides (another log, ``--fix``, other units).  ``M`` without information is
+    handled before this (reported as not identified).
+    """
+    out = []
+    if relative_error > POOR_FIT_RELATIVE_ERROR:
+        out.append(f"fit: relative error {relative_error:.3g} ({relative_error * 100:.0f} % of the command is not "
+                   f"explained; condition number {condition_number:.3g}): the rigid model does not explain this log; "
+                   "check --map, --input-gain and the units, and that the axis moved without saturating")
+    for name, (value, std) in parameters.items():
+        if name in ("ripple_phase",) or not math.isfinite(std):
+            continue
+        if std > UNDETERMINED_REL_STD * abs(value):
+            rel = f"{std / abs(value) * 100:.0f} %" if value else "no value"
+            out.append(f"{name} = {value:.4g} ± {std:.2g} ({rel}): not determined by this log; do not rely on it "
+                       "(a log that excites it, or --fix for M)")
+    return out
 
 
 def _maybe(v: tuple[float, float] | None) -> dict[str, float] | None:

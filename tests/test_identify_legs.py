@@ -237,3 +237,13 @@ def test_tune_refuses_an_identification_without_the_inertia_naming_it(drives, tm
     assert res.exit_code == 2
     assert "$.parameters.M: not identified" in res.output and "--fix M=VALUE" in " ".join(res.output.split())
     assert not (tmp_path / "t.json").exists()
+
+
+def test_a_poor_fit_and_an_undetermined_parameter_are_flagged_with_their_figures():
+    from commission.identification import fit_quality_warnings
+
+    w = fit_quality_warnings({"B": (13.0, 33.3), "fc": (20.0, 0.5)}, relative_error=0.87, condition_number=40.0)
+    assert w[0].startswith("fit: relative error 0.87 (87 % of the command is not explained")
+    assert w[1].startswith("B = 13 ± 33 (256 %): not determined by this log")
+    assert len(w) == 2  # fc at 2.5 % is fine
+    assert fit_quality_warnings({"B": (0.27, 0.01)}, relative_error=0.04, condition_number=26.0) == []
