@@ -56,6 +56,12 @@ def test_run_on_the_sample_log_passes_and_leaves_every_file(tmp_path):
     report = (out / "report.md").read_text()
     assert "## Stability margins" in report and "![loops.png](loops.png)" in report
     assert report.count("| nominal | ") == 3
+    # the identification section with identify's own figures (written beside the report), and the reading aids
+    assert "## Identification" in report and "| M (mass) | " in report and "V·s²/m |" in report
+    for name in ("force_fit.png", "friction_curve.png", "residuals.png"):
+        assert (out / name).is_file() and f"![{name}]({name})" in report
+    assert "## Reading the results" in report and "**Parameter estimates.**" in report
+    assert ctrl["sample_rate"] == 2500.0 and ctrl["control_law"]["paper"].startswith("Xu L., Yao B. (2001)")
 
 
 def test_run_refuses_bad_input_before_writing(tmp_path):
