@@ -349,15 +349,7 @@ def identify_log(
             "quantization": checks.quantization_step,
             "apparent_resolution": checks.apparent_resolution,
         },
-        "bounds": {} if tb is None else {
-            "k_sigma": bounds.k_sigma,
-            "model_margin": bounds.model_margin,
-            "mass_range": list(tb.mass_range),
-            "viscous_range": list(tb.viscous_range),
-            "disturbance_range": list(tb.disturbance_range),
-            "disturbance_bound": tb.disturbance_bound,
-            "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
-        },
+        "bounds": {} if tb is None else _bounds_record(bounds, tb),
         "friction_compensation_rms_error": comp.rms_error,
         "frequency_response": freq.to_dict() if freq is not None else None,
         "not_identified": dict(fit.not_identified),
@@ -369,7 +361,7 @@ def identify_log(
         del extra["bounds"], extra["frequency_response"]  # both need M
     theta = None if tb is None else _theta_box(tb, path, fit)
     ident = Identification(
-        units={"u": u_unit or log.u_unit, "q": "rad" if log.q_unit_in_file == "rad" else "m"},
+        units=_units(u_unit, log),
         parameters=params,
         relative_error=fit.relative_error,
         condition_number=fit.condition_number,
@@ -381,6 +373,18 @@ def identify_log(
         extra=extra,
     )
     return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb, frequency=freq)
+
+
+def _bounds_record(bounds: BoundsOptions, tb: ThetaBounds) -> dict[str, object]:
+    """ident.json's ``bounds``: the declared settings and the ranges the theta box covers."""
+    return {"k_sigma": bounds.k_sigma, "model_margin": bounds.model_margin, "mass_range": list(tb.mass_range),
+            "viscous_range": list(tb.viscous_range), "disturbance_range": list(tb.disturbance_range),
+            "disturbance_bound": tb.disturbance_bound, "disturbance_bound_defaulted": tb.disturbance_bound_defaulted}
+
+
+def _units(u_unit: str | None, log: ExcitationLog) -> dict[str, str]:
+    """ident.json's ``units``: u after the gain (``--u-unit``, else the file's), q in m or rad."""
+    return {"u": u_unit or log.u_unit, "q": "rad" if log.q_unit_in_file == "rad" else "m"}
 
 
 def _theta_box(tb: ThetaBounds, path: str, fit: AxisFit) -> ThetaBox:
@@ -644,14 +648,9 @@ def identify_legs(
         "warnings": warnings,
     }
     if tb is not None:
-        extra["bounds"] = {
-            "k_sigma": bounds.k_sigma, "model_margin": bounds.model_margin,
-            "mass_range": list(tb.mass_range), "viscous_range": list(tb.viscous_range),
-            "disturbance_range": list(tb.disturbance_range), "disturbance_bound": tb.disturbance_bound,
-            "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
-        }
+        extra["bounds"] = _bounds_record(bounds, tb)
     ident = Identification(
-        units={"u": u_unit or first.u_unit, "q": "rad" if first.q_unit_in_file == "rad" else "m"},
+        units=_units(u_unit, first),
         parameters=params,
         relative_error=mf.relative_error,
         condition_number=mf.condition_number,
