@@ -94,7 +94,9 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     console.print(t)
     console.print(f"friction map: {outcome.fmap.velocity.size} legs, speeds "
                   f"{abs(outcome.fmap.velocity).min():.3g}-{abs(outcome.fmap.velocity).max():.3g} {q}/s; "
-                  f"relative error of the curve {ident.relative_error:.4f}")
+                  f"relative error of the curve {ident.relative_error:.4f}"
+                  + (f", on the --validate-on legs {ident.validation_relative_error:.4f}"
+                     if ident.validation_relative_error is not None else ""))
     for name, why in missing.items():
         console.print(f"[yellow]not identified:[/] {name}: {why}")
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
@@ -159,8 +161,7 @@ def identify_command(
     files = expand_log_paths([str(p) for p in logs])
     legs = len(files) > 1
     if legs:
-        for flag, value in (("--validate-on", o.validate_on), ("--ripple-pitch", o.ripple_pitch or None),
-                            ("--resample", o.resample)):
+        for flag, value in (("--ripple-pitch", o.ripple_pitch or None), ("--resample", o.resample)):
             if value is not None:
                 raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
@@ -174,7 +175,8 @@ def identify_command(
             if legs:
                 outcome: IdentifyOutcome | LegsOutcome = identify_legs(
                     files, mapping=o.mapping, input_gain=o.input_gain, sample_rate=o.sample_rate, friction=o.friction,
-                    fix=o.fix, bounds=o.bounds, u_unit=o.u_unit, q_unit=o.q_unit, fmt=o.fmt)
+                    fix=o.fix, bounds=o.bounds, u_unit=o.u_unit, q_unit=o.q_unit, fmt=o.fmt,
+                    validate_on=expand_log_paths([o.validate_on]) if o.validate_on else ())
             else:
                 outcome = identify_log(files[0], **o.kwargs())  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())

@@ -510,6 +510,7 @@ def identify_legs(
     u_unit: str | None = None,
     q_unit: str | None = None,
     fmt: str | None = None,
+    validate_on: Sequence[str] = (),
 ) -> LegsOutcome:
     """Identify the friction curve from a friction test: several logs, one constant-speed leg each.
 
@@ -529,6 +530,9 @@ def identify_legs(
         Log files (at least two; folders already expanded, :func:`expand_log_paths`).
     fix : mapping, optional
         Known parameters (``{"M": u-unit s^2/m}``).
+    validate_on : sequence of str
+        Legs of a second friction test (files, folders expanded): the fitted curve's
+        relative error on their map is ``validation_relative_error``.
     mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt
         As in :func:`identify_log`, applied to every file.
 
@@ -545,6 +549,8 @@ def identify_legs(
     fix = dict(fix or {})
     logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
             for p in paths]
+    val_logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
+                for p in validate_on]  # loaded before the fit: bad input fails fast
     units = {(lg.u_unit, lg.q_unit_in_file == "rad") for lg in logs}
     if len(units) > 1:
         raise DataError(f"{paths[0]}: the logs of one axis must share their units; found u in "
@@ -586,6 +592,15 @@ def identify_legs(
         raise IdentifiabilityError(f"{paths[0]}: {exc}") from None
     warnings.extend(mf.warnings)
     warnings.extend(fit_quality_warnings(mf.parameters, mf.relative_error, mf.condition_number))
+    val_err = None
+    if val_logs:
+        val_legs = [lg for lg in val_logs if not math.isinf(_leg_speed_spread(lg))]
+        vmap = friction_map([(lg.t, lg.q, lg.u) for lg in val_legs])
+        pv = mf.parameters
+        F_hat = (pv["B"][0] * vmap.velocity + pv["offset"][0]
+                 + stribeck_friction(vmap.velocity, pv["fc"][0], pv["fs"][0] if "fs" in pv else None,
+                                     pv["vs"][0] if "vs" in pv else None, pv["xi"][0] if "xi" in pv else None))
+        val_err = float(np.linalg.norm(vmap.force - F_hat) / max(np.linalg.norm(vmap.force), 1e-300))
 
     p = mf.parameters
     params: dict[str, Estimate | None] = {}
@@ -632,7 +647,8 @@ def identify_legs(
             "q_unit": first.q_unit_in_file,
             "excluded": excluded,
         },
-        "validation_source": None,
+        "validation_source": ({"path": [lg.source for lg in val_logs], "sha256": [lg.sha256 for lg in val_logs]}
+                              if val_logs else None),
         "model": {
             "friction": mf.friction,
             "friction_requested": friction,
@@ -654,7 +670,7 @@ def identify_legs(
         parameters=params,
         relative_error=mf.relative_error,
         condition_number=mf.condition_number,
-        validation_relative_error=None,
+        validation_relative_error=val_err,
         theta=theta,
         delta_d=delta_d,
         fric_level=comp.level,

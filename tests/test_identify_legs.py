@@ -247,3 +247,20 @@ def test_a_poor_fit_and_an_undetermined_parameter_are_flagged_with_their_figures
     assert w[1].startswith("B = 13 ± 33 (256 %): not determined by this log")
     assert len(w) == 2  # fc at 2.5 % is fine
     assert fit_quality_warnings({"B": (0.27, 0.01)}, relative_error=0.04, condition_number=26.0) == []
+
+
+@tro
+def test_validate_on_another_friction_test_gives_the_cross_test_error_of_the_curve(tmp_path):
+    # Closed form: validated on its own legs, the cross-test error is the identification's own relative error.
+    path = tmp_path / "d1.json"
+    res = runner.invoke(app, ["identify", str(_folder(1)), "--validate-on", str(_folder(1)), "--out", str(path)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(path.read_text())
+    assert doc["fit"]["validation_relative_error"] == pytest.approx(doc["fit"]["relative_error"], rel=1e-9)
+    assert len(doc["validation_source"]["path"]) == 32
+    # another drive's legs are not explained by drive 1's curve
+    res = runner.invoke(app, ["identify", str(_folder(1)), "--validate-on", str(_folder(2)), "--out", str(path),
+                              "--force"])
+    assert res.exit_code == 0, res.output
+    other = json.loads(path.read_text())["fit"]["validation_relative_error"]
+    assert other > 10 * doc["fit"]["relative_error"]
