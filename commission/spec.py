@@ -16,9 +16,9 @@ Keys and defaults
     ``sample_rate`` = 2500.0
         Controller rate, Hz (paper: 2.5 kHz).  ``commission tune`` defaults it
         to the excitation log's rate when ident.json records one
-        (``source.sample_rate``), snapped to its nominal value by
-        :func:`nominal_rate` (a rate estimated from time stamps carries
-        rounding, 2500.0000000058 Hz; the drive runs at 2500 Hz).
+        (``source.sample_rate``), as measured: tune and validate simulate that
+        period; controller.json states it as its nominal value
+        (:func:`nominal_rate`).
     ``u_max`` = 10.0
         Input limit |u| <= u_max, u-unit (a +-10 V drive command).
     ``observer_pole``
@@ -368,12 +368,13 @@ def _fail(source: str, path: str, msg: str) -> SpecError:
 NOMINAL_RATE_TOLERANCE = 1e-5
 
 
-def nominal_rate(measured: float, digits: int = 4) -> float:
+def nominal_rate(measured: float, digits: int = 4, rel: float = NOMINAL_RATE_TOLERANCE) -> float:
     """The round rate a measured sample rate stands for, Hz.
 
     A rate estimated from a log's time stamps is the nominal rate plus rounding
-    and clock error (2500.0000000058 Hz).  The controller, its gains and
-    ``controller.json`` should carry the rate the drive is programmed with.
+    and clock error (2500.0000000058 Hz).  ``controller.json`` states the rate the
+    drive is programmed with; its ``sample_period`` stays the period validated
+    (the two agree within the loader's 1e-9).
     The measured rate is rounded to 1, 2, ... ``digits`` significant digits and
     the first rounding within :data:`NOMINAL_RATE_TOLERANCE` of it is returned;
     a rate that no such round number explains (4166.67 Hz) is returned as
@@ -385,6 +386,8 @@ def nominal_rate(measured: float, digits: int = 4) -> float:
         Sample rate, Hz (positive, finite).
     digits : int
         Most significant digits a nominal rate has.
+    rel : float
+        Largest relative distance between the measured and the nominal rate.
 
     Returns
     -------
@@ -395,7 +398,7 @@ def nominal_rate(measured: float, digits: int = 4) -> float:
         return measured
     for d in range(1, digits + 1):
         r = float(f"{measured:.{d}g}")
-        if abs(r - measured) <= NOMINAL_RATE_TOLERANCE * measured:
+        if abs(r - measured) <= rel * measured:
             return r
     return measured
 
@@ -414,8 +417,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         Prepended to key paths in errors (e.g. ``"$.spec."`` inside tuning.json).
     sample_rate_default : float, optional
         Default of ``controller.sample_rate`` (Hz) instead of 2500, e.g. the
-        rate of the excitation log recorded in ident.json; used as
-        :func:`nominal_rate` of it.
+        rate of the excitation log recorded in ident.json.
 
     Returns
     -------
@@ -466,7 +468,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
 
     def get(section: str, key: str) -> Any:
         if (section, key) == ("controller", "sample_rate") and sample_rate_default is not None:
-            return values.get((section, key), nominal_rate(float(sample_rate_default)))
+            return values.get((section, key), float(sample_rate_default))
         return values.get((section, key), _SCHEMA[section][key][1])
 
     for key in ("mode_ratio", "mode_damping"):

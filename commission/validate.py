@@ -65,7 +65,7 @@ from commission.jsonio import canonical_json, read_json, sha256_file, write_json
 from commission.report import report_markdown
 from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
 from commission.scenarios import check_run_length, plant_substeps, scenario_matrix
-from commission.spec import check_flags
+from commission.spec import check_flags, nominal_rate
 from commission.tuning import Score, Tuning, log_sha256_of
 
 Progress = Callable[[int, int], None]
@@ -479,6 +479,11 @@ def validated_record(result: ValidationResult) -> dict[str, Any]:
     }
 
 
+#: controller.json states the nominal rate when the validated one is within this of it: rounding in a
+#: rate estimated from time stamps, well inside the loader's 1e-9 check of sample_period x sample_rate.
+NOMINAL_RATE_RTOL = 1e-10
+
+
 def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: str,
                       created_utc: str | None = None) -> ControllerConfig:
     """The deployable controller of a passed validation.
@@ -497,7 +502,10 @@ def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: s
         tool_version=commission.__version__,
         created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
     )
-    return ControllerConfig(gains=result.arc_gains, sample_rate=tuning.spec.sample_rate,
+    # The nominal rate the drive is programmed with (2500, not 2500.0000000058 estimated from a log's
+    # time stamps); sample_period stays the period validated, within the loader's 1e-9 of 1/sample_rate.
+    rate = nominal_rate(tuning.spec.sample_rate, rel=NOMINAL_RATE_RTOL)
+    return ControllerConfig(gains=result.arc_gains, sample_rate=rate,
                             units=dict(tuning.identification.units), validated=validated_record(result),
                             provenance=prov)
 

@@ -60,10 +60,13 @@ def test_derived_defaults_follow_the_sample_rate():
 ])
 def test_a_log_rate_within_jitter_of_a_round_rate_gives_the_round_rate(measured, nominal):
     assert nominal_rate(measured) == nominal
-    s = spec_from_mapping({}, sample_rate_default=measured)
-    assert s.sample_rate == nominal
-    # a rate the user writes is taken as written
-    assert spec_from_mapping({"controller": {"sample_rate": measured}}).sample_rate == measured
+    # tune simulates the rate measured (controller.json states the nominal one)
+    assert spec_from_mapping({}, sample_rate_default=measured).sample_rate == measured
+
+
+def test_controller_json_states_the_round_rate_only_for_rounding_in_the_estimate():
+    assert nominal_rate(2500.0000000058267, rel=1e-10) == 2500.0  # the sample log's estimated rate
+    assert nominal_rate(5000.02, rel=1e-10) == 5000.02  # 4 ppm: a real difference, stated as validated
 
 
 @pytest.mark.parametrize("data, match", [
