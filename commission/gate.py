@@ -18,13 +18,19 @@ first.
     no_divergence = true # no scenario may abort (non-finite, |q - q_d| > travel, |u| > 1e6)
     arc_vs_pid_e_rms = 1.0  # ARC e_rms <= this factor x PID e_rms + arc_vs_pid_slack, scenario by scenario
     arc_vs_pid_slack = "0.2887 lsb"  # a length, as the error limits
+    gain_margin_db = 6.0        # stability margins of the ARC on the identified plant (mode and delay
+    phase_margin_deg = 30.0     # included), both linearisation points; default: the tuning spec's
+    delay_margin_samples = 1.0  # [margins], which are also floors: a lower value here does not lower them
+    modulus_margin = 0.5
 
 Floors
 ------
 The gate decides what is *good enough*; the floors (:data:`FLOORS`) decide
 what may be *deployed at all*, and no ``gate.toml`` can lower them: no
-scenario diverges, the peak |u| stays below a finite ``u_max`` (the command
-never clipped), and ``u_max``, ``k1s_max``, ``k2s_max`` are finite.  A gate that
+scenario diverges (the robustness scenarios included: one more sample of
+delay, the mode's variants), the peak |u| stays below a finite ``u_max`` (the
+command never clipped), ``u_max``, ``k1s_max``, ``k2s_max`` are finite, and the
+ARC on the identified plant keeps the tuning spec's ``[margins]`` floors.  A gate that
 switches a criterion off (``no_divergence = false``) or loosens it (``u_max =
 1e9``) still gives a report, but ``controller.json`` is written only when
 every floor holds.
@@ -82,6 +88,7 @@ the input limit, by about 300x.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -108,7 +115,11 @@ SATURATION_TOL = 1e-9
 #: Criterion names, in report order.
 CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms", "margins")
 _ERROR_KEYS = ("e_F", "e_M", "e_rms")
-_KEYS = ("e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms", "arc_vs_pid_slack")
+#: The margin keys of gate.toml and their :class:`commission.robustness.MarginFloors` attributes.
+MARGIN_KEYS = {"gain_margin_db": "gain_db", "phase_margin_deg": "phase_deg",
+               "delay_margin_samples": "delay_samples", "modulus_margin": "modulus"}
+_KEYS = ("e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms", "arc_vs_pid_slack",
+         *MARGIN_KEYS)
 _UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
 _LIMIT_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|um|µm|nm|lsb|%travel)\s*$")
 
@@ -158,6 +169,9 @@ class GateSpec:
         ARC e_rms <= factor x PID e_rms + slack in every scenario.
     arc_vs_pid_slack : ErrorLimit or None
         The slack (default: LSB / sqrt(12)).
+    margins : mapping of str to float
+        The margin keys given (:data:`MARGIN_KEYS`: dB, deg, samples beyond the identified
+        delay, dimensionless); absent keys take the tuning spec's ``[margins]``.
     source : str
         File name (or ``"defaults"``).
     """
@@ -171,6 +185,7 @@ class GateSpec:
     arc_vs_pid_e_rms: float = DEFAULT_ARC_VS_PID
     arc_vs_pid_slack: ErrorLimit | None = None
     source: str = "defaults"
+    margins: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -295,6 +310,7 @@ def gate_from_mapping(data: Mapping[str, Any], source: str = "gate.toml") -> Gat
         kw["no_divergence"] = v
     if "arc_vs_pid_e_rms" in table:
         kw["arc_vs_pid_e_rms"] = _positive(source, "arc_vs_pid_e_rms", table["arc_vs_pid_e_rms"])
+    kw["margins"] = {k: _positive(source, k, table[k]) for k in MARGIN_KEYS if k in table}
     return GateSpec(**kw)
 
 
@@ -531,13 +547,19 @@ class FloorContext:
     drive_u_max : float
         The drive's input limit the validation simulated (the tuning spec's ``controller.u_max``), u-unit.
 
-    A floor that needs more (the stability margins of the linearised sampled loop, say) adds
-    an optional field here and an entry in :data:`FLOORS`.
+    margins : sequence of commission.robustness.LoopMargins
+        The stability margins of the validated loops.
+    margin_floors : commission.robustness.MarginFloors or None
+        The tuning spec's ``[margins]``: what tune designed for (None: no margin floor checked).
+
+    A floor that needs more adds an optional field here and an entry in :data:`FLOORS`.
     """
 
     runs: Sequence[tuple[str, Score, float]]
     limits: Mapping[str, float]
     drive_u_max: float
+    margins: Sequence[Any] = ()
+    margin_floors: Any = None
 
 
 @dataclass(frozen=True)
@@ -603,6 +625,9 @@ FLOORS: tuple[Floor, ...] = (
           _floor_u_peak),
     Floor("finite_limits", "u_max, k1s_max and k2s_max are finite and positive, u_max within the drive's",
           _floor_finite_limits),
+    Floor("margins", "the ARC on the identified plant is stable and keeps the tuning spec's [margins] floors",
+          lambda ctx: [] if ctx.margin_floors is None else margin_checks(ctx.margins, ctx.margin_floors,
+                                                                          "floor:margins")),
 )
 
 
@@ -618,8 +643,8 @@ def check_floors(ctx: FloorContext) -> list[Check]:
 GATED_PLANT = "nominal"
 
 
-def margin_checks(rows: Sequence[Any], floors: Any) -> list[Check]:
-    """Gate checks (criterion ``"margins"``) of the ARC loops on the identified plant.
+def margin_checks(rows: Sequence[Any], floors: Any, criterion: str = "margins") -> list[Check]:
+    """Gate checks (criterion ``criterion``) of the ARC loops on the identified plant.
 
     ``rows`` are :class:`commission.robustness.LoopMargins`, ``floors`` a
     :class:`commission.robustness.MarginFloors`.
@@ -632,7 +657,7 @@ def margin_checks(rows: Sequence[Any], floors: Any) -> list[Check]:
             continue
         m = r.margins
         where = f"margins/{r.plant}/arc(theta_hat {r.theta_hat_at})"
-        out.append(Check("margins", where, 0.0 if m.stable else math.inf, 1.0, m.stable,
+        out.append(Check(criterion, where, 0.0 if m.stable else math.inf, 1.0, m.stable,
                          f"closed loop {'stable' if m.stable else 'UNSTABLE'} "
                          f"(spectral radius {m.spectral_radius:.4f})"))
         for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
@@ -641,6 +666,6 @@ def margin_checks(rows: Sequence[Any], floors: Any) -> list[Check]:
                                        ("modulus margin", m.modulus_margin, floors.modulus, "")):
             ok = bool(val >= floor)
             ratio = floor / val if val > 0 else math.inf
-            out.append(Check("margins", where, ratio, 1.0, ok,
+            out.append(Check(criterion, where, ratio, 1.0, ok,
                              f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
     return out

@@ -449,11 +449,10 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     L.extend(margins_markdown(result, tuning))
     rl = robustness_lines(result)
     if rl:
-        L.append("**Robustness (advisory).** The gate's criteria on the robustness scenarios (one more sample "
+        L.append("**Robustness.** The gate's criteria on the robustness scenarios (one more sample "
                  "of input delay than identified; with a mode, its frequency x0.8 and x1.2 and half its damping) "
-                 "and the ARC's margin floors on the identified plant. They do not yet decide whether "
-                 "controller.json is written: " + rl[0])
-        L.extend(f"- {line.strip()}" for line in rl[1:])
+                 "and the ARC's margins on the identified plant, required like every other check (no divergence "
+                 "and the spec's margin floors whatever gate.toml says): " + rl[0])
         L.append("")
     L.append("## Gate")
     L.append("")
@@ -547,8 +546,6 @@ def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the stdout summary: each fixed scenario, then the Monte-Carlo aggregate."""
     head = ["scenario", "ARC e_M um", "ARC e_F um", "ARC e_rms um", "ARC c_u", "ARC peak|u|", "PID e_rms um", "gate"]
     failed = {c.scenario for c in result.verdict.failures}
-    rob = getattr(result, "robustness", None)
-    advisory = {c.scenario for c in rob.failures} if rob is not None else set()
     rows: list[list[str]] = []
 
     def s(score: Score, key: str, scale: float, fmt: str) -> str:
@@ -560,8 +557,7 @@ def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
         rows.append([r.name, s(r.arc, "e_M", 1e6, "{:.3g}"), s(r.arc, "e_F", 1e6, "{:.3g}"),
                      s(r.arc, "e_rms", 1e6, "{:.3g}"), s(r.arc, "c_u", 1.0, "{:.2f}"),
                      _fmt(r.arc.u_peak, "{:.3g}", 1.0), s(r.pid, "e_rms", 1e6, "{:.3g}"),
-                     ("advisory: FAIL" if r.name in advisory else "advisory: ok") if "robustness" in r.tags
-                     else ("FAIL" if r.name in failed else "ok")])
+                     ("FAIL" if r.name in failed else "ok")])
     mc = [r for r in result.runs if "monte_carlo" in r.tags]
     if mc:
         def worst(ctrl: str, key: str) -> float:
@@ -592,7 +588,7 @@ def summary_text(result: Any) -> str:
 def verdict_text(result: Any) -> str:
     """``gate PASSED`` or ``gate FAILED: N checks`` followed by one line per failure."""
     v = result.verdict
-    n = sum(1 for r in result.runs if "robustness" not in r.tags)
+    n = len(result.runs)
     if v.passed:
         lines = [f"gate PASSED ({len(v.checks)} checks on {n} scenarios)"]
     else:
@@ -603,12 +599,11 @@ def verdict_text(result: Any) -> str:
 
 
 def robustness_lines(result: Any) -> list[str]:
-    """The advisory robustness verdict (robustness scenarios and margin floors), one line per failure."""
+    """The robustness part of the verdict (robustness scenarios and margins), one summary line."""
     rob = getattr(result, "robustness", None)
     if rob is None:
         return []
+    what = "one more sample of delay, the mode's variants, stability margins"
     if rob.passed:
-        return [f"robustness (advisory) PASSED ({len(rob.checks)} checks: one more sample of delay, "
-                f"the mode's variants, margin floors)"]
-    return ([f"warning: robustness (advisory, not yet required for controller.json): {len(rob.failures)} of "
-             f"{len(rob.checks)} checks fail"] + [f"  {line}" for line in failure_lines(rob)])
+        return [f"robustness PASSED ({len(rob.checks)} checks: {what})"]
+    return [f"robustness FAILED: {len(rob.failures)} of {len(rob.checks)} checks ({what}; listed above)"]

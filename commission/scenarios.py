@@ -542,8 +542,8 @@ MODE_DAMPING_FACTOR = 0.5
 def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     """Dynamics the identified model may have wrong, on both trajectories (module docstring).
 
-    Tagged ``"robustness"``: ``validate`` simulates and reports them (advisory,
-    :mod:`commission.validate`); ``tune`` does not optimise on them yet.
+    Tagged ``"robustness"``: ``validate`` gates them like every other scenario, and ``tune``
+    holds its search to the gate on them (:func:`tuning_scenarios`).
     """
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
@@ -653,7 +653,8 @@ def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Genera
                      n_monte_carlo: int | None = None) -> list[Scenario]:
     """The set ``tune`` optimises on.
 
-    Every fixed scenario of :func:`scenario_matrix` (tag ``"tune"``: not the robustness ones), the 16 box corners of
+    Every fixed scenario of :func:`scenario_matrix` (tag ``"tune"``), the robustness scenarios
+    of :func:`robustness_scenarios` (one more sample of delay, the mode's variants), the 16 box corners of
     :func:`corner_scenarios` (a deterministic stand-in for the validation's
     Monte-Carlo sample, whose worst plants sit near the corners), the 4
     largest-force plants of :func:`offset_scenarios`, the 6 interior payloads of
@@ -662,6 +663,6 @@ def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Genera
     """
     n = spec.monte_carlo if n_monte_carlo is None else n_monte_carlo
     matrix = scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n)
-    fixed = [s for s in matrix if "tune" in s.tags]
+    fixed = [s for s in matrix if "tune" in s.tags or "robustness" in s.tags]
     mc = [s for s in matrix if "monte_carlo" in s.tags]
     return fixed + corner_scenarios(ident, spec) + offset_scenarios(ident, spec) + payload_scenarios(ident, spec) + mc

@@ -25,8 +25,8 @@ Keys and defaults
         Double pole -p of the observer matrix A0 (10), rad/s.  Default
         ``OBSERVER_POLE_FRACTION * sample_rate`` = 0.08 * f_s (the paper's
         -200 rad/s at 2.5 kHz, giving k1 = 2p = 400, k2 = p^2 = 4e4).  A defaulted
-        pole may be moved by tune's hold-out repair (0.6-1.25x; see
-        :func:`commission.tune.repair_on_holdout`); a given one is kept.
+        pole is a coordinate of tune's search (0.6-1.25x; see
+        :data:`commission.tune.OBSERVER_FACTOR_BOUNDS`); a given one is kept.
     ``quantization``
         Encoder resolution used in simulation, m.  Default: the
         ``quantization`` recorded in ident.json if present, else 1e-6 m.
@@ -57,14 +57,12 @@ Keys and defaults
         encoder at a high rate): :func:`commission.tune.deployable_pid`.
 ``[tune]``
     ``budget`` = 96
-        Candidate gain sets simulated by the search (each on the 38 tuning
-        scenarios; about 25-55 s at 2.5-5 kHz on 2 cores, see benchmarks/bench_tune.py).
+        Candidate gain sets the search evaluates (each on the tuning scenarios,
+        unless it misses a margin floor first; benchmarks/bench_tune.py times it).
         Left at its default, ``tune`` lowers it (to whole generations of 8, at
         least 48) where one candidate simulates more than 1.8 times the paper
         axis' work, as slow envelopes at 4-5 kHz do
-        (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``;
-        and continues it where the best candidates fail the default gate on the
-        hold-out plants, up to that same work (:func:`commission.tune.search_extension`).
+        (:func:`commission.tune.work_scaled_budget`), and prints a ``note:``.
     ``monte_carlo`` = 0
         Monte-Carlo plants from the theta box added to the tuning subset.
     ``margin`` = 0.01
@@ -87,7 +85,9 @@ Keys and defaults
     (:func:`commission.scenarios.plant_dynamics`).
 ``[margins]`` (floors of the stability margins, :mod:`commission.robustness`)
     ``gain_db`` = 6.0, ``phase_deg`` = 30.0, ``delay_samples`` = 1.0 (beyond the
-    identified delay), ``modulus`` = 0.5.
+    identified delay), ``modulus`` = 0.5.  Constraints of tune's search on the ARC
+    linearised on the identified plant, and floors of validate's gate
+    (:func:`commission.gate.margin_checks`), which no gate.toml can lower.
 
 Bandwidth rule
 --------------

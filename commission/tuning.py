@@ -22,16 +22,15 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       as chosen, and which are traded for implementability
     scores            {scenario: {"arc": score, "pid": score}}; score = e_M, e_F, e_rms (m), u_rms,
                       du_rms, u_peak (u-unit), c_u, diverged; indexes null when diverged
-    search            n_evaluations, budget, seed, cost_initial, cost_best, free (name -> value),
-                      history (cost of every candidate, evaluation order), holdout_plants,
-                      holdout_failures (default-gate failures of each candidate compared on
-                      the hold-out plants, best cost first; see commission.tune.select_on_holdout),
-                      extension (candidates the search continued with because its best failed
-                      there; 0: none; see commission.tune.search_extension),
-                      repair_moves (moves accepted after the hold-out, in order, each naming the
-                      gains it changed by more than 5 %, e.g. "k2 /1.18, w2 x1.38, ob /1.1"; see
-                      commission.tune.repair_on_holdout), repair_evaluations,
-                      repair_failures (hold-out gate failures after the repair; null: no repair run)
+    search            optimiser (name and library version), n_evaluations, budget, seed,
+                      generations, cost_initial, cost_best (objective, null where a candidate was
+                      not simulated), free (name -> value), history (objective of every candidate,
+                      evaluation order), violations and levels (each candidate's constraint
+                      violation and level: 0 every constraint met, 1 the gate missed, 2 a stability
+                      margin or discrete feasibility missed), n_feasible, chosen_level,
+                      chosen_violation, holdout_plants, holdout_failures (default-gate failures of
+                      each feasible finalist on the hold-out plants, best objective first; see
+                      commission.tune.select_on_holdout)
 
 Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
 field raises :class:`commission.errors.SchemaError` naming its JSON path.
@@ -197,32 +196,34 @@ class SearchRecord:
     Attributes
     ----------
     n_evaluations : int
-        Candidate gain sets simulated.
+        Candidate gain sets evaluated.
     budget : int
         Requested budget (spec ``tune.budget``).
     seed : int
     cost_initial, cost_best : float
-        Objective of the starting point and of the chosen gains (lower is better).
+        Objective of the starting point and of the chosen gains (lower is better; nan: not
+        simulated because a stability constraint failed first).
     free : dict
         The free gains as chosen (name -> value).
     history : tuple of float
-        Cost of every candidate in evaluation order (the first is the starting point).
+        Objective of every candidate in evaluation order (the first is the starting point).
     holdout_plants : int
         Monte-Carlo plants of the hold-out selection (0: not run).
     holdout_failures : tuple of int
-        Default-gate failures of each candidate compared there, best cost first (after the
-        extension, when it ran).
-    extension : int
-        Candidates the search continued with because its best failed the hold-out gate
-        (:func:`commission.tune.search_extension`; 0: it did not).  ``n_evaluations``
-        includes them.
-    repair_moves : tuple of str
-        Moves of the hold-out repair, in order (empty: none accepted or not run); each names the
-        gains it changed by more than 5 % (:func:`commission.tune.repair_on_holdout`).
-    repair_evaluations : int
-        Candidates the repair simulated (0: not run).
-    repair_failures : int or None
-        Hold-out gate failures after the repair (None: not run).
+        Default-gate failures of each feasible finalist there, best objective first.
+    optimiser : str
+        The optimiser and its constraint handling.
+    generations : int
+    n_feasible : int
+        Candidates that met every constraint.
+    violations : tuple of float
+        Each candidate's constraint violation (0: met), evaluation order.
+    levels : tuple of int
+        Each candidate's constraint level (:data:`commission.tune.optimiser.FEASIBLE` = 0,
+        ``GATE_MISSED`` = 1, ``STABILITY_MISSED`` = 2).
+    chosen_level : int
+        The chosen gains' level (0 unless no candidate met every constraint).
+    chosen_violation : float
     """
 
     n_evaluations: int
@@ -234,10 +235,13 @@ class SearchRecord:
     history: tuple[float, ...] = ()
     holdout_plants: int = 0
     holdout_failures: tuple[int, ...] = ()
-    extension: int = 0
-    repair_moves: tuple[str, ...] = ()
-    repair_evaluations: int = 0
-    repair_failures: int | None = None
+    optimiser: str = ""
+    generations: int = 0
+    n_feasible: int = 0
+    violations: tuple[float, ...] = ()
+    levels: tuple[int, ...] = ()
+    chosen_level: int = 0
+    chosen_violation: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
@@ -245,9 +249,9 @@ class SearchRecord:
                 "free": {k: float(v) for k, v in self.free.items()},
                 "history": [_num_or_null(c) for c in self.history],
                 "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures),
-                "extension": self.extension,
-                "repair_moves": list(self.repair_moves), "repair_evaluations": self.repair_evaluations,
-                "repair_failures": self.repair_failures}
+                "optimiser": self.optimiser, "generations": self.generations, "n_feasible": self.n_feasible,
+                "violations": [_num_or_null(v) for v in self.violations], "levels": list(self.levels),
+                "chosen_level": self.chosen_level, "chosen_violation": _num_or_null(self.chosen_violation)}
 
 
 def _gains_to_dict(g: Any) -> dict[str, Any]:
@@ -449,12 +453,14 @@ class Tuning:
                               history=_nullable_list(se, "history"),
                               holdout_plants=se.int_("holdout_plants") if se.has("holdout_plants") else 0,
                               holdout_failures=_int_list(se, "holdout_failures"),
-                              extension=se.int_("extension") if se.has("extension") else 0,
-                              repair_moves=_str_list(se, "repair_moves"),
-                              repair_evaluations=se.int_("repair_evaluations") if se.has("repair_evaluations") else 0,
-                              repair_failures=(se.int_("repair_failures")
-                                               if se.has("repair_failures") and se.child("repair_failures").data
-                                               is not None else None))
+                              optimiser=se.str_("optimiser") if se.has("optimiser") else "",
+                              generations=se.int_("generations") if se.has("generations") else 0,
+                              n_feasible=se.int_("n_feasible") if se.has("n_feasible") else 0,
+                              violations=_nullable_list(se, "violations") if se.has("violations") else (),
+                              levels=_int_list(se, "levels") if se.has("levels") else (),
+                              chosen_level=se.int_("chosen_level") if se.has("chosen_level") else 0,
+                              chosen_violation=_nan(se.num("chosen_violation", optional=True))
+                              if se.has("chosen_violation") else 0.0)
         if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
             raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
@@ -524,11 +530,6 @@ def _int_list(r: Reader, key: str) -> tuple[int, ...]:
     """An optional list of non-negative integers; absent: empty."""
     return _checked_list(r, key, lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
                          "non-negative integer")
-
-
-def _str_list(r: Reader, key: str) -> tuple[str, ...]:
-    """An optional list of strings; absent: empty."""
-    return _checked_list(r, key, lambda v: isinstance(v, str), "string")
 
 
 def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:

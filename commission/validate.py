@@ -22,12 +22,13 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    is simulated with the gains *as read back from the controller.json
    layout*, runtime guards included (:func:`runtime_guards`), so what was
    validated is what is deployed.
-4. The gate (:mod:`commission.gate`) is checked on every scenario but the
-   robustness ones.  Those, and the stability margins of the ARC on the
-   identified plant against the spec's floors (:mod:`commission.robustness`,
-   :func:`commission.gate.margin_checks`), are checked with the same criteria
-   and reported as an advisory verdict: ``tune`` does not search under them
-   yet, and an unconstrained search misses them on most light, fast axes.
+4. The gate (:mod:`commission.gate`) is checked on every scenario, the
+   robustness ones included, and on the stability margins of the ARC on the
+   identified plant (:mod:`commission.robustness`,
+   :func:`commission.gate.margin_checks`: gate.toml's margin keys, by default
+   the tuning spec's ``[margins]``); the floors (:data:`commission.gate.FLOORS`:
+   no divergence anywhere, the spec's margin floors, ...) hold whatever
+   gate.toml says.  The robustness part is also listed apart in the report.
 5. Outputs: ``validation.json`` (every index of every run, the gate and every
    check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``
    only when every check passed.  With ``force`` and a failing gate a
@@ -59,8 +60,8 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simul
 from commission.controllers.trajectory import Trajectory
 from commission.errors import SchemaError, UsageError
 from commission.files import Outputs
-from commission.gate import (FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate, margin_checks,
-                             resolve_gate)
+from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
+                             margin_checks, resolve_gate)
 from commission.jsonio import canonical_json, read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
@@ -187,8 +188,8 @@ class ValidationResult:
     loops : tuple of ndarray
         ``(f_hz, L_arc, L_pid)`` on the identified plant, for the loop figure (not in JSON).
     robustness : GateVerdict or None
-        The gate's criteria on the robustness scenarios plus the margin floors: reported,
-        not yet required for controller.json.
+        The part of ``verdict`` on the robustness scenarios and the stability margins (required
+        like every other check; listed apart in the report).
     """
 
     runs: tuple[RunRecord, ...]
@@ -235,7 +236,7 @@ class ValidationResult:
             "runs": [r.to_dict() for r in self.runs],
             "elapsed_s": self.elapsed,
             "robustness": None if self.robustness is None else {
-                "passed": self.robustness.passed, "required": False,
+                "passed": self.robustness.passed, "required": True,
                 "failures": [c.to_dict() for c in self.robustness.failures],
                 "checks": len(self.robustness.checks)},
             "margins": {"floors": self.margin_floors.to_dict(), "loops": [m.to_dict() for m in self.margins],
@@ -435,22 +436,25 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
             traces[s.name] = Trace(t=ref.t, qd=ref.qd, y_arc=oa.sim.y, u_arc=oa.sim.u, y_pid=op.sim.y,
                                    u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
                                    theta_true=truth)
-    gated = [r for r in runs if "robustness" not in r.tags]
-    floors = FloorContext(runs=[(r.name, r.arc, r.arc_t_abort) for r in gated],
-                          limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
-                          drive_u_max=u_sat)
-    verdict = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in gated], floors)
     margins = margin_table(arc, tuning.pid, tuning.identification, spec)
     margin_floors = MarginFloors.from_spec(spec)
-    # Robustness: the same criteria on the robustness scenarios, and the margin floors.  Advisory
-    # until tune searches under them (an unconstrained search fails them on most light, fast axes).
-    rob = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs if "robustness" in r.tags])
-    advisory = GateVerdict(rob.checks + tuple(margin_checks(margins, margin_floors)), limits)
+    # The gate's margin criteria: gate.toml's values where given, else the spec's floors; the spec's
+    # floors are also a floor of FLOORS, so a gate.toml cannot lower them.
+    gate_floors = dataclasses.replace(margin_floors, **{MARGIN_KEYS[k]: v for k, v in gate.margins.items()})
+    floors = FloorContext(runs=[(r.name, r.arc, r.arc_t_abort) for r in runs],
+                          limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
+                          drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
+    gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
+    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors)), limits)
+    # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
+    rob_names = {r.name for r in runs if "robustness" in r.tags}
+    robustness = GateVerdict(tuple(c for c in verdict.checks
+                                   if c.scenario in rob_names or c.criterion in ("margins", "floor:margins")), limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
-                            margins=margins, margin_floors=margin_floors, robustness=advisory,
+                            margins=margins, margin_floors=margin_floors, robustness=robustness,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
 
 

@@ -125,7 +125,8 @@ def test_tuning_set_adds_the_corners():
     offsets = offset_scenarios(ident, spec)
     payloads = payload_scenarios(ident, spec)
     assert [s.name for s in ts] == [s.name for s in scenario_matrix(ident, spec, rng=np.random.default_rng(0),
-                                                                     n_monte_carlo=0) if "tune" in s.tags] + \
+                                                                     n_monte_carlo=0)
+                                     if "tune" in s.tags or "robustness" in s.tags] + \
         [s.name for s in corners] + [s.name for s in offsets] + [s.name for s in payloads]
     assert len(corners) == 16 and len(offsets) == 4 and len(payloads) == 6
     # interior payloads: geometric steps from the identified mass to the heaviest, nothing else changed

@@ -210,3 +210,48 @@ def test_margin_checks_hold_the_arc_on_the_identified_plant_to_the_floors():
     unstable = dataclasses.replace(good, stable=False, spectral_radius=1.01, gain_margin_db=-1.0)
     bad = margin_checks([LoopMargins("nominal", "arc", None, "initial", unstable)], MarginFloors())
     assert not bad[0].passed and "UNSTABLE" in bad[0].detail and bad[1].value == math.inf
+
+
+def test_a_gate_toml_sets_the_margin_criteria_but_cannot_lower_the_spec_floors():
+    """gate.toml's margin keys set the criteria; the tuning spec's [margins] stay a floor.
+
+    A loop with a 0.8-sample delay margin passes a gate whose delay_margin_samples is 0.5, but
+    the floor (the spec's 1 sample) still fails it; a stricter gate fails the criterion itself.
+    """
+    from commission.controllers.margins import Margins
+    from commission.gate import FloorContext, check_floors, margin_checks
+    from commission.robustness import LoopMargins, MarginFloors
+
+    spec_floors = MarginFloors()
+    thin = Margins(gain_margin_db=12.0, phase_margin_deg=45.0, delay_margin_samples=0.8, modulus_margin=0.7,
+                   crossover_hz=180.0, spectral_radius=0.93, stable=True)
+    rows = [LoopMargins("nominal", "arc", (30.0, 10.0, 0.0), "initial", thin)]
+    loose = gate_from_mapping({"gate": {"delay_margin_samples": 0.5}}, "g.toml")
+    assert loose.margins == {"delay_margin_samples": 0.5}
+    gate_floors = dataclasses.replace(spec_floors, delay_samples=loose.margins["delay_margin_samples"])
+    assert all(c.passed for c in margin_checks(rows, gate_floors))
+    ctx = FloorContext(runs=[], limits={"u_max": 10.0, "k1s_max": 1e3, "k2s_max": 1e3}, drive_u_max=10.0,
+                       margins=rows, margin_floors=spec_floors)
+    floor_fail = [c for c in check_floors(ctx) if not c.passed]
+    assert [c.criterion for c in floor_fail] == ["floor:margins"]
+    assert floor_fail[0].detail.startswith("delay margin 0.8 samples")
+    strict = gate_from_mapping({"gate": {"phase_margin_deg": 50.0}}, "g.toml")
+    strict_floors = dataclasses.replace(spec_floors, phase_deg=strict.margins["phase_margin_deg"])
+    assert [c.detail.split(" (")[0] for c in margin_checks(rows, strict_floors) if not c.passed] == [
+        "phase margin 45 deg", "delay margin 0.8 samples"]
+    with pytest.raises(SpecError, match=r"gate\.modulus_margin = -0\.1: expected a positive finite number"):
+        gate_from_mapping({"gate": {"modulus_margin": -0.1}}, "g.toml")
+
+
+def test_a_diverged_robustness_scenario_fails_the_floor_whatever_the_gate_says():
+    """no_divergence = false switches the gate's criterion off, never the floor, on any scenario."""
+    from commission.gate import FloorContext, check_floors
+
+    diverged = Score(math.inf, math.inf, math.inf, math.inf, math.inf, math.inf, 12.0, True)
+    ctx = FloorContext(runs=[("case1/delay+1", diverged, 1.2)],
+                       limits={"u_max": 10.0, "k1s_max": 1e3, "k2s_max": 1e3}, drive_u_max=10.0)
+    off = resolve_gate(gate_from_mapping({"gate": {"no_divergence": False}}), lsb=1e-6, travel=0.4, u_max=10.0)
+    v = evaluate_gate(off, [("case1/delay+1", diverged, diverged, 1.2)], ctx)
+    assert not v.passed
+    assert "floor:no_divergence" in {c.criterion for c in v.failures}
+    assert "divergence" not in {c.criterion for c in v.checks}

@@ -9,6 +9,7 @@ import datetime as _dt
 import os
 from dataclasses import dataclass
 from typing import Any
+import cma
 import numpy as np
 import commission
 from commission.artifacts import Identification
@@ -44,26 +45,17 @@ from commission.tune.defaults import (
     default_gate_limits,
     log_sample_rate,
 )
-from commission.tune.gains import base_arc_gains, apply_free, free_gains
-from commission.tune.objective import Progress, Evaluator, cost, HoldoutGate
+from commission.tune.gains import base_arc_gains, free_gains
+from commission.tune.objective import Progress, Evaluator, HoldoutGate
 from commission.tune.baseline import deployable_pid
-from commission.tune.optimiser import (
-    SearchRun,
-    repair_budget,
-    work_scale,
-    work_scaled_budget,
-    search_extension,
-    select_on_holdout,
-    RepairResult,
-    repair_on_holdout,
-)
+from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
          ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
          workers: int | None = None, created_utc: str | None = None, observer_free: bool = False,
-         pid_free: bool = False, extension: int = 0) -> Tuning:
+         pid_free: bool = False) -> Tuning:
     """Tune the ARC (and the PID baseline) for an identified axis.
 
     Parameters
@@ -72,7 +64,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     spec : Spec
         Already validated (:func:`commission.spec.load_spec`).
     rng : numpy.random.Generator
-        The only source of randomness (search and Monte-Carlo plants).
+        The only source of randomness (the optimiser's seed and the hold-out plants).
     seed : int
         Recorded in the provenance.
     ident_sha256 : str
@@ -82,20 +74,18 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     log_sha256 : str, optional
         Of the excitation log, when known.
     progress : callable(done, total), optional
-        Called after each search generation and each final stage.
+        Called after each generation of the search and each final stage.
     workers : int, optional
         Batch-simulator threads.
     created_utc : str, optional
         Time stamp (default: now).
     observer_free : bool
-        ``spec.observer_pole`` was defaulted, not given: the hold-out repair may move it
-        (:func:`repair_on_holdout`).  The pole used is the one recorded in ``observer``.
+        ``spec.observer_pole`` was defaulted, not given: the search may move it
+        (:data:`commission.tune.optimiser.OBSERVER_FACTOR_BOUNDS`).  The pole used is the one
+        recorded in ``observer``.
     pid_free : bool
         ``spec.pid_pole`` was defaulted: the PID baseline may run at a lower pole
         (:func:`deployable_pid`), recorded in ``pid_pole``.
-    extension : int
-        Candidates the search continues with when its best fail the hold-out gate
-        (:func:`search_extension`; 0: never).
 
     Returns
     -------
@@ -104,13 +94,8 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     check_spec_against_ident(spec, ident)
     scen = tuning_scenarios(ident, spec, rng=rng)
     ev = Evaluator(scen, spec, workers=workers)
-    observer = observer_design(spec.observer_pole, spec.period)
     base = base_arc_gains(ident, spec)
-    # progress steps: the search's candidates (with its extension), the hold-out, the repair's candidates,
-    # two reports
-    n_repair = repair_budget(spec, work_scale(ident, spec))
-    n_search = spec.budget + extension
-    total = n_search + 1 + n_repair + 2
+    total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
     baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
@@ -121,35 +106,17 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
                                     margin=spec.margin)
 
-    run = SearchRun(base, ev, spec, feasible=feasible, reference=pid_scores, gate=gate)
-    run.advance(spec.budget, rng, progress, total)
-    res = run.result()
+    problem = Problem(base, ev, spec, ident, pid_scores, gate, feasible, observer_free=observer_free)
+    res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total)
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
-    memo: dict[tuple[str, bytes], Any] = {}
-    holdout = select_on_holdout(res, base, hg, feasible, memo)
-    extended = 0
-    if extension > 0 and holdout.failures and min(holdout.failures) > 0:
-        # The surrogate's best still fail the gate on unseen plants: search on, then choose again among all.
-        run.advance(extension, rng, progress, total)
-        res, extended = run.result(), extension
-        holdout = select_on_holdout(res, base, hg, feasible, memo)
-    chosen_i = holdout.chosen
-    chosen_rep = holdout.feasibility or feasible(apply_free(base, res.x[chosen_i]))
-    x_chosen, arc_scores = res.x[chosen_i], res.scores[chosen_i]
+    choice = select_on_holdout(res, hg)
+    best = choice.chosen
+    chosen = best.gains
+    observer = observer_design(spec.observer_pole * best.observer_factor, spec.period)
+    arc_scores = best.scores if best.scores is not None else ev.scores(KIND_ARC, [arc_pack(chosen)])[0]
+    chosen_rep = best.feasibility or feasible(chosen)
     if progress is not None:
-        progress(n_search + 1, total)
-    repaired: RepairResult | None = None
-    if holdout.failures and min(holdout.failures) > 0 and chosen_rep.holds:
-        repaired = repair_on_holdout(
-            x_chosen, arc_scores, min(holdout.failures), holdout.excess, chosen_rep, base, hg, spec, feasible, rng,
-            observer_free=observer_free, budget=n_repair, progress=None if progress is None else (lambda k: progress(n_search + 1 + k, total)))
-        x_chosen, arc_scores, chosen_rep = repaired.x, repaired.scores, repaired.feasibility
-    chosen = apply_free(base, x_chosen)
-    if repaired is not None and repaired.observer_pole != spec.observer_pole:
-        observer = observer_design(repaired.observer_pole, spec.period)
-        chosen = dataclasses.replace(chosen, k1=observer.k1, k2=observer.k2)  # as with_observer, designed once
-    if progress is not None:
-        progress(n_search + 1 + n_repair, total)
+        progress(spec.budget + 1, total)
     pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
                                    margin=spec.margin)
     if progress is not None:
@@ -162,15 +129,17 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     prov = Provenance(ident_sha256=ident_sha256, log_sha256=log_sha256, tool_version=commission.__version__,
                       created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                       seed=int(seed), ident_path=ident_path)
-    record = SearchRecord(n_evaluations=len(res.costs), budget=spec.budget, seed=int(seed),
-                          cost_initial=res.cost_initial,
-                          cost_best=float(res.costs[chosen_i]) if repaired is None else cost(
-                              arc_scores, spec, pid_scores, ev.weights, gate),
-                          free=free_gains(chosen).as_dict(), history=res.history,
-                          holdout_plants=holdout.n_plants, holdout_failures=holdout.failures, extension=extended,
-                          repair_moves=() if repaired is None else repaired.moves,
-                          repair_evaluations=0 if repaired is None else repaired.evaluations,
-                          repair_failures=None if repaired is None else repaired.failures)
+    first = res.candidates[0]
+    record = SearchRecord(n_evaluations=len(res.candidates), budget=spec.budget, seed=int(seed),
+                          cost_initial=first.objective, cost_best=best.objective,
+                          free=free_gains(chosen).as_dict(),
+                          history=tuple(c.objective for c in res.candidates),
+                          holdout_plants=choice.n_plants, holdout_failures=choice.failures,
+                          optimiser=f"CMA-ES (pycma {cma.__version__}), feasibility-first ranking",
+                          generations=res.generations, n_feasible=res.n_feasible,
+                          violations=tuple(c.violation for c in res.candidates),
+                          levels=tuple(c.level for c in res.candidates),
+                          chosen_level=best.level, chosen_violation=best.violation)
     out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
@@ -203,7 +172,6 @@ class TuneInputs:
     notes: tuple[str, ...] = ()
     observer_free: bool = False
     pid_free: bool = False
-    extension: int = 0
 
 
 @dataclass(frozen=True)
@@ -219,11 +187,9 @@ class ResolvedSpec:
     notes : tuple of str
         One line per default that was lowered or narrowed.
     observer_free : bool
-        ``controller.observer_pole`` was not given: tune's hold-out repair may move it.
+        ``controller.observer_pole`` was not given: tune's search may move it.
     pid_free : bool
         ``pid.pole`` was not given: tune may lower the PID baseline's pole (:func:`deployable_pid`).
-    extension : int
-        :func:`search_extension` (0 where ``tune.budget`` was given).
     """
 
     spec: Spec
@@ -231,7 +197,6 @@ class ResolvedSpec:
     notes: tuple[str, ...]
     observer_free: bool = False
     pid_free: bool = False
-    extension: int = 0
 
 
 def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
@@ -274,8 +239,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
     pid = spec_data.get("pid")
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free,
-                        search_extension(spec, ident, budget_given))
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
@@ -309,15 +273,14 @@ def tune_inputs(rs: ResolvedSpec, *, ident_path: str, ident_sha256: str, log_sha
     """
     return TuneInputs(ident=rs.ident, spec=rs.spec, ident_path=ident_path, ident_sha256=ident_sha256,
                       log_sha256=log_sha256, seed=int(seed), notes=rs.notes, observer_free=rs.observer_free,
-                      pid_free=rs.pid_free, extension=rs.extension)
+                      pid_free=rs.pid_free)
 
 
 def tune_from(inp: TuneInputs, *, progress: Progress | None = None, workers: int | None = None) -> Tuning:
     """:func:`tune` on checked inputs, seeded with ``inp.seed`` (a fresh ``numpy.random.default_rng``)."""
     return tune(inp.ident, inp.spec, rng=np.random.default_rng(inp.seed), seed=inp.seed,
                 ident_sha256=inp.ident_sha256, ident_path=inp.ident_path, log_sha256=inp.log_sha256,
-                progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free,
-                extension=inp.extension)
+                progress=progress, workers=workers, observer_free=inp.observer_free, pid_free=inp.pid_free)
 
 
 def run_tune(ident_path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,

@@ -1,7 +1,7 @@
 """What the search minimises: the :class:`Evaluator` simulates a candidate on the tuning
 scenarios (batch simulator, memoised), :func:`cost` turns the scores into one number
-(log accuracy against the targets, penalties for chattering, saturation, divergence, the
-PID baseline and each failed check of the default gate), and :class:`HoldoutGate`
+(log accuracy against the targets, soft penalties for chattering, saturation, divergence and
+the PID baseline), :func:`gate_excess` (the gate constraint), and :class:`HoldoutGate`
 judges finalists on plants the search never saw (:func:`gate_excess`).
 """
 
@@ -51,10 +51,6 @@ PID_MARGIN = 0.9
 W_WORST = 1.0
 
 
-#: Objective added per check of validate's default gate that a candidate fails on a tuning scenario.
-W_GATE = 0.5
-
-
 #: Objective weight of each of the 16 box-corner scenarios (the 12 fixed scenarios weigh 1):
 #: the corners mostly act through the penalties (divergence, no worse than the PID).
 CORNER_WEIGHT = 0.25
@@ -63,12 +59,8 @@ CORNER_WEIGHT = 0.25
 #: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
 HOLDOUT_PLANTS = 32
 
-#: The repair's secondary objective measures each index against this fraction of its gate limit,
-#: so that once nothing fails it still prefers gains with room to spare on plants it has not seen.
-REPAIR_MARGIN = 0.9
-
-#: Excess counted for a diverged run in the repair's secondary objective (ln units).
-REPAIR_DIVERGED_EXCESS = 10.0
+#: Excess counted for a diverged run by :func:`gate_excess` (ln units).
+DIVERGED_EXCESS = 10.0
 
 
 @dataclass(frozen=True)
@@ -103,8 +95,10 @@ class Evaluator:
         self.spec = spec
         self.workers = workers
         #: Objective weight per scenario: the box corners (tune-only stand-ins for the
-        #: Monte-Carlo sample) count CORNER_WEIGHT each, every other scenario 1.
-        self.weights = [CORNER_WEIGHT if "corner" in s.tags else 1.0 for s in self.scenarios]
+        #: Monte-Carlo sample) and the robustness scenarios (constraints more than
+        #: performance) count CORNER_WEIGHT each, every other scenario 1.
+        self.weights = [CORNER_WEIGHT if ("corner" in s.tags or "robustness" in s.tags) else 1.0
+                        for s in self.scenarios]
         groups: dict[tuple, list[int]] = {}
         for i, s in enumerate(self.scenarios):
             groups.setdefault((s.trajectory, s.y0, s.quantization, s.noise_std > 0), []).append(i)
@@ -169,12 +163,9 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
     ``slack`` (m; the encoder's quantization-noise rms,
     :data:`commission.gate.DEFAULT_ARC_VS_PID_SLACK_LSB`) enters the minimax term only: there
     it keeps a scenario where both controllers sit at the quantization floor from dominating
-    the objective.  (In the per-scenario margin penalty it made the search settle for less on
-    the paper's axis: Case 2 e_rms 1.75 um against 0.61 um without it.)  And every check the
-    gate would fail on these scenarios adds :data:`W_GATE`, unweighted: the targets above are
-    stricter than the gate, and where they cannot be met (c_u on a coarse encoder, where the
-    PID itself sits near the gate's c_u limit) their smooth penalties do not say on which side
-    of the gate's threshold a candidate lands.
+    the objective (in the per-scenario margin penalty it made the search settle for less).
+    The gate itself is not part of the objective: it is a constraint of the search
+    (:mod:`commission.tune.constraints`).
     """
     total = 0.0
     wsum = 0.0
@@ -210,9 +201,6 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
     out = total / wsum if wsum > 0 else 0.0
     if math.isfinite(worst):
         out += W_WORST * worst
-    if gate is not None and reference is not None:
-        runs = [(str(i), a, p, math.nan) for i, (a, p) in enumerate(zip(scores, reference))]
-        out += W_GATE * len(evaluate_gate(gate, runs).failures)
     return out
 
 
@@ -283,19 +271,19 @@ class HoldoutGate:
 
 
 def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
-                margin: float = REPAIR_MARGIN) -> float:
+                margin: float = 1.0) -> float:
     """Summed log-excess of the ARC's indexes over ``margin`` x their gate limits (0: all within).
 
     Per scenario: ``sum ln(index / (margin limit))^+`` over e_F, e_M, e_rms, c_u, the peak
     |u| (against u_max: a clipped command counts ln(1/margin)) and the ARC-vs-PID e_rms
-    (against ``factor x PID + slack``); a diverged run counts :data:`REPAIR_DIVERGED_EXCESS`.
-    A smooth companion of the failure count: it tells apart two gain sets that fail
-    equally often, by how far they miss.
+    (against ``factor x PID + slack``); a diverged run counts :data:`DIVERGED_EXCESS`.
+    A smooth companion of the failure count (0 exactly when every index is within ``margin``
+    of its limit): the search's gate constraint (:mod:`commission.tune.constraints`).
     """
     total = 0.0
     for a, p in zip(arc, pid):
         if a.diverged or not math.isfinite(a.e_rms):
-            total += REPAIR_DIVERGED_EXCESS
+            total += DIVERGED_EXCESS
             continue
         ratios = [a.e_F / limits.e_F, a.e_M / limits.e_M, a.e_rms / limits.e_rms, a.c_u / limits.c_u,
                   a.u_peak / limits.u_max]
@@ -303,7 +291,7 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
             ratios.append(a.e_rms / (limits.arc_vs_pid_e_rms * p.e_rms + limits.arc_vs_pid_slack))
         for r in ratios:
             if not math.isfinite(r):  # an index undefined (NaN) or unbounded counts as a diverged run
-                total += REPAIR_DIVERGED_EXCESS
+                total += DIVERGED_EXCESS
             elif r > margin:
                 total += math.log(r / margin)
     return total

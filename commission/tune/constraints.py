@@ -1,0 +1,67 @@
+"""The constraints of the gain search, each as a violation (0: met, larger: further off).
+
+Three kinds, in the order the optimiser evaluates them (cheapest first, see
+:mod:`commission.tune.optimiser`):
+
+1. **Stability margins** (:func:`margin_violation`): the ARC linearised on the identified
+   plant, its mode and delay included, at both of its linearisation points
+   (:func:`commission.robustness.identified_plant_arc_margins`), held to the spec's
+   ``[margins]`` floors: the loops the validation gate holds to the same floors.  Each
+   shortfall is counted relative to its floor (the delay margin in samples), so that one
+   sample of delay margin weighs as much as the whole phase-margin floor.
+2. **Gate excess** (:func:`commission.tune.objective.gate_excess`): validate's default gate
+   on the tuning scenarios, robustness scenarios included, each index measured against
+   :data:`GATE_MARGIN` of its limit so that the chosen gains keep room on plants the search
+   never saw.
+3. **Discrete feasibility** (:func:`feasibility_violation`): the sampled loop over the corners
+   of the theta box with frozen estimates (:func:`commission.controllers.design.discrete_feasibility`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from commission.controllers.design import FeasibilityReport
+from commission.robustness import LoopMargins, MarginFloors
+
+#: Gate indexes are held to this fraction of their limits inside the search (room for unseen plants).
+GATE_MARGIN = 0.95
+
+#: Violation of an unstable loop, plus its spectral radius above 1 (dimensionless).
+UNSTABLE = 10.0
+
+
+def margin_violation(rows: Sequence[LoopMargins], floors: MarginFloors) -> float:
+    """Summed relative shortfall of each loop's margins below ``floors`` (0: every floor met).
+
+    Per loop: ``(GM_floor - GM)/GM_floor + (PM_floor - PM)/PM_floor + (DM_floor - DM) +
+    (MM_floor - MM)/MM_floor``, each term only when positive (gain in dB, phase in deg, delay in
+    samples beyond the identified delay, modulus dimensionless); an unstable loop counts
+    :data:`UNSTABLE` plus its spectral radius's excess over 1.
+    """
+    total = 0.0
+    for r in rows:
+        m = r.margins
+        if not m.stable:
+            total += UNSTABLE + max(0.0, m.spectral_radius - 1.0)
+            continue
+        for val, floor, rel in ((m.gain_margin_db, floors.gain_db, True), (m.phase_margin_deg, floors.phase_deg, True),
+                                (m.delay_margin_samples, floors.delay_samples, False),
+                                (m.modulus_margin, floors.modulus, True)):
+            if not math.isfinite(val) and val > 0:
+                continue  # no crossover: nothing to lose
+            short = floor - val if math.isfinite(val) else UNSTABLE
+            if short > 0:
+                total += short / floor if (rel and floor > 0) else short
+    return total
+
+
+def feasibility_violation(rep: FeasibilityReport) -> float:
+    """How far a discrete-feasibility report misses (0: it holds): the radii's excess over their bounds."""
+    if rep.holds:
+        return 0.0
+    return max(0.0, rep.rho_max - (1.0 - rep.margin)) + max(0.0, rep.rho_adaptive_max - 1.0) + 1e-6
+
+
+__all__ = ["GATE_MARGIN", "UNSTABLE", "feasibility_violation", "margin_violation"]
