@@ -124,6 +124,33 @@ class IdentifyOptions:
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix)}
 
 
+def check_input_gain(input_gain: float, u_unit: str | None) -> None:
+    """Refuse a gain that is not a positive finite number, or one that changes u's unit unnamed.
+
+    ``--input-gain G`` turns the file's command into ``G x u``, whose unit is not the
+    file's (volts times N/V are newtons): every artifact and report labels u with the
+    unit after the gain, so a gain other than 1 needs ``--u-unit`` to name it.
+
+    Parameters
+    ----------
+    input_gain : float
+        ``--input-gain``, u-unit per file unit.
+    u_unit : str or None
+        ``--u-unit``: the unit of ``input_gain x u``.
+
+    Raises
+    ------
+    UsageError
+        Naming ``--input-gain`` or ``--u-unit``.
+    """
+    if not input_gain > 0 or not np.isfinite(input_gain):
+        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
+    if u_unit is not None and u_unit not in U_UNITS:
+        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    if u_unit is None and input_gain != 1.0:
+        raise UsageError(f"--input-gain {input_gain:g} needs --u-unit (the unit of {input_gain:g} x u, e.g. N)")
+
+
 def payload_from_kg(kg: float, force_constant: float) -> float:
     """Convert a payload in kg to the command-unit mass, u-unit s^2/m.
 
@@ -227,8 +254,9 @@ def identify_log(
         Second log for the cross-test relative error (same mapping and gain).
     bounds : BoundsOptions
         Declared operating range.
-    u_unit : {"V", "N", "A"}, optional
-        Unit of ``u`` after ``input_gain``; default the file's unit.
+    u_unit : {"V", "N", "A", "Nm", "%"}, optional
+        Unit of ``u`` after ``input_gain``; default the file's unit, allowed only
+        when ``input_gain`` is 1 (:func:`check_input_gain`).
     q_unit : {"m", "mm", "um"}, optional
         Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m.
         Applies to ``validate_on`` too.
@@ -254,19 +282,12 @@ def identify_log(
     except ValueError:
         raise UsageError(f"--ripple-pitch must be > 0 m, got {ripple_pitch}") from None
     ripple_pitch = (pitches[0] if len(pitches) == 1 else pitches) if pitches else None
-    if not input_gain > 0 or not np.isfinite(input_gain):
-        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
-    if u_unit is not None and u_unit not in U_UNITS:
-        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    check_input_gain(input_gain, u_unit)
     log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
                    fmt=fmt)
     if resample is not None:
         log = resample_log(log, resample)
     checks = check_log(log)
-    unit_warnings = []
-    if u_unit is None and input_gain != 1.0:
-        unit_warnings.append(f"u was multiplied by --input-gain {input_gain:g}; its unit is recorded as the "
-                             f"file's ({log.u_unit}); pass --u-unit to name the unit after the gain")
     val_log = None
     if validate_on is not None:
         # Load and check the second log before the (long) fit: bad input fails fast.
@@ -308,7 +329,7 @@ def identify_log(
         v = fit.parameters.get(name)
         params[name] = Estimate(float(v[0]), float(v[1])) if v is not None else None
 
-    warnings = (unit_warnings + friction_warnings + list(checks.warnings) + list(fit.warnings)
+    warnings = (friction_warnings + list(checks.warnings) + list(fit.warnings)
                 + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
                                        fit.relative_error, fit.condition_number))
     extra: dict[str, object] = {
@@ -540,10 +561,7 @@ def identify_legs(
     -------
     LegsOutcome
     """
-    if not input_gain > 0 or not np.isfinite(input_gain):
-        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
-    if u_unit is not None and u_unit not in U_UNITS:
-        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    check_input_gain(input_gain, u_unit)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     fix = dict(fix or {})
