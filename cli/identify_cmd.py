@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from commission.artifacts import mass_wording
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
@@ -30,6 +31,7 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     ident, fit = outcome.ident, outcome.fit
     u, q = ident.units["u"], ident.units["q"]
     units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
+    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
     t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
@@ -38,10 +40,11 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     for name, est in ident.parameters.items():
         if est is None:
             if name in missing:
-                t.add_row(name, "not identified", "", "", units[name])
+                t.add_row(labels.get(name, name), "not identified", "", "", units[name])
             continue
         rel = f"{abs(est.std / est.value) * 100:.2f} %" if est.value else "-"
-        t.add_row(name, f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel, units[name])
+        t.add_row(labels.get(name, name), f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel,
+                  units[name])
     for h in ident.extra.get("model", {}).get("ripple_harmonics") or []:  # type: ignore[union-attr]
         if h["amp"]:
             t.add_row(f"ripple P={h['pitch']:.4g} {q}", f"{h['amp']['value']:.4g}", f"{h['amp']['std']:.2g}",
@@ -67,7 +70,7 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
     for name, why in missing.items():
         lines.append(f"[yellow]not identified:[/] {name}: {why}; theta, its box and the frequency response need it "
-                     "(identify --fix M=VALUE gives it)")
+                     f"(identify --fix M=VALUE gives the {mass_wording(ident.units)[0]} in {units['M']})")
     for line in lines:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
@@ -79,6 +82,7 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     ident = outcome.ident
     u, q = ident.units["u"], ident.units["q"]
     units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
+    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
     t = Table(title=f"Friction test: {len(outcome.logs) - len(outcome.excluded)} constant-speed legs "
                     f"({ident.extra['model']['friction']})")
     for col in ("parameter", "value", "± std", "unit"):
@@ -87,10 +91,10 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     for name, est in ident.parameters.items():
         if est is None:
             if name in missing:
-                t.add_row(name, "not identified", "", units[name])
+                t.add_row(labels.get(name, name), "not identified", "", units[name])
             continue
         fixed = name in ident.extra["model"].get("fixed", {})
-        t.add_row(name, f"{est.value:.6g}", "fixed" if fixed else f"{est.std:.3g}", units[name])
+        t.add_row(labels.get(name, name), f"{est.value:.6g}", "fixed" if fixed else f"{est.std:.3g}", units[name])
     console.print(t)
     console.print(f"friction map: {outcome.fmap.velocity.size} legs, speeds "
                   f"{abs(outcome.fmap.velocity).min():.3g}-{abs(outcome.fmap.velocity).max():.3g} {q}/s; "

@@ -18,7 +18,7 @@ from typing import Literal, Mapping, Sequence
 import numpy as np
 
 from commission import __version__
-from commission.artifacts import Estimate, Identification, ThetaBox
+from commission.artifacts import Estimate, Identification, ThetaBox, mass_wording
 from commission.checks import CheckReport, check_log
 from commission.errors import DataError, IdentifiabilityError, UsageError
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds, theta_bounds_from
@@ -630,7 +630,7 @@ def identify_legs(
         params["M"] = Estimate(fix["M"], 0.0)
     else:
         not_identified["M"] = ("the logs are constant-speed legs: no acceleration, so no information on the "
-                               "mass (the inertia on a rotary axis)")
+                               + mass_wording(_units(u_unit, logs[0]))[0])
     # The controller's velocity estimate: sqrt(6) x the rms of the per-sample velocity about
     # the leg's smoothed speed (as identify.fit does for a log not on an encoder grid).
     v_res = float(np.median([math.sqrt(6.0) * np.std(np.diff(lg.q) / np.diff(lg.t)) for lg in legs]))
