@@ -40,7 +40,8 @@ _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
     "--friction": (Friction.auto, FRICTION_HELP, None),
     "--ripple-pitch": ([], "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one "
                            "sinusoid per pitch (e.g. the harmonics of one cogging period).", "P"),
-    "--validate-on": (None, "Second log for the cross-test relative error.", "LOG2"),
+    "--validate-on": (None, "Second log for the cross-test relative error; identify also takes a folder (its logs "
+                            "read as the identification's: legs, or segments fitted together).", "LOG2"),
     "--k-sigma": (3.0, "Standard deviations covered by the theta box.", None),
     "--model-margin": (0.2, "Relative margin on M and B for model error.", None),
     "--payload-min": (None, "Least added mass, u-unit·s²/m (default 0).", None),
