@@ -15,7 +15,7 @@ from commission.cli.main import app
 from commission.files import Outputs
 from commission.cli.options import Friction, identify_options, opt
 from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOutcome, LegsOutcome, expand_log_paths,
-                                       identify_files)
+                                       identify_files, identify_log)
 from commission.jsonio import write_json_atomic
 
 
@@ -178,8 +178,9 @@ def identify_command(
         with console.status("identifying ...", spinner="dots"):
             kw = o.kwargs()
             del kw["validate_on"]
-            outcome: IdentifyOutcome | LegsOutcome = identify_files(files, validate_on=val_files,
-                                                                    **kw)  # type: ignore[arg-type]
+            outcome: IdentifyOutcome | LegsOutcome = (
+                identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
+                else identify_log(files[0], validate_on=val_files or None, **kw))  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:
