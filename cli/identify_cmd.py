@@ -9,13 +9,13 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from commission.artifacts import mass_wording
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
-from commission.errors import UsageError
 from commission.files import Outputs
 from commission.cli.options import Friction, identify_options, opt
 from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOutcome, LegsOutcome, expand_log_paths,
-                                       identify_legs, identify_log)
+                                       identify_files, identify_log)
 from commission.jsonio import write_json_atomic
 
 
@@ -30,6 +30,7 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     ident, fit = outcome.ident, outcome.fit
     u, q = ident.units["u"], ident.units["q"]
     units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
+    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
     t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
@@ -38,10 +39,11 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     for name, est in ident.parameters.items():
         if est is None:
             if name in missing:
-                t.add_row(name, "not identified", "", "", units[name])
+                t.add_row(labels.get(name, name), "not identified", "", "", units[name])
             continue
         rel = f"{abs(est.std / est.value) * 100:.2f} %" if est.value else "-"
-        t.add_row(name, f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel, units[name])
+        t.add_row(labels.get(name, name), f"{est.value:.6g}", "fixed" if name in fixed else f"{est.std:.3g}", rel,
+                  units[name])
     for h in ident.extra.get("model", {}).get("ripple_harmonics") or []:  # type: ignore[union-attr]
         if h["amp"]:
             t.add_row(f"ripple P={h['pitch']:.4g} {q}", f"{h['amp']['value']:.4g}", f"{h['amp']['std']:.2g}",
@@ -67,7 +69,7 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
     for name, why in missing.items():
         lines.append(f"[yellow]not identified:[/] {name}: {why}; theta, its box and the frequency response need it "
-                     "(identify --fix M=VALUE gives it)")
+                     f"(identify --fix M=VALUE gives the {mass_wording(ident.units)[0]} in {units['M']})")
     for line in lines:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
@@ -79,6 +81,7 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     ident = outcome.ident
     u, q = ident.units["u"], ident.units["q"]
     units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
+    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
     t = Table(title=f"Friction test: {len(outcome.logs) - len(outcome.excluded)} constant-speed legs "
                     f"({ident.extra['model']['friction']})")
     for col in ("parameter", "value", "± std", "unit"):
@@ -87,10 +90,10 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     for name, est in ident.parameters.items():
         if est is None:
             if name in missing:
-                t.add_row(name, "not identified", "", units[name])
+                t.add_row(labels.get(name, name), "not identified", "", units[name])
             continue
         fixed = name in ident.extra["model"].get("fixed", {})
-        t.add_row(name, f"{est.value:.6g}", "fixed" if fixed else f"{est.std:.3g}", units[name])
+        t.add_row(labels.get(name, name), f"{est.value:.6g}", "fixed" if fixed else f"{est.std:.3g}", units[name])
     console.print(t)
     console.print(f"friction map: {outcome.fmap.velocity.size} legs, speeds "
                   f"{abs(outcome.fmap.velocity).min():.3g}-{abs(outcome.fmap.velocity).max():.3g} {q}/s; "
@@ -125,7 +128,8 @@ def frequency_summary(fr: dict | None) -> str:
 def identify_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
         "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
-        "or a folder, are the constant-speed legs of a friction test, one leg per file.")),
+        "or a folder: the constant-speed legs of a friction test (one leg per file), or else logs of one axis "
+        "fitted together, each file its own segment.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
     map_: List[str] = opt("--map"),
     input_gain: float = opt("--input-gain"),
@@ -151,34 +155,32 @@ def identify_command(
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
-    Several logs (or a folder) are read as the legs of a friction test: the friction map and curve are
-    identified, and M is reported as not identified unless --fix gives it."""
+    Several logs (or a folder) that are all constant-speed legs are a friction test: the friction map and
+    curve are identified, and M is reported as not identified unless --fix gives it. Otherwise several logs
+    are fitted together, each its own segment: nothing is filtered across the joins between files."""
     o = identify_options(map_=map_, input_gain=input_gain, u_unit=u_unit, sample_rate=sample_rate, q_unit=q_unit,
                          friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix)
     files = expand_log_paths([str(p) for p in logs])
-    legs = len(files) > 1
-    if legs:
-        for flag, value in (("--ripple-pitch", o.ripple_pitch or None), ("--resample", o.resample)):
-            if value is not None:
-                raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
+    val_files = expand_log_paths([o.validate_on]) if o.validate_on else []
+    several = len(files) > 1
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
-    outputs = Outputs(force=force, inputs=(*files, validate_on))
+    # Several logs are a friction test or segments of a fit: which one is known once they are read,
+    # so --plot declares the figures of both.
+    outputs = Outputs(force=force, inputs=(*files, *val_files))
     outputs.add_file(out, "--out")
     if plot is not None:
-        outputs.add_dir(plot, LEGS_PLOT_NAMES if legs else PLOT_NAMES, "--plot")
+        outputs.add_dir(plot, PLOT_NAMES + LEGS_PLOT_NAMES if several else PLOT_NAMES, "--plot")
     console = Console(stderr=False)
     with outputs:
         with console.status("identifying ...", spinner="dots"):
-            if legs:
-                outcome: IdentifyOutcome | LegsOutcome = identify_legs(
-                    files, mapping=o.mapping, input_gain=o.input_gain, sample_rate=o.sample_rate, friction=o.friction,
-                    fix=o.fix, bounds=o.bounds, u_unit=o.u_unit, q_unit=o.q_unit, fmt=o.fmt,
-                    validate_on=expand_log_paths([o.validate_on]) if o.validate_on else ())
-            else:
-                outcome = identify_log(files[0], **o.kwargs())  # type: ignore[arg-type]
+            kw = o.kwargs()
+            del kw["validate_on"]
+            outcome: IdentifyOutcome | LegsOutcome = (
+                identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
+                else identify_log(files[0], validate_on=val_files or None, **kw))  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:

@@ -14,7 +14,7 @@ from typing import Any, List, Optional
 import typer
 
 from commission.errors import UsageError
-from commission.identification import BoundsOptions, IdentifyOptions, parse_fix, payload_from_kg
+from commission.identification import BoundsOptions, IdentifyOptions, check_input_gain, parse_fix, payload_from_kg
 from commission.logs import parse_mapping
 
 
@@ -32,14 +32,16 @@ FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports
 #: flag -> (default, help, metavar or None); the identify options in the order --help lists them.
 _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
     "--map": ([], "NAME=SOURCE: contract channel -> name in the file (repeatable).", "NAME=SOURCE"),
-    "--input-gain": (1.0, "Multiplies u before identification (e.g. N/V).", None),
-    "--u-unit": (None, "Unit of u after --input-gain (V, N, A, Nm, %); default: the file's.", None),
+    "--input-gain": (1.0, "Multiplies u before identification (e.g. N/V); other than 1 it needs --u-unit.", None),
+    "--u-unit": (None, "Unit of u after --input-gain (V, N, A, Nm, %); default: the file's (only without "
+                       "--input-gain).", None),
     "--sample-rate": (None, "Hz, for a file without t.", "HZ"),
     "--q-unit": (None, Q_UNIT_HELP, None),
     "--friction": (Friction.auto, FRICTION_HELP, None),
     "--ripple-pitch": ([], "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one "
                            "sinusoid per pitch (e.g. the harmonics of one cogging period).", "P"),
-    "--validate-on": (None, "Second log for the cross-test relative error.", "LOG2"),
+    "--validate-on": (None, "Second log for the cross-test relative error; identify also takes a folder (its logs "
+                            "read as the identification's: legs, or segments fitted together).", "LOG2"),
     "--k-sigma": (3.0, "Standard deviations covered by the theta box.", None),
     "--model-margin": (0.2, "Relative margin on M and B for model error.", None),
     "--payload-min": (None, "Least added mass, u-unit·s²/m (default 0).", None),
@@ -102,7 +104,13 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
                      payload_max_kg: Optional[float], force_constant: Optional[float],
                      disturbance_bound: Optional[float], log_format: Optional[str], resample: Optional[float],
                      fix: List[str]) -> IdentifyOptions:
-    """The parsed identify flags as one :class:`IdentifyOptions` (bad values: :class:`UsageError`)."""
+    """The parsed identify flags as one :class:`IdentifyOptions` (bad values: :class:`UsageError`).
+
+    Checked here, before any output is touched: ``--input-gain`` other than 1 needs
+    ``--u-unit`` (:func:`commission.identification.check_input_gain`), so that every
+    artifact labels u with its unit after the gain.
+    """
+    check_input_gain(input_gain, u_unit)
     return IdentifyOptions(
         mapping=parse_mapping(map_), input_gain=input_gain, sample_rate=sample_rate, friction=friction.value,
         ripple_pitch=tuple(ripple_pitch), validate_on=str(validate_on) if validate_on is not None else None,

@@ -20,6 +20,30 @@ IDENT_SCHEMA_VERSION = 1
 PARAMETER_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset")
 
 
+def mass_wording(units: Mapping[str, str]) -> tuple[str, str]:
+    """How people call ``M`` on this axis, with its unit: ``("mass M", "N·s²/m")`` or ``("inertia J", "Nm·s²/rad")``.
+
+    The model keeps one symbol ``M`` for the coefficient of the acceleration in every
+    file (``parameters.M``); on a rotary axis (``units.q = "rad"``) that coefficient is
+    the inertia seen by the command, in u-unit·s²/rad, and every message and report
+    says so.
+
+    Parameters
+    ----------
+    units : mapping
+        ``{"u": u-unit, "q": "m" or "rad"}`` (ident.json's ``units``).
+
+    Returns
+    -------
+    name : str
+        ``"inertia J"`` on a rotary axis, else ``"mass M"``.
+    unit : str
+        ``"{u}·s²/{q}"``.
+    """
+    u, q = units.get("u", "u-unit"), units.get("q", "m")
+    return ("inertia J" if q == "rad" else "mass M"), f"{u}·s²/{q}"
+
+
 @dataclass(frozen=True)
 class Estimate:
     """A parameter value with its standard deviation (same unit as the value)."""
@@ -166,10 +190,12 @@ class Identification:
     def tuning_gaps(self, source: str = "ident.json") -> list[str]:
         """What ``tune`` needs and this identification lacks, one message per gap (empty: complete)."""
         gaps = []
+        what, unit = mass_wording(self.units)
         for name, why in self.not_identified().items():
             if name == "M":
-                gaps.append(f"{source}: $.parameters.M: not identified ({why}); tune needs the mass: identify a log "
-                            "with acceleration content, or give the mass with identify --fix M=VALUE")
+                gaps.append(f"{source}: $.parameters.M: not identified ({why}); tune needs the {what} ({unit}): "
+                            f"identify a log with acceleration content, or give the {what.split()[0]} with "
+                            "identify --fix M=VALUE")
             else:
                 gaps.append(f"{source}: $.parameters.{name}: not identified ({why})")
         return gaps

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import hashlib
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Mapping, Sequence
@@ -18,12 +20,12 @@ from typing import Literal, Mapping, Sequence
 import numpy as np
 
 from commission import __version__
-from commission.artifacts import Estimate, Identification, ThetaBox
+from commission.artifacts import Estimate, Identification, ThetaBox, mass_wording
 from commission.checks import CheckReport, check_log
 from commission.errors import DataError, IdentifiabilityError, UsageError
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds, theta_bounds_from
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
-from commission.identify.fit import AxisFit, MapFit, evaluate, fit_axis, fit_friction_map
+from commission.identify.fit import AxisFit, MapFit, evaluate_segments, fit_friction_map, fit_segments
 from commission.identify.friction import friction_compensation_curve, stribeck_friction
 from commission.identify.frf import FrequencyResponse, frequency_response
 from commission.identify.ls import ripple_name, ripple_pitches
@@ -124,6 +126,33 @@ class IdentifyOptions:
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix)}
 
 
+def check_input_gain(input_gain: float, u_unit: str | None) -> None:
+    """Refuse a gain that is not a positive finite number, or one that changes u's unit unnamed.
+
+    ``--input-gain G`` turns the file's command into ``G x u``, whose unit is not the
+    file's (volts times N/V are newtons): every artifact and report labels u with the
+    unit after the gain, so a gain other than 1 needs ``--u-unit`` to name it.
+
+    Parameters
+    ----------
+    input_gain : float
+        ``--input-gain``, u-unit per file unit.
+    u_unit : str or None
+        ``--u-unit``: the unit of ``input_gain x u``.
+
+    Raises
+    ------
+    UsageError
+        Naming ``--input-gain`` or ``--u-unit``.
+    """
+    if not input_gain > 0 or not np.isfinite(input_gain):
+        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
+    if u_unit is not None and u_unit not in U_UNITS:
+        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    if u_unit is None and input_gain != 1.0:
+        raise UsageError(f"--input-gain {input_gain:g} needs --u-unit (the unit of {input_gain:g} x u, e.g. N)")
+
+
 def payload_from_kg(kg: float, force_constant: float) -> float:
     """Convert a payload in kg to the command-unit mass, u-unit s^2/m.
 
@@ -151,19 +180,22 @@ class IdentifyOutcome:
     frequency: FrequencyResponse | None
 
 
-def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float | tuple[float, ...] | None,
+def _fit_with_context(logs: Sequence[ExcitationLog], *, friction: str,
+                      ripple_pitch: float | tuple[float, ...] | None,
                       mass: float | None = None) -> tuple[AxisFit, list[str]]:
-    """Fit ``log`` with the friction model (``"auto"``: see :func:`identify_log`); the warnings it adds.
+    """Fit ``logs`` (one segment each) with the friction model (``"auto"``: see :func:`identify_log`).
 
-    ``mass`` given: M is known.  A log without usable acceleration content leaves M not
-    identified (:attr:`AxisFit.not_identified`) rather than refused.  Numerics errors come
-    back as the pipeline's, naming the file.
+    Returns the fit and the warnings it adds.  ``mass`` given: M is known.  A log
+    without usable acceleration content leaves M not identified
+    (:attr:`AxisFit.not_identified`) rather than refused.  Numerics errors come back
+    as the pipeline's, naming the file (the offending one when the numerics say which).
     """
     kw = {"ripple_pitch": ripple_pitch, "mass": mass, "allow_unidentified_mass": True}
+    segments = [(lg.t, lg.q, lg.u) for lg in logs]
     try:
         try:
             model = "stribeck" if friction == "auto" else friction
-            fit = fit_axis(log.t, log.q, log.u, friction=model, **kw)  # type: ignore[arg-type]
+            fit = fit_segments(segments, friction=model, **kw)  # type: ignore[arg-type]
             fc, fs = fit.parameters.get("fc"), fit.parameters.get("fs")
             if friction == "auto" and fc is not None and fs is not None and fs[0] < fc[0]:
                 # Anti-Stribeck (friction rising towards low speed) is outside the model the
@@ -171,7 +203,7 @@ def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float 
                 note = (f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs[0]:.4g} < fc = {fc[0]:.4g}: "
                         "friction rises at low speed); the Coulomb model was fitted instead "
                         "(--friction stribeck keeps the Stribeck fit)")
-                return fit_axis(log.t, log.q, log.u, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
+                return fit_segments(segments, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
             return fit, []
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":
@@ -180,35 +212,100 @@ def _fit_with_context(log: ExcitationLog, *, friction: str, ripple_pitch: float 
             # leaves M, B, fc and the offset well determined: commission with the Coulomb model.
             note = (f"friction auto: Stribeck curve not identifiable ({exc}); the Coulomb model was fitted "
                     f"instead (--friction stribeck refuses such a log)")
-            return fit_axis(log.t, log.q, log.u, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
+            return fit_segments(segments, friction="coulomb", **kw), [note]  # type: ignore[arg-type]
     except NotIdentifiableError as exc:
-        raise IdentifiabilityError(f"{log.source}: {exc}") from None
+        raise IdentifiabilityError(f"{_name(logs)}: {exc}") from None
     except SignalError as exc:
-        raise DataError(f"{log.source}: {exc}") from None
+        raise DataError(f"{_name(logs, exc.segment)}: {exc}") from None
+
+
+def _name(logs: Sequence[ExcitationLog], segment: int | None = None) -> str:
+    """The file an error names: the offending segment's, the only log's, or the first and how many more."""
+    if segment is not None:
+        return logs[segment].source
+    return logs[0].source if len(logs) == 1 else f"{logs[0].source} (and {len(logs) - 1} more logs fitted together)"
+
+
+def _joined(logs: Sequence[ExcitationLog]) -> ExcitationLog:
+    """Several logs of one axis laid end to end (what summaries and plots show of a segmented fit).
+
+    Times of a later log are shifted to follow the previous one by one sample
+    period; positions and commands are as recorded.  Only for display: the fit
+    treats every log as its own segment.  ``sha256`` is that of the logs' digests
+    joined by commas (ident.json lists each file's own).
+    """
+    if len(logs) == 1:
+        return logs[0]
+    ts, end = [], None
+    for lg in logs:
+        shift = 0.0 if end is None else end + 1.0 / lg.sample_rate - float(lg.t[0])
+        ts.append(lg.t + shift)
+        end = float(ts[-1][-1])
+    refs = [lg.q_ref for lg in logs]
+    first = logs[0]
+    return dataclasses.replace(
+        first, t=np.concatenate(ts), q=np.concatenate([lg.q for lg in logs]), u=np.concatenate([lg.u for lg in logs]),
+        q_ref=None if any(r is None for r in refs) else np.concatenate(refs),  # type: ignore[arg-type]
+        source=" + ".join(lg.source for lg in logs),
+        sha256=hashlib.sha256(",".join(lg.sha256 for lg in logs).encode()).hexdigest())
+
+
+def _same_axis_units(logs: Sequence[ExcitationLog]) -> None:
+    """Refuse logs that do not share their units (one axis: one u unit, all rotary or all linear)."""
+    units = {(lg.u_unit, lg.q_unit_in_file == "rad") for lg in logs}
+    if len(units) > 1:
+        raise DataError(f"{logs[0].source}: the logs of one axis must share their units; found u in "
+                        f"{sorted({u for u, _ in units})} and "
+                        f"{'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
+
+
+def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float) -> FrequencyResponse:
+    """The frequency response of the first log that holds a broadband segment, else of the longest log.
+
+    The response is estimated within one recording (windows never span a join);
+    several logs of one axis rarely all carry a broadband injection.
+    """
+    if len(logs) == 1:
+        return frequency_response(logs[0].t, logs[0].q, logs[0].u, M, B)
+    out = None
+    for lg in sorted(logs, key=lambda lg: -lg.n):
+        fr = frequency_response(lg.t, lg.q, lg.u, M, B)
+        if fr.source == "broadband":
+            return fr
+        out = out or fr
+    return out  # type: ignore[return-value]
 
 
 def identify_log(
-    path: str,
+    path: str | Sequence[str],
     *,
     mapping: Mapping[str, str] | None = None,
     input_gain: float = 1.0,
     sample_rate: float | None = None,
     friction: Literal["coulomb", "stribeck", "auto"] = "auto",
     ripple_pitch: float | Sequence[float] | None = None,
-    validate_on: str | None = None,
+    validate_on: str | Sequence[str] | None = None,
     bounds: BoundsOptions = BoundsOptions(),
     u_unit: str | None = None,
     q_unit: str | None = None,
     fmt: str | None = None,
     resample: float | None = None,
     fix: Mapping[str, float] | None = None,
+    _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
-    """Load, check and identify one excitation log.
+    """Load, check and identify one excitation log, or several logs of one axis fitted together.
+
+    Several logs (``path`` a sequence) are fitted together, each as its own segment
+    (:func:`commission.identify.fit.fit_segments`): every log is filtered,
+    differentiated and decimated on its own, so nothing is filtered across the join
+    between two recordings (where the position may jump and the command step), and
+    the regression rows of all logs form one least-squares problem.
 
     Parameters
     ----------
-    path : str
-        Excitation log (HDF5, CSV or MAT; CONTRACT §1).
+    path : str or sequence of str
+        Excitation log(s) (HDF5, CSV or MAT; CONTRACT §1); folders already expanded
+        (:func:`expand_log_paths`).  One sample rate for all.
     mapping : mapping, optional
         Contract channel name -> name in the file.
     input_gain : float
@@ -223,12 +320,14 @@ def identify_log(
     ripple_pitch : float or sequence of float, optional
         Force-ripple pitch(es), m (``--ripple-pitch``, repeatable): one sinusoid per pitch.
         The first is the ripple the simulator uses (``model.ripple_pitch``/``ripple_amp``).
-    validate_on : str, optional
-        Second log for the cross-test relative error (same mapping and gain).
+    validate_on : str or sequence of str, optional
+        Other log(s) for the cross-test relative error (same mapping and gain; several
+        are segments, as the identification logs).
     bounds : BoundsOptions
         Declared operating range.
-    u_unit : {"V", "N", "A"}, optional
-        Unit of ``u`` after ``input_gain``; default the file's unit.
+    u_unit : {"V", "N", "A", "Nm", "%"}, optional
+        Unit of ``u`` after ``input_gain``; default the file's unit, allowed only
+        when ``input_gain`` is 1 (:func:`check_input_gain`).
     q_unit : {"m", "mm", "um"}, optional
         Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m.
         Applies to ``validate_on`` too.
@@ -248,44 +347,47 @@ def identify_log(
     Returns
     -------
     IdentifyOutcome
+        With several logs, ``log`` is the logs laid end to end (for summaries and
+        plots) and ``checks`` the first log's report.
     """
+    paths = [path] if isinstance(path, (str, os.PathLike)) else [os.fspath(p) for p in path]
+    val_paths = ([] if validate_on is None else [validate_on] if isinstance(validate_on, (str, os.PathLike))
+                 else list(validate_on))
+    if not paths:
+        raise UsageError("identify: no log given")
     try:
         pitches = ripple_pitches(ripple_pitch)
     except ValueError:
         raise UsageError(f"--ripple-pitch must be > 0 m, got {ripple_pitch}") from None
     ripple_pitch = (pitches[0] if len(pitches) == 1 else pitches) if pitches else None
-    if not input_gain > 0 or not np.isfinite(input_gain):
-        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
-    if u_unit is not None and u_unit not in U_UNITS:
-        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
-    log = load_log(path, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
-                   fmt=fmt)
+    check_input_gain(input_gain, u_unit)
+    load = dict(mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
+    logs = list(_loaded[0]) if _loaded is not None else [load_log(p, **load) for p in paths]  # type: ignore[arg-type]
     if resample is not None:
-        log = resample_log(log, resample)
-    checks = check_log(log)
-    unit_warnings = []
-    if u_unit is None and input_gain != 1.0:
-        unit_warnings.append(f"u was multiplied by --input-gain {input_gain:g}; its unit is recorded as the "
-                             f"file's ({log.u_unit}); pass --u-unit to name the unit after the gain")
-    val_log = None
-    if validate_on is not None:
-        # Load and check the second log before the (long) fit: bad input fails fast.
-        val_log = load_log(validate_on, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate,
-                           q_unit=q_unit, fmt=fmt)
-        if resample is not None:
-            val_log = resample_log(val_log, resample)
-        check_log(val_log)
+        logs = [resample_log(lg, resample) for lg in logs]
+    all_checks = [check_log(lg) for lg in logs]
+    checks = all_checks[0]
+    _same_axis_units(logs)
+    # Load and check the validation logs before the (long) fit: bad input fails fast.
+    val_logs = (list(_loaded[1]) if _loaded is not None
+                else [load_log(p, **load) for p in val_paths])  # type: ignore[arg-type]
+    if resample is not None:
+        val_logs = [resample_log(lg, resample) for lg in val_logs]
+    for lg in val_logs:
+        check_log(lg)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     fix = dict(fix or {})
-    fit, friction_warnings = _fit_with_context(log, friction=friction, ripple_pitch=ripple_pitch, mass=fix.get("M"))
+    fit, friction_warnings = _fit_with_context(logs, friction=friction, ripple_pitch=ripple_pitch, mass=fix.get("M"))
     has_mass = "M" in fit.parameters
     val_err = None
-    if val_log is not None:
+    if val_logs:
         try:
-            val_err = evaluate(fit, val_log.t, val_log.q, val_log.u)
-        except (NotIdentifiableError, SignalError) as exc:
-            raise DataError(f"{val_log.source}: {exc}") from None
+            val_err = evaluate_segments(fit, [(lg.t, lg.q, lg.u) for lg in val_logs])
+        except SignalError as exc:
+            raise DataError(f"{_name(val_logs, exc.segment)}: {exc}") from None
+        except NotIdentifiableError as exc:
+            raise DataError(f"{_name(val_logs)}: {exc}") from None
     tb: ThetaBounds | None = None
     if has_mass:
         try:
@@ -301,31 +403,35 @@ def identify_log(
             raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
-    freq = frequency_response(log.t, log.q, log.u, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
+    freq = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
 
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
         v = fit.parameters.get(name)
         params[name] = Estimate(float(v[0]), float(v[1])) if v is not None else None
 
-    warnings = (unit_warnings + friction_warnings + list(checks.warnings) + list(fit.warnings)
+    log_warnings = [w if len(logs) == 1 else f"{c.source}: {w}" for c in all_checks for w in c.warnings]
+    warnings = (friction_warnings + log_warnings + list(fit.warnings)
                 + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
                                        fit.relative_error, fit.condition_number))
+    several, val_several = len(logs) > 1, len(val_logs) > 1
     extra: dict[str, object] = {
         "tool": {"name": "commission", "version": __version__},
         "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "source": {
-            "path": str(path),
-            "sha256": log.sha256,
-            "n_samples": int(log.t.size),
-            "sample_rate": float(log.sample_rate),
+            "path": [str(p) for p in paths] if several else str(paths[0]),
+            "sha256": [lg.sha256 for lg in logs] if several else logs[0].sha256,
+            "n_samples": int(sum(lg.t.size for lg in logs)),
+            "sample_rate": float(logs[0].sample_rate),
             "input_gain": float(input_gain),
             "mapping": dict(mapping or {}),
-            "q_unit": log.q_unit_in_file,
+            "q_unit": logs[0].q_unit_in_file,
             "resampled_hz": resample,
         },
         "validation_source": (
-            {"path": str(validate_on), "sha256": val_log.sha256} if val_log is not None else None
+            {"path": [str(p) for p in val_paths] if val_several else str(val_paths[0]),
+             "sha256": [lg.sha256 for lg in val_logs] if val_several else val_logs[0].sha256}
+            if val_logs else None
         ),
         "model": {
             "friction": fit.friction,
@@ -355,13 +461,15 @@ def identify_log(
         "not_identified": dict(fit.not_identified),
         "warnings": warnings,
     }
+    if several:
+        extra["model"]["segments"] = [int(lg.t.size) for lg in logs]  # type: ignore[index]
     if fix:
         extra["model"]["fixed"] = dict(fix)  # type: ignore[index]
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
-    theta = None if tb is None else _theta_box(tb, path, fit)
+    theta = None if tb is None else _theta_box(tb, _name(logs), fit)
     ident = Identification(
-        units=_units(u_unit, log),
+        units=_units(u_unit, logs[0]),
         parameters=params,
         relative_error=fit.relative_error,
         condition_number=fit.condition_number,
@@ -372,7 +480,7 @@ def identify_log(
         fric_slope=comp.slope,
         extra=extra,
     )
-    return IdentifyOutcome(ident=ident, fit=fit, log=log, checks=checks, bounds=tb, frequency=freq)
+    return IdentifyOutcome(ident=ident, fit=fit, log=_joined(logs), checks=checks, bounds=tb, frequency=freq)
 
 
 def _bounds_record(bounds: BoundsOptions, tb: ThetaBounds) -> dict[str, object]:
@@ -511,6 +619,7 @@ def identify_legs(
     q_unit: str | None = None,
     fmt: str | None = None,
     validate_on: Sequence[str] = (),
+    _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> LegsOutcome:
     """Identify the friction curve from a friction test: several logs, one constant-speed leg each.
 
@@ -540,21 +649,18 @@ def identify_legs(
     -------
     LegsOutcome
     """
-    if not input_gain > 0 or not np.isfinite(input_gain):
-        raise UsageError(f"--input-gain must be a positive finite number, got {input_gain}")
-    if u_unit is not None and u_unit not in U_UNITS:
-        raise UsageError(f"--u-unit must be one of {', '.join(U_UNITS)}, got {u_unit!r}")
+    check_input_gain(input_gain, u_unit)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     fix = dict(fix or {})
-    logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
-            for p in paths]
-    val_logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
-                for p in validate_on]  # loaded before the fit: bad input fails fast
-    units = {(lg.u_unit, lg.q_unit_in_file == "rad") for lg in logs}
-    if len(units) > 1:
-        raise DataError(f"{paths[0]}: the logs of one axis must share their units; found u in "
-                        f"{sorted({u for u, _ in units})} and {'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
+    if _loaded is not None:  # loaded by identify_files
+        logs, val_logs = list(_loaded[0]), list(_loaded[1])
+    else:
+        logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
+                for p in paths]
+        val_logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
+                             fmt=fmt) for p in validate_on]  # loaded before the fit: bad input fails fast
+    _same_axis_units(logs)
     legs, excluded, warnings = [], [], []
     for lg in logs:
         if lg.n < 2 or not np.all(np.isfinite(lg.t)) or not np.all(np.isfinite(lg.q)) or not np.all(np.isfinite(lg.u)):
@@ -567,8 +673,8 @@ def identify_legs(
         if spread > LEG_SPEED_TOLERANCE:
             raise DataError(f"{lg.source}: not a constant-speed leg (its smoothed speed departs from the mean by "
                             f"{spread * 100:.0f} % or more on 10 % of the samples; at most "
-                            f"{LEG_SPEED_TOLERANCE * 100:.0f} %): several logs are identified together only as the "
-                            "constant-speed legs of a friction test; identify an excitation log on its own")
+                            f"{LEG_SPEED_TOLERANCE * 100:.0f} %): a friction test is constant-speed legs only; "
+                            "logs with excitation are fitted together as segments (identify_files)")
         legs.append(lg)
     if len(legs) < 2:
         raise IdentifiabilityError(f"{paths[0]}: {len(legs)} usable constant-speed leg(s) of {len(logs)} files; "
@@ -612,7 +718,7 @@ def identify_legs(
         params["M"] = Estimate(fix["M"], 0.0)
     else:
         not_identified["M"] = ("the logs are constant-speed legs: no acceleration, so no information on the "
-                               "mass (the inertia on a rotary axis)")
+                               + mass_wording(_units(u_unit, logs[0]))[0])
     # The controller's velocity estimate: sqrt(6) x the rms of the per-sample velocity about
     # the leg's smoothed speed (as identify.fit does for a log not on an encoder grid).
     v_res = float(np.median([math.sqrt(6.0) * np.std(np.diff(lg.q) / np.diff(lg.t)) for lg in legs]))
@@ -678,6 +784,64 @@ def identify_legs(
         extra=extra,
     )
     return LegsOutcome(ident=ident, logs=tuple(logs), fmap=fmap, fit=mf, excluded=tuple(excluded))
+
+
+def is_friction_leg(log: ExcitationLog) -> bool:
+    """Whether ``log`` is a constant-speed leg of a friction test, or a stalled one (mean speed 0).
+
+    The test of :func:`identify_legs`: the smoothed speed stays within
+    :data:`LEG_SPEED_TOLERANCE` of the mean speed on 90 % of the samples.
+    """
+    if log.n < 2 or not (np.all(np.isfinite(log.t)) and np.all(np.isfinite(log.q))):
+        return False
+    return _leg_speed_spread(log) <= LEG_SPEED_TOLERANCE or math.isinf(_leg_speed_spread(log))
+
+
+def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), ripple_pitch: float | Sequence[float]
+                   | None = None, resample: float | None = None, **options: object) -> IdentifyOutcome | LegsOutcome:
+    """Identify one axis from one log or several (``commission identify LOG...``).
+
+    One log: :func:`identify_log`.  Several logs are read once and then
+
+    - all constant-speed legs (:func:`is_friction_leg`): a friction test,
+      :func:`identify_legs` (``ripple_pitch`` and ``resample`` are refused: one
+      leg per file gives one map point, no ripple or time base to fit);
+    - otherwise (at least one log with excitation): fitted together, each log its
+      own segment, :func:`identify_log` with the list of paths.
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Log files, folders already expanded (:func:`expand_log_paths`).
+    validate_on : sequence of str
+        Logs for the cross-test relative error (folders expanded), read the same way.
+    ripple_pitch, resample, **options
+        As in :func:`identify_log` (``mapping``, ``input_gain``, ``sample_rate``,
+        ``friction``, ``bounds``, ``u_unit``, ``q_unit``, ``fmt``, ``fix``).
+
+    Returns
+    -------
+    IdentifyOutcome or LegsOutcome
+    """
+    paths = list(paths)
+    if len(paths) == 1:
+        return identify_log(paths[0], validate_on=list(validate_on) or None, ripple_pitch=ripple_pitch,
+                            resample=resample, **options)  # type: ignore[arg-type]
+    check_input_gain(options.get("input_gain", 1.0), options.get("u_unit"))  # type: ignore[arg-type]
+    load = {k: options.get(k) for k in ("mapping", "sample_rate", "q_unit", "fmt")}
+    gain = float(options.get("input_gain", 1.0))  # type: ignore[arg-type]
+    logs = [load_log(p, input_gain=gain, **load) for p in paths]  # type: ignore[arg-type]
+    val_logs = [load_log(p, input_gain=gain, **load) for p in validate_on]  # type: ignore[arg-type]
+    if all(is_friction_leg(lg) for lg in logs):
+        for flag, value in (("--ripple-pitch", ripple_pitch or None), ("--resample", resample)):
+            if value is not None:
+                raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
+        legs_kw = {k: options[k] for k in ("mapping", "input_gain", "sample_rate", "friction", "fix", "bounds",
+                                            "u_unit", "q_unit", "fmt") if k in options}
+        return identify_legs(paths, validate_on=list(validate_on), _loaded=(logs, val_logs),
+                             **legs_kw)  # type: ignore[arg-type]
+    return identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,
+                        _loaded=(logs, val_logs), **options)  # type: ignore[arg-type]
 
 
 def fit_quality_warnings(parameters: Mapping[str, tuple[float, float]], relative_error: float,

@@ -14,6 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from commission.artifacts import mass_wording
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
 from commission.scenarios import CASES, VARIANTS, plant_dynamics
@@ -207,6 +208,7 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
     u, q = ident.units.get("u", "u"), ident.units.get("q", "m")
     src = ident.extra.get("source") if isinstance(ident.extra.get("source"), dict) else {}
     model = ident.extra.get("model") if isinstance(ident.extra.get("model"), dict) else {}
+    rotary = q == "rad"
     L = ["## Identification", ""]
     head = f"From `{src.get('path', 'the log')}`"
     if src.get("n_samples") and src.get("sample_rate"):
@@ -216,15 +218,21 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
              f"{_g(ident.condition_number, 3)}")
     if ident.validation_relative_error is not None:
         head += f", cross-test relative error {_g(ident.validation_relative_error, 3)}"
+    if rotary:
+        what, unit = mass_wording(ident.units)
+        head += (f". A rotary axis: M is the {what} seen by the command, in {unit}, and B the viscous friction "
+                 f"in {u}·s/rad")
     L += [head + ".", "", "| Parameter | Value | ± std | Relative std | Unit |", "|---|---:|---:|---:|---|"]
     for name, est in ident.parameters.items():
         if est is None:
             continue
         unit, what = _PARAM_UNITS.get(name, ("", name))
+        if name == "M" and rotary:
+            what = "inertia J"
         rel = f"{abs(est.std / est.value) * 100:.2g} %" if est.value else "-"
         L.append(f"| {name} ({what}) | {_g(est.value)} | {_g(est.std, 2)} | {rel} | {unit.format(u=u, q=q)} |")
     if ident.theta is not None:
-        L += ["", f"theta = [1/M, B/M, d_n/M] in [{q}/({u}·s²), 1/s, {q}/s²]: nominal {_vec(ident.theta.nominal)}, "
+        L += ["", f"theta = [1/M, B/M, d_n/M]{' (M the inertia J)' if rotary else ''} in [{q}/({u}·s²), 1/s, {q}/s²]: nominal {_vec(ident.theta.nominal)}, "
                   f"box min {_vec(ident.theta.min)}, max {_vec(ident.theta.max)}; delta_d = {_g(ident.delta_d or 0.0, 3)} "
                   f"{q}/s². Friction compensation {_g(ident.fric_level, 3)}·(2/π)·atan({_g(ident.fric_slope, 3)}·v) {u}."]
     fr = ident.extra.get("frequency_response")

@@ -9,7 +9,18 @@ from __future__ import annotations
 
 
 class SignalError(ValueError):
-    """An input array is malformed: wrong shape, non-finite sample, bad time base."""
+    """An input array is malformed: wrong shape, non-finite sample, bad time base.
+
+    Attributes
+    ----------
+    segment : int or None
+        Index of the offending log when several are fitted together as segments
+        (the pipeline names its file), else None.
+    """
+
+    def __init__(self, message: str, *, segment: int | None = None) -> None:
+        super().__init__(message)
+        self.segment = segment
 
 
 class NotIdentifiableError(ValueError):

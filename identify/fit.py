@@ -72,8 +72,8 @@ from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable
                                           stribeck_shape_derivatives)
 from commission.identify.ls import (FrictionModel, readonly_copy, regressor, ripple_name, ripple_pitches, solve,
                                     stribeck_shape)
-from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, check_signals, default_settings,
-                                         preprocess, quantization_step)
+from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, default_settings, preprocess_segments,
+                                         quantization_step, segment_rates)
 from commission.identify.steady import SteadySegments, find_steady_segments
 
 Method = Literal["dynamic", "steady+dynamic"]
@@ -568,31 +568,83 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
 
 # ----------------------------------------------------------------------------- public API
 
-def _velocity_resolution(q_raw: np.ndarray, pp: Preprocessed, quant: float | None) -> float:
+def _velocity_resolution(q_raws: list[np.ndarray], pp: Preprocessed, quant: float | None) -> float:
+    """Velocity resolution over every segment (``q_raws``: each segment's raw positions, untrimmed)."""
     if quant is not None:
         return quant * pp.sample_rate
     k0 = pp.trim_start
-    vb = np.diff(q_raw[k0:]) * pp.sample_rate  # backward difference at samples k0+1 ...
-    vf = 0.5 * (pp.qd[1:] + pp.qd[:-1])
-    return float(math.sqrt(6.0) * np.sqrt(np.mean((vb - vf) ** 2)))
+    sq = []
+    for q_raw, seg in zip(q_raws, pp.segments()):
+        vb = np.diff(q_raw[k0:]) * pp.sample_rate  # backward difference at samples k0+1 ...
+        qd = pp.qd[seg]
+        sq.append((vb - 0.5 * (qd[1:] + qd[:-1])) ** 2)
+    return float(math.sqrt(6.0) * np.sqrt(np.mean(np.concatenate(sq))))
+
+
+def _stitched(qs: list[np.ndarray]) -> np.ndarray:
+    """The segments' positions laid end to end with no jump at the joins (for grid and motion checks only)."""
+    out, last = [], None
+    for q in qs:
+        out.append(q if last is None else q - q[0] + last)
+        last = out[-1][-1]
+    return out[0] if len(out) == 1 else np.concatenate(out)
+
+
+def _steady_segments(pp: Preprocessed, min_duration_s: float, v_tol: float) -> SteadySegments:
+    """Constant-velocity legs of every segment (none spans a join), indices into the stacked arrays."""
+    found = []
+    for seg in pp.segments():
+        sg = find_steady_segments(pp.t[seg], pp.q[seg], pp.qd[seg], pp.u[seg], min_duration_s=min_duration_s,
+                                  v_tol=v_tol)
+        found.append((seg.start, sg))
+    if len(found) == 1:
+        return found[0][1]
+    return SteadySegments(start=np.concatenate([sg.start + a for a, sg in found]).astype(np.int64),
+                          stop=np.concatenate([sg.stop + a for a, sg in found]).astype(np.int64),
+                          **{k: np.concatenate([getattr(sg, k) for _, sg in found])
+                             for k in ("velocity", "command", "acceleration", "duration")})
 
 
 def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionModel,
-             ripple_pitch: float | tuple[float, ...] | None = None, use_steady: bool = True,
-             bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
-             decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
-             reversal_speed: float | None = None, mass: float | None = None,
-             allow_unidentified_mass: bool = False) -> AxisFit:
-    """Identify ``M, B``, friction, offset (and ripple) of one axis from a log.
+             **kwargs: object) -> AxisFit:
+    """Identify ``M, B``, friction, offset (and ripple) of one axis from one log.
+
+    The one-segment case of :func:`fit_segments`, which documents the keywords.
 
     Parameters
     ----------
-    t : array_like, shape (N,)
-        Sample times, s (uniform).
-    q : array_like, shape (N,)
-        Encoder position, m.
-    u : array_like, shape (N,)
-        Command, u-unit (input gain already applied).
+    t, q, u : array_like, shape (N,)
+        Sample times (s, uniform), encoder position (m) and command (u-unit, input
+        gain already applied).
+    friction : {"coulomb", "stribeck"}
+    **kwargs
+        As in :func:`fit_segments`.
+    """
+    return fit_segments([(t, q, u)], friction=friction, **kwargs)  # type: ignore[arg-type]
+
+
+def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tuple, *, friction: FrictionModel,
+                 ripple_pitch: float | tuple[float, ...] | None = None, use_steady: bool = True,
+                 bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
+                 decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
+                 reversal_speed: float | None = None, mass: float | None = None,
+                 allow_unidentified_mass: bool = False) -> AxisFit:
+    """Identify ``M, B``, friction, offset (and ripple) of one axis from one or several logs.
+
+    Each log is a segment: it is filtered, differentiated, trimmed and decimated on
+    its own (:func:`commission.identify.signals.preprocess_segments`), its
+    constant-velocity legs are found on its own, and the regression rows of all
+    segments are stacked into one least-squares problem (standard deviations from
+    ``sigma^2 (Phi^T Phi)^-1`` over all rows).  Nothing is filtered across the join
+    between two logs, where the position may jump and the command step: a filter
+    across it would smear a jump into a spurious velocity and acceleration.  One log
+    gives exactly the single-log method of the module docstring.
+
+    Parameters
+    ----------
+    segments : sequence of (t, q, u)
+        Each log's sample times (s, uniform; one sample rate for all), encoder
+        position (m) and command (u-unit, input gain already applied).
     friction : {"coulomb", "stribeck"}
         Friction model.
     ripple_pitch : float or sequence of float, optional
@@ -630,29 +682,30 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
     Raises
     ------
     SignalError
-        Malformed arrays.
+        Malformed arrays (:attr:`SignalError.segment` names the log).
     NotIdentifiableError
         The log cannot identify the requested model (constant command, no
         reversals, no acceleration content, too little slow motion for Stribeck).
     """
     if friction not in ("coulomb", "stribeck"):
         raise ValueError(f"friction must be 'coulomb' or 'stribeck', got {friction!r}")
-    t, q, u, fs_ = check_signals(t, q, u)
-    _check_excitation(q, u)
-    pp = preprocess(t, q, u, bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff_hz, decimation=decimation,
-                    trim_start=trim_start)
+    checked = segment_rates(list(segments))
+    q_all = _stitched([c[1] for c in checked])
+    _check_excitation(q_all, np.concatenate([c[2] for c in checked]))
+    pp = preprocess_segments([c[:3] for c in checked], bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff_hz,
+                             decimation=decimation, trim_start=trim_start)
     warnings: list[str] = []
-    quant = quantization_step(q)
+    quant = quantization_step(q_all)
     if quant is None:
         warnings.append("q: the positions are not on an encoder grid (resampled or processed data?)")
-    v_res = _velocity_resolution(q, pp, quant)
+    v_res = _velocity_resolution([c[1] for c in checked], pp, quant)
     # Velocity noise floor of the decimated velocity: one encoder count per anti-alias window.
     v_noise = (quant if quant is not None else 0.0) * pp.sample_rate / max(pp.decimation, 1)
 
     segs = None
     if use_steady:
         v_tol = (quant / 0.02) if quant is not None else 0.0
-        segs = find_steady_segments(pp.t, pp.q, pp.qd, pp.u, min_duration_s=min_segment_s, v_tol=v_tol)
+        segs = _steady_segments(pp, min_segment_s, v_tol)
         reason = _usable_map(segs, friction) if len(segs) else "the log has no constant-velocity legs"
         if reason is not None:
             warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "
@@ -702,10 +755,7 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
 def evaluate(fit: AxisFit, t: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:
     """Relative error ``||y - y_hat|| / ||y||`` of a fitted model on another log.
 
-    The log goes through the same preprocessing as the identification log (same
-    cut-off, decimation and trim when the sample rates agree; otherwise the
-    defaults for its own sample rate and the fit's bandwidth) and the error is
-    taken over all decimated rows: the EMPS cross-test.
+    The one-segment case of :func:`evaluate_segments`.
 
     Parameters
     ----------
@@ -718,12 +768,42 @@ def evaluate(fit: AxisFit, t: np.ndarray, q: np.ndarray, u: np.ndarray) -> float
     float
         Fraction.
     """
-    t, q, u, fs_ = check_signals(t, q, u)
+    return evaluate_segments(fit, [(t, q, u)])
+
+
+def evaluate_segments(fit: AxisFit, segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tuple) -> float:
+    """Relative error ``||y - y_hat|| / ||y||`` of a fitted model on other logs, each its own segment.
+
+    The log goes through the same preprocessing as the identification log (same
+    cut-off, decimation and trim when the sample rates agree; otherwise the
+    defaults for its own sample rate and the fit's bandwidth) and the error is
+    taken over all decimated rows of all segments: the EMPS cross-test.  Each log is
+    preprocessed on its own (nothing filtered across the joins), as in :func:`fit_segments`.
+
+    Parameters
+    ----------
+    fit : AxisFit
+    segments : sequence of (t, q, u)
+        s, m, u-unit; one sample rate for all.
+
+    Returns
+    -------
+    float
+        Fraction.
+
+    Raises
+    ------
+    SignalError
+        Malformed arrays (:attr:`SignalError.segment` names the log).
+    """
+    checked = segment_rates(list(segments))
+    fs_ = checked[0][3]
+    data = [c[:3] for c in checked]
     if math.isclose(fs_, fit.sample_rate, rel_tol=1e-6):
-        pp = preprocess(t, q, u, cutoff_hz=fit.cutoff_hz, decimation=fit.decimation, trim_start=fit.trim_start)
+        pp = preprocess_segments(data, cutoff_hz=fit.cutoff_hz, decimation=fit.decimation, trim_start=fit.trim_start)
     else:
         cutoff, _, _ = default_settings(fs_, fit.bandwidth_hz)
-        pp = preprocess(t, q, u, bandwidth_hz=fit.bandwidth_hz, cutoff_hz=cutoff)
+        pp = preprocess_segments(data, bandwidth_hz=fit.bandwidth_hz, cutoff_hz=cutoff)
     y = pp.decimate(pp.u)
     y_hat = pp.decimate(model_force(_param_values(fit.parameters), pp.q, pp.qd, pp.qdd, fit.ripple_pitch))
     ny = float(np.linalg.norm(y))

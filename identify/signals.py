@@ -36,6 +36,7 @@ ill-conditioned in ``(b, a)`` form for decimation factors above ~13.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -209,6 +210,11 @@ class Preprocessed:
         Command of the kept samples, u-unit.
     t_dec : ndarray
         Time of the decimated rows, s.
+    bounds : tuple of int
+        Segment boundaries in the full-rate arrays: segment ``k`` is
+        ``[bounds[k], bounds[k + 1])``.  One log is one segment ``(0, N)``; several
+        logs of one axis (:func:`preprocess_segments`) are one segment each, laid end
+        to end, and no filter ever runs across a boundary.
     """
 
     sample_rate: float
@@ -221,14 +227,25 @@ class Preprocessed:
     qdd: np.ndarray = field(repr=False)
     u: np.ndarray = field(repr=False)
     t_dec: np.ndarray = field(repr=False)
+    bounds: tuple[int, ...] = ()
+
+    def segments(self) -> list[slice]:
+        """The full-rate slice of every segment (one for a single log)."""
+        b = self.bounds or (0, self.t.shape[0])
+        return [slice(a, c) for a, c in zip(b[:-1], b[1:])]
 
     def decimate(self, x: np.ndarray) -> np.ndarray:
-        """Decimate full-rate column(s) aligned with ``self.t`` to the regression rows."""
-        return decimate(x, self.decimation)
+        """Decimate full-rate column(s) aligned with ``self.t`` to the regression rows, segment by segment."""
+        x = np.asarray(x)
+        parts = [decimate(x[s], self.decimation) for s in self.segments()]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
 
     def decimate_mask(self, mask: np.ndarray) -> np.ndarray:
         """Pick, without filtering, the full-rate boolean ``mask`` at the decimated rows."""
-        return np.asarray(mask)[decimation_start(mask.shape[0], self.decimation)::self.decimation]
+        mask = np.asarray(mask)
+        parts = [mask[s][decimation_start(s.stop - s.start, self.decimation)::self.decimation]
+                 for s in self.segments()]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
 
 
 def preprocess(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
@@ -275,7 +292,98 @@ def preprocess(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, bandwidth_hz: flo
     tt = t[s].copy()
     return Preprocessed(sample_rate=fs, cutoff_hz=cutoff, decimation=r, trim_start=trim, t=tt, q=qf[s].copy(),
                         qd=qd[s].copy(), qdd=qdd[s].copy(), u=u[s].copy(),
-                        t_dec=tt[decimation_start(tt.size, r)::r].copy())
+                        t_dec=tt[decimation_start(tt.size, r)::r].copy(), bounds=(0, tt.size))
+
+
+def segment_rates(segments: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, ...]]:
+    """Check every segment (:func:`check_signals`) and that they share one sample rate.
+
+    Returns
+    -------
+    list of (t, q, u, sample_rate)
+        The checked float64 arrays of each segment, with its rate in Hz.
+
+    Raises
+    ------
+    SignalError
+        With :attr:`SignalError.segment` set to the offending segment's index.
+    """
+    if len(segments) == 0:
+        raise SignalError("segments: need at least one (t, q, u)")
+    out = []
+    for k, (t, q, u) in enumerate(segments):
+        try:
+            out.append(check_signals(t, q, u))
+        except SignalError as exc:
+            raise SignalError(str(exc), segment=k) from None
+    fs0 = out[0][3]
+    for k, (*_, fs) in enumerate(out):
+        if abs(fs - fs0) > TIME_JITTER_RTOL * fs0:
+            raise SignalError(f"t: sampled at {fs:.6g} Hz where the first log is at {fs0:.6g} Hz; logs fitted "
+                              "together must share their sample rate (resample them first)", segment=k)
+    return out
+
+
+def preprocess_segments(segments: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], *,
+                        bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
+                        decimation: int | None = None, trim_start: int | None = None) -> Preprocessed:
+    """Filter, differentiate and trim several logs of one axis, each as its own segment.
+
+    Every segment goes through :func:`preprocess` on its own, with the settings of
+    the first segment's sample rate, so no filter, difference or decimation runs
+    across the join between two recordings (where the position may jump and the
+    command step).  The results are stacked: the full-rate arrays one segment after
+    the other (:attr:`Preprocessed.bounds` marks the joins) and
+    :meth:`Preprocessed.decimate` works segment by segment, so a regression on the
+    stacked rows is one least-squares fit over all the logs.  Each segment loses its
+    own ``trim_start`` samples.  The time of a later segment is shifted to follow the
+    previous one by one sample period (a monotone time axis for plots); positions
+    are kept as recorded (the force ripple depends on them).
+
+    Parameters
+    ----------
+    segments : sequence of (t, q, u)
+        Times [s], positions [m or rad] and commands [u-unit] of each log; one
+        sample rate to within 1 %.
+    bandwidth_hz, cutoff_hz, decimation, trim_start
+        As in :func:`preprocess`; defaults from the first segment's rate.
+
+    Returns
+    -------
+    Preprocessed
+        One segment per log; a single log gives exactly :func:`preprocess`'s result.
+
+    Raises
+    ------
+    SignalError
+        A malformed or too short segment, or rates that differ; :attr:`SignalError.segment` names it.
+    """
+    checked = segment_rates(segments)
+    fs0 = checked[0][3]
+    c0, r0, _ = default_settings(fs0, bandwidth_hz)
+    cutoff = c0 if cutoff_hz is None else float(cutoff_hz)
+    r = r0 if decimation is None else int(decimation)
+    parts = []
+    for k, (t, q, u, _) in enumerate(checked):
+        try:
+            parts.append(preprocess(t, q, u, bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff, decimation=r,
+                                    trim_start=trim_start))
+        except SignalError as exc:
+            raise SignalError(str(exc), segment=k) from None
+    if len(parts) == 1:
+        return parts[0]
+    h = 1.0 / fs0
+    shifted, t_dec, bounds, end = [], [], [0], None
+    for pp in parts:
+        shift = 0.0 if end is None else end + h - float(pp.t[0])
+        shifted.append(pp.t + shift)
+        t_dec.append(pp.t_dec + shift)
+        end = float(shifted[-1][-1])
+        bounds.append(bounds[-1] + pp.t.size)
+    return Preprocessed(sample_rate=fs0, cutoff_hz=cutoff, decimation=r, trim_start=parts[0].trim_start,
+                        t=np.concatenate(shifted), q=np.concatenate([pp.q for pp in parts]),
+                        qd=np.concatenate([pp.qd for pp in parts]), qdd=np.concatenate([pp.qdd for pp in parts]),
+                        u=np.concatenate([pp.u for pp in parts]), t_dec=np.concatenate(t_dec), bounds=tuple(bounds))
 
 
 def quantization_step(q: np.ndarray, *, rtol: float = 0.01) -> float | None:

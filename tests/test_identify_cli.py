@@ -166,6 +166,26 @@ def test_bad_flags_exit_2(tmp_path):
         assert not (tmp_path / "x.json").exists()
 
 
+@pytest.mark.parametrize("command", ["identify", "run"])
+def test_an_input_gain_without_its_unit_is_refused_naming_u_unit(tmp_path, command):
+    # Volts times N/V are newtons: an artifact labelled with the file's unit would be wrong.
+    log = SAMPLE / "axis_excitation.h5"
+    out = tmp_path / "out"
+    target = ["--out", str(out)] if command == "identify" else ["--out-dir", str(out)]
+    r = runner.invoke(app, [command, str(log), *target, "--input-gain", "35.15"])
+    assert r.exit_code == 2, r.output
+    err = r.stderr.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "--input-gain 35.15 needs --u-unit" in err, err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+    # a gain of 1 leaves u in the file's unit, and a named unit is taken: both run
+    if command == "identify":
+        for args in (["--input-gain", "1"], ["--input-gain", "2", "--u-unit", "N"]):
+            r = runner.invoke(app, [command, str(log), *target, "--force", *args])
+            assert r.exit_code == 0, (args, r.output)
+        assert json.loads(out.read_text())["units"]["u"] == "N"
+
+
 def test_friction_auto_falls_back_to_coulomb_where_stribeck_refuses(tmp_path):
     from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
 
