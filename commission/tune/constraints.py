@@ -10,8 +10,8 @@ Three kinds, in the order the optimiser evaluates them (cheapest first, see
    shortfall is counted relative to its floor (the delay margin in samples), so that one
    sample of delay margin weighs as much as the whole phase-margin floor.
 2. **Gate excess** (:func:`commission.tune.objective.gate_excess`): validate's default gate
-   on validate's fixed scenarios, robustness scenarios included, each index measured against
-   :data:`GATE_MARGIN` of its limit.
+   on the tuning scenarios, robustness scenarios and the stand-ins for validate's
+   Monte-Carlo sample included, each index measured against :data:`GATE_MARGIN` of its limit.
 3. **Discrete feasibility** (:func:`feasibility_violation`): the sampled loop over the corners
    of the theta box with frozen estimates (:func:`commission.controllers.design.discrete_feasibility`).
 """

@@ -8,7 +8,7 @@ coordinates, and the observer pole when the spec left it free), subject to
 
 * the stability margins of the ARC on the identified plant, mode and delay included, meeting
   the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`);
-* validate's default gate on validate's fixed scenarios, robustness scenarios included
+* validate's default gate on the tuning scenarios, robustness scenarios included
   (:func:`commission.tune.objective.gate_excess` at :data:`commission.tune.constraints.GATE_MARGIN`);
 * discrete feasibility over the theta box (:func:`commission.tune.constraints.feasibility_violation`).
 
@@ -16,9 +16,8 @@ Constraint handling
 -------------------
 Feasibility-first ranking (Deb's rules): a candidate that meets every constraint ranks above
 every one that does not, and is ranked by its objective; candidates that keep their margins but
-miss the gate come next, ranked by the objective plus an exact penalty on the gate excess
-(:data:`W_EXCESS`); candidates that miss a margin or discrete feasibility come last, ranked by
-their violation.
+miss the gate come next, ranked by their gate excess; candidates that miss a margin or discrete
+feasibility come last, ranked by their violation.
 CMA-ES only uses the ranking of each generation, so this is the whole constraint handler;
 pycma's augmented-Lagrangian wrapper (``cma.ConstrainedFitnessAL``) needs many more
 generations than a tuning budget of about a hundred simulations allows for its multipliers
@@ -65,11 +64,11 @@ from commission.tune.objective import Evaluator, HoldoutGate, Progress, cost, ga
 #: cores evenly in the batch simulator).
 POP = 8
 
-#: Initial standard deviation of each coordinate, log units, as a fraction of its range,
-#: at most :data:`SIGMA_MAX`: wide enough to leave the carried-over paper gains by a factor of
-#: two or three in one generation.
-SIGMA_FRACTION = 0.3
-SIGMA_MAX = 1.0
+#: Initial standard deviation of each coordinate, log units, as a fraction of its range, at most
+#: :data:`SIGMA_MAX` (a factor 1.65): a search that starts wider spends most of a budget of about
+#: a hundred candidates on gains that miss a margin floor or the gate.
+SIGMA_FRACTION = 0.15
+SIGMA_MAX = 0.5
 
 #: Range of the factor on a *defaulted* observer pole (``controller.observer_pole``): a slower
 #: observer leaves a light axis' delay margin room, a faster one passes more encoder noise.
@@ -91,15 +90,6 @@ HOLDOUT_CANDIDATES = 6
 #: Constraint levels of a candidate: every constraint met, only the gate missed, a margin or
 #: discrete feasibility missed.
 FEASIBLE, GATE_MISSED, STABILITY_MISSED = 0, 1, 2
-
-#: Tags of the tuning scenarios that stand in for validate's Monte-Carlo sample (not gated in the search).
-STAND_IN_TAGS = frozenset(("corner", "offset", "payload", "monte_carlo"))
-
-#: Weight of the gate excess (ln units) against the objective among candidates that miss the gate
-#: but keep their margins: they are ranked by the penalised objective, so that the search keeps
-#: improving performance while it closes on the gate (ranked by the excess alone, it lost the
-#: objective's information until the first feasible candidate appeared).
-W_EXCESS = 10.0
 
 #: Names of the coordinates (those of :data:`commission.tune.gains.FREE_BOUNDS`, then the observer).
 COORDINATES = ("k1", "k2", "f1", "f2", "G1", "G2", "G3", "w2", "t1", "ob")
@@ -138,13 +128,8 @@ class Candidate:
     feasibility: FeasibilityReport | None
 
     def rank_key(self) -> tuple[int, float]:
-        """Feasibility-first order: the level, then within it the objective (feasible), the objective
-        plus :data:`W_EXCESS` x the gate excess (gate missed), or the violation (stability missed)."""
-        if self.level == FEASIBLE:
-            return (FEASIBLE, self.objective)
-        if self.level == GATE_MISSED:
-            return (GATE_MISSED, self.objective + W_EXCESS * self.violation)
-        return (self.level, self.violation)
+        """Feasibility-first order: the level, then the objective (feasible) or the violation."""
+        return (self.level, self.objective if self.level == FEASIBLE else self.violation)
 
 
 class Problem:
@@ -175,10 +160,6 @@ class Problem:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
         self.reference, self.gate, self.feasible = list(reference), gate, feasible
         self.floors = MarginFloors.from_spec(spec)
-        #: The scenarios the gate constraint covers: validate's own fixed and robustness scenarios.
-        #: The stand-ins for its Monte-Carlo sample (box corners, offsets, payloads) enter the
-        #: objective; the finalists are judged on fresh Monte-Carlo plants (:func:`select_on_holdout`).
-        self.gated = [i for i, sc in enumerate(ev.scenarios) if not STAND_IN_TAGS.intersection(sc.tags)]
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
         start = np.append(np.log(FREE_START), 0.0)
@@ -229,8 +210,9 @@ class Problem:
                 continue
             sc = scores[i]
             obj = cost(sc, self.spec, self.reference, self.ev.weights, self.gate)
-            excess = gate_excess(self.gate, [sc[k] for k in self.gated], [self.reference[k] for k in self.gated],
-                                 margin=GATE_MARGIN)
+            # Every tuning scenario, the stand-ins for validate's Monte-Carlo sample included: held to
+            # the gate on validate's fixed scenarios only, the winners failed it on Monte-Carlo plants.
+            excess = gate_excess(self.gate, sc, self.reference, margin=GATE_MARGIN)
             if excess > 0:
                 out.append(Candidate(x, f, g, GATE_MISSED, excess, obj, sc, None))
                 continue
@@ -376,5 +358,5 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 __all__ = ["ARC_STEP_WORK", "COORDINATES", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
            "HoldoutChoice", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
-           "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "W_EXCESS", "WORK_CAP", "candidate_work", "search",
+           "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
