@@ -370,13 +370,13 @@ class _Quadratic:
 
 def test_search_finds_the_constrained_optimum_of_a_known_problem():
     prob = _Quadratic()
-    res = search(prob, 240, seed=7)
+    res = search(prob, 480, seed=7)
     best = res.ranked()[0]
-    assert len(res.candidates) == 240 and res.n_feasible > 60
+    assert len(res.candidates) == 480 and res.n_feasible > 120
     assert best.level == FEASIBLE
     np.testing.assert_allclose(best.x, [0.2, 1.0, 1.0], atol=0.05)
     assert np.array_equal(prob.seen[0], prob.z_of(np.exp(prob.full0[:9])))  # the start is evaluated first
-    again = search(_Quadratic(), 240, seed=7)
+    again = search(_Quadratic(), 480, seed=7)
     assert [c.objective for c in again.candidates] == [c.objective for c in res.candidates]
 
 
