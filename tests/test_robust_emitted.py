@@ -12,7 +12,11 @@ paper's experiments (:func:`commission.paper.scenario`), against the paper's PID
 2. the rigid CONTRACT §5 plant, with one more sample of input delay than the log shows, and
    without it on every Table-1 scenario.
 
-Every option is the default: the payload box (up to 3 M added) covers Set 2's M = 0.1.
+Every option is the default but one: the mode axis is commissioned for a payload of up to its
+own mass (``--payload-max 0.027``).  With the default box (up to 3 M added) the gate refuses it,
+rightly: at the heaviest payload the margins cap the feedback and the ARC's e_rms exceeds the
+gate's 20 um (the PID's is about twice the ARC's there); a narrower payload box is the remedy.
+On the rigid axis the default box covers Set 2's M = 0.1.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ RIGID = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.
 MODE = dataclasses.replace(RIGID, mode_hz=479.0, mode_damping=0.07, mode_ratio=0.3, mode_load_side=True)
 
 AXES = {"mode_479Hz": MODE, "rigid": RIGID}
+OPTIONS = {"mode_479Hz": ["--payload-max", "0.027"], "rigid": []}
 
 
 @pytest.fixture(scope="module", params=sorted(AXES))
@@ -52,7 +57,7 @@ def emitted(request, tmp_path_factory):
     truth = AXES[request.param]
     d = tmp_path_factory.mktemp(request.param)
     write_log_h5(d / "log.h5", simulate_excitation(truth, PLAN, np.random.default_rng(3)))
-    r = CliRunner().invoke(app, ["run", str(d / "log.h5"), "--out-dir", str(d / "out")])
+    r = CliRunner().invoke(app, ["run", str(d / "log.h5"), "--out-dir", str(d / "out"), *OPTIONS[request.param]])
     assert r.exit_code == 0, r.output
     return request.param, truth, load_controller(d / "out" / "controller.json")
 

@@ -38,6 +38,7 @@ from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
 from commission.identification import identify_log
 from commission.jsonio import write_json_atomic
+from commission.tune import OBSERVER_FACTOR_BOUNDS
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
 from commission.tune import run_tune
 
@@ -82,7 +83,11 @@ def test_identified_reference_is_close_to_the_truth(tuned):
 
 
 def test_design_checks_hold(tuned):
-    assert tuned.observer.k1 == pytest.approx(400.0) and tuned.observer.k2 == pytest.approx(4e4)
+    # the defaulted observer pole (200 rad/s) is a coordinate of the search, within its bounds
+    lo, hi = OBSERVER_FACTOR_BOUNDS
+    assert 200.0 * lo <= tuned.observer.pole <= 200.0 * hi
+    assert tuned.observer.k1 == pytest.approx(2 * tuned.observer.pole)
+    assert tuned.observer.k2 == pytest.approx(tuned.observer.pole ** 2)
     assert tuned.theorem1.holds
     assert tuned.feasibility["arc"].holds
     assert tuned.guarantees["sampled_data_stability"].holds

@@ -65,10 +65,11 @@ from commission.tune.objective import Evaluator, HoldoutGate, Progress, cost, ga
 POP = 8
 
 #: Initial standard deviation of each coordinate, log units, as a fraction of its range, at most
-#: :data:`SIGMA_MAX` (a factor 1.65): a search that starts wider spends most of a budget of about
-#: a hundred candidates on gains that miss a margin floor or the gate.
-SIGMA_FRACTION = 0.15
-SIGMA_MAX = 0.5
+#: :data:`SIGMA_MAX` (a factor e): wide enough to leave the carried-over paper gains by a factor
+#: of two or three in one generation (development axes: a start at half of it found no feasible
+#: candidate on more of them).
+SIGMA_FRACTION = 0.3
+SIGMA_MAX = 1.0
 
 #: Range of the factor on a *defaulted* observer pole (``controller.observer_pole``): a slower
 #: observer leaves a light axis' delay margin room, a faster one passes more encoder noise.
@@ -90,6 +91,10 @@ HOLDOUT_CANDIDATES = 6
 #: Constraint levels of a candidate: every constraint met, only the gate missed, a margin or
 #: discrete feasibility missed.
 FEASIBLE, GATE_MISSED, STABILITY_MISSED = 0, 1, 2
+
+#: Offset between constraint levels in :meth:`Candidate.fitness` (the objective and the
+#: violations stay far below it).
+LEVEL_OFFSET = 1e6
 
 #: Names of the coordinates (those of :data:`commission.tune.gains.FREE_BOUNDS`, then the observer).
 COORDINATES = ("k1", "k2", "f1", "f2", "G1", "G2", "G3", "w2", "t1", "ob")
@@ -126,6 +131,16 @@ class Candidate:
     objective: float
     scores: list[Score] | None
     feasibility: FeasibilityReport | None
+
+    def fitness(self) -> float:
+        """The ranking of :meth:`rank_key` as one number, comparable across generations (what CMA-ES is told).
+
+        The objective of a feasible candidate lies far below :data:`LEVEL_OFFSET`; each level
+        adds it once more to the violation.
+        """
+        if self.level == FEASIBLE:
+            return min(self.objective, 0.5 * LEVEL_OFFSET)
+        return self.level * LEVEL_OFFSET + min(self.violation, 0.5 * LEVEL_OFFSET)
 
     def rank_key(self) -> tuple[int, float]:
         """Feasibility-first order: the level, then the objective (feasible) or the violation."""
@@ -254,12 +269,16 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
     The first generation holds the carried-over paper gains (the mean),
     :func:`commission.tune.gains.paper_implementable_start` and
     :data:`commission.tune.gains.EXTRA_STARTS` (injected), and CMA-ES draws around the mean.
-    ``seed`` seeds pycma's sampler (so the same seed gives the same tuning).
+    ``seed`` seeds pycma's sampler (so the same seed gives the same tuning).  CMA-ES is told
+    :meth:`Candidate.fitness`, the feasibility-first order as one number comparable across
+    generations (which the elitist selection needs).
     """
     width = problem.hi - problem.lo
     stds = np.clip(SIGMA_FRACTION * np.where(width > 0, width, 1.0), 1e-3, SIGMA_MAX)
     z0 = problem.z_of(np.exp(problem.full0[:N_FREE]), math.exp(problem.full0[N_FREE]))
-    opts = {"bounds": [list(problem.lo), list(problem.hi)], "popsize": POP, "seed": int(seed),
+    # Elitist: the best candidate so far stays in the recombination, as a (1+lambda) search keeps its
+    # parent; with about a dozen generations the non-elitist mean wandered off the few feasible points.
+    opts = {"bounds": [list(problem.lo), list(problem.hi)], "popsize": POP, "seed": int(seed), "CMA_elitist": True,
             "CMA_stds": list(stds), "verbose": -9, "verb_log": 0, "verb_disp": 0, "verb_filenameprefix": "",
             "tolfun": 0, "tolx": 0, "tolfunhist": 0, "tolstagnation": int(1e9), "maxfevals": math.inf}
     es = cma.CMAEvolutionStrategy(list(z0), 1.0, opts)
@@ -277,11 +296,7 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
         cands.extend(got)
         generations += 1
         if len(Z) == POP:
-            keys = [c.rank_key() for c in got]
-            order = sorted(range(len(keys)), key=lambda i: keys[i])
-            rank = np.empty(len(keys))
-            rank[order] = np.arange(len(keys), dtype=np.float64)  # CMA-ES uses only the ranking
-            es.tell(Z, list(rank))
+            es.tell(Z, [c.fitness() for c in got])
         if progress is not None:
             progress(len(cands), total)
     return SearchResult(cands, generations, float(es.sigma))
