@@ -590,12 +590,12 @@ def _stitched(qs: list[np.ndarray]) -> np.ndarray:
     return out[0] if len(out) == 1 else np.concatenate(out)
 
 
-def _steady_segments(pp: Preprocessed, min_duration_s: float, v_tol: float) -> SteadySegments:
+def _steady_segments(pp: Preprocessed, min_duration_s: float, v_tol: float, v_quantum: float) -> SteadySegments:
     """Constant-velocity legs of every segment (none spans a join), indices into the stacked arrays."""
     found = []
     for seg in pp.segments():
         sg = find_steady_segments(pp.t[seg], pp.q[seg], pp.qd[seg], pp.u[seg], min_duration_s=min_duration_s,
-                                  v_tol=v_tol)
+                                  v_tol=v_tol, v_quantum=v_quantum)
         found.append((seg.start, sg))
     if len(found) == 1:
         return found[0][1]
@@ -705,7 +705,9 @@ def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tup
     segs = None
     if use_steady:
         v_tol = (quant / 0.02) if quant is not None else 0.0
-        segs = _steady_segments(pp, min_segment_s, v_tol)
+        # The step of the position-difference velocity, m/s (one count per sample; 1 rpm of a recorder).
+        v_quantum = quant * pp.sample_rate if quant is not None else 0.0
+        segs = _steady_segments(pp, min_segment_s, v_tol, v_quantum)
         reason = _usable_map(segs, friction) if len(segs) else "the log has no constant-velocity legs"
         if reason is not None:
             warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "
