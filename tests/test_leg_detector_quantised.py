@@ -64,7 +64,7 @@ def test_every_leg_of_a_1rpm_quantised_log(seed):
 
 def test_single_log_fit_uses_the_whole_ladder():
     t, q, u = _log(0)
-    fit = fit_axis(t, q, u, friction="stribeck", allow_unidentified_mass=True)
+    fit = fit_axis(t, q, u, friction="stribeck", allow_unidentified_mass=True, velocity_logged=True)
     assert fit.method == "steady+dynamic"
     v = fit.steady_velocity
     assert v.size == 2 * len(SPEEDS)
