@@ -190,7 +190,8 @@ def _fit_with_context(logs: Sequence[ExcitationLog], *, friction: str,
     (:attr:`AxisFit.not_identified`) rather than refused.  Numerics errors come back
     as the pipeline's, naming the file (the offending one when the numerics say which).
     """
-    kw = {"ripple_pitch": ripple_pitch, "mass": mass, "allow_unidentified_mass": True}
+    kw = {"ripple_pitch": ripple_pitch, "mass": mass, "allow_unidentified_mass": True,
+          "velocity_logged": any(getattr(lg, "q_from_velocity", False) for lg in logs)}
     segments = [(lg.t, lg.q, lg.u) for lg in logs]
     try:
         try:

@@ -590,12 +590,12 @@ def _stitched(qs: list[np.ndarray]) -> np.ndarray:
     return out[0] if len(out) == 1 else np.concatenate(out)
 
 
-def _steady_segments(pp: Preprocessed, min_duration_s: float, v_tol: float) -> SteadySegments:
+def _steady_segments(pp: Preprocessed, min_duration_s: float, v_tol: float, v_quantum: float) -> SteadySegments:
     """Constant-velocity legs of every segment (none spans a join), indices into the stacked arrays."""
     found = []
     for seg in pp.segments():
         sg = find_steady_segments(pp.t[seg], pp.q[seg], pp.qd[seg], pp.u[seg], min_duration_s=min_duration_s,
-                                  v_tol=v_tol)
+                                  v_tol=v_tol, v_quantum=v_quantum)
         found.append((seg.start, sg))
     if len(found) == 1:
         return found[0][1]
@@ -628,7 +628,7 @@ def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tup
                  bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
                  decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
                  reversal_speed: float | None = None, mass: float | None = None,
-                 allow_unidentified_mass: bool = False) -> AxisFit:
+                 allow_unidentified_mass: bool = False, velocity_logged: bool = False) -> AxisFit:
     """Identify ``M, B``, friction, offset (and ripple) of one axis from one or several logs.
 
     Each log is a segment: it is filtered, differentiated, trimmed and decimated on
@@ -674,6 +674,9 @@ def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tup
         When the log has no usable acceleration content, fit the rest without the
         mass term and report M in :attr:`AxisFit.not_identified` instead of refusing
         the log (slow constant-speed runs: friction and ripple tests).
+    velocity_logged : bool
+        The position was integrated from a recorded velocity (an EPOS recorder file): leg
+        detection allows for the velocity's quantum (:func:`find_steady_segments`, ``v_quantum``).
 
     Returns
     -------
@@ -705,7 +708,11 @@ def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tup
     segs = None
     if use_steady:
         v_tol = (quant / 0.02) if quant is not None else 0.0
-        segs = _steady_segments(pp, min_segment_s, v_tol)
+        # A position integrated from a recorded velocity (velocity_logged): the step of its
+        # position-difference velocity (1 rpm of a recorder) bounds how steady a leg can look.  A
+        # measured position's quantization averages out over the smoothing window: no quantum.
+        v_quantum = quant * pp.sample_rate if (velocity_logged and quant is not None) else 0.0
+        segs = _steady_segments(pp, min_segment_s, v_tol, v_quantum)
         reason = _usable_map(segs, friction) if len(segs) else "the log has no constant-velocity legs"
         if reason is not None:
             warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "

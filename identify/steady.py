@@ -17,6 +17,20 @@ Detection (all on the filtered full-rate velocity ``v``):
    both ends (acceleration transients) and is kept if it still lasts
    ``min_duration_s`` (0.2 s) and its whole velocity range passes step 2's test
    at three times the tolerance.
+
+Quantised velocity (``v_quantum``, the step of the position-difference velocity:
+one encoder count per sample, or the recorder's resolution when ``q`` is the
+integral of a velocity logged in whole rpm).  An encoder's quantisation error is
+bounded in position, so averaging over ``smooth_s`` divides it (``v_tol``).  A
+velocity logged in whole rpm errs by up to a quantum at every sample and the
+error does not cancel: at a slow sample period (6.4 ms) the 20 ms average spans
+three samples and a speed toggling between 1 and 2 rpm swings it by a whole rpm.
+With ``v_quantum`` given, the average spans at least
+:data:`MIN_SMOOTH_SAMPLES` samples (the steadiness window at least twice that,
+the trimmed edge at least half of it), the allowed range of ``vm`` is at least
+:data:`QUANTUM_SWING` quanta, and the least speed stays ``3 v_quantum`` over the
+averaging window (not three times the widened range), so legs at one or two
+quanta are kept.
 """
 
 from __future__ import annotations
@@ -25,6 +39,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
+
+
+#: Least smoothing window, samples, when the velocity is quantised (``v_quantum``).
+MIN_SMOOTH_SAMPLES = 8
+#: Least allowed velocity swing, in velocity quanta.
+QUANTUM_SWING = 1.5
 
 
 @dataclass(frozen=True)
@@ -62,7 +82,8 @@ class SteadySegments:
 
 def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray, *,
                          min_duration_s: float = 0.2, rel_tol: float = 0.05, v_tol: float = 0.0,
-                         smooth_s: float = 0.02, window_s: float = 0.1, edge_s: float = 0.05) -> SteadySegments:
+                         v_quantum: float = 0.0, smooth_s: float = 0.02, window_s: float = 0.1,
+                         edge_s: float = 0.05) -> SteadySegments:
     """Find constant-velocity segments and their mean velocity and command.
 
     Parameters
@@ -82,6 +103,11 @@ def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndar
     v_tol : float
         Allowed absolute velocity variation, m/s (e.g. the velocity resolution of
         the encoder over ``smooth_s``); also ``3 v_tol`` is the least speed.
+    v_quantum : float
+        Step of the position-difference velocity, m/s (``quantization_step(q) *
+        sample_rate``); 0: not quantised.  Widens the allowed range to
+        :data:`QUANTUM_SWING` quanta and the averaging to :data:`MIN_SMOOTH_SAMPLES`
+        samples (module docstring).
     smooth_s, window_s, edge_s : float
         Averaging window, steadiness window and trimmed edge, s.
 
@@ -92,17 +118,22 @@ def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndar
     n = t.size
     h = (t[-1] - t[0]) / (n - 1)
     w = max(1, int(round(smooth_s / h)))
+    floor, v_min = v_tol, 3.0 * v_tol
+    if v_quantum > 0:
+        w = max(w, MIN_SMOOTH_SAMPLES)
+        floor = max(v_tol, QUANTUM_SWING * v_quantum)
+        v_min = max(v_min, 3.0 * v_quantum / w)
     vm = ndimage.uniform_filter1d(v, w, mode="nearest")
-    L = max(3, int(round(window_s / h)))
+    L = max(3, int(round(window_s / h)), 2 * w)
     rng = ndimage.maximum_filter1d(vm, L, mode="nearest") - ndimage.minimum_filter1d(vm, L, mode="nearest")
     speed = np.abs(vm)
-    tol = rel_tol * speed + v_tol
-    steady = (rng <= tol) & (speed > 3.0 * v_tol) & (speed > 0)
+    tol = rel_tol * speed + floor
+    steady = (rng <= tol) & (speed > v_min) & (speed > 0)
     sgn = np.where(steady, np.sign(vm), 0).astype(np.int8)
     # Run boundaries: wherever the (sign-labelled) steady flag changes.
     change = np.flatnonzero(np.diff(sgn) != 0) + 1
     bounds = np.concatenate([[0], change, [n]])
-    edge = int(round(edge_s / h))
+    edge = max(int(round(edge_s / h)), (w + 1) // 2)
     nmin = int(np.ceil(min_duration_s / h))
     starts, stops = [], []
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -113,7 +144,7 @@ def find_steady_segments(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndar
             continue
         seg = vm[a2:b2]
         mean = float(np.mean(seg))
-        if np.ptp(seg) > 3.0 * (rel_tol * abs(mean) + v_tol):
+        if np.ptp(seg) > 3.0 * (rel_tol * abs(mean) + floor):
             continue
         starts.append(a2)
         stops.append(b2)

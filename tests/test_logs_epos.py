@@ -78,3 +78,12 @@ def test_stalled_leg_is_not_identifiable_instead_of_log_zero():
     with pytest.raises(StribeckNotIdentifiableError, match="slowest speed"):
         fit_separable(Phi, ("fc", "offset"), lambda vs, xi: np.sign(v), lambda vs, xi: (v, v), v,
                       vs_bounds=(0.0, 0.5))
+
+
+def test_an_epos_log_says_its_position_was_integrated_from_velocity_a_measured_one_does_not():
+    """Only a recorder's integrated velocity gets the 1-rpm quantum allowance of the leg detector."""
+    from pathlib import Path
+
+    assert load_log(steady(1, "10.csv")).q_from_velocity is True
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
+    assert load_log(str(sample)).q_from_velocity is False

@@ -15,5 +15,5 @@ def _read_epos(data: bytes, label: str, mapping: Mapping[str, str]) -> _Raw:
     arrays = read_epos_arrays(data, label)
     vectors = {ch: (arrays[ch], arrays[ch].shape, src)  # type: ignore[union-attr]
                for ch, src in (("t", "time"), ("q", "integrated velocity"), ("u", "torque"))}
-    return _Raw(vectors, q_unit="rad", u_unit=arrays["u_unit"])
+    return _Raw(vectors, q_unit="rad", u_unit=arrays["u_unit"], q_from_velocity=True)
 

@@ -66,6 +66,10 @@ class ExcitationLog:
         Sample rate [Hz]: ``1 / median(diff(t))``, or the rate given when the
         file has no time channel.  NaN when ``t`` gives no positive finite step
         (such a log fails :func:`commission.checks.check_log`).
+    q_from_velocity : bool
+        ``q`` was integrated from a recorded velocity (an EPOS recorder file), not measured:
+        the velocity's quantum (1 rpm) then limits how steady a constant-speed leg can look
+        (:func:`commission.identify.steady.find_steady_segments`, ``v_quantum``).
     """
 
     t: np.ndarray
@@ -78,6 +82,7 @@ class ExcitationLog:
     source: str
     sha256: str
     sample_rate: float
+    q_from_velocity: bool = False
 
     def __post_init__(self) -> None:
         n = None

@@ -18,6 +18,7 @@ class _Raw:
     vectors: dict[str, tuple[np.ndarray, tuple[int, ...], str]]
     q_unit: object = None
     u_unit: object = None
+    q_from_velocity: bool = False
 
 
 def _plan(
@@ -135,5 +136,5 @@ def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_u
 
     return ExcitationLog(
         t=t, q=q, u=u, q_ref=q_ref, u_unit=u_unit, q_unit_in_file=q_unit,
-        input_gain=gain, source=label, sha256=digest, sample_rate=rate,
+        input_gain=gain, source=label, sha256=digest, sample_rate=rate, q_from_velocity=raw.q_from_velocity,
     )
