@@ -23,7 +23,9 @@ from commission.validate import DEFAULT_MONTE_CARLO
 @app.command("run")
 @cli_errors
 def run_command(
-    log: Path = typer.Argument(..., help="Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1)."),
+    logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
+        "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
+        "or a folder: logs of one axis fitted together, each file its own segment.")),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for ident.json, tuning.json, report.md, figures, controller.json."),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
     gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),
@@ -68,7 +70,7 @@ def run_command(
         def cb(stage: str, done: int, total: int) -> None:
             bar.update(stages.get(stage, stage), done, total)
 
-        outcome = run_all(log, out_dir, identify=o, spec_path=spec, gate_path=gate, force=force, seed=seed,
+        outcome = run_all(logs, out_dir, identify=o, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
                           sign_key=load_sign_key(sign_key), ident_figures=identification_plots)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):

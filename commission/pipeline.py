@@ -71,8 +71,9 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
 
     Parameters
     ----------
-    log_path : path
-        Excitation log (CONTRACT §1).
+    log_path : path or sequence of paths
+        Excitation log (CONTRACT §1); several files or a folder: logs of one axis, fitted
+        together with each file its own segment (:func:`commission.identification.identify_log`).
     out_dir : path
     identify : IdentifyOptions, optional
         What ``commission identify`` is told about the log (its flags); default: its defaults.
@@ -110,7 +111,13 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     gate = load_gate(gate_path)
     spec_data, spec_src = read_spec_toml(spec_path)
     spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
-    outputs = Outputs(force=force, inputs=(log_path, spec_path, gate_path, opts.validate_on))
+    from commission.identification import expand_log_paths
+
+    # Several files (or a folder): logs of one axis, each its own segment (identify_log with a list).
+    paths = expand_log_paths([os.fspath(p) for p in ([log_path] if isinstance(log_path, (str, os.PathLike))
+                                                      else log_path)])
+    log_path = paths[0] if len(paths) == 1 else paths
+    outputs = Outputs(force=force, inputs=(*paths, spec_path, gate_path, opts.validate_on))
     out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *IDENT_FIGURE_NAMES, *output_names()), "--out-dir")
     with outputs:  # locked and proved writable before any stage runs; moved into place at the end
         written, result, tuning, notes = _stages(
@@ -127,7 +134,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
     """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
     from commission.artifacts import Identification
     from commission.controllers.design import DesignError
-    from commission.identification import identify_log
+    from commission.identification import expand_log_paths, identify_log
     from commission.jsonio import canonical_json, sha256_json
     from commission.tune import resolve_spec, tune_from, tune_inputs
 
@@ -135,7 +142,10 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
         return lambda done, total: progress(name, done, total) if progress is not None else None
 
     stage("identify")(0, 1)
-    ident_out = identify_log(os.fspath(log_path), **opts.kwargs())  # type: ignore[arg-type]
+    kw = opts.kwargs()
+    if kw["validate_on"] is not None:  # a folder of validation logs, as identify's --validate-on
+        kw["validate_on"] = expand_log_paths([str(kw["validate_on"])])
+    ident_out = identify_log(log_path, **kw)  # type: ignore[arg-type]
     stage("identify")(1, 1)
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
@@ -144,7 +154,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
     resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
     # The same inputs and call as ``commission tune`` on the ident.json written below.
     inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=sha256_json(ident_doc),
-                         log_sha256=ident_out.log.sha256, seed=seed)
+                         log_sha256=ident_out.log.sha256 if isinstance(log_path, str) else None, seed=seed)
     try:
         tuned = tune_from(inputs, progress=stage("tune"), workers=workers)
     except DesignError as exc:
