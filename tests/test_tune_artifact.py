@@ -314,13 +314,13 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     scores = ev.scores(KIND_ARC, [arc_pack(apply_free(base, xi)) for xi in x])
     infeasible = _candidate(base, [1.0] * 9, scores[1], -10.0, GATE_MISSED)
     res = SearchResult([_candidate(base, x[0], scores[0], 0.0), _candidate(base, x[1], scores[1], 1.0), infeasible],
-                       1, 1.0)
+                       1)
     ch = select_on_holdout(res, hg)
     assert ch.n_plants == HOLDOUT_PLANTS and len(ch.failures) == 2
     assert ch.failures[0] > ch.failures[1]
     assert ch.chosen is res.candidates[1]
     # nothing feasible: the least violation is returned, unjudged
-    only = SearchResult([infeasible], 1, 1.0)
+    only = SearchResult([infeasible], 1)
     assert select_on_holdout(only, hg) == type(ch)(infeasible, 0, ())
 
 

@@ -124,7 +124,6 @@ from commission.tune.baseline import (
 )
 from commission.tune.optimiser import (
     POP,
-    COORDINATES,
     OBSERVER_FACTOR_BOUNDS,
     WORK_CAP,
     ARC_STEP_WORK,
@@ -214,7 +213,6 @@ __all__ = [
     "pid_chatter",
     "pid_pole_note",
     "POP",
-    "COORDINATES",
     "OBSERVER_FACTOR_BOUNDS",
     "WORK_CAP",
     "ARC_STEP_WORK",

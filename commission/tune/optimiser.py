@@ -66,8 +66,8 @@ POP = 8
 
 #: Initial standard deviation of each coordinate, log units, as a fraction of its range, at most
 #: :data:`SIGMA_MAX` (a factor e): wide enough to leave the carried-over paper gains by a factor
-#: of two or three in one generation (development axes: a start at half of it found no feasible
-#: candidate on more of them).
+#: of two or three in one generation, since the feasible gains of a delay-capped axis often lie
+#: that far from them (docs/robustness.md).
 SIGMA_FRACTION = 0.3
 SIGMA_MAX = 1.0
 
@@ -95,9 +95,6 @@ FEASIBLE, GATE_MISSED, STABILITY_MISSED = 0, 1, 2
 #: Offset between constraint levels in :meth:`Candidate.fitness` (the objective and the
 #: violations stay far below it).
 LEVEL_OFFSET = 1e6
-
-#: Names of the coordinates (those of :data:`commission.tune.gains.FREE_BOUNDS`, then the observer).
-COORDINATES = ("k1", "k2", "f1", "f2", "G1", "G2", "G3", "w2", "t1", "ob")
 
 
 @dataclass(frozen=True)
@@ -239,19 +236,16 @@ class Problem:
 
 @dataclass(frozen=True)
 class SearchResult:
-    """Every candidate of the search, in evaluation order, and the optimiser's state at the end.
+    """Every candidate of the search, in evaluation order.
 
     Attributes
     ----------
     candidates : list of Candidate
     generations : int
-    sigma : float
-        CMA-ES step size at the end (relative to the initial per-coordinate deviations).
     """
 
     candidates: list[Candidate]
     generations: int
-    sigma: float
 
     def ranked(self) -> list[Candidate]:
         """Best first (feasibility-first order)."""
@@ -299,7 +293,7 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
             es.tell(Z, [c.fitness() for c in got])
         if progress is not None:
             progress(len(cands), total)
-    return SearchResult(cands, generations, float(es.sigma))
+    return SearchResult(cands, generations)
 
 
 @dataclass(frozen=True)
@@ -371,7 +365,7 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
         f"(slow envelope or high sample rate); set tune.budget to search longer",)
 
 
-__all__ = ["ARC_STEP_WORK", "COORDINATES", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
+__all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
            "HoldoutChoice", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
            "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
