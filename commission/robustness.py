@@ -169,14 +169,38 @@ def margin_table(arc: ArcGains, pid: PidGains, ident: Identification, spec: Spec
     return tuple(rows)
 
 
-@_one_thread
+class IdentifiedPlantArcMargins:
+    """The ARC's loops on the identified plant (the ones the gate holds to the floors), for many gain sets.
+
+    The sampled plant and its frequency response are computed once, at construction: a search
+    checks a hundred gain sets on the same plant.
+
+    Parameters
+    ----------
+    ident : Identification
+    spec : Spec
+    """
+
+    def __init__(self, ident: Identification, spec: Spec) -> None:
+        self.name, p = margin_plants(ident, spec)[0]
+        self.plant = sampled_plant(p, spec.period)
+        self.f_hz = frequency_grid(spec.period)
+        with threadpool_limits(1):
+            self.response = self.plant.frequency_response(self.f_hz)
+        self.theta_plant = _theta_of(p, ident.theta.nominal[2])
+
+    @_one_thread
+    def __call__(self, arc: ArcGains) -> tuple[LoopMargins, ...]:
+        """Margins of ``arc`` linearised at its initial estimate and at the identified theta."""
+        ap = arc_pack(arc)
+        return tuple(LoopMargins(self.name, "arc", th, at,
+                                 loop_margins(linearize_arc(ap, th), self.plant, self.f_hz, self.response))
+                     for at, th in (("initial", tuple(arc.theta0)), ("plant", self.theta_plant)))
+
+
 def identified_plant_arc_margins(arc: ArcGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
-    """The ARC's loops on the identified plant only (the ones the gate holds to the floors)."""
-    name, p = margin_plants(ident, spec)[0]
-    sp = sampled_plant(p, spec.period)
-    ap = arc_pack(arc)
-    return tuple(LoopMargins(name, "arc", th, at, loop_margins(linearize_arc(ap, th), sp))  # type: ignore[arg-type]
-                 for at, th in (("initial", tuple(arc.theta0)), ("plant", _theta_of(p, ident.theta.nominal[2]))))
+    """The ARC's loops on the identified plant only (:class:`IdentifiedPlantArcMargins`, for one gain set)."""
+    return IdentifiedPlantArcMargins(ident, spec)(arc)
 
 
 def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) -> Margins | None:
@@ -206,5 +230,5 @@ def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
             loop_response(linearize_pid(pid_pack(pid)), sp, f))
 
 
-__all__ = ["CONTROLLERS", "LoopMargins", "MarginFloors", "floor_violations", "identified_plant_arc_margins",
+__all__ = ["CONTROLLERS", "IdentifiedPlantArcMargins", "LoopMargins", "MarginFloors", "floor_violations", "identified_plant_arc_margins",
            "margin_plants", "margin_table", "nominal_loops", "worst"]

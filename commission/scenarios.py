@@ -59,7 +59,7 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -647,6 +647,18 @@ def payload_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
             p = clip_to_box(p[None, :], ident)[0]
             out.append(Scenario(f"payload/{case}/{k:g}", p, tr, NO_DISTURBANCE, 0.0, (case, "payload", "tune"), qz, nz))
     return out
+
+
+def screening_indices(scenarios: Sequence[Scenario]) -> list[int]:
+    """Indices of ``validate``'s fixed and robustness scenarios in a tuning set (the search's screen).
+
+    Everything but the tune-only stand-ins (box corners, largest-force and interior payload
+    plants) and Monte-Carlo plants: the third of the tuning set's simulation on which most
+    candidates that miss the gate already miss it, so the search simulates the rest only for
+    those that pass here (:mod:`commission.tune.optimiser`).
+    """
+    extra = {"corner", "offset", "payload", "monte_carlo"}
+    return [i for i, s in enumerate(scenarios) if not extra.intersection(s.tags)]
 
 
 def tuning_scenarios(ident: Identification, spec: Spec, *, rng: np.random.Generator,

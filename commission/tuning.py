@@ -27,7 +27,9 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       not simulated), free (name -> value), history (objective of every candidate,
                       evaluation order), violations and levels (each candidate's constraint
                       violation and level: 0 every constraint met, 1 the gate missed, 2 a stability
-                      margin or discrete feasibility missed), n_feasible, chosen_level,
+                      margin or discrete feasibility missed), screened (each candidate missed
+                      the gate on the screening scenarios and was simulated on those only; its
+                      violation is the excess there), n_feasible, chosen_level,
                       chosen_violation, holdout_plants, holdout_failures (default-gate failures of
                       each feasible finalist on the hold-out plants, best objective first; see
                       commission.tune.select_on_holdout)
@@ -224,6 +226,9 @@ class SearchRecord:
     chosen_level : int
         The chosen gains' level (0 unless no candidate met every constraint).
     chosen_violation : float
+    screened : tuple of bool
+        Each candidate missed the gate on the screening scenarios and was simulated on those
+        only (its violation is the excess there).
     """
 
     n_evaluations: int
@@ -242,6 +247,7 @@ class SearchRecord:
     levels: tuple[int, ...] = ()
     chosen_level: int = 0
     chosen_violation: float = 0.0
+    screened: tuple[bool, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
@@ -251,7 +257,8 @@ class SearchRecord:
                 "holdout_plants": self.holdout_plants, "holdout_failures": list(self.holdout_failures),
                 "optimiser": self.optimiser, "generations": self.generations, "n_feasible": self.n_feasible,
                 "violations": [_num_or_null(v) for v in self.violations], "levels": list(self.levels),
-                "chosen_level": self.chosen_level, "chosen_violation": _num_or_null(self.chosen_violation)}
+                "chosen_level": self.chosen_level, "chosen_violation": _num_or_null(self.chosen_violation),
+                "screened": [bool(b) for b in self.screened]}
 
 
 def _gains_to_dict(g: Any) -> dict[str, Any]:
@@ -460,7 +467,8 @@ class Tuning:
                               levels=_int_list(se, "levels") if se.has("levels") else (),
                               chosen_level=se.int_("chosen_level") if se.has("chosen_level") else 0,
                               chosen_violation=_nan(se.num("chosen_violation", optional=True))
-                              if se.has("chosen_violation") else 0.0)
+                              if se.has("chosen_violation") else 0.0,
+                              screened=_bool_list(se, "screened") if se.has("screened") else ())
         if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
             raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
@@ -530,6 +538,11 @@ def _int_list(r: Reader, key: str) -> tuple[int, ...]:
     """An optional list of non-negative integers; absent: empty."""
     return _checked_list(r, key, lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
                          "non-negative integer")
+
+
+def _bool_list(r: Reader, key: str) -> tuple[bool, ...]:
+    """An optional list of booleans; absent: empty."""
+    return _checked_list(r, key, lambda v: isinstance(v, bool), "boolean")
 
 
 def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:

@@ -139,11 +139,44 @@ def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
 
 
 @njit(cache=True)
-def stribeck(p, v):
-    """Nonlinear friction Ff(v) of the plant ``p`` (without the viscous part), u-unit."""
+def stribeck_cut(p):
+    """Speed (m/s) above which the Stribeck term no longer changes the friction level in float64.
+
+    Above it, ``(fs - fc) exp(-|v/vs|^xi) < 2**-60 fc``, less than half a unit in the last
+    place of ``fc``, so ``fc + (fs - fc) exp(...)`` rounds to ``fc`` exactly: :func:`stribeck`
+    may return ``fc`` without evaluating the power and the exponential (the plant's most
+    expensive operations) and still give the same value to the last bit.  ``inf`` where no
+    such speed exists (``fc <= 0``); 0 for Coulomb-only friction (``fs == fc``).
+    """
+    ds = p[P_FS] - p[P_FC]
+    if ds == 0.0:
+        return 0.0
+    if p[P_FC] <= 0.0 or p[P_VS] <= 0.0 or p[P_XI] <= 0.0:
+        return math.inf
+    big = math.log(abs(ds) / p[P_FC]) + 60.0 * math.log(2.0)
+    if big <= 0.0:
+        return 0.0
+    return p[P_VS] * big ** (1.0 / p[P_XI]) * (1.0 + 1e-12)
+
+
+@njit(cache=True)
+def stribeck(p, v, v_cut=math.inf):
+    """Nonlinear friction Ff(v) of the plant ``p`` (without the viscous part), u-unit.
+
+    ``v_cut`` (:func:`stribeck_cut`, computed once per integration call) skips the curve where
+    it cannot change the result.
+    """
     if v == 0.0:
         return 0.0
-    level = p[P_FC] + (p[P_FS] - p[P_FC]) * math.exp(-abs(v / p[P_VS]) ** p[P_XI])
+    if abs(v) > v_cut:
+        level = p[P_FC]
+    else:
+        r = abs(v / p[P_VS])
+        if p[P_XI] == 2.0:
+            r = r * r  # pow is correctly rounded here too: the same value, without the call
+        elif p[P_XI] != 1.0:
+            r = r ** p[P_XI]
+        level = p[P_FC] + (p[P_FS] - p[P_FC]) * math.exp(-r)
     return level if v > 0.0 else -level
 
 
@@ -178,6 +211,7 @@ def plant_advance(p, x, v, u, h, n):
         Position (m) and velocity (m/s) at the end.
     """
     M = p[P_M]
+    v_cut = stribeck_cut(p)
     for _ in range(n):
         F = u - p[P_OFFSET] - ripple(p, x)  # everything but friction and viscous
         if v == 0.0:
@@ -186,7 +220,7 @@ def plant_advance(p, x, v, u, h, n):
             a = (F - math.copysign(p[P_FS], F)) / M
             v = a * h
         else:
-            a = (F - p[P_B] * v - stribeck(p, v)) / M
+            a = (F - p[P_B] * v - stribeck(p, v, v_cut)) / M
             v_new = v + a * h
             if v_new * v < 0.0 and p[P_FS] > 0.0:
                 v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip (only static friction can hold it)
@@ -240,6 +274,7 @@ def plant_step(p, st, u, h, n):
     if split < 1:
         split = 1
     hh = h / split
+    v_cut = stribeck_cut(p)
     x1 = st[X_MOTOR]
     v1 = st[V_MOTOR]
     x2 = st[X_LOAD]
@@ -253,7 +288,7 @@ def plant_step(p, st, u, h, n):
             else:
                 v1n = (F - math.copysign(p[P_FS], F)) / m1 * hh
         else:
-            v1n = v1 + (F - p[P_B] * v1 - stribeck(p, v1)) / m1 * hh
+            v1n = v1 + (F - p[P_B] * v1 - stribeck(p, v1, v_cut)) / m1 * hh
             if v1n * v1 < 0.0 and p[P_FS] > 0.0:
                 v1n = 0.0
         v2 = v2 + fk / m2 * hh

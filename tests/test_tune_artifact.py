@@ -21,10 +21,12 @@ from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
 from commission.paper import reference_identification
 from commission.controllers.simulate import KIND_ARC, KIND_PID
-from commission.scenarios import case1_trajectory, case2_trajectory, plant_substeps, tuning_scenarios
+from commission.scenarios import (case1_trajectory, case2_trajectory, plant_substeps, scenario_matrix,
+                                  screening_indices, tuning_scenarios)
 from commission.spec import default_spec, spec_from_mapping
 from commission.tune import (
     FEASIBLE,
+    GATE_MARGIN,
     GATE_MISSED,
     HOLDOUT_PLANTS,
     PID_POLE_STEP,
@@ -43,6 +45,7 @@ from commission.tune import (
     base_arc_gains,
     cost,
     deployable_pid,
+    gate_excess,
     load_tune_inputs,
     margin_violation,
     pid_baseline,
@@ -388,19 +391,63 @@ def test_a_candidate_that_misses_a_margin_floor_is_not_simulated(holdout_setup):
 
     class Spy:
         weights = ev.weights
+        scenarios = ev.scenarios
 
-        def scores(self, kind, packs):
+        def scores(self, kind, packs, only=None):
             simulated.append(len(packs))
-            return ev.scores(kind, packs)
+            return ev.scores(kind, packs, only)
 
     pid_scores = hg.pid_scores[:len(ev.names)]
     prob = Problem(base, Spy(), spec, ident, pid_scores, hg.limits, lambda g: SimpleNamespace(
         holds=True, rho_max=0.5, margin=0.01, rho_adaptive_max=0.5), observer_free=False)
     bad, good = prob.evaluate([prob.z_of(BAD_X), prob.z_of([1.0] * 9)])
-    assert simulated == [1]
+    assert simulated in ([1], [1, 1])  # the screen, then the rest if it passed there
     assert bad.level == STABILITY_MISSED and bad.violation > 0 and bad.scores is None
-    assert good.scores is not None and math.isfinite(good.objective)
     assert good.level in (FEASIBLE, GATE_MISSED)
+    assert (good.scores is None) == good.screened == (simulated == [1])
+    assert math.isfinite(good.objective) != good.screened
+
+
+def test_screening_scenarios_are_validates_fixed_and_robustness_ones(holdout_setup):
+    """The screen is exactly the part of the tuning set that validate itself runs (not its Monte-Carlo plants)."""
+    ident, spec, base, ev, hg = holdout_setup
+    screen = [ev.names[i] for i in screening_indices(ev.scenarios)]
+    matrix = scenario_matrix(ident, spec, rng=np.random.default_rng(0), n_monte_carlo=0)
+    assert sorted(screen) == sorted(s.name for s in matrix)
+    assert len(screen) < len(ev.names)
+
+
+def test_a_candidate_that_misses_the_gate_on_the_screen_is_not_simulated_on_the_rest(holdout_setup):
+    """A gain set that fails validate's gate on the screening scenarios (a slow observer and feedback x0.05
+    fails accuracy there) is simulated on those only, records their excess as its violation, and ranks
+    after any candidate that missed the gate on the rest only."""
+    ident, spec, base, ev, hg = holdout_setup
+    calls: list[tuple[int, int]] = []
+
+    class Spy:
+        weights = ev.weights
+        scenarios = ev.scenarios
+
+        def scores(self, kind, packs, only=None):
+            calls.append((len(packs), len(ev.names) if only is None else len(only)))
+            return ev.scores(kind, packs, only)
+
+    pid_scores = hg.pid_scores[:len(ev.names)]
+    prob = Problem(base, Spy(), spec, ident, pid_scores, hg.limits, lambda g: SimpleNamespace(
+        holds=True, rho_max=0.5, margin=0.01, rho_adaptive_max=0.5), observer_free=False)
+    soft = [1.0] * 9
+    soft[0] = soft[1] = 0.05  # g1, g2: almost no feedback
+    (c,) = prob.evaluate([prob.z_of(soft)])
+    n_screen = len(screening_indices(ev.scenarios))
+    assert calls == [(1, n_screen)]
+    assert c.level == GATE_MISSED and c.screened and c.scores is None and math.isnan(c.objective)
+    screen_scores = ev.scores(KIND_ARC, [arc_pack(c.gains)], screening_indices(ev.scenarios))[0]
+    ref = [pid_scores[i] for i in screening_indices(ev.scenarios)]
+    assert c.violation == pytest.approx(gate_excess(hg.limits, screen_scores, ref, margin=GATE_MARGIN)) and c.violation > 0
+    full = dataclasses.replace(c, screened=False, violation=c.violation * 100.0)
+    assert sorted([c, full], key=Candidate.rank_key)[0] is full
+    assert full.fitness() < c.fitness() < Candidate(c.x, 1.0, c.gains, STABILITY_MISSED, 0.0, math.nan, None,
+                                                    None).fitness()
 
 
 def _kd_chatter_evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:

@@ -46,7 +46,7 @@ from commission.tune.defaults import (
     log_sample_rate,
 )
 from commission.tune.gains import base_arc_gains, free_gains
-from commission.tune.objective import Progress, Evaluator, HoldoutGate
+from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import deployable_pid
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
@@ -131,7 +131,9 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                       seed=int(seed), ident_path=ident_path)
     first = res.candidates[0]
     record = SearchRecord(n_evaluations=len(res.candidates), budget=spec.budget, seed=int(seed),
-                          cost_initial=first.objective, cost_best=best.objective,
+                          cost_initial=first.objective,
+                          cost_best=best.objective if best.scores is not None else cost(
+                              arc_scores, spec, pid_scores, ev.weights, gate),
                           free=free_gains(chosen).as_dict(),
                           history=tuple(c.objective for c in res.candidates),
                           holdout_plants=choice.n_plants, holdout_failures=choice.failures,
@@ -139,7 +141,8 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                           generations=res.generations, n_feasible=res.n_feasible,
                           violations=tuple(c.violation for c in res.candidates),
                           levels=tuple(c.level for c in res.candidates),
-                          chosen_level=best.level, chosen_violation=best.violation)
+                          chosen_level=best.level, chosen_violation=best.violation,
+                          screened=tuple(c.screened for c in res.candidates))
     out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,

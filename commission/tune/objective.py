@@ -114,27 +114,33 @@ class Evaluator:
     def names(self) -> list[str]:
         return [s.name for s in self.scenarios]
 
-    def scores(self, kind: int, ctrl_ps: Sequence[np.ndarray]) -> list[list[Score]]:
-        """``scores[c][s]`` of candidate ``c`` on scenario ``s``."""
-        nc, ns = len(ctrl_ps), len(self.scenarios)
+    def scores(self, kind: int, ctrl_ps: Sequence[np.ndarray],
+               only: Sequence[int] | None = None) -> list[list[Score]]:
+        """``scores[c][j]`` of candidate ``c`` on scenario ``only[j]`` (default: every scenario, in order)."""
+        sel = list(range(len(self.scenarios))) if only is None else [int(i) for i in only]
+        pos = {si: j for j, si in enumerate(sel)}
+        nc, ns = len(ctrl_ps), len(sel)
         out: list[list[Score | None]] = [[None] * ns for _ in range(nc)]
         P = np.stack(ctrl_ps)
         for g in self.groups:
-            m = len(g.idx)
-            plants = np.tile(g.plants, (nc, 1))
+            rows = [j for j, si in enumerate(g.idx) if si in pos]
+            if not rows:
+                continue
+            m = len(rows)
+            plants = np.tile(g.plants[rows], (nc, 1))
             cps = np.repeat(P, m, axis=0)
-            dist = None if g.dist is None else np.tile(g.dist, (nc, 1))
-            noise = None if g.noise is None else np.tile(g.noise, (nc, 1))
+            dist = None if g.dist is None else np.tile(g.dist[rows], (nc, 1))
+            noise = None if g.noise is None else np.tile(g.noise[rows], (nc, 1))
             r = simulate_batch(plants, kind, cps, g.traj, substeps=plant_substeps(self.spec.sample_rate),
                                quant=g.quant, disturbance=dist, noise=noise, y0=self.scenarios[g.idx[0]].y0,
                                u_sat=self.spec.u_max, e_abort=self.spec.travel, workers=self.workers)
             # No traces: the kernel's u_peak (recorded samples, also before an abort) is all that is needed.
             for c in range(nc):
-                for j, si in enumerate(g.idx):
-                    row = c * m + j
-                    out[c][si] = Score(float(r.e_M[row]), float(r.e_F[row]), float(r.e_rms[row]),
-                                       float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]),
-                                       float(r.u_peak[row]), bool(r.diverged[row]))
+                for k, j in enumerate(rows):
+                    row = c * m + k
+                    out[c][pos[g.idx[j]]] = Score(float(r.e_M[row]), float(r.e_F[row]), float(r.e_rms[row]),
+                                                  float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]),
+                                                  float(r.u_peak[row]), bool(r.diverged[row]))
         return out  # type: ignore[return-value]
 
 

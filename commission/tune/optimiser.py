@@ -22,7 +22,11 @@ CMA-ES only uses the ranking of each generation, so this is the whole constraint
 pycma's augmented-Lagrangian wrapper (``cma.ConstrainedFitnessAL``) needs many more
 generations than a tuning budget of about a hundred simulations allows for its multipliers
 to settle.  The constraints are evaluated cheapest first: a candidate that misses a margin
-floor (a linearisation, milliseconds) is not simulated at all.
+floor (a linearisation, milliseconds) is not simulated at all, and one that misses the gate on
+validate's own fixed and robustness scenarios (:func:`commission.scenarios.screening_indices`,
+a third of the simulation) is not simulated on the rest; it ranks after every candidate that
+missed the gate only on the rest (a lexicographic order of the two halves of the gate
+constraint, :attr:`Candidate.screened`).
 
 The winner is the best feasible candidate by validate's default gate on plants the search
 never saw (:class:`commission.tune.objective.HoldoutGate`, :func:`select_on_holdout`): the
@@ -43,8 +47,8 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, FeasibilityReport, observer_design
 from commission.gate import GateLimits
-from commission.robustness import MarginFloors, identified_plant_arc_margins
-from commission.scenarios import plant_substeps, tuning_scenarios
+from commission.robustness import IdentifiedPlantArcMargins, MarginFloors
+from commission.scenarios import plant_substeps, screening_indices, tuning_scenarios
 from commission.spec import Spec
 from commission.tuning import Score
 from commission.tune.constraints import GATE_MARGIN, feasibility_violation, margin_violation
@@ -96,6 +100,9 @@ FEASIBLE, GATE_MISSED, STABILITY_MISSED = 0, 1, 2
 #: violations stay far below it).
 LEVEL_OFFSET = 1e6
 
+#: Offset of a screened-out candidate within the gate-missed level (:meth:`Candidate.fitness`).
+SCREEN_OFFSET = 0.3 * LEVEL_OFFSET
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -113,11 +120,14 @@ class Candidate:
     violation : float
         Summed violation of the constraints of its level (0 when feasible).
     objective : float
-        :func:`commission.tune.objective.cost` (nan: not simulated).
+        :func:`commission.tune.objective.cost` (nan: not simulated on every tuning scenario).
     scores : list of Score or None
-        On the tuning scenarios (None: not simulated).
+        On the tuning scenarios (None: not simulated on all of them).
     feasibility : FeasibilityReport or None
         Discrete feasibility (None: not checked, a constraint before it missed).
+    screened : bool
+        Missed the gate on the screening scenarios and was simulated on those only; ``violation``
+        is its gate excess there.
     """
 
     x: np.ndarray
@@ -128,20 +138,23 @@ class Candidate:
     objective: float
     scores: list[Score] | None
     feasibility: FeasibilityReport | None
+    screened: bool = False
 
     def fitness(self) -> float:
         """The ranking of :meth:`rank_key` as one number, comparable across generations (what CMA-ES is told).
 
         The objective of a feasible candidate lies far below :data:`LEVEL_OFFSET`; each level
-        adds it once more to the violation.
+        adds it once more to the violation, and a screened-out candidate :data:`SCREEN_OFFSET`.
         """
         if self.level == FEASIBLE:
-            return min(self.objective, 0.5 * LEVEL_OFFSET)
-        return self.level * LEVEL_OFFSET + min(self.violation, 0.5 * LEVEL_OFFSET)
+            return min(self.objective, 0.25 * LEVEL_OFFSET)
+        return (self.level * LEVEL_OFFSET + (SCREEN_OFFSET if self.screened else 0.0)
+                + min(self.violation, 0.25 * LEVEL_OFFSET))
 
-    def rank_key(self) -> tuple[int, float]:
-        """Feasibility-first order: the level, then the objective (feasible) or the violation."""
-        return (self.level, self.objective if self.level == FEASIBLE else self.violation)
+    def rank_key(self) -> tuple[int, bool, float]:
+        """Feasibility-first order: the level, screened-out last within it, then the objective
+        (feasible) or the violation."""
+        return (self.level, self.screened, self.objective if self.level == FEASIBLE else self.violation)
 
 
 class Problem:
@@ -172,6 +185,9 @@ class Problem:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
         self.reference, self.gate, self.feasible = list(reference), gate, feasible
         self.floors = MarginFloors.from_spec(spec)
+        self.screen = screening_indices(ev.scenarios)
+        self.rest = [i for i in range(len(ev.scenarios)) if i not in set(self.screen)]
+        self.margins = IdentifiedPlantArcMargins(ident, spec)
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
         start = np.append(np.log(FREE_START), 0.0)
@@ -208,17 +224,34 @@ class Problem:
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
         """Every constraint and the objective of each search vector, cheapest first."""
         parts = [self.gains(np.asarray(z)) for z in Z]
-        mv = [margin_violation(identified_plant_arc_margins(g, self.ident, self.spec), self.floors)
+        mv = [margin_violation(self.margins(g), self.floors)
               for _, _, g in parts]
         sim = [i for i, v in enumerate(mv) if v == 0.0]
-        scores: dict[int, list[Score]] = {}
+        # The gate on the screening scenarios first; the rest only for the candidates that pass there.
+        first: dict[int, list[Score]] = {}
         if sim:
-            for i, sc in zip(sim, self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in sim])):
+            first = dict(zip(sim, self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in sim], self.screen)))
+        ref_screen = [self.reference[i] for i in self.screen]
+        screen_excess = {i: gate_excess(self.gate, sc, ref_screen, margin=GATE_MARGIN) for i, sc in first.items()}
+        full = [i for i in sim if screen_excess[i] == 0.0]
+        scores: dict[int, list[Score]] = {}
+        if full:
+            rest = self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in full], self.rest) if self.rest else [
+                [] for _ in full]
+            for i, r in zip(full, rest):
+                sc: list[Score] = [None] * len(self.ev.scenarios)  # type: ignore[list-item]
+                for j, s in zip(self.screen, first[i]):
+                    sc[j] = s
+                for j, s in zip(self.rest, r):
+                    sc[j] = s
                 scores[i] = sc
         out = []
         for i, (x, f, g) in enumerate(parts):
-            if i not in scores:
+            if i not in first:
                 out.append(Candidate(x, f, g, STABILITY_MISSED, mv[i], math.nan, None, None))
+                continue
+            if i not in scores:
+                out.append(Candidate(x, f, g, GATE_MISSED, screen_excess[i], math.nan, None, None, screened=True))
                 continue
             sc = scores[i]
             obj = cost(sc, self.spec, self.reference, self.ev.weights, self.gate)
@@ -367,5 +400,5 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 __all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
            "HoldoutChoice", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
-           "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
+           "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
