@@ -56,7 +56,7 @@ Keys and defaults
         exceeds validate's default c_u limit on a tuning scenario (a coarse
         encoder at a high rate): :func:`commission.tune.deployable_pid`.
 ``[tune]``
-    ``budget`` = 96
+    ``budget`` = 144
         Candidate gain sets the search evaluates (each on the tuning scenarios,
         unless it misses a margin floor first; benchmarks/bench_tune.py times it).
         Left at its default, ``tune`` lowers it (to whole generations of 8, at
@@ -143,7 +143,7 @@ _SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
         "pole": (float, None, True, "rad/s"),
     },
     "tune": {
-        "budget": (int, 96, True, ""),
+        "budget": (int, 144, True, ""),
         "monte_carlo": (int, 0, False, ""),
         "margin": (float, 0.01, True, ""),
     },
@@ -223,7 +223,7 @@ class Spec:
     e_f: float = 10e-6
     c_u: float = 0.5
     pid_pole: float = PID_POLE_FRACTION * 2500.0
-    budget: int = 96
+    budget: int = 144
     monte_carlo: int = 0
     margin: float = 0.01
     plant_mode_hz: float | None = None

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, matrix_balance, schur
 
 from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
                                           P_MODE_RATIO, plant_vector)
@@ -67,12 +67,34 @@ def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarra
 
 def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts: float,
                       f_hz: np.ndarray) -> np.ndarray:
-    """``C (zI - A)^-1 B + D`` of a single-input single-output discrete system at ``z = exp(j 2 pi f Ts)``."""
+    """``C (zI - A)^-1 B + D`` of a single-input single-output discrete system at ``z = exp(j 2 pi f Ts)``.
+
+    ``A`` is balanced (a diagonal similarity, scipy.linalg.matrix_balance: the linearised ARC's
+    states span fifteen decades of scale) and reduced once to complex Schur form
+    ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
+    every frequency at once by back-substitution: O(n^2) array operations over the grid
+    instead of a dense LU per frequency, as accurate (about 1e-13 relative on the linearised
+    ARC against 40-digit arithmetic) and about twenty times faster.  Without the balancing
+    the Schur form of that badly scaled matrix loses eight digits; an eigen-decomposition is
+    useless here (near-repeated poles at z = 1).
+    """
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
     z = np.exp(1j * 2.0 * np.pi * f * Ts)
-    rhs = np.broadcast_to(np.asarray(B, dtype=complex), (z.size, *B.shape))
-    x = np.linalg.solve(z[:, None, None] * np.eye(A.shape[0]) - A, rhs)[:, :, 0]
-    return x @ C[0] + D
+    A = np.asarray(A, dtype=float)
+    b = np.asarray(B, dtype=float)[:, 0]
+    c = np.asarray(C, dtype=float)[0]
+    n = A.shape[0]
+    if n == 0:
+        return np.full(z.shape, complex(D))
+    Ab, (scale, _) = matrix_balance(A, permute=False, separate=True)
+    T, U = schur(Ab.astype(complex), output="complex")
+    bt = U.conj().T @ (b / scale)
+    ct = (c * scale) @ U
+    x = np.empty((z.size, n), dtype=complex)
+    for k in range(n - 1, -1, -1):  # (z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k
+        r = bt[k] + x[:, k + 1:] @ T[k, k + 1:] if k < n - 1 else np.full(z.size, bt[k])
+        x[:, k] = r / (z - T[k, k])
+    return x @ ct + D
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,8 @@ from scipy.signal import cont2discrete, ss2tf
 
 from commission.controllers.arc import arc_pack, arc_step, paper_gains_implementable
 from commission.controllers.linear import continuous_model, sampled_plant
-from commission.controllers.margins import (arc_operating_point, closed_loop_radius, linearize_arc, linearize_pid,
-                                            loop_margins)
+from commission.controllers.margins import (arc_operating_point, closed_loop_radius, frequency_grid, linearize_arc,
+                                            linearize_pid, loop_margins)
 from commission.controllers.pid import pid_pack, pid_place_poles
 from commission.controllers.plant import (NX, P_B, P_DELAY, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP, plant_output,
                                           plant_start, plant_step, plant_vector)
@@ -125,6 +125,28 @@ def test_linearised_arc_reproduces_the_compiled_steps_small_signal_response():
         xc = lin.Ac @ xc + lin.Bc[:, 0] * y
     assert abs(c0) < 1e-12  # at rest the command is zero: the response is the deviation
     assert np.max(np.abs(c_nl - c_lin)) < 1e-4 * np.max(np.abs(c_lin))
+
+
+def _dense_response(A, B, C, D, Ts, f):
+    """The definition, one dense LU per frequency (what discrete_response must equal)."""
+    z = np.exp(1j * 2 * np.pi * f * Ts)
+    x = np.linalg.solve(z[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B.astype(complex), (z.size, *B.shape)))
+    return x[:, :, 0] @ C[0] + D
+
+
+@pytest.mark.parametrize("theta", [(30.0, 10.0, 0.0), (8.3, 17.5, 50.0)])
+def test_frequency_response_of_the_badly_scaled_linearised_arc_equals_a_dense_solve(theta):
+    """The balanced Schur evaluation against the definition on the linearised ARC (states fifteen
+    decades apart, near-repeated poles at z = 1) and on the sampled mode plant."""
+    lin = linearize_arc(arc_pack(paper_gains_implementable(TS)), theta)
+    f = frequency_grid(TS)
+    ref = _dense_response(lin.Ac, lin.Bc, lin.Cc, lin.Dc, TS, f)
+    np.testing.assert_allclose(lin.frequency_response(f), ref, rtol=1e-9)
+    p = paper_axis_with_mode()
+    p[P_DELAY] = 1.4 * TS
+    sp = sampled_plant(p, TS)
+    A, B, C = sp.state_space()
+    np.testing.assert_allclose(sp.frequency_response(f), _dense_response(A, B, C, 0.0, TS, f), rtol=1e-9)
 
 
 # --------------------------------------------------------------------------- the paper's fact

@@ -22,11 +22,15 @@ CMA-ES only uses the ranking of each generation, so this is the whole constraint
 pycma's augmented-Lagrangian wrapper (``cma.ConstrainedFitnessAL``) needs many more
 generations than a tuning budget of about a hundred simulations allows for its multipliers
 to settle.  The constraints are evaluated cheapest first: a candidate that misses a margin
-floor (a linearisation, milliseconds) is not simulated at all, and one that misses the gate on
+floor (a linearisation, milliseconds) is not simulated at all, and one whose gate excess on
 validate's own fixed and robustness scenarios (:func:`commission.scenarios.screening_indices`,
-a third of the simulation) is not simulated on the rest; it ranks after every candidate that
-missed the gate only on the rest (a lexicographic order of the two halves of the gate
-constraint, :attr:`Candidate.screened`).
+a third of the simulation) already exceeds :data:`SCREEN_EXCESS` is not simulated on the rest
+(:attr:`Candidate.screened`); it ranks after every fully simulated candidate of its level.
+The excess only grows with more scenarios, so the order among candidates whose whole gate
+excess is at most :data:`SCREEN_EXCESS` -- the ones near feasibility, where the ranking steers
+the search -- is exactly the order without the screen.  (Screening out every candidate with
+any excess on the screen ranked near-feasible candidates that barely missed it below far ones
+that passed it, and the search found fewer feasible gains on the must-show axes.)
 
 The winner is the best feasible candidate by validate's default gate on plants the search
 never saw (:class:`commission.tune.objective.HoldoutGate`, :func:`select_on_holdout`): the
@@ -103,6 +107,11 @@ LEVEL_OFFSET = 1e6
 #: Offset of a screened-out candidate within the gate-missed level (:meth:`Candidate.fitness`).
 SCREEN_OFFSET = 0.3 * LEVEL_OFFSET
 
+#: Gate excess on the screening scenarios (:func:`commission.tune.objective.gate_excess`, ln units
+#: summed over indexes and scenarios) above which a candidate is not simulated on the rest: an
+#: index e-fold over its limit, far from feasibility.
+SCREEN_EXCESS = 1.0
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -126,8 +135,8 @@ class Candidate:
     feasibility : FeasibilityReport or None
         Discrete feasibility (None: not checked, a constraint before it missed).
     screened : bool
-        Missed the gate on the screening scenarios and was simulated on those only; ``violation``
-        is its gate excess there.
+        Its gate excess on the screening scenarios exceeded :data:`SCREEN_EXCESS` and it was
+        simulated on those only; ``violation`` is that excess (a lower bound of the whole).
     """
 
     x: np.ndarray
@@ -227,13 +236,13 @@ class Problem:
         mv = [margin_violation(self.margins(g), self.floors)
               for _, _, g in parts]
         sim = [i for i, v in enumerate(mv) if v == 0.0]
-        # The gate on the screening scenarios first; the rest only for the candidates that pass there.
+        # The gate on the screening scenarios first; the rest only for the candidates not already far off.
         first: dict[int, list[Score]] = {}
         if sim:
             first = dict(zip(sim, self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in sim], self.screen)))
         ref_screen = [self.reference[i] for i in self.screen]
         screen_excess = {i: gate_excess(self.gate, sc, ref_screen, margin=GATE_MARGIN) for i, sc in first.items()}
-        full = [i for i in sim if screen_excess[i] == 0.0]
+        full = [i for i in sim if screen_excess[i] <= SCREEN_EXCESS]
         scores: dict[int, list[Score]] = {}
         if full:
             rest = self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in full], self.rest) if self.rest else [
@@ -349,18 +358,24 @@ class HoldoutChoice:
 
 
 def select_on_holdout(res: SearchResult, hg: HoldoutGate) -> HoldoutChoice:
-    """The winner: among the :data:`HOLDOUT_CANDIDATES` best feasible, the fewest gate failures on unseen plants.
+    """The winner: among the :data:`HOLDOUT_CANDIDATES` best finalists, the fewest gate failures on unseen plants.
 
-    With no feasible candidate, the one that misses its constraints least is returned (and the
-    validation gate will say what it misses).
+    The finalists are the best feasible candidates; with none, the best that kept every
+    stability margin and were simulated on every tuning scenario but missed the gate there
+    (tune's gate is validate's at :data:`commission.tune.constraints.GATE_MARGIN` on more
+    plants, so such a candidate may still pass validate, and the unseen plants tell which is
+    likeliest to).  With neither, the one that misses its constraints least is returned (and
+    the validation gate will say what it misses).
     """
     ranked = res.ranked()
-    feasible = [c for c in ranked if c.level == FEASIBLE][:HOLDOUT_CANDIDATES]
-    if not feasible:
+    finalists = [c for c in ranked if c.level == FEASIBLE][:HOLDOUT_CANDIDATES]
+    if not finalists:
+        finalists = [c for c in ranked if c.level == GATE_MISSED and c.scores is not None][:HOLDOUT_CANDIDATES]
+    if not finalists:
         return HoldoutChoice(ranked[0], 0, ())
-    judged = hg.judge([c.gains for c in feasible], [c.scores for c in feasible])  # type: ignore[misc]
-    best = min(range(len(feasible)), key=lambda k: (judged[k][1], k))
-    return HoldoutChoice(feasible[best], hg.n_plants, tuple(j[1] for j in judged))
+    judged = hg.judge([c.gains for c in finalists], [c.scores for c in finalists])  # type: ignore[misc]
+    best = min(range(len(finalists)), key=lambda k: (judged[k][1], k))
+    return HoldoutChoice(finalists[best], hg.n_plants, tuple(j[1] for j in judged))
 
 
 def candidate_work(ident: Identification, spec: Spec) -> float:
@@ -400,5 +415,5 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 __all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
            "HoldoutChoice", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
-           "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
+           "SCREEN_EXCESS", "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
