@@ -315,7 +315,7 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     Candidate 0 is given the better objective but carries :data:`BAD_X`.  Candidate 1 is the
     paper's gains carried over.  The hold-out gate must count more failures for candidate 0
     and choose candidate 1 despite its objective.  A candidate that misses a constraint is
-    never a finalist while a feasible one exists.
+    never a finalist while a feasible one exists; without one, the gate-missed candidates are.
     """
     ident, spec, base, ev, hg = holdout_setup
     x = np.array([BAD_X, [1.0] * 9])
@@ -327,9 +327,13 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     assert ch.n_plants == HOLDOUT_PLANTS and len(ch.failures) == 2
     assert ch.failures[0] > ch.failures[1]
     assert ch.chosen is res.candidates[1]
-    # nothing feasible: the least violation is returned, unjudged
-    only = SearchResult([infeasible], 1)
-    assert select_on_holdout(only, hg) == type(ch)(infeasible, 0, ())
+    # nothing feasible: the fully simulated gate-missed candidates are the finalists, judged the same way
+    bad_missed = _candidate(base, x[0], scores[0], -20.0, GATE_MISSED)
+    ch2 = select_on_holdout(SearchResult([bad_missed, infeasible], 1), hg)
+    assert ch2.n_plants == HOLDOUT_PLANTS and ch2.failures[0] > ch2.failures[1] and ch2.chosen is infeasible
+    # nothing simulated on every scenario: the least violation is returned, unjudged
+    unsimulated = dataclasses.replace(infeasible, scores=None)
+    assert select_on_holdout(SearchResult([unsimulated], 1), hg) == type(ch)(unsimulated, 0, ())
 
 
 def _margins(gm=10.0, pm=45.0, dm=2.0, mm=0.7, stable=True, rho=0.9):
