@@ -41,7 +41,7 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
   pid.pole = 0.12 * sample_rate rad/s (paper: 300); when defaulted and that PID exceeds validate's
     c_u limit on a tuning scenario, the baseline runs at the fastest 0.95^k of it that does not
     (k <= 12; tuning.json: pid.pole, with a note)
-  tune.budget = 96 candidates, monte_carlo = 0, margin = 0.01
+  tune.budget = 144 candidates, monte_carlo = 0, margin = 0.01
     (when defaulted: fewer where one candidate is slow to simulate, with a note)
   margins: gain 6 dB, phase 30 deg, delay 1 sample beyond the identified delay, modulus 0.5
     (constraints of the search, and floors of validate's gate)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+from commission.background import ChildJob
 from commission.errors import SpecError, UsageError
 from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
@@ -132,11 +133,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
 def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, gate, gate_path, seed, n_monte_carlo,
             progress, workers, figures, sign_key, ident_figures):
     """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
-    from commission.artifacts import Identification
-    from commission.controllers.design import DesignError
     from commission.identification import expand_log_paths, identify_log
-    from commission.jsonio import canonical_json, sha256_json
-    from commission.tune import resolve_spec, tune_from, tune_inputs
 
     def stage(name: str) -> Progress:
         return lambda done, total: progress(name, done, total) if progress is not None else None
@@ -147,6 +144,26 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
         kw["validate_on"] = expand_log_paths([str(kw["validate_on"])])
     ident_out = identify_log(log_path, **kw)  # type: ignore[arg-type]
     stage("identify")(1, 1)
+    # The identification figures are drawn beside the tuning (commission.background).
+    ident_job = ChildJob(ident_figures, ident_out, staging) if ident_figures is not None else None
+    try:
+        return _after_identify(ident_out, ident_job, out, staging, spec_data=spec_data, spec_src=spec_src, gate=gate,
+                               gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, stage=stage,
+                               workers=workers, figures=figures, sign_key=sign_key, log_path=log_path)
+    except BaseException:
+        if ident_job is not None:
+            ident_job.cancel()
+        raise
+
+
+def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data, spec_src, gate, gate_path, seed,
+                    n_monte_carlo, stage, workers, figures, sign_key, log_path):
+    """Tune and validate the identified axis, then write every file into ``staging``."""
+    from commission.artifacts import Identification
+    from commission.controllers.design import DesignError
+    from commission.jsonio import canonical_json, sha256_json
+    from commission.tune import resolve_spec, tune_from, tune_inputs
+
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
     rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
@@ -165,7 +182,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
                       workers=workers)
     write_json_atomic(staging / IDENT_NAME, ident_doc)
     write_json_atomic(staging / TUNING_NAME, tuning_doc)
-    ident_figs = list(ident_figures(ident_out, staging)) if ident_figures is not None else []
+    ident_figs = list(ident_job.result()) if ident_job is not None else []
     written = write_outputs(result, tuning, sha256_json(tuning_doc), staging, figures=figures,
                             sources={"tuning": str(out / TUNING_NAME),
                                      "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key,
