@@ -10,7 +10,7 @@ the ARC's stability margins: required since issue 20) and the ARC's smallest del
 the identified plant; then "N of M pass" for the gate and for its robustness part.
 Seeds 0-29 are the development set, 100-129 the held-out set (never tuned for).  Refused axes (exit-2 errors) are counted as not passing.
 
-About one to two minutes per axis on 2 cores; seeds 0-29 take about an hour.  Nothing is asserted: the tests run a fixed subset
+About 20-80 s per axis on 2 cores; a set of 30 seeds takes 17-20 minutes.  Nothing is asserted: the tests run a fixed subset
 (``tests/test_tune_random_axes.py``).
 
 Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-29] [--tune-seed 0] [--workdir DIR]``

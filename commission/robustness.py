@@ -198,11 +198,6 @@ class IdentifiedPlantArcMargins:
                      for at, th in (("initial", tuple(arc.theta0)), ("plant", self.theta_plant)))
 
 
-def identified_plant_arc_margins(arc: ArcGains, ident: Identification, spec: Spec) -> tuple[LoopMargins, ...]:
-    """The ARC's loops on the identified plant only (:class:`IdentifiedPlantArcMargins`, for one gain set)."""
-    return IdentifiedPlantArcMargins(ident, spec)(arc)
-
-
 def worst(rows: tuple[LoopMargins, ...] | list[LoopMargins], controller: str) -> Margins | None:
     """Element-wise worst margins of ``controller`` over ``rows`` (None: no row)."""
     ms = [r.margins for r in rows if r.controller == controller]
@@ -230,5 +225,5 @@ def nominal_loops(arc: ArcGains, pid: PidGains, ident: Identification,
             loop_response(linearize_pid(pid_pack(pid)), sp, f))
 
 
-__all__ = ["CONTROLLERS", "IdentifiedPlantArcMargins", "LoopMargins", "MarginFloors", "floor_violations", "identified_plant_arc_margins",
+__all__ = ["CONTROLLERS", "IdentifiedPlantArcMargins", "LoopMargins", "MarginFloors", "floor_violations",
            "margin_plants", "margin_table", "nominal_loops", "worst"]

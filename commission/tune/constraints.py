@@ -5,7 +5,7 @@ Three kinds, in the order the optimiser evaluates them (cheapest first, see
 
 1. **Stability margins** (:func:`margin_violation`): the ARC linearised on the identified
    plant, its mode and delay included, at both of its linearisation points
-   (:func:`commission.robustness.identified_plant_arc_margins`), held to the spec's
+   (:class:`commission.robustness.IdentifiedPlantArcMargins`), held to the spec's
    ``[margins]`` floors: the loops the validation gate holds to the same floors.  Each
    shortfall is counted relative to its floor (the delay margin in samples), so that one
    sample of delay margin weighs as much as the whole phase-margin floor.
