@@ -1,7 +1,7 @@
 """Run one independent piece of output work in a child process while the pipeline goes on.
 
-``commission run`` draws the identification figures (about a tenth of its wall time, all of
-it in matplotlib, which holds the interpreter lock) while the tuning and validation run:
+``commission run`` draws the identification figures (all of it in matplotlib, which holds
+the interpreter lock) while the tuning and validation run:
 :class:`ChildJob` forks a process that calls the writer and sends back its return value.
 The child touches nothing but the files the writer writes; the parent collects the result
 (or re-raises the child's error) before it moves any file into place, and stops the child

@@ -653,9 +653,9 @@ def screening_indices(scenarios: Sequence[Scenario]) -> list[int]:
     """Indices of ``validate``'s fixed and robustness scenarios in a tuning set (the search's screen).
 
     Everything but the tune-only stand-ins (box corners, largest-force and interior payload
-    plants) and Monte-Carlo plants: the third of the tuning set's simulation on which most
-    candidates that miss the gate already miss it, so the search simulates the rest only for
-    those that pass here (:mod:`commission.tune.optimiser`).
+    plants) and Monte-Carlo plants: the part of the tuning set that validate itself runs, on
+    which a candidate far off the gate is already far off, so the search simulates the rest
+    only for the others (:mod:`commission.tune.optimiser`).
     """
     extra = {"corner", "offset", "payload", "monte_carlo"}
     return [i for i, s in enumerate(scenarios) if not extra.intersection(s.tags)]

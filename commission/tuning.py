@@ -27,9 +27,9 @@ Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
                       not simulated), free (name -> value), history (objective of every candidate,
                       evaluation order), violations and levels (each candidate's constraint
                       violation and level: 0 every constraint met, 1 the gate missed, 2 a stability
-                      margin or discrete feasibility missed), screened (each candidate missed
-                      the gate on the screening scenarios and was simulated on those only; its
-                      violation is the excess there), n_feasible, chosen_level,
+                      margin or discrete feasibility missed), screened (each candidate was far
+                      off the gate on the screening scenarios and was simulated on those only;
+                      its violation is the excess there), n_feasible, chosen_level,
                       chosen_violation, holdout_plants, holdout_failures (default-gate failures of
                       each feasible finalist on the hold-out plants, best objective first; see
                       commission.tune.select_on_holdout)
@@ -227,8 +227,9 @@ class SearchRecord:
         The chosen gains' level (0 unless no candidate met every constraint).
     chosen_violation : float
     screened : tuple of bool
-        Each candidate missed the gate on the screening scenarios and was simulated on those
-        only (its violation is the excess there).
+        Each candidate was far off the gate on the screening scenarios
+        (:data:`commission.tune.optimiser.SCREEN_EXCESS`) and was simulated on those only (its
+        violation is the excess there).
     """
 
     n_evaluations: int

@@ -73,10 +73,10 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     states span fifteen decades of scale) and reduced once to complex Schur form
     ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
     every frequency at once by back-substitution: O(n^2) array operations over the grid
-    instead of a dense LU per frequency, as accurate (about 1e-13 relative on the linearised
-    ARC against 40-digit arithmetic) and about twenty times faster.  Without the balancing
-    the Schur form of that badly scaled matrix loses eight digits; an eigen-decomposition is
-    useless here (near-repeated poles at z = 1).
+    instead of a dense LU per frequency (tests/test_margins.py holds it to the dense solve;
+    docs/robustness.md has the timing).  The balancing matters: the unitary reduction's
+    rounding is relative to the largest entry, which without it swamps the small ones.  An
+    eigen-decomposition would not do: the linearised ARC has near-repeated poles at z = 1.
     """
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
     z = np.exp(1j * 2.0 * np.pi * f * Ts)

@@ -24,13 +24,12 @@ generations than a tuning budget of about a hundred simulations allows for its m
 to settle.  The constraints are evaluated cheapest first: a candidate that misses a margin
 floor (a linearisation, milliseconds) is not simulated at all, and one whose gate excess on
 validate's own fixed and robustness scenarios (:func:`commission.scenarios.screening_indices`,
-a third of the simulation) already exceeds :data:`SCREEN_EXCESS` is not simulated on the rest
+the smaller part of the simulation) already exceeds :data:`SCREEN_EXCESS` is not simulated on the rest
 (:attr:`Candidate.screened`); it ranks after every fully simulated candidate of its level.
 The excess only grows with more scenarios, so the order among candidates whose whole gate
 excess is at most :data:`SCREEN_EXCESS` -- the ones near feasibility, where the ranking steers
-the search -- is exactly the order without the screen.  (Screening out every candidate with
-any excess on the screen ranked near-feasible candidates that barely missed it below far ones
-that passed it, and the search found fewer feasible gains on the must-show axes.)
+the search -- is exactly the order without the screen.  (A screen on any excess would rank a
+candidate that barely misses the screen below one that passes it and misses the rest by far.)
 
 The winner is the best feasible candidate by validate's default gate on plants the search
 never saw (:class:`commission.tune.objective.HoldoutGate`, :func:`select_on_holdout`): the
@@ -195,7 +194,8 @@ class Problem:
         self.reference, self.gate, self.feasible = list(reference), gate, feasible
         self.floors = MarginFloors.from_spec(spec)
         self.screen = screening_indices(ev.scenarios)
-        self.rest = [i for i in range(len(ev.scenarios)) if i not in set(self.screen)]
+        on_screen = set(self.screen)
+        self.rest = [i for i in range(len(ev.scenarios)) if i not in on_screen]
         self.margins = IdentifiedPlantArcMargins(ident, spec)
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
