@@ -650,6 +650,8 @@ def identify_legs(
     -------
     LegsOutcome
     """
+    if not paths:
+        raise UsageError("identify: no log file given (a friction test needs one file per leg)")
     check_input_gain(input_gain, u_unit)
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
@@ -825,6 +827,8 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
     IdentifyOutcome or LegsOutcome
     """
     paths = list(paths)
+    if not paths:
+        raise UsageError("identify: no log file given")
     if len(paths) == 1:
         return identify_log(paths[0], validate_on=list(validate_on) or None, ripple_pitch=ripple_pitch,
                             resample=resample, **options)  # type: ignore[arg-type]

@@ -112,7 +112,8 @@ def test_no_subset_of_the_files_gives_anything_but_a_result_or_a_named_refusal(d
     files = expand_log_paths([str(_folder(drive))])
     by = {f.rsplit("/", 1)[1][:-4]: f for f in files}
     subsets = [[by[n], by["n" + n]] for n in by if not n.startswith("n") and "n" + n in by]  # direction pairs
-    subsets += [files, [f for f in files if "/n" in f], [f for f in files if "/n" not in f]]
+    negative = [f for f in files if Path(f).name.startswith("n")]  # n10.csv: the leg at -10 rpm
+    subsets += [files, negative, [f for f in files if f not in negative]]
     subsets += [expand_log_paths([str(TRO2021_DIR / f"driveNo{drive}" / "start_stop")]) + files[:1]]
     outcomes = []
     for sub in subsets:
@@ -192,6 +193,14 @@ def test_too_few_speeds_is_a_named_refusal(fake_loader):
         fake_loader[lg.source] = lg
     with pytest.raises(CommissionError, match=r"distinct speeds forward and 2 backward"):
         identify_legs(list(fake_loader), friction="coulomb")
+
+
+def test_an_empty_list_of_logs_is_a_named_refusal():
+    from commission.identification import identify_files
+
+    for identify in (identify_legs, identify_files):
+        with pytest.raises(UsageError, match=r"^identify: no log file given"):
+            identify([])
 
 
 def test_fix_parses_known_parameters_only():
