@@ -2,3 +2,56 @@
 
 Never imports typer, h5py or matplotlib.
 """
+
+from __future__ import annotations
+
+import os as _os
+
+
+def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth.",)) -> None:
+    """Remove numba's on-disk kernels when any source of this package changed.
+
+    numba keys a cached kernel on the time stamp of the file that defines it, not on
+    the jitted functions it inlines from other modules: after an edit of ``plant.py``,
+    ``simulate.py``'s cached closed loop would still run the old plant.  A sha256 over
+    every source of this package is kept beside the cache; when it differs, the cached
+    kernels of this package and of the modules that inline it (``commission.synth``)
+    are dropped and recompiled on first use.  Costs one read of the sources per
+    import.  A read-only install (where numba cannot cache either) is left alone.
+    """
+    import hashlib
+    import os
+
+    try:
+        digest = hashlib.sha256()
+        for name in sorted(os.listdir(here)):
+            if name.endswith(".py"):
+                with open(os.path.join(here, name), "rb") as fh:
+                    digest.update(name.encode() + b"\0" + fh.read() + b"\0")
+        stamp = os.path.join(here, "__pycache__", "kernel-sources.sha256")
+        try:
+            with open(stamp, encoding="ascii") as fh:
+                if fh.read().strip() == digest.hexdigest():
+                    return
+        except (OSError, UnicodeDecodeError):
+            pass
+        caches = [os.path.join(here, "__pycache__"), os.path.join(os.path.dirname(here), "__pycache__")]
+        for cache in caches:
+            if not os.path.isdir(cache):
+                continue
+            for f in os.listdir(cache):
+                if f.endswith((".nbi", ".nbc")) and (cache == caches[0] or f.startswith(dependants)):
+                    try:
+                        os.remove(os.path.join(cache, f))
+                    except FileNotFoundError:
+                        pass  # another process dropped it first
+        os.makedirs(caches[0], exist_ok=True)
+        tmp = f"{stamp}.{os.getpid()}"
+        with open(tmp, "w", encoding="ascii") as fh:
+            fh.write(digest.hexdigest() + "\n")
+        os.replace(tmp, stamp)
+    except OSError:
+        return
+
+
+drop_stale_kernel_cache(_os.path.dirname(_os.path.abspath(__file__)))

@@ -1,0 +1,56 @@
+"""The numba kernel cache is dropped when any source of the controllers package changes.
+
+numba keys a cached kernel on its own file's time stamp only; a kernel that inlines a
+function of another module would otherwise keep stale machine code after that module
+is edited (commission.controllers.drop_stale_kernel_cache)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from commission.controllers import drop_stale_kernel_cache
+
+
+def _kernels(folder: Path) -> list[str]:
+    return sorted(f.name for f in folder.glob("*.nb*"))
+
+
+def _layout(tmp_path: Path) -> tuple[Path, Path, Path]:
+    pkg = tmp_path / "controllers"
+    (pkg / "__pycache__").mkdir(parents=True)
+    (tmp_path / "__pycache__").mkdir()
+    (pkg / "plant.py").write_text("def f(x):\n    return x\n")
+    (pkg / "simulate.py").write_text("def g(x):\n    return x\n")
+    return pkg, pkg / "__pycache__", tmp_path / "__pycache__"
+
+
+def _cache_some(own: Path, parent: Path) -> None:
+    for f in (own / "simulate.g-1.py311.nbi", own / "simulate.g-1.py311.1.nbc", parent / "synth.h-3.py311.nbi",
+              parent / "other.k-2.py311.nbi"):
+        f.write_bytes(b"x")
+
+
+def test_an_unchanged_package_keeps_its_kernels_and_an_edit_drops_them_and_their_dependants(tmp_path):
+    pkg, own, parent = _layout(tmp_path)
+    drop_stale_kernel_cache(str(pkg))  # first sight: no stamp yet, nothing to keep
+    _cache_some(own, parent)
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(own) == ["simulate.g-1.py311.1.nbc", "simulate.g-1.py311.nbi"]
+    assert _kernels(parent) == ["other.k-2.py311.nbi", "synth.h-3.py311.nbi"]
+
+    (pkg / "plant.py").write_text("def f(x):\n    return 2 * x\n")  # an inlined callee changes
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(own) == []
+    assert _kernels(parent) == ["other.k-2.py311.nbi"]  # a module that does not inline the package stays
+
+    _cache_some(own, parent)
+    drop_stale_kernel_cache(str(pkg))  # recompiled against the new source: kept from now on
+    assert _kernels(own) == ["simulate.g-1.py311.1.nbc", "simulate.g-1.py311.nbi"]
+
+
+def test_a_stamp_that_cannot_be_written_does_not_stop_the_import(tmp_path):
+    pkg, own, parent = _layout(tmp_path)
+    (own / "kernel-sources.sha256").mkdir()  # cannot be written as a file: the guard gives up quietly
+    _cache_some(own, parent)
+    drop_stale_kernel_cache(str(pkg))
+    assert (own / "kernel-sources.sha256").is_dir()
