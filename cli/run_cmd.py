@@ -13,7 +13,7 @@ from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.options import Friction, identify_options, opt
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.cli.validate_cmd import SIGN_KEY_HELP, print_summary
+from commission.cli.validate_cmd import SIGN_KEY_HELP, print_next_steps, print_summary
 from commission.controller_config import load_sign_key
 from commission.tune import pid_pole_note
 from commission.pipeline import run_all
@@ -64,6 +64,7 @@ def run_command(
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix)
+    key = load_sign_key(sign_key)
     stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
     with StageProgress(err) as bar:
 
@@ -72,7 +73,7 @@ def run_command(
 
         outcome = run_all(logs, out_dir, identify=o, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
-                          sign_key=load_sign_key(sign_key), ident_figures=identification_plots)
+                          sign_key=key, ident_figures=identification_plots)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
         err.print(f"warning: {w}", highlight=False)
     pid_note = pid_pole_note(outcome.validation.tuning)
@@ -82,6 +83,7 @@ def run_command(
     print_summary(v.result)
     for p in (outcome.ident, outcome.tuning, *v.written):
         typer.echo(f"wrote {p}")
+    print_next_steps(v.result, v.tuning, out_dir, Path(outcome.tuning), signed=key is not None)
     if not v.result.passed:
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

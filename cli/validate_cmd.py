@@ -4,7 +4,7 @@ write the report and (gate passed) controller.json."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 from rich.console import Console
@@ -13,6 +13,7 @@ from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.controller_config import load_sign_key
+from commission.next_steps import next_steps
 from commission.report import summary_text
 from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
 
@@ -30,6 +31,13 @@ def print_summary(result: ValidationResult) -> None:
     typer.echo(f"Validation: ARC vs PID baseline on {len(result.runs)} scenarios "
                f"({result.elapsed:.1f} s on {result.workers} threads)")
     typer.echo(summary_text(result))
+
+
+def print_next_steps(result: ValidationResult, tuning: Any, out_dir: Path, tuning_path: Path, *,
+                     signed: bool) -> None:
+    """What to do next (commission.next_steps): the export and a first test, or the changes that pass."""
+    typer.echo(next_steps(result, tuning, out_dir=str(out_dir), tuning_path=str(tuning_path),
+                          signed=signed).text())
 
 
 @app.command("validate")
@@ -59,6 +67,7 @@ def validate_command(
     print_summary(outcome.result)
     for p in outcome.written:
         typer.echo(f"wrote {p}")
+    print_next_steps(outcome.result, outcome.tuning, out_dir, tuning, signed=key is not None)
     if not outcome.result.passed:
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

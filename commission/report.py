@@ -14,6 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from commission.next_steps import next_steps
 from commission.artifacts import mass_wording
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
@@ -427,6 +428,7 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
         for line in failure_lines(v):
             L.append(f"- {line}")
     L.append("")
+    L.extend(next_steps(result, tuning, tuning_path=sources.get("tuning") or "tuning.json").markdown())
     L.append("## Axis and controller")
     L.append("")
     L.append(f"- tuning: `{sources.get('tuning') or 'tuning.json'}`; gate: `{sources.get('gate') or 'defaults'}`")

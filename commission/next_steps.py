@@ -1,0 +1,201 @@
+"""What to do after ``validate`` (and ``run``): the next step, always said.
+
+On a pass, the export command for the target and a first, reduced-speed test on the
+machine with the signals to watch.  On a failure, the two or three changes that would
+make the gate pass, with values:
+
+* a criterion that ``gate.toml`` may set (e_F, e_M, e_rms, c_u, the ARC-vs-PID factor)
+  and that failed on runs that did not diverge: the limit this controller meets, the
+  worst value measured on the same scenarios rounded up with a 5 % allowance.
+  Validation is deterministic for a given ``--seed`` and ``--monte-carlo``, so
+  validating again with that ``gate.toml`` passes those checks; whether the looser
+  limit is acceptable for the machine is the engineer's call, and the text says so;
+* a floor that no ``gate.toml`` lowers (divergence, the command reaching u_max, the
+  stability margins): what to change in the identification or the tuning spec, with
+  the values that bound it (the envelope's acceleration scaled by the command's
+  headroom, a narrower payload box).  These cannot be promised to pass: they change
+  the controller, which is then validated anew.
+
+The texts are built here once and printed by the CLI and written into ``report.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+#: Criteria a gate.toml sets, with how their suggested limit is written.
+ADJUSTABLE = ("e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms")
+#: Allowance over the worst measured value for a suggested limit.
+ALLOWANCE = 1.05
+#: Fraction of the validated envelope's speed and acceleration for the first test on the machine.
+FIRST_TEST_FRACTION = 0.25
+
+
+@dataclass(frozen=True)
+class NextSteps:
+    """The next step after a validation.
+
+    Attributes
+    ----------
+    lines : tuple of str
+        Plain sentences (commands in backticks), most useful first.
+    gate_toml : str
+        On a failure that loosening the gate would cure: the ``[gate]`` table that
+        passes with this controller ("" otherwise).
+    """
+
+    lines: tuple[str, ...]
+    gate_toml: str = ""
+
+    def text(self) -> str:
+        """The console form: a heading and one numbered line each."""
+        head = "next:"
+        body = [f"  {i}. {line}" for i, line in enumerate(self.lines, 1)]
+        table = [f"       {t}" for t in self.gate_toml.splitlines()]
+        return "\n".join([head, *body[:1], *table, *body[1:]])
+
+    def markdown(self) -> list[str]:
+        """The report's section."""
+        out = ["## Next steps", ""]
+        out += [f"{i}. {line}" for i, line in enumerate(self.lines, 1)]
+        if self.gate_toml:
+            out += ["", "```toml", self.gate_toml.rstrip("\n"), "```"]
+        out.append("")
+        return out
+
+
+def _round_up(x: float, digits: int = 2) -> float:
+    """``x`` rounded up to ``digits`` significant digits (x > 0)."""
+    if x <= 0 or not math.isfinite(x):
+        return x
+    e = math.floor(math.log10(x)) - (digits - 1)
+    q = 10.0 ** e
+    return math.ceil(x / q - 1e-9) * q
+
+
+def _length_literal(metres: float, lsb: float, q_unit: str) -> str:
+    """A gate length as gate.toml takes it: micrometres on a linear axis, encoder steps otherwise."""
+    if q_unit == "m":
+        return f'"{_round_up(metres * 1e6):.6g} um"'
+    return f'"{_round_up(metres / lsb):.6g} lsb"'
+
+
+def _length_text(metres: float, q_unit: str) -> str:
+    return f"{metres * 1e6:.3g} um" if q_unit == "m" else f"{metres:.3g} {q_unit}"
+
+
+def _worst(checks: Sequence[Any]) -> Any:
+    return max(checks, key=lambda c: c.value)
+
+
+def gate_changes(verdict: Any, q_unit: str = "m") -> tuple[list[str], str]:
+    """(sentences, gate.toml text) for the failed criteria that gate.toml may loosen.
+
+    A criterion with a failure on a diverged run is left out: no limit cures a divergence.
+    """
+    limits = verdict.limits
+    sentences: list[str] = []
+    toml: list[str] = []
+    for key in ADJUSTABLE:
+        checks = [c for c in verdict.checks if c.criterion == key]
+        failed = [c for c in checks if not c.passed]
+        if not failed or any(not math.isfinite(c.value) for c in checks):
+            continue
+        w = _worst(checks)
+        target = w.value * ALLOWANCE
+        if key in ("e_F", "e_M", "e_rms"):
+            lit = _length_literal(target, limits.lsb, q_unit)
+            shown = _length_text(w.value, q_unit)
+        else:
+            lit = f"{_round_up(target, 3):.6g}"
+            shown = f"{w.value:.3g}"
+        toml.append(f"{key} = {lit}")
+        sentences.append(f"`{key} = {lit}` (worst {shown} on {w.scenario}; {len(failed)} of {len(checks)} "
+                         "checks failed)")
+    text = ("[gate]\n" + "\n".join(toml) + "\n") if toml else ""
+    return sentences, text
+
+
+def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u") -> list[str]:
+    """Sentences for failed floors (divergence, command at u_max, margins): what to change in the tuning."""
+    out: list[str] = []
+    spec = tuning.spec
+    by = {}
+    for c in verdict.failures:
+        by.setdefault(c.criterion, []).append(c)
+    if "u_peak" in by:
+        w = _worst(by["u_peak"])
+        # The command at the envelope's peak acceleration is about M a: scale a_max by the headroom.
+        a_new = _round_up(spec.a_max * 0.8 * spec.u_max / max(w.value, spec.u_max), 2)
+        out.append(f"the command reached u_max = {spec.u_max:g} {u_unit} on {len(by['u_peak'])} scenarios "
+                   f"(worst {w.scenario}): tune again with a gentler envelope, `[trajectory] a_max = {a_new:g}` "
+                   f"({q_unit}/s^2; now {spec.a_max:g}) in spec.toml, or a narrower payload box "
+                   "(`commission identify --payload-max ...`) if the heaviest load is not needed")
+    if "divergence" in by:
+        names = sorted({c.scenario for c in by["divergence"]})
+        shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        out.append(f"{len(names)} scenarios diverged ({shown}): tune again with a larger search "
+                   f"(`[tune] budget = {min(10000, 2 * spec.budget)}` in spec.toml, now {spec.budget}) "
+                   "or a narrower payload box; no gate setting deploys a diverging controller")
+    if "margins" in by:
+        w = by["margins"][0]
+        out.append(f"stability margins below the floors ({w.scenario}: {w.detail}): tune again "
+                   f"(`[tune] budget = {min(10000, 2 * spec.budget)}`), and if the identified mode or delay "
+                   "is uncertain, record a log with a broadband segment so that the model is backed up to "
+                   "the loop's crossover")
+    return out
+
+
+def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str = "tuning.json",
+               signed: bool = False) -> NextSteps:
+    """The next step after ``validate`` (module docstring).
+
+    Parameters
+    ----------
+    result : ValidationResult
+    tuning : Tuning
+        The tuning validated (its spec gives the envelope and u_max).
+    out_dir : str
+        Where validate wrote (for the export command).
+    tuning_path : str
+        The tuning.json validated (for ``export --tuning``).
+    signed : bool
+        controller.json was signed (the export command then names the key).
+    """
+    q = result.units.get("q", "m")
+    u = result.units.get("u", "u")
+    spec = tuning.spec
+    verdict = result.verdict
+    if verdict.passed:
+        key = " --sign-key site.key" if signed else ""
+        f = FIRST_TEST_FRACTION
+        lines = (
+            f"export for the drive: `commission export {out_dir}/controller.json --target c "
+            f"--out-dir {out_dir}/deploy --tuning {tuning_path}{key}` (or `--target st`); build it and run "
+            "`./replay test_vectors.csv` on the target: it must report 0 difference",
+            f"first test on the machine, at {f:.0%} of the validated envelope: moves within the travel "
+            f"{spec.travel:g} {q} at v <= {f * spec.v_max:.3g} {q}/s and a <= {f * spec.a_max:.3g} {q}/s^2, the "
+            f"drive limited to u_max = {spec.u_max:g} {u}; log y, q_d, u and the fault flag every sample; "
+            "stop (disable the drive) on a fault, a command that reaches u_max, or a tracking error "
+            f"above the gate's e_M = {_length_text(verdict.limits.e_M, q)}; then raise the speed in steps "
+            "to the envelope",
+            "keep report.md and controller.json together: the report is the evidence the controller rests on",
+        )
+        return NextSteps(lines)
+    sentences, toml = gate_changes(verdict, q)
+    floors = floor_changes(verdict, tuning, q, u)
+    lines: list[str] = []
+    if toml:
+        lines.append("if the machine allows the looser limits, set these keys in the gate.toml and validate "
+                     "again (same --seed and --monte-carlo; this controller then passes them): "
+                     + ", ".join(sentences))
+    lines.extend(floors)
+    if toml:
+        lines.append("or keep the gate and ask more of the controller: tune again with a larger search or a "
+                     "narrower payload box, then validate again")
+    return NextSteps(tuple(lines[:3]), toml)
+
+
+__all__ = ["NextSteps", "next_steps", "gate_changes", "floor_changes"]
