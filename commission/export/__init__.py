@@ -12,8 +12,17 @@
 ``<kind>`` is ``arc`` (controller.json) or ``pid`` (the PID baseline validate
 simulated beside it, read from the tuning.json whose sha256 controller.json
 records).  The controller is loaded exactly as :func:`commission.runtime.load_controller`
-loads it, so ``export`` refuses what the runtime refuses; every input and the
-output folder are checked before anything is written.
+loads it, the site's signing key included, so ``export`` refuses what the
+runtime refuses; every input and the output folder are checked before anything
+is written, and the files are written as every command writes them
+(:class:`commission.files.Outputs`: locked, staged, moved into place together).
+
+The generated files are code a compiler or PLC IDE reads, so no string of
+controller.json is copied into them unchecked (:mod:`commission.export.text`):
+provenance fields must have their fixed form or the export is refused, the
+unit is escaped for the language it lands in, numbers are formatted here.
+A checksum or a signature does not make a string safe to compile: the one is
+recomputed by anyone, the other only says who emitted the file.
 
 Test vectors: three closed-loop scenarios of up to :data:`VECTOR_STEPS`
 samples each, simulated with the compiled step and replayed through the
@@ -170,7 +179,8 @@ def _params_comment(config: ControllerConfig, kind: str, p: np.ndarray, tuning_s
     esc = c_comment if lang == "c" else st_comment
     lines = [
         f"Packed parameters of the {kind.upper()} controller validated by commission validate.",
-        f"Sample rate {float(config.sample_rate)!r} Hz (period {float(config.gains.Ts)!r} s): call the step exactly then.",
+        f"Sample rate {float(config.sample_rate)!r} Hz (period {float(config.gains.Ts)!r} s): "
+        f"call the step exactly then.",
         f"Units: y, qd in m, dqd in m/s, ddqd in m/s^2; command in {esc(config.units.get('u', 'u-unit'))}.",
         f"controller.json sha256 checksum: {ck}",
         f"provenance: tuning_sha256 {pr['tuning_sha256']}, ident_sha256 {pr['ident_sha256']},",

@@ -27,6 +27,12 @@ def fb_name(t: Target) -> str:
 
 
 def st_source(t: Target, p: np.ndarray, comment: Sequence[str]) -> str:
+    """The ``.st`` file: the function block, its methods and ``comment`` in its header comment.
+
+    Each comment line must already be escaped (:func:`commission.export.text.st_comment`);
+    it is checked once more here, so that a line that could close the ``(* ... *)`` comment
+    fails the export rather than reaching a PLC.
+    """
     tr = StTranslator(t.module, t.functions, {"p": (t.np_name, True), "s": (t.ns_name, False)}, "")
     methods = tr.translate()
     lay = _layout(t)
