@@ -23,7 +23,9 @@ from __future__ import annotations
 import dataclasses
 import errno
 import json
+import signal
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -417,3 +419,39 @@ def test_the_export_escapes_the_unit_in_every_file_it_names(base):
     assert sum(MARK in t for t in files.values()) == 2
     st_text = _render(base, base["config"], "arc", "st")["FB_CommissionArc.st"]
     assert f"command in {MARK}." in st_text
+
+
+def _commission(*args, cwd):
+    """The installed console script (as a user runs it), else the same entry point through python."""
+    import sys
+
+    script = Path(sys.executable).parent / "commission"
+    head = [str(script)] if script.is_file() else [
+        sys.executable, "-c", "import sys; sys.argv[0] = 'commission'; from commission.cli.main import main; main()"]
+    return subprocess.Popen([*head, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=cwd)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_an_export_leaves_nothing_or_the_whole_set(controller, tmp_path, sig):
+    """Issue 29 found 3 of 6 files after a Ctrl-C: now the folder is empty (exit 128 + sig) or complete."""
+    t0 = time.perf_counter()
+    p = _commission("export", controller, "--out-dir", tmp_path / "ref", cwd=tmp_path)
+    assert p.wait(timeout=300) == 0, p.communicate()
+    took = time.perf_counter() - t0
+    full = sorted(output_names("arc"))
+    codes = []
+    for k, frac in enumerate((0.3, 0.6, 0.9)):
+        out = tmp_path / f"out{k}"
+        p = _commission("export", controller, "--out-dir", out, cwd=tmp_path)
+        time.sleep(frac * took)
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=300)
+        assert "Traceback" not in err, err
+        names = sorted(q.name for q in out.iterdir()) if out.exists() else []
+        assert p.returncode in (0, 128 + sig, -sig), (p.returncode, err)
+        # 0 or -sig (the signal came as the interpreter shut down after the move): the set is in place
+        assert names == full if p.returncode in (0, -sig) else names in ([], full), (frac, p.returncode, names)
+        codes.append(p.returncode)
+        assert [q.name for q in tmp_path.iterdir() if ".tmp-" in q.name or q.name.endswith(".lock")] == []
+    assert 128 + sig in codes, codes  # at least one signal landed while the export ran
