@@ -32,10 +32,13 @@ def export_command(
     controller.json reaches the generated code unchecked: provenance strings must have their fixed form,
     the unit is escaped. The files are written under a lock and moved into place together.
     """
-    from commission.controller_config import load_sign_key
+    import os
+
+    from commission.controller_config import SIGN_KEY_ENV, load_sign_key
     from commission.export import export_c
 
     key = load_sign_key(sign_key)
+    key_file = sign_key if sign_key is not None else (os.environ.get(SIGN_KEY_ENV) if key is not None else None)
     for p in export_c(controller, out_dir, kind=kind, tuning_path=tuning, force=force, target=target, key=key,
-                      require_signature=require_signature):
+                      require_signature=require_signature, inputs=(key_file,)):
         typer.echo(f"wrote {p}")

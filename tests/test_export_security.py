@@ -455,3 +455,16 @@ def test_a_signal_during_an_export_leaves_nothing_or_the_whole_set(controller, t
         codes.append(p.returncode)
         assert [q.name for q in tmp_path.iterdir() if ".tmp-" in q.name or q.name.endswith(".lock")] == []
     assert 128 + sig in codes, codes  # at least one signal landed while the export ran
+
+
+def test_the_key_file_cannot_be_an_output(base, tmp_path):
+    """A key file named like an output (README.md) in --out-dir is never overwritten, even with --force."""
+    out = tmp_path / "out"
+    out.mkdir()
+    key = out / "README.md"
+    key.write_bytes(KEY)
+    path = tmp_path / "signed.json"
+    write_json_atomic(path, base["config"].to_dict(sign_key=KEY))
+    for extra, env in ((["--sign-key", str(key)], None), ([], {SIGN_KEY_ENV: str(key)})):
+        r = runner.invoke(app, ["export", str(path), "--out-dir", str(out), "--force", *extra], env=env)
+        assert r.exit_code == 2 and "is also an input" in r.output and key.read_bytes() == KEY

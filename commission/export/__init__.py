@@ -43,7 +43,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -252,7 +252,8 @@ disable the drive or engage the brake on the fault flag, since 0 does not hold a
 
 def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, kind: str = "arc",
              tuning_path: str | os.PathLike[str] | None = None, force: bool = False,
-             target: str = "c", key: bytes | None = None, require_signature: bool = False) -> list[Path]:
+             target: str = "c", key: bytes | None = None, require_signature: bool = False,
+             inputs: Sequence[str | os.PathLike[str] | None] = ()) -> list[Path]:
     """Write the C export of a validated controller (module docstring).
 
     Everything that can be refused is checked before anything is written,
@@ -289,6 +290,8 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     require_signature : bool
         The site exports only signed controllers: without ``key`` the export
         is refused (an unsigned file with a key is refused by the load).
+    inputs : sequence of path
+        Further files the command read (the key file), which no output may replace.
 
     Returns
     -------
@@ -339,7 +342,7 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
         p = pid_pack(tuning.pid)
     names = output_names(kind, target)
     _refuse_dangling_link(out_dir)
-    outputs = Outputs(force=force, inputs=(cpath, tpath))
+    outputs = Outputs(force=force, inputs=(cpath, tpath, *inputs))
     out = outputs.add_dir(out_dir, names, "--out-dir")
     outputs.open()  # locked, and proved writable, before the vectors are simulated
     moving = False
