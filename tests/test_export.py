@@ -45,7 +45,7 @@ LSB = 1e-6
 
 
 def _config(g):
-    prov = ControllerProvenance("a" * 64, "b" * 64, "c" * 64, "test", "2001-06-01T00:00:00Z")
+    prov = ControllerProvenance("a" * 64, "b" * 64, "c" * 64, "0.1.0", "2001-06-01T00:00:00Z")
     return ControllerConfig(gains=g, sample_rate=1.0 / g.Ts, units={"u": "V", "q": "m"}, validated={},
                             provenance=prov)
 

@@ -12,8 +12,17 @@
 ``<kind>`` is ``arc`` (controller.json) or ``pid`` (the PID baseline validate
 simulated beside it, read from the tuning.json whose sha256 controller.json
 records).  The controller is loaded exactly as :func:`commission.runtime.load_controller`
-loads it, so ``export`` refuses what the runtime refuses; every input and the
-output folder are checked before anything is written.
+loads it, the site's signing key included, so ``export`` refuses what the
+runtime refuses; every input and the output folder are checked before anything
+is written, and the files are written as every command writes them
+(:class:`commission.files.Outputs`: locked, staged, moved into place together).
+
+The generated files are code a compiler or PLC IDE reads, so no string of
+controller.json is copied into them unchecked (:mod:`commission.export.text`):
+provenance fields must have their fixed form or the export is refused, the
+unit is escaped for the language it lands in, numbers are formatted here.
+A checksum or a signature does not make a string safe to compile: the one is
+recomputed by anyone, the other only says who emitted the file.
 
 Test vectors: three closed-loop scenarios of up to :data:`VECTOR_STEPS`
 samples each, simulated with the compiled step and replayed through the
@@ -34,18 +43,20 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
-from commission.controller_config import ControllerConfig
+from commission.controller_config import SIGN_KEY_ENV, ControllerConfig
 from commission.controllers.arc import arc_pack
 from commission.controllers.pid import pid_pack
 from commission.controllers.plant import plant_vector
 from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
-from commission.errors import UsageError
+from commission.errors import CommissionError, UsageError
 from commission.export import c_target
 from commission.export.c_target import CFLAGS, TARGETS, Target
+from commission.export.text import c_comment, check_comment_line, checked_provenance, markdown_code, st_comment
+from commission.files import Outputs
 from commission.jsonio import read_json, sha256_file, write_text_atomic
 from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps
 from commission.spec import default_spec
@@ -153,23 +164,40 @@ def _banner(kind: str) -> str:
             f" * arithmetic identical to what commission validate simulated. */")
 
 
-def _params_comment(config: ControllerConfig, kind: str, p: np.ndarray, tuning_sha: str | None) -> list[str]:
-    pr = config.provenance
-    ck = config.to_dict()["checksum"]["value"]
-    return [
+def _params_comment(config: ControllerConfig, kind: str, p: np.ndarray, tuning_sha: str | None, *,
+                    lang: str = "c", source: str = "controller.json") -> list[str]:
+    """The comment lines of the parameters (C ``_params.c``, ST header) for the language ``lang``.
+
+    No string of controller.json is copied unchecked (:mod:`commission.export.text`): the
+    provenance fields are checked against their fixed forms (a SchemaError otherwise), the unit
+    is escaped for ``lang``, numbers are formatted here, and every line is checked last.
+    """
+    pr = checked_provenance(config.provenance, source)
+    ck = config.to_dict()["checksum"]["value"]  # recomputed here: a sha256 hex digest
+    if tuning_sha is not None and not _is_sha256(tuning_sha):
+        raise RuntimeError(f"export bug: tuning sha256 {tuning_sha[:80]!r} is not a hex digest")
+    esc = c_comment if lang == "c" else st_comment
+    lines = [
         f"Packed parameters of the {kind.upper()} controller validated by commission validate.",
-        f"Sample rate {config.sample_rate!r} Hz (period {config.gains.Ts!r} s): call the step exactly then.",
-        f"Units: y, qd in m, dqd in m/s, ddqd in m/s^2; command in {config.units.get('u', 'u-unit')}.",
+        f"Sample rate {float(config.sample_rate)!r} Hz (period {float(config.gains.Ts)!r} s): "
+        f"call the step exactly then.",
+        f"Units: y, qd in m, dqd in m/s, ddqd in m/s^2; command in {esc(config.units.get('u', 'u-unit'))}.",
         f"controller.json sha256 checksum: {ck}",
-        f"provenance: tuning_sha256 {pr.tuning_sha256}, ident_sha256 {pr.ident_sha256},",
-        f"  log_sha256 {pr.log_sha256}, tool {pr.tool_version}, validated {pr.created_utc}",
+        f"provenance: tuning_sha256 {pr['tuning_sha256']}, ident_sha256 {pr['ident_sha256']},",
+        f"  log_sha256 {pr['log_sha256']}, tool {pr['tool_version']}, validated {pr['created_utc']}",
         *([f"PID gains read from tuning.json (sha256 {tuning_sha}, as recorded in controller.json)"]
           if kind == "pid" else []),
         f"{p.shape[0]} doubles; each written so that it reads back exactly.",
     ]
+    return [check_comment_line(line, lang) for line in lines]
+
+
+def _is_sha256(text: str) -> bool:
+    return len(text) == 64 and all(c in "0123456789abcdef" for c in text)
 
 
 def readme(kind: str, config: ControllerConfig, target: Target, with_tuning: bool) -> str:
+    """README.md of a C export; the one free text it carries, the unit, as an escaped code span."""
     b = target.base
     up = b.upper()
     return f"""# {b}: the validated {kind.upper()} step in C99
@@ -178,8 +206,8 @@ Generated by `commission export --target c --controller {kind}` from the compile
 step that `commission validate` simulated (translated statement by statement, same order of
 operations, same packed layout, same fault logic). Do not edit; regenerate.
 
-Sample rate: {config.sample_rate!r} Hz (period {config.gains.Ts!r} s). Units: positions in m,
-velocity m/s, acceleration m/s^2, command in {config.units.get('u', 'u-unit')}.
+Sample rate: {float(config.sample_rate)!r} Hz (period {float(config.gains.Ts)!r} s). Units: positions in m,
+velocity m/s, acceleration m/s^2, command in {markdown_code(config.units.get('u', 'u-unit'))}.
 
 ## Files
 
@@ -209,7 +237,7 @@ command is then no longer the one that was validated. The same holds for other c
     static {b}_state axis;                        /* state: changes every sample */
     /* at enable, axis at rest: */
     {b}_init(&axis, &{b}_params_validated, read_encoder_m());
-    /* every {config.gains.Ts!r} s, in the servo interrupt: */
+    /* every {float(config.gains.Ts)!r} s, in the servo interrupt: */
     double u = {b}_step(&axis, &{b}_params_validated, read_encoder_m(), qd, dqd, ddqd);
     if ({b}_fault(&axis)) {{ disable_drive(); /* reason: {b}_fault_reason({b}_fault(&axis)) */ }}
     else write_dac(u);                            /* hold until the next sample */
@@ -224,8 +252,19 @@ disable the drive or engage the brake on the fault flag, since 0 does not hold a
 
 def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *, kind: str = "arc",
              tuning_path: str | os.PathLike[str] | None = None, force: bool = False,
-             target: str = "c") -> list[Path]:
+             target: str = "c", key: bytes | None = None, require_signature: bool = False,
+             inputs: Sequence[str | os.PathLike[str] | None] = ()) -> list[Path]:
     """Write the C export of a validated controller (module docstring).
+
+    Everything that can be refused is checked before anything is written,
+    in this order: the flags, the controller (loaded as
+    :func:`commission.runtime.load_controller` loads it, ``key`` included),
+    its provenance strings (:func:`commission.export.text.checked_provenance`),
+    the tuning, and the output folder.  The files are then written the way
+    every command writes (:class:`commission.files.Outputs`): under a lock on
+    the folder, into a staging folder beside it, and moved into place
+    together, so that an interruption (Ctrl-C, SIGTERM) or a write error (a
+    full disk) leaves the folder as it was, with no staging folder behind.
 
     Parameters
     ----------
@@ -244,6 +283,15 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     target : {"c", "st"}
         C99 (module docstring), or the IEC 61131-3 Structured Text function
         block of :mod:`commission.export.st_target` (one ``.st`` file).
+    key : bytes, optional
+        The site's signing key (:func:`commission.controller_config.load_sign_key`):
+        controller.json must carry a valid HMAC-SHA256 signature under it, as
+        ``load_controller(path, key=key)`` requires.
+    require_signature : bool
+        The site exports only signed controllers: without ``key`` the export
+        is refused (an unsigned file with a key is refused by the load).
+    inputs : sequence of path
+        Further files the command read (the key file), which no output may replace.
 
     Returns
     -------
@@ -253,22 +301,26 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     Raises
     ------
     InputFileError, SchemaError, UsageError
-        A controller the runtime refuses, a tuning.json that is not the one
-        validated, ``pid`` without it, or an existing output without ``force``;
-        nothing is written.
+        A controller the runtime refuses (a bad or missing signature under
+        ``key`` included), a provenance string not of its form, a tuning.json
+        that is not the one validated, ``pid`` without it, an existing output
+        without ``force``, an output folder in use by another process or that
+        cannot be written (a full disk); nothing is written.
     """
-    from commission.validate import check_out_dir  # the one output-folder policy
-
     if target not in ("c", "st"):
         raise UsageError(f"--target: expected 'c' or 'st', got {target!r}")
     if kind not in TARGETS:
         raise UsageError(f"--controller: expected one of {sorted(TARGETS)}, got {kind!r}")
+    if require_signature and key is None:
+        raise UsageError(f"--require-signature: no signing key; give --sign-key KEYFILE or set {SIGN_KEY_ENV}")
     cpath = os.fspath(controller_path)
     from commission.runtime import load_controller  # refuse exactly what the runtime refuses
 
-    config = load_controller(cpath).config
+    config = load_controller(cpath, key=key).config
+    checked_provenance(config.provenance, cpath)
     tuning = None
     tuning_sha = None
+    tpath = None
     if tuning_path is not None:
         tpath = os.fspath(tuning_path)
         tuning = Tuning.from_dict(read_json(tpath), source=tpath)
@@ -280,7 +332,6 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     if kind == "pid" and tuning is None:
         raise UsageError("--controller pid: needs --tuning (controller.json holds the ARC; the PID baseline "
                          "validate simulated is in the tuning.json it records)")
-    out = check_out_dir(out_dir, output_names(kind, target), force)
     if kind == "arc":
         p = arc_pack(config.gains)
     else:
@@ -289,33 +340,69 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
             raise UsageError(f"--tuning: PID sample period {tuning.pid.Ts} s differs from the controller's "
                              f"{config.gains.Ts} s")
         p = pid_pack(tuning.pid)
-    if target == "st":
-        from commission.export.st_target import st_source
+    names = output_names(kind, target)
+    _refuse_dangling_link(out_dir)
+    outputs = Outputs(force=force, inputs=(cpath, tpath, *inputs))
+    out = outputs.add_dir(out_dir, names, "--out-dir")
+    outputs.open()  # locked, and proved writable, before the vectors are simulated
+    moving = False
+    try:
+        files = render(kind, p, config, tuning, tuning_sha, target=target, source=cpath)
+        staging = outputs.staging(out)
+        for name in names:
+            write_text_atomic(staging / name, files[name])
+        moving = True
+        outputs.commit()
+    except OSError as exc:
+        outputs.abort()
+        if isinstance(exc, CommissionError):
+            raise
+        what = (f"cannot move the files into place ({exc.strerror or exc}); check {out}" if moving else
+                f"cannot write ({exc.strerror or exc}); nothing was written")
+        raise UsageError(f"--out-dir {out}: {what}") from None
+    except BaseException:
+        outputs.abort()  # Ctrl-C, SIGTERM (SystemExit), a bug: the folder stays as it was
+        raise
+    return [out / name for name in names]
 
-        files = {output_names(kind, "st")[0]: st_source(TARGETS[kind], p, _params_comment(config, kind, p, tuning_sha))}
-    else:
-        files = render(kind, p, config, tuning, tuning_sha)
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    for name in output_names(kind, target):
-        write_text_atomic(out / name, files[name])
-        written.append(out / name)
-    return written
+
+def _refuse_dangling_link(out_dir: str | os.PathLike[str]) -> None:
+    """Refuse an ``--out-dir`` that is a symlink to nothing: whether to create its target or replace the
+    link is not for the export to guess (and the final move onto it would fail)."""
+    d = Path(out_dir)
+    if d.is_symlink() and not d.exists():
+        try:
+            to = os.readlink(d)
+        except OSError:
+            to = "?"
+        raise UsageError(f"--out-dir {d}: is a symlink to {to}, which does not exist; create that folder "
+                         f"or give another --out-dir")
 
 
 def render(kind: str, p: np.ndarray, config: ControllerConfig, tuning: Tuning | None,
-           tuning_sha: str | None) -> dict[str, str]:
-    """File name -> text of the export of the packed controller ``p`` (:func:`export_c` checks the inputs)."""
-    target = TARGETS[kind]
+           tuning_sha: str | None, *, target: str = "c", source: str = "controller.json") -> dict[str, str]:
+    """File name -> text of the export of the packed controller ``p`` (:func:`export_c` checks the inputs).
+
+    Also safe on its own: no string of ``config`` reaches the text unchecked
+    (:mod:`commission.export.text`), whatever checks its loader made; a
+    provenance string not of its form is refused (SchemaError naming its JSON
+    path in ``source``).
+    """
+    t = TARGETS[kind]
+    if target == "st":
+        from commission.export.st_target import st_source
+
+        return {output_names(kind, "st")[0]: st_source(
+            t, p, _params_comment(config, kind, p, tuning_sha, lang="st", source=source))}
     banner = _banner(kind)
     return {
-        f"{target.base}.h": c_target.header(target, banner),
-        f"{target.base}.c": c_target.source(target, banner),
-        f"{target.base}_params.c": c_target.params_source(
-            target, p, _params_comment(config, kind, p, tuning_sha), banner),
-        "test_main.c": c_target.test_main(target, banner),
+        f"{t.base}.h": c_target.header(t, banner),
+        f"{t.base}.c": c_target.source(t, banner),
+        f"{t.base}_params.c": c_target.params_source(
+            t, p, _params_comment(config, kind, p, tuning_sha, lang="c", source=source), banner),
+        "test_main.c": c_target.test_main(t, banner),
         VECTORS_NAME: make_vectors(kind, p, config, tuning).csv(),
-        "README.md": readme(kind, config, target, tuning is not None),
+        "README.md": readme(kind, config, t, tuning is not None),
     }
 
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from commission.controllers import arc as _arc
 from commission.controllers import pid as _pid
+from commission.export.text import check_comment_line
 from commission.export.translate import c_float, translate
 
 
@@ -186,9 +187,14 @@ def _slot_names(t: Target) -> list[str]:
 
 
 def params_source(t: Target, p: np.ndarray, comment: Sequence[str], banner: str) -> str:
+    """``<prefix>_params.c``: the packed parameters as a const object, ``comment`` above it.
+
+    Each comment line must already be escaped (:func:`commission.export.text.c_comment`);
+    it is checked once more here (no ``*/``, trigraph, backslash or non-printable character).
+    """
     names = _slot_names(t)
     rows = ",\n".join(f"    /* [{i:2d}] {names[i]:<14s} */ {c_float(float(x))}" for i, x in enumerate(p))
-    com = "\n".join(f" * {line}" for line in comment)
+    com = "\n".join(f" * {check_comment_line(line, 'c')}" for line in comment)
     return f"""{banner}
 /*
 {com}

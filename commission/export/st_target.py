@@ -18,6 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from commission.export.c_target import Target, _layout
+from commission.export.text import check_comment_line
 from commission.export.translate import StTranslator, st_float
 
 
@@ -26,13 +27,19 @@ def fb_name(t: Target) -> str:
 
 
 def st_source(t: Target, p: np.ndarray, comment: Sequence[str]) -> str:
+    """The ``.st`` file: the function block, its methods and ``comment`` in its header comment.
+
+    Each comment line must already be escaped (:func:`commission.export.text.st_comment`);
+    it is checked once more here, so that a line that could close the ``(* ... *)`` comment
+    fails the export rather than reaching a PLC.
+    """
     tr = StTranslator(t.module, t.functions, {"p": (t.np_name, True), "s": (t.ns_name, False)}, "")
     methods = tr.translate()
     lay = _layout(t)
     consts = "\n".join(f"    {k} : DINT := {v};" for k, v in lay.items())
     sets = "\n".join(f"p[{i}] := {st_float(float(x)) if np.isfinite(x) else ('INF' if x > 0 else '-INF')};"
                      for i, x in enumerate(p))
-    com = "\n".join(f"    {line}" for line in comment)
+    com = "\n".join(f"    {check_comment_line(line, 'st')}" for line in comment)
     reset = tr.func_name(t.reset)
     step = tr.func_name(t.step)
     fault = f"FaultCode := LREAL_TO_DINT(s[{t.fault_slot}]);" if t.fault_slot else "FaultCode := 0;"
