@@ -22,8 +22,8 @@ partial
 data-loss
     a file that was in the output location before a refused run was changed or removed;
 injection
-    a generated file holds the hostile payload's marker, or the exported C,
-    compiled with ``-Werror`` and run, prints it;
+    a generated file holds a hostile string verbatim (escaped text is harmless), or the
+    exported C does not compile with ``-Werror``, or its replay prints the marker;
 hang
     no answer within the case's time limit.
 
@@ -104,6 +104,7 @@ class Case:
     interrupt_after: float | None = None  # seconds, then SIGINT
     timeout: float = 180.0
     compile_c: bool = False           # compile and run the exported C replay
+    payload: str | None = None        # a hostile string: it must never appear verbatim in an output
     needs_root: bool = False
 
 
@@ -233,7 +234,8 @@ def identify_cases() -> list[Case]:
         log_case("identify: --fix M=1e300", _sample, ["--fix", "M=1e300"]),
         log_case("identify: --fix M=1e-300", _sample, ["--fix", "M=1e-300"]),
         log_case("identify: --fix M=-1", _sample, ["--fix", "M=-1"]),
-        log_case("identify: hostile --u-unit", _sample, ["--input-gain", "2", "--u-unit", HOSTILE_UNIT]),
+        log_case("identify: hostile --u-unit", _sample, ["--input-gain", "2", "--u-unit", HOSTILE_UNIT],
+                 payload=HOSTILE_UNIT),
         log_case("identify: --u-unit parsec", _sample, ["--input-gain", "2", "--u-unit", "parsec"]),
         log_case("identify: --q-unit furlong", _sample, ["--q-unit", "furlong"]),
         log_case("identify: --input-gain nan", _sample, ["--input-gain", "nan", "--u-unit", "N"]),
@@ -253,11 +255,11 @@ def identify_cases() -> list[Case]:
 def tune_cases() -> list[Case]:
     cmd = ["tune", "{w}/ident.json", "--out", "{w}/out/tuning.json"]
 
-    def c(name, mutate, raw=None):
-        return json_case(f"tune: {name}", "ident.json", cmd, mutate, raw=raw, out="out")
+    def c(name, mutate, raw=None, **kw):
+        return json_case(f"tune: {name}", "ident.json", cmd, mutate, raw=raw, out="out", **kw)
 
     return [
-        c("hostile units.u", _set("units.u", HOSTILE_UNIT)),
+        c("hostile units.u", _set("units.u", HOSTILE_UNIT), payload=HOSTILE_UNIT),
         c("units.u parsec", _set("units.u", "parsec")),
         c("units.q furlong", _set("units.q", "furlong")),
         c("encoder.quantization -1e-6", _set("encoder.quantization", -1e-6)),
@@ -286,7 +288,7 @@ def validate_cases() -> list[Case]:
         return json_case(f"validate: {name}", "tuning.json", cmd, mutate, raw=raw, out="out", **kw)
 
     return [
-        c("hostile units.u", _set("identification.units.u", HOSTILE_UNIT)),
+        c("hostile units.u", _set("identification.units.u", HOSTILE_UNIT), payload=HOSTILE_UNIT),
         c("ident_path missing and box shrunk to 0.1 %", _scale_box(1e-3)),
         c("400-digit integer", lambda d: None, raw=lambda t: t.replace('"schema_version": 1', '"schema_version": ' + "7" * 400, 1)),
         c("duplicate key", lambda d: None, raw=lambda t: t.replace('"kind": "tuning"', '"kind": "tuning", "kind": "tuning"')),
@@ -341,14 +343,18 @@ def export_cases() -> list[Case]:
             mutate_after(doc)
         return f
 
-    cases = [c(f"hostile units.u ({k})", _set("units.u", v), key=None) for k, v in HOSTILE_STRINGS.items()]
-    cases += [c(f"hostile units.u, target st ({k})", _set("units.u", v), key=None,
+    cases = [c(f"hostile units.u ({k})", _set("units.u", v), key=None, payload=v, compile_c=True)
+             for k, v in HOSTILE_STRINGS.items()]
+    cases += [c(f"hostile units.u, target st ({k})", _set("units.u", v), key=None, payload=v,
                 argv=["export", "{w}/controller.json", "--target", "st", "--out-dir", "{w}/out"])
               for k, v in HOSTILE_STRINGS.items()]
     cases += [
-        c("hostile provenance.tool_version", _set("provenance.tool_version", HOSTILE_UNIT)),
-        c("hostile provenance.created_utc", _set("provenance.created_utc", HOSTILE_STRINGS["newline-define"])),
-        c("hostile provenance.log_sha256", _set("provenance.log_sha256", HOSTILE_UNIT)),
+        c("hostile provenance.tool_version", _set("provenance.tool_version", HOSTILE_UNIT), payload=HOSTILE_UNIT,
+          compile_c=True),
+        c("hostile provenance.created_utc", _set("provenance.created_utc", HOSTILE_STRINGS["newline-define"]),
+          payload=HOSTILE_STRINGS["newline-define"], compile_c=True),
+        c("hostile provenance.log_sha256", _set("provenance.log_sha256", HOSTILE_UNIT), payload=HOSTILE_UNIT,
+          compile_c=True),
         c("u_max 1e308", _set("bounds.u_max", 1e308)),
         c("sample_rate 1e-3 Hz", lambda d: (d.__setitem__("sample_rate", 1e-3), d.__setitem__("sample_period", 1e3))),
         c("sample_rate 1e9 Hz", lambda d: (d.__setitem__("sample_rate", 1e9), d.__setitem__("sample_period", 1e-9))),
@@ -436,11 +442,13 @@ def leftovers(work: Path) -> list[str]:
     return [str(f.relative_to(work)) for f in work.rglob("*") if ".tmp-" in f.name or f.name.endswith(".lock")]
 
 
-def injected(p: Path) -> bool:
-    if not p.exists():
+def injected(p: Path, payload: str | None) -> bool:
+    """Whether an output file holds ``payload`` verbatim (JSON outputs: its JSON-escaped form)."""
+    if not p.exists() or not payload:
         return False
     files = [p] if p.is_file() else [f for f in p.rglob("*") if f.is_file()]
-    return any(MARKER.encode() in f.read_bytes() for f in files)
+    forms = {payload.encode(errors="surrogatepass"), json.dumps(payload)[1:-1].encode()}
+    return any(form in f.read_bytes() for f in files for form in forms)
 
 
 def compile_and_replay(out: Path) -> tuple[bool, str]:
@@ -502,10 +510,10 @@ def run_case(case: Case, scratch: Path) -> tuple[str, list[str], str]:
         if case.interrupt_after is not None and rc == 0 and case.out == "out" and argv[0] == "export":
             if len(after) != 6:
                 classes.append("partial")
-        if injected(out):
+        if injected(out, case.payload):
             classes.append("injection")
         note = (stderr.strip().splitlines() or [""])[-1][:110]
-        if rc == 0 and case.compile_c:
+        if rc == 0 and case.compile_c and (out / "test_main.c").is_file():
             inj, cnote = compile_and_replay(out)
             if inj:
                 classes.append("injection")
