@@ -39,7 +39,7 @@ U_UNITS = ("V", "N", "A", "Nm", "%")
 #: Figures of one identified log (``identify --plot``; ``run`` writes them beside its report).
 IDENT_FIGURE_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 #: File extensions a folder given to ``identify`` is searched for.
-LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat")
+LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat", ".npy", ".npz")
 #: A leg of a friction test is at constant speed when its speed, smoothed over
 #: :data:`LEG_SMOOTHING` of its samples, stays within this fraction of the mean speed
 #: on 90 % of the samples (wide enough for a 1-rpm velocity quantisation at 1-2 rpm).
