@@ -182,3 +182,49 @@ def test_the_odrive_run_without_a_map_says_which_rows_to_name():
     assert res.exit_code == 2
     text = " ".join(res.output.split())
     assert "shape (3, 14732)" in text and "--map t=ROW --map q=ROW --map u=ROW" in text
+
+
+# --------------------------------------------------------------------------- any bytes: our error or a log
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+def _valid_bytes(kind: str) -> bytes:
+    t, q, u = _arrays(20)
+    buf = io.BytesIO()
+    if kind == "npy":
+        np.save(buf, np.vstack([t, q, u]))
+    else:
+        np.savez(buf, t=t, q=q, u=u) if kind == "npz" else np.savez_compressed(buf, t=t, q=q, u=u)
+    return buf.getvalue()
+
+
+@st.composite
+def mutated(draw):
+    kind = draw(st.sampled_from(["npy", "npz", "npzc"]))
+    data = bytearray(_valid_bytes(kind))
+    for _ in range(draw(st.integers(1, 6))):
+        op = draw(st.sampled_from(["flip", "cut", "insert"]))
+        at = draw(st.integers(0, max(len(data) - 1, 0)))
+        if op == "flip" and data:
+            data[at] = draw(st.integers(0, 255))
+        elif op == "cut":
+            del data[at:at + draw(st.integers(1, 64))]
+        else:
+            data[at:at] = draw(st.binary(min_size=1, max_size=16))
+    return kind, bytes(data)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+@given(case=mutated())
+def test_a_damaged_numpy_file_gives_a_log_or_a_one_line_refusal(case, tmp_path_factory):
+    kind, data = case
+    path = tmp_path_factory.mktemp("npy") / ("log.npy" if kind == "npy" else "log.npz")
+    path.write_bytes(data)
+    try:
+        log = load_log(path, mapping=ROWS if kind == "npy" else {})
+    except CommissionError as exc:
+        assert "\n" not in str(exc).strip() and str(exc).startswith(str(path)), exc
+    else:
+        assert log.t.shape == log.q.shape == log.u.shape
