@@ -653,8 +653,8 @@ def leg_refusal(log: ExcitationLog) -> str | None:
       varies along the way (a motor that nearly stalls on each cog, a speed ramp)
       averages to a steady speed over the coarse window, not over this one.
 
-    A stalled leg (the position never moves by more than two encoder steps) is a leg: :func:`identify_legs` leaves
-    it out with a warning.
+    A stalled leg (the position never moves by more than two encoder steps) is a leg:
+    :func:`identify_legs` leaves it out with a warning.
     """
     if log.n < 2 or not (np.all(np.isfinite(log.t)) and np.all(np.isfinite(log.q))):
         return "fewer than 2 finite samples of t and q"

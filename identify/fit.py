@@ -293,7 +293,8 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
             f"(F = {dip[0]:.3g}, p = {dip[1]:.2g}, need p < {STRIBECK_DIP_P_VALUE:g}; fs - fc = {fs - fc:.3g} "
             f"+- {sd_hump:.2g}); {hint}")
     if "vs" in sep.at_bound:
-        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} {speed_unit} lies on the edge of the speeds seen; {hint}")
+        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} {speed_unit} lies on the edge of the speeds seen; "
+                                           f"{hint}")
     if "xi" in sep.at_bound:
         warnings.append(f"stribeck: xi = {xi:.3g} at the edge of its search box {XI_BOUNDS}; "
                         "the shape of the curve is poorly determined")

@@ -21,8 +21,9 @@ readers share: name lookup, vector checks, assembly in SI units), and one reader
 per format: :mod:`~commission.logs.hdf5` (HDF5 and MATLAB v7.3, in a guarded
 child process), :mod:`~commission.logs.mat` (MATLAB v5), :mod:`~commission.logs.csvfile`
 (CSV), :mod:`~commission.logs.epos` with :mod:`~commission.logs.eposfile` (maxon
-EPOS recorder files), :mod:`~commission.logs.npy` (NumPy ``.npy``/``.npz``, never unpickled).  A new vendor format is one more reader module returning a
-``_Raw``, and one line in :func:`load_log`.
+EPOS recorder files), :mod:`~commission.logs.npy` (NumPy ``.npy``/``.npz``, never
+unpickled).  A new vendor format is one more reader module returning a ``_Raw``, and
+one line in :func:`load_log`.
 """
 
 from __future__ import annotations
