@@ -760,12 +760,13 @@ def identify_legs(
         raise IdentifiabilityError(f"{_where(paths)}: {len(legs)} usable constant-speed leg(s) of {len(logs)} files; "
                                    "a friction map needs legs in both directions")
     fmap = friction_map([(lg.t, lg.q, lg.u) for lg in legs])
-    speed_unit = _units(u_unit, logs[0])["q"] + "/s"
+    units = _units(u_unit, logs[0])
+    speed_unit = units["q"] + "/s"
     named = _named_legs(fmap, legs, speed_unit)
 
     def fit(model: str) -> MapFit:
         return fit_friction_map(fmap.velocity, fmap.force, friction=model,  # type: ignore[arg-type]
-                                speed_unit=speed_unit)
+                                speed_unit=speed_unit, force_unit=units["u"])
 
     try:
         try:

@@ -389,8 +389,8 @@ def _direction_pairs(v: np.ndarray) -> list[tuple[int, int]] | None:
     return pairs
 
 
-def _map_fit_stribeck_legs(v: np.ndarray, F: np.ndarray, warnings: list[str],
-                           speed_unit: str) -> dict[str, tuple[float, float]]:
+def _map_fit_stribeck_legs(v: np.ndarray, F: np.ndarray, warnings: list[str], speed_unit: str,
+                           force_unit: str) -> dict[str, tuple[float, float]]:
     """Stribeck curve of a friction test; on the map's odd part when every leg has a partner the other way.
 
     The model ``F = B v + Ff(v) + offset`` is odd in ``v`` but for the constant
@@ -438,8 +438,8 @@ def _map_fit_stribeck_legs(v: np.ndarray, F: np.ndarray, warnings: list[str],
     left = math.exp(-((v0 / vs) ** xi))  # share of fs - fc still in the curve at the slowest pair
     if left < 0.5:
         warnings.append(f"stribeck: the dip is measured down to {v0:.3g} {speed_unit}, where the curve is "
-                        f"{(fs - fc) * left:.3g} above fc; fs = {fs:.4g} +- {params['fs'][1]:.2g} is its value at "
-                        "standstill, extrapolated below the slowest legs")
+                        f"{(fs - fc) * left:.3g} {force_unit} above fc; fs = {fs:.4g} +- {params['fs'][1]:.2g} "
+                        f"{force_unit} is its value at standstill, extrapolated below the slowest legs")
     return params
 
 
@@ -616,7 +616,7 @@ class MapFit:
 
 
 def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: FrictionModel,
-                     speed_unit: str = "m/s") -> MapFit:
+                     speed_unit: str = "m/s", force_unit: str = "u-unit") -> MapFit:
     """Fit ``F = B v + Ff(v) + offset`` to friction-map points (one per constant-velocity leg).
 
     The same map fit as step 1 of the ``"steady+dynamic"`` method, on legs that are
@@ -631,8 +631,8 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
     friction : {"coulomb", "stribeck"}
         A Stribeck curve is fitted to the map's odd part when the legs come in pairs of
         opposite directions (:func:`_map_fit_stribeck_legs`).
-    speed_unit : str
-        Unit of ``velocity`` in messages (``"rad/s"`` on a rotary axis).
+    speed_unit, force_unit : str
+        Units of ``velocity`` and ``force`` in messages (``"rad/s"`` on a rotary axis).
 
     Returns
     -------
@@ -654,7 +654,7 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
                                    f"{friction} curve needs {need} each way")
     warnings: list[str] = []
     if friction == "stribeck":
-        params = _ordered(_map_fit_stribeck_legs(v, F, warnings, speed_unit))
+        params = _ordered(_map_fit_stribeck_legs(v, F, warnings, speed_unit, force_unit))
     else:
         params = _map_fit(v, F, friction, warnings)
     ff = stribeck_friction(v, params["fc"][0], params["fs"][0] if "fs" in params else None,
