@@ -959,10 +959,10 @@ def classify_logs(logs: Sequence[ExcitationLog]) -> tuple[Literal["legs", "segme
                             "legs run both ways): fitted together as segments of one axis")
     others = [lg for lg in logs if why[lg.source] is not None]
     first = others[0]
-    text = (f"the {len(logs)} logs are fitted together as segments of one axis: with excitation {names(others)} "
-            f"({os.path.basename(first.source)}: {why[first.source]})")
+    text = (f"the {len(logs)} logs are fitted together as segments of one axis; not constant-speed legs: "
+            f"{names(others)} ({os.path.basename(first.source)}: {why[first.source]})")
     if legs:
-        text += f"; constant-speed legs {names(legs)}"
+        text += f"; constant-speed legs: {names(legs)}"
     return "segments", text
 
 

@@ -8,6 +8,7 @@ slow runs (../shared/data/odrive-cogging), whose README gives their speed percen
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -88,8 +89,8 @@ def test_a_mixed_set_is_fitted_as_segments_and_the_note_says_which_file_is_which
     sweep = _run(0.01 * np.sin(2 * np.pi * 2 * t), "sweep.csv")
     kind, note = classify_logs([_steady(0.01, name="a.csv"), sweep, _steady(-0.01, name="b.csv")])
     assert kind == "segments"
-    assert "with excitation sweep.csv (sweep.csv: it reverses" in note
-    assert note.endswith("constant-speed legs a.csv, b.csv")
+    assert "not constant-speed legs: sweep.csv (sweep.csv: it reverses" in note
+    assert note.endswith("; constant-speed legs: a.csv, b.csv")
 
 
 @pytest.mark.skipif(not (ODRIVE_DIR / "slow_0.03revps").is_dir(), reason="ODrive data not present")
@@ -101,6 +102,40 @@ def test_the_odrive_slow_runs_are_not_a_friction_test():
     kind, note = classify_logs(logs)
     assert kind == "segments" and "nocomp_0.npy" in note and "crosstalk_nocomp_0.npy" in note
     assert leg_refusal(logs[-1]).startswith("its speed varies along the way")  # nocomp_0: p10 -0.001 rev/s
+
+
+@pytest.mark.skipif(not (ODRIVE_DIR / "slow_0.10revps").is_dir(), reason="ODrive data not present")
+def test_a_folder_of_converted_odrive_runs_gets_its_ripple_not_the_friction_test_refusal(tmp_path):
+    # The case: slow one-way runs converted as the README says (t > 0.5 s, q = counts * 2 pi / 8192
+    # rad, u = Iq in A), given as a folder with --ripple-pitch: fitted as segments of one axis.
+    h5py = pytest.importorskip("h5py")
+    from typer.testing import CliRunner
+
+    from commission.cli.main import app
+
+    qs, us = [], []
+    for k in range(3):
+        t, counts, iq = np.load(ODRIVE_DIR / "slow_0.10revps" / f"nocomp_{k}.npy")
+        keep = t > 0.5
+        q = counts[keep] * 2 * math.pi / 8192
+        with h5py.File(tmp_path / f"nocomp_{k}.h5", "w") as f:
+            f["t"], f["q"], f["u"] = t[keep] - t[keep][0], q, iq[keep]
+            f.attrs["q_unit"], f.attrs["u_unit"] = "rad", "A"
+        qs.append(q)
+        us.append(iq[keep])
+    out = tmp_path / "out" / "i.json"
+    res = CliRunner().invoke(app, ["identify", str(tmp_path), "--resample", "400", "--ripple-pitch",
+                                   repr(2 * math.pi / 7), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    assert doc["warnings"][0].startswith("the 3 logs are fitted together as segments of one axis; not constant-speed "
+                                         "legs: nocomp_0.h5, nocomp_1.h5, nocomp_2.h5")
+    # The 7th harmonic against a static least-squares fit of the same samples, written here: the tool's model
+    # also has B qd, and on these runs the speed itself ripples on each cog (README), hence 10 %.
+    q, iq = np.concatenate(qs), np.concatenate(us)
+    X = np.column_stack([np.ones_like(q), np.sin(7 * q), np.cos(7 * q)])
+    c = np.linalg.lstsq(X, iq, rcond=None)[0]
+    assert doc["model"]["ripple_amp"]["value"] == pytest.approx(math.hypot(c[1], c[2]), rel=0.1)
 
 
 # --------------------------------------------------------------------------- Stribeck dips
