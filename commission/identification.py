@@ -824,7 +824,7 @@ def identify_legs(
                                    payload_max=bounds.payload_max, disturbance_bound=bounds.disturbance_bound)
             theta = ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
         except ValueError as exc:
-            raise DataError(f"{paths[0]}: the identified friction and the fixed mass give no usable theta box "
+            raise DataError(f"{_where(paths)}: the identified friction and the fixed mass give no usable theta box "
                             f"({exc}); B = {p['B'][0]:.4g}") from None
         delta_d = tb.delta_d
     first = legs[0]
