@@ -228,3 +228,28 @@ def test_a_damaged_numpy_file_gives_a_log_or_a_one_line_refusal(case, tmp_path_f
         assert "\n" not in str(exc).strip() and str(exc).startswith(str(path)), exc
     else:
         assert log.t.shape == log.q.shape == log.u.shape
+
+
+arrays = st.one_of(
+    st.tuples(st.sampled_from(["<f8", "<f4", "<i4", "|u1", "|b1", "<c16", "<U3", ">f8"]),
+              st.lists(st.integers(0, 6), min_size=0, max_size=3)).map(
+        lambda a: np.zeros(tuple(a[1]), dtype=a[0])),
+    st.integers(1, 5).map(lambda n: np.zeros(n, dtype=[("t", "f8"), ("q", "f8"), ("u", "O")])),
+)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+@given(arr=arrays, as_npz=st.booleans(), rate=st.none() | st.just(1000.0))
+def test_any_array_gives_a_log_or_a_one_line_refusal(arr, as_npz, rate, tmp_path_factory):
+    path = tmp_path_factory.mktemp("arr") / ("log.npz" if as_npz else "log.npy")
+    with open(path, "wb") as fh:
+        if as_npz:
+            np.savez(fh, t=arr, q=arr, u=arr)
+        else:
+            np.save(fh, arr, allow_pickle=True)
+    try:
+        log = load_log(path, mapping={} if as_npz else ROWS, sample_rate=rate)
+    except CommissionError as exc:
+        assert "\n" not in str(exc).strip() and str(exc).startswith(str(path)), exc
+    else:
+        assert log.t.shape == log.q.shape == log.u.shape and log.n > 0
