@@ -127,9 +127,10 @@ def frequency_summary(fr: dict | None) -> str:
 @cli_errors
 def identify_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
-        "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
-        "or a folder: the constant-speed legs of a friction test (one leg per file), or else logs of one axis "
-        "fitted together, each file its own segment.")),
+        "Excitation log: .h5/.hdf5, .csv, .mat, .npy/.npz (a 2-D .npy by index: --map t=0 --map q=1 --map u=2) "
+        "or an EPOS recorder CSV (docs/interface.md §1). Several files, or a folder: the constant-speed legs "
+        "of a friction test (one leg per file, both directions), or else logs of one axis fitted together, "
+        "each file its own segment.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
     map_: List[str] = opt("--map"),
     input_gain: float = opt("--input-gain"),

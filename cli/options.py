@@ -50,7 +50,7 @@ _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
     "--payload-max-kg": (None, "Largest added mass in kg (needs --force-constant).", None),
     "--force-constant": (None, "N per u-unit, to convert kg payloads.", None),
     "--disturbance-bound": (None, "Largest load force, u-unit (default 10 max(fc, fs)).", None),
-    "--format": (None, "Force the log format: hdf5, csv, mat or epos (default: from the content, then the "
+    "--format": (None, "Force the log format: hdf5, csv, mat, epos or npy (default: from the content, then the "
                        "extension).", None),
     "--resample": (None, "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
                          "polling).", "HZ"),

@@ -24,8 +24,8 @@ from commission.validate import DEFAULT_MONTE_CARLO
 @cli_errors
 def run_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
-        "Excitation log: .h5/.hdf5, .csv, .mat or an EPOS recorder CSV (docs/interface.md §1). Several files, "
-        "or a folder: logs of one axis fitted together, each file its own segment.")),
+        "Excitation log: .h5/.hdf5, .csv, .mat, .npy/.npz or an EPOS recorder CSV (docs/interface.md §1). "
+        "Several files, or a folder: logs of one axis fitted together, each file its own segment.")),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for ident.json, tuning.json, report.md, figures, controller.json."),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
     gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),

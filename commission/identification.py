@@ -29,6 +29,7 @@ from commission.identify.fit import AxisFit, MapFit, evaluate_segments, fit_fric
 from commission.identify.friction import friction_compensation_curve, stribeck_friction
 from commission.identify.frf import FrequencyResponse, frequency_response
 from commission.identify.ls import ripple_name, ripple_pitches
+from commission.identify.signals import quantization_step
 from commission.identify.steady import FrictionMap, friction_map
 from commission.logs import ExcitationLog, load_log
 
@@ -39,12 +40,16 @@ U_UNITS = ("V", "N", "A", "Nm", "%")
 #: Figures of one identified log (``identify --plot``; ``run`` writes them beside its report).
 IDENT_FIGURE_NAMES = ("force_fit.png", "friction_curve.png", "residuals.png", "bode.png")
 #: File extensions a folder given to ``identify`` is searched for.
-LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat")
+LOG_EXTENSIONS = (".h5", ".hdf5", ".csv", ".mat", ".npy", ".npz")
 #: A leg of a friction test is at constant speed when its speed, smoothed over
 #: :data:`LEG_SMOOTHING` of its samples, stays within this fraction of the mean speed
 #: on 90 % of the samples (wide enough for a 1-rpm velocity quantisation at 1-2 rpm).
 LEG_SPEED_TOLERANCE = 0.5
 LEG_SMOOTHING = 0.05
+#: A measured position is also checked over this fraction of the samples ...
+LEG_FINE_SMOOTHING = 0.01
+#: ... but over no fewer samples than it takes to travel this many encoder steps.
+LEG_FINE_COUNTS = 10
 #: A fit leaving more than this fraction of the command unexplained is flagged (EMPS: 0.04).
 POOR_FIT_RELATIVE_ERROR = 0.3
 #: A parameter whose standard deviation exceeds this multiple of its value is flagged as not determined.
@@ -595,16 +600,90 @@ class LegsOutcome:
     excluded: tuple[str, ...]
 
 
-def _leg_speed_spread(log: ExcitationLog) -> float:
-    """90th percentile of |smoothed speed - mean speed| / |mean speed| over the leg (inf: no motion)."""
+def _smoothed_speed(log: ExcitationLog, w: int) -> np.ndarray:
+    """The difference speed ``dq/dt`` averaged over ``w`` samples (edges padded with their own value)."""
+    v = np.gradient(log.q, log.t)
+    kernel = np.ones(w) / w
+    return np.convolve(np.pad(v, (w // 2, w - 1 - w // 2), mode="edge"), kernel, mode="valid")
+
+
+def _where(paths: Sequence[str]) -> str:
+    """What a refusal about several logs names: their common folder, or the first file and a count."""
+    paths = [os.fspath(p) for p in paths]
+    if len(paths) == 1:
+        return paths[0]
+    folders = {os.path.dirname(p) for p in paths}
+    if len(folders) == 1 and next(iter(folders)):
+        return f"{next(iter(folders))} ({len(paths)} logs)"
+    return f"{paths[0]} and {len(paths) - 1} other logs"
+
+
+def _named_legs(fmap: FrictionMap, legs: Sequence[ExcitationLog], speed_unit: str, k: int = 2) -> str:
+    """The ``k`` slowest legs each way, by file and mean speed: the ones a Stribeck verdict rests on."""
+    out = []
+    for sign, word in ((1, "forward"), (-1, "backward")):
+        idx = [i for i in np.argsort(np.abs(fmap.velocity)) if np.sign(fmap.velocity[i]) == sign][:k]
+        if idx:
+            out.append(f"{word} " + ", ".join(f"{os.path.basename(legs[i].source)} at {fmap.velocity[i]:.3g} "
+                                              f"{speed_unit}" for i in idx))
+        else:
+            out.append(f"no leg {word}")
+    return "slowest legs: " + "; ".join(out)
+
+
+def _stalled(log: ExcitationLog) -> bool:
+    """The position never moves by more than two encoder steps (a leg that did not run)."""
+    quant = quantization_step(log.q)
+    return bool(np.ptp(log.q) <= 2.0 * (quant or 0.0))
+
+
+def leg_refusal(log: ExcitationLog) -> str | None:
+    """Why ``log`` is not a constant-speed leg of a friction test; None if it is one (or a stalled one).
+
+    A leg moves one way at one speed.  Three tests, each with the figure that failed:
+
+    - it does not reverse: its speed, smoothed over :data:`LEG_SMOOTHING` of the
+      samples, never takes the opposite sign of the mean speed (a run that returns to
+      its start, mean speed 0 after moving, is an excitation, not a stalled leg);
+    - that smoothed speed stays within :data:`LEG_SPEED_TOLERANCE` of the mean on
+      90 % of the samples (wide, for a recorder's 1-rpm velocity quantum at 1-2 rpm);
+    - a measured position (not integrated from a recorded velocity) is also checked
+      on a finer scale, :data:`LEG_FINE_SMOOTHING` of the samples but never fewer than
+      :data:`LEG_FINE_COUNTS` encoder steps of travel: a one-direction run whose speed
+      varies along the way (a motor that nearly stalls on each cog, a speed ramp)
+      averages to a steady speed over the coarse window, not over this one.
+
+    A stalled leg (the position never moves by more than two encoder steps) is a leg:
+    :func:`identify_legs` leaves it out with a warning.
+    """
+    if log.n < 2 or not (np.all(np.isfinite(log.t)) and np.all(np.isfinite(log.q))):
+        return "fewer than 2 finite samples of t and q"
+    if _stalled(log):
+        return None
     v_mean = (log.q[-1] - log.q[0]) / (log.t[-1] - log.t[0])
     if v_mean == 0.0:
-        return math.inf
-    v = np.gradient(log.q, log.t)
-    w = max(3, int(LEG_SMOOTHING * v.size))
-    kernel = np.ones(w) / w
-    smooth = np.convolve(np.pad(v, (w // 2, w - 1 - w // 2), mode="edge"), kernel, mode="valid")
-    return float(np.quantile(np.abs(smooth - v_mean) / abs(v_mean), 0.9))
+        return "it ends where it started after moving (mean speed 0)"
+    w = max(3, int(LEG_SMOOTHING * log.n))
+    smooth = _smoothed_speed(log, w)
+    back = int(np.sum(np.sign(smooth) == -np.sign(v_mean)))
+    if back:
+        return f"it reverses (its smoothed speed is opposite the mean speed on {back} of {log.n} samples)"
+    spread = float(np.quantile(np.abs(smooth - v_mean) / abs(v_mean), 0.9))
+    if spread > LEG_SPEED_TOLERANCE:
+        return (f"its smoothed speed departs from the mean by {spread * 100:.0f} % or more on 10 % of the samples "
+                f"(at most {LEG_SPEED_TOLERANCE * 100:.0f} %)")
+    if not log.q_from_velocity:
+        quant = quantization_step(log.q)
+        rate = log.sample_rate if math.isfinite(log.sample_rate) else (log.n - 1) / (log.t[-1] - log.t[0])
+        w_counts = math.ceil(LEG_FINE_COUNTS * quant * rate / abs(v_mean)) if quant is not None else 0
+        w_fine = max(3, int(LEG_FINE_SMOOTHING * log.n), w_counts)
+        if w_fine < w:
+            fine = float(np.quantile(np.abs(_smoothed_speed(log, w_fine) - v_mean) / abs(v_mean), 0.9))
+            if fine > LEG_SPEED_TOLERANCE:
+                return (f"its speed varies along the way: averaged over {w_fine / rate:.3g} s it departs from the "
+                        f"mean by {fine * 100:.0f} % or more on 10 % of the samples "
+                        f"(at most {LEG_SPEED_TOLERANCE * 100:.0f} %)")
+    return None
 
 
 def identify_legs(
@@ -668,42 +747,48 @@ def identify_legs(
     for lg in logs:
         if lg.n < 2 or not np.all(np.isfinite(lg.t)) or not np.all(np.isfinite(lg.q)) or not np.all(np.isfinite(lg.u)):
             raise DataError(f"{lg.source}: a leg needs at least 2 finite samples of t, q and u")
-        spread = _leg_speed_spread(lg)
-        if math.isinf(spread):
+        why = leg_refusal(lg)
+        if why is not None:
+            raise DataError(f"{lg.source}: not a constant-speed leg: {why}; a friction test is constant-speed legs "
+                            "only; logs with excitation are fitted together as segments (identify_files)")
+        if _stalled(lg):
             excluded.append(lg.source)
             warnings.append(f"{lg.source}: mean speed 0 (a stalled leg); left out of the friction map")
             continue
-        if spread > LEG_SPEED_TOLERANCE:
-            raise DataError(f"{lg.source}: not a constant-speed leg (its smoothed speed departs from the mean by "
-                            f"{spread * 100:.0f} % or more on 10 % of the samples; at most "
-                            f"{LEG_SPEED_TOLERANCE * 100:.0f} %): a friction test is constant-speed legs only; "
-                            "logs with excitation are fitted together as segments (identify_files)")
         legs.append(lg)
     if len(legs) < 2:
-        raise IdentifiabilityError(f"{paths[0]}: {len(legs)} usable constant-speed leg(s) of {len(logs)} files; "
+        raise IdentifiabilityError(f"{_where(paths)}: {len(legs)} usable constant-speed leg(s) of {len(logs)} files; "
                                    "a friction map needs legs in both directions")
     fmap = friction_map([(lg.t, lg.q, lg.u) for lg in legs])
+    units = _units(u_unit, logs[0])
+    speed_unit = units["q"] + "/s"
+    named = _named_legs(fmap, legs, speed_unit)
+
+    def fit(model: str) -> MapFit:
+        return fit_friction_map(fmap.velocity, fmap.force, friction=model,  # type: ignore[arg-type]
+                                speed_unit=speed_unit, force_unit=units["u"])
+
     try:
         try:
-            mf = fit_friction_map(fmap.velocity, fmap.force, friction="stribeck" if friction == "auto" else friction)
+            mf = fit("stribeck" if friction == "auto" else friction)
             fc, fs = mf.parameters["fc"][0], mf.parameters.get("fs", (None,))[0]
             if friction == "auto" and fs is not None and fs < fc:
                 warnings.append(f"friction auto: the Stribeck fit is anti-Stribeck (fs = {fs:.4g} < fc = {fc:.4g}); "
                                 "the Coulomb model was fitted instead (--friction stribeck keeps the Stribeck fit)")
-                mf = fit_friction_map(fmap.velocity, fmap.force, friction="coulomb")
+                mf = fit("coulomb")
         except StribeckNotIdentifiableError as exc:
             if friction != "auto":
-                raise
-            warnings.append(f"friction auto: Stribeck curve not identifiable ({exc}); the Coulomb model was fitted "
-                            "instead (--friction stribeck refuses such a map)")
-            mf = fit_friction_map(fmap.velocity, fmap.force, friction="coulomb")
+                raise IdentifiabilityError(f"{_where(paths)}: {exc} ({named})") from None
+            warnings.append(f"friction auto: Stribeck curve not identifiable ({exc}; {named}); the Coulomb model "
+                            "was fitted instead (--friction stribeck refuses such a map)")
+            mf = fit("coulomb")
     except NotIdentifiableError as exc:
-        raise IdentifiabilityError(f"{paths[0]}: {exc}") from None
+        raise IdentifiabilityError(f"{_where(paths)}: {exc} ({named})") from None
     warnings.extend(mf.warnings)
     warnings.extend(fit_quality_warnings(mf.parameters, mf.relative_error, mf.condition_number))
     val_err = None
     if val_logs:
-        val_legs = [lg for lg in val_logs if not math.isinf(_leg_speed_spread(lg))]
+        val_legs = [lg for lg in val_logs if not _stalled(lg)]
         vmap = friction_map([(lg.t, lg.q, lg.u) for lg in val_legs])
         pv = mf.parameters
         F_hat = (pv["B"][0] * vmap.velocity + pv["offset"][0]
@@ -739,7 +824,7 @@ def identify_legs(
                                    payload_max=bounds.payload_max, disturbance_bound=bounds.disturbance_bound)
             theta = ThetaBox(tb.nominal, tb.theta_min, tb.theta_max)
         except ValueError as exc:
-            raise DataError(f"{paths[0]}: the identified friction and the fixed mass give no usable theta box "
+            raise DataError(f"{_where(paths)}: the identified friction and the fixed mass give no usable theta box "
                             f"({exc}); B = {p['B'][0]:.4g}") from None
         delta_d = tb.delta_d
     first = legs[0]
@@ -790,14 +875,8 @@ def identify_legs(
 
 
 def is_friction_leg(log: ExcitationLog) -> bool:
-    """Whether ``log`` is a constant-speed leg of a friction test, or a stalled one (mean speed 0).
-
-    The test of :func:`identify_legs`: the smoothed speed stays within
-    :data:`LEG_SPEED_TOLERANCE` of the mean speed on 90 % of the samples.
-    """
-    if log.n < 2 or not (np.all(np.isfinite(log.t)) and np.all(np.isfinite(log.q))):
-        return False
-    return _leg_speed_spread(log) <= LEG_SPEED_TOLERANCE or math.isinf(_leg_speed_spread(log))
+    """Whether ``log`` is a constant-speed leg of a friction test, or a stalled one (:func:`leg_refusal`)."""
+    return leg_refusal(log) is None
 
 
 def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), ripple_pitch: float | Sequence[float]
@@ -806,11 +885,12 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
 
     One log: :func:`identify_log`.  Several logs are read once and then
 
-    - all constant-speed legs (:func:`is_friction_leg`): a friction test,
+    - constant-speed legs in both directions (:func:`classify_logs`): a friction test,
       :func:`identify_legs` (``ripple_pitch`` and ``resample`` are refused: one
       leg per file gives one map point, no ripple or time base to fit);
-    - otherwise (at least one log with excitation): fitted together, each log its
-      own segment, :func:`identify_log` with the list of paths.
+    - otherwise (a log with excitation among them, or constant-speed runs all one
+      way): fitted together, each log its own segment, :func:`identify_log` with the
+      list of paths; the first warning says which files are which.
 
     Parameters
     ----------
@@ -837,16 +917,53 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
     gain = float(options.get("input_gain", 1.0))  # type: ignore[arg-type]
     logs = [load_log(p, input_gain=gain, **load) for p in paths]  # type: ignore[arg-type]
     val_logs = [load_log(p, input_gain=gain, **load) for p in validate_on]  # type: ignore[arg-type]
-    if all(is_friction_leg(lg) for lg in logs):
+    kind, note = classify_logs(logs)
+    if kind == "legs":
         for flag, value in (("--ripple-pitch", ripple_pitch or None), ("--resample", resample)):
             if value is not None:
-                raise UsageError(f"{flag}: not available for a friction test of several logs (one leg per file)")
+                raise UsageError(f"{flag}: not available for a friction test of several logs ({note}; one map "
+                                 "point per leg, no ripple or time base to fit): drop it, or give one file")
         legs_kw = {k: options[k] for k in ("mapping", "input_gain", "sample_rate", "friction", "fix", "bounds",
                                             "u_unit", "q_unit", "fmt") if k in options}
         return identify_legs(paths, validate_on=list(validate_on), _loaded=(logs, val_logs),
                              **legs_kw)  # type: ignore[arg-type]
-    return identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,
-                        _loaded=(logs, val_logs), **options)  # type: ignore[arg-type]
+    out = identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,
+                       _loaded=(logs, val_logs), **options)  # type: ignore[arg-type]
+    out.ident.extra.setdefault("warnings", []).insert(0, note)  # type: ignore[union-attr]
+    return out
+
+
+def classify_logs(logs: Sequence[ExcitationLog]) -> tuple[Literal["legs", "segments"], str]:
+    """Whether several logs are a friction test (``"legs"``) or segments of one axis, and a note saying why.
+
+    A friction test is constant-speed legs (:func:`leg_refusal`) in both directions: a
+    friction map needs both to tell the Coulomb level from the offset.  Anything else is
+    fitted as segments of one axis: logs with excitation among them, or constant-speed
+    runs in one direction only (slow runs for a ripple, say), which are no friction test.
+    The note names which files are which (stalled legs counted with the legs).
+    """
+    why = {lg.source: leg_refusal(lg) for lg in logs}
+    legs = [lg for lg in logs if why[lg.source] is None]
+    moving = [lg for lg in legs if not _stalled(lg)]
+    directions = {int(np.sign(lg.q[-1] - lg.q[0])) for lg in moving}
+
+    def names(group: Sequence[ExcitationLog], limit: int = 6) -> str:
+        shown = [os.path.basename(lg.source) for lg in group[:limit]]
+        return ", ".join(shown) + (f" and {len(group) - limit} more" if len(group) > limit else "")
+
+    if len(legs) == len(logs) and directions == {-1, 1}:
+        return "legs", f"{len(logs)} constant-speed legs in both directions: a friction test"
+    if len(legs) == len(logs):
+        way = "forward" if directions == {1} else "backward" if directions == {-1} else "nowhere"
+        return "segments", (f"the {len(logs)} logs are constant-speed runs all {way}, not a friction test (whose "
+                            "legs run both ways): fitted together as segments of one axis")
+    others = [lg for lg in logs if why[lg.source] is not None]
+    first = others[0]
+    text = (f"the {len(logs)} logs are fitted together as segments of one axis; not constant-speed legs: "
+            f"{names(others)} ({os.path.basename(first.source)}: {why[first.source]})")
+    if legs:
+        text += f"; constant-speed legs: {names(legs)}"
+    return "segments", text
 
 
 def fit_quality_warnings(parameters: Mapping[str, tuple[float, float]], relative_error: float,

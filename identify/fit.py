@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, stats
 
 from commission.identify.errors import MassNotIdentifiableError, NotIdentifiableError, StribeckNotIdentifiableError
 from commission.identify.friction import (XI_BOUNDS, SeparableFit, fit_separable, stribeck_friction,
@@ -94,6 +94,11 @@ MIN_ROWS_PER_DIRECTION = 5
 #: Least number of map points (Stribeck) / decimated rows below 3 vs for the Stribeck curve.
 MIN_STRIBECK_POINTS = 4
 MIN_STRIBECK_ROWS = 20
+#: A friction test's Stribeck dip is kept when a Coulomb line explains the map's odd part this
+#: unlikely well (F-test p-value of the Coulomb line against the Stribeck curve).
+STRIBECK_DIP_P_VALUE = 1e-3
+#: Two legs of opposite directions are a pair when their speeds differ by at most this fraction.
+PAIR_SPEED_TOLERANCE = 0.1
 #: Refuse M when its relative standard deviation exceeds this.
 MAX_REL_STD_M = 0.25
 #: Alternations of the friction-map / mass steps.
@@ -251,28 +256,47 @@ def _check_mass(M: float, std: float, cond: float) -> None:
 
 
 def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: str, hint: str,
-                    warnings: list[str]) -> None:
+                    warnings: list[str], *, dip: tuple[float, float] | None = None, speed_unit: str = "m/s") -> None:
     """Refuse a Stribeck fit the data cannot support; warn about softer issues.
 
-    Refused: fewer than ``n_need`` of ``speeds`` below ``3 vs``; no significant hump
-    (``|fs - fc|`` under three of its standard deviations: ``vs`` and ``xi`` are then
-    arbitrary); ``vs`` on the search box (the hump lies outside the speeds seen).
+    Refused: fewer than ``n_need`` of ``speeds`` below ``3 vs`` (with ``dip``: inside the
+    dip, below ``vs 3^(1/xi)`` where the Stribeck term is still 5 % of ``fs - fc``, and
+    never below ``3 vs``: a small ``xi`` makes a dip that reaches far); no
+    significant dip; ``vs`` on the search box (the dip lies outside the speeds seen).
+
+    Significance: by default ``|fs - fc|`` must exceed three of its standard deviations.
+    ``fs - fc`` is the dip *at standstill*, an extrapolation below the slowest speed
+    seen; when few speeds lie in the dip, ``vs``, ``xi`` and ``fs`` trade against each
+    other and its standard deviation can be many times the dip itself although the dip
+    over the speeds seen is plain.  A friction test therefore passes
+    ``dip = (F statistic, p-value)`` of a Coulomb line against the Stribeck curve (the
+    residual sums of squares of the two fits): the dip is kept when ``p`` is below
+    :data:`STRIBECK_DIP_P_VALUE`, whatever the spread of ``fs`` alone.
     """
     i = {nm: k for k, nm in enumerate(sep.names)}
-    fc, fs, vs = sep.value[i["fc"]], sep.value[i["fs"]], sep.value[i["vs"]]
+    fc, fs, vs, xi = (sep.value[i[k]] for k in ("fc", "fs", "vs", "xi"))
     g = np.zeros(len(sep.names))
     g[i["fs"]], g[i["fc"]] = 1.0, -1.0
     sd_hump = float(np.sqrt(max(g @ sep.cov @ g, 0.0)))
-    n_low = int(np.sum(speeds < 3.0 * vs))
+    reach = vs * max(3.0, 3.0 ** (1.0 / xi)) if dip is not None else 3.0 * vs
+    below = "3*vs" if reach == 3.0 * vs else f"vs*3^(1/xi) (xi = {xi:.3g})"
+    n_low = int(np.sum(speeds < reach))
     head = f"too few samples below 3*vs for the Stribeck curve ({what}): "
     if n_low < n_need:
-        raise StribeckNotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} m/s, need {n_need}; {hint}")
-    if not abs(fs - fc) > 3.0 * sd_hump:
+        raise StribeckNotIdentifiableError(head + f"{n_low} below {below} = {reach:.3g} {speed_unit}, need {n_need}; "
+                                           f"{hint}")
+    if dip is None and not abs(fs - fc) > 3.0 * sd_hump:
         raise StribeckNotIdentifiableError(head + f"no Stribeck hump shows (fs - fc = {fs - fc:.3g} +- {sd_hump:.2g}); {hint}")
+    if dip is not None and not dip[1] < STRIBECK_DIP_P_VALUE:
+        raise StribeckNotIdentifiableError(
+            f"no Stribeck dip shows ({what}): the Stribeck curve fits the map no better than a Coulomb line "
+            f"(F = {dip[0]:.3g}, p = {dip[1]:.2g}, need p < {STRIBECK_DIP_P_VALUE:g}; fs - fc = {fs - fc:.3g} "
+            f"+- {sd_hump:.2g}); {hint}")
     if "vs" in sep.at_bound:
-        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} m/s lies on the edge of the speeds seen; {hint}")
+        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} {speed_unit} lies on the edge of the speeds seen; "
+                                           f"{hint}")
     if "xi" in sep.at_bound:
-        warnings.append(f"stribeck: xi = {sep.value[i['xi']]:.3g} at the edge of its search box {XI_BOUNDS}; "
+        warnings.append(f"stribeck: xi = {xi:.3g} at the edge of its search box {XI_BOUNDS}; "
                         "the shape of the curve is poorly determined")
     if fs < fc:
         warnings.append("stribeck: fs < fc (friction rises at low speed), which the model does not expect")
@@ -346,6 +370,76 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
                     f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} m/s",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
                     "(it does not average out on slow legs), or use friction='coulomb'", warnings)
+    return params
+
+
+def _direction_pairs(v: np.ndarray) -> list[tuple[int, int]] | None:
+    """Each forward leg paired with the backward leg nearest its speed, or None if a leg is left alone.
+
+    Legs are matched in order of speed, one to one, within :data:`PAIR_SPEED_TOLERANCE`.
+    """
+    fwd = [int(i) for i in np.argsort(v) if v[i] > 0]
+    bwd = [int(i) for i in np.argsort(-v) if v[i] < 0]
+    if len(fwd) != len(bwd) or len(fwd) + len(bwd) != v.size:
+        return None
+    pairs = list(zip(fwd, bwd))
+    for i, j in pairs:
+        if abs(v[i] + v[j]) > PAIR_SPEED_TOLERANCE * max(v[i], -v[j]):
+            return None
+    return pairs
+
+
+def _map_fit_stribeck_legs(v: np.ndarray, F: np.ndarray, warnings: list[str], speed_unit: str,
+                           force_unit: str) -> dict[str, tuple[float, float]]:
+    """Stribeck curve of a friction test; on the map's odd part when every leg has a partner the other way.
+
+    The model ``F = B v + Ff(v) + offset`` is odd in ``v`` but for the constant
+    ``offset``.  A real map's direction-dependent (even) part is often not constant:
+    it can rise at the slowest legs as much as the dip itself.  Fitted to all legs, that
+    misfit lands in the residual the Stribeck terms are judged against, and the dip drowns.
+    With legs in pairs of opposite directions at matching speeds, the odd part
+    ``(F(v) - F(-v)) / 2`` of each pair is ``B |v| + Ff(|v|)`` exactly, and the offset is
+    the mean of the even parts ``(F(v) + F(-v)) / 2`` (std: their spread over
+    ``sqrt(pairs)``).  The same curve, with every parameter's std from the odd part's own
+    scatter.
+
+    The dip is judged by an F-test of the Coulomb line against the Stribeck curve
+    (:func:`_check_stribeck`, ``dip``), not by the std of ``fs - fc``: ``fs`` is the
+    level at standstill, extrapolated below the slowest leg, and its std is reported as it
+    is (large when few legs lie in the dip), with a warning naming the slowest speed.
+    Without pairs the legs are fitted as one map (:func:`_map_fit_stribeck`).
+    """
+    pairs = _direction_pairs(v)
+    if pairs is None or len(pairs) < 6:  # the F-test needs a residual degree of freedom beyond 5 parameters
+        return _map_fit_stribeck(v, F, warnings)
+    i, j = (np.array(k) for k in zip(*pairs))
+    vo, Fo, Fe = (v[i] - v[j]) / 2.0, (F[i] - F[j]) / 2.0, (F[i] + F[j]) / 2.0
+    Phi0 = np.column_stack([vo, np.ones_like(vo)])
+
+    def jacobian(vs: float, xi: float) -> tuple[np.ndarray, np.ndarray]:
+        return stribeck_shape_derivatives(vo, vs, xi)[1:]
+
+    sep = fit_separable(Phi0, ("B", "fc"), lambda vs, xi: stribeck_shape(vo, vs, xi), jacobian, Fo,
+                        vs_bounds=(0.3 * vo.min(), 0.5 * vo.max()))
+    n, p = vo.size, len(sep.names)
+    r_c = Fo - Phi0 @ np.linalg.lstsq(Phi0, Fo, rcond=None)[0]
+    rss_c, rss_s = float(r_c @ r_c), float(sep.residuals @ sep.residuals)
+    n_extra = p - Phi0.shape[1]  # fs, vs, xi
+    f_stat = ((rss_c - rss_s) / n_extra) / (rss_s / (n - p)) if rss_s > 0 else math.inf
+    p_value = float(stats.f.sf(f_stat, n_extra, n - p)) if math.isfinite(f_stat) else 0.0
+    v0 = float(vo.min())
+    _check_stribeck(sep, np.abs(v), MIN_STRIBECK_POINTS,
+                    f"{n} pairs of legs, one each way; the slowest at {v0:.3g} {speed_unit}",
+                    "add slower legs to the friction test, or use friction='coulomb'", warnings,
+                    dip=(f_stat, p_value), speed_unit=speed_unit)
+    params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
+    params["offset"] = (float(np.mean(Fe)), float(np.std(Fe, ddof=1) / math.sqrt(n)))
+    fc, fs, vs, xi = (params[k][0] for k in ("fc", "fs", "vs", "xi"))
+    left = math.exp(-((v0 / vs) ** xi))  # share of fs - fc still in the curve at the slowest pair
+    if left < 0.5:
+        warnings.append(f"stribeck: the dip is measured down to {v0:.3g} {speed_unit}, where the curve is "
+                        f"{(fs - fc) * left:.3g} {force_unit} above fc; fs = {fs:.4g} +- {params['fs'][1]:.2g} "
+                        f"{force_unit} is its value at standstill, extrapolated below the slowest legs")
     return params
 
 
@@ -521,7 +615,8 @@ class MapFit:
     warnings: tuple[str, ...]
 
 
-def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: FrictionModel) -> MapFit:
+def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: FrictionModel,
+                     speed_unit: str = "m/s", force_unit: str = "u-unit") -> MapFit:
     """Fit ``F = B v + Ff(v) + offset`` to friction-map points (one per constant-velocity leg).
 
     The same map fit as step 1 of the ``"steady+dynamic"`` method, on legs that are
@@ -534,6 +629,10 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
     force : ndarray
         Command of each leg (its median), u-unit.
     friction : {"coulomb", "stribeck"}
+        A Stribeck curve is fitted to the map's odd part when the legs come in pairs of
+        opposite directions (:func:`_map_fit_stribeck_legs`).
+    speed_unit, force_unit : str
+        Units of ``velocity`` and ``force`` in messages (``"rad/s"`` on a rotary axis).
 
     Returns
     -------
@@ -554,7 +653,10 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
         raise NotIdentifiableError(f"friction: legs at {n_pos} distinct speeds forward and {n_neg} backward; the "
                                    f"{friction} curve needs {need} each way")
     warnings: list[str] = []
-    params = _map_fit(v, F, friction, warnings)
+    if friction == "stribeck":
+        params = _ordered(_map_fit_stribeck_legs(v, F, warnings, speed_unit, force_unit))
+    else:
+        params = _map_fit(v, F, friction, warnings)
     ff = stribeck_friction(v, params["fc"][0], params["fs"][0] if "fs" in params else None,
                            params["vs"][0] if "vs" in params else None, params["xi"][0] if "xi" in params else None)
     fitted = params["B"][0] * v + ff + params["offset"][0]

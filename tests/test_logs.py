@@ -259,7 +259,8 @@ def test_directory_and_unknown_extension(tmp_path):
         load_log(tmp_path / ".")
     path = tmp_path / "log.txt"
     path.write_text("t,q,u\n0,0,0\n")
-    with pytest.raises(InputFileError, match=r"log\.txt: unknown log format '\.txt' \(expected \.h5, \.hdf5, \.csv or \.mat\)"):
+    with pytest.raises(InputFileError, match=r"log\.txt: unknown log format '\.txt' "
+                                             r"\(expected \.h5, \.hdf5, \.csv, \.mat, \.npy or \.npz\)"):
         load_log(path)
 
 

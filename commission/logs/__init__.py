@@ -2,8 +2,8 @@
 
 A log is one recording of one axis (CONTRACT §1): sample time ``t`` [s],
 measured position ``q`` [m], actuator command ``u`` and, optionally, the
-reference position ``q_ref`` [m].  :func:`load_log` reads it from HDF5, CSV or
-MATLAB (v5 and v7.3) files, chosen by extension, and returns an immutable
+reference position ``q_ref`` [m].  :func:`load_log` reads it from HDF5, CSV,
+MATLAB (v5 and v7.3) or NumPy (``.npy``, ``.npz``) files, chosen by extension, and returns an immutable
 :class:`ExcitationLog` in SI units with the input gain already applied.
 
 Loading only checks what is needed to build the arrays (file readable,
@@ -21,8 +21,9 @@ readers share: name lookup, vector checks, assembly in SI units), and one reader
 per format: :mod:`~commission.logs.hdf5` (HDF5 and MATLAB v7.3, in a guarded
 child process), :mod:`~commission.logs.mat` (MATLAB v5), :mod:`~commission.logs.csvfile`
 (CSV), :mod:`~commission.logs.epos` with :mod:`~commission.logs.eposfile` (maxon
-EPOS recorder files).  A new vendor format is one more reader module returning a
-``_Raw``, and one line in :func:`load_log`.
+EPOS recorder files), :mod:`~commission.logs.npy` (NumPy ``.npy``/``.npz``, never
+unpickled).  A new vendor format is one more reader module returning a ``_Raw``, and
+one line in :func:`load_log`.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from commission.logs.epos import looks_like_epos
 from commission.logs.eposfile import _read_epos
 from commission.logs.hdf5 import _hdf5_offset, _read_hdf5
 from commission.logs.mat import _read_mat5
+from commission.logs.npy import _read_npy, _read_npz, looks_like_npz
 from commission.logs.model import CHANNELS, Q_UNITS, SAMPLE_RATE_TOLERANCE, U_UNITS, ExcitationLog
 from commission.logs.raw import _assemble
 
@@ -55,11 +57,11 @@ __all__ = [
 ]
 
 
-_EXTENSIONS = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv", ".mat": "mat"}
+_EXTENSIONS = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv", ".mat": "mat", ".npy": "npy", ".npz": "npy"}
 
 
 #: Values of ``--format``: one per reader module.
-FORMATS: tuple[str, ...] = ("hdf5", "csv", "mat", "epos")
+FORMATS: tuple[str, ...] = ("hdf5", "csv", "mat", "epos", "npy")
 
 
 def parse_mapping(items: Iterable[str]) -> dict[str, str]:
@@ -108,7 +110,7 @@ def load_log(
     q_unit: str | None = None,
     fmt: str | None = None,
 ) -> ExcitationLog:
-    """Load an excitation log (CONTRACT §1) from HDF5, CSV or MATLAB.
+    """Load an excitation log (CONTRACT §1) from HDF5, CSV, MATLAB or NumPy.
 
     The format follows the extension: ``.h5``/``.hdf5`` (1-D datasets at the
     root, optional root attributes ``q_unit`` in {m, mm, um} and ``u_unit`` in
@@ -117,7 +119,10 @@ def load_log(
     :func:`scipy.io.loadmat`, v7.3 read as HDF5; the latter's root attributes
     ``q_unit``/``u_unit`` are honoured as for ``.h5``).  CSV and v5 MAT files
     carry no unit metadata: ``q`` is in m (or ``q_unit``) and ``u`` in V.  Column and row
-    vectors (N×1, 1×N) are flattened, since MATLAB has no 1-D arrays.
+    vectors (N×1, 1×N) are flattened, since MATLAB has no 1-D arrays.  ``.npz`` (named
+    arrays) and ``.npy`` (a record array's fields, or a plain 2-D array's rows or columns
+    by index: ``--map t=0 --map q=1 --map u=2``) carry no units either; see
+    :mod:`commission.logs.npy`.
 
     Parameters
     ----------
@@ -139,7 +144,7 @@ def load_log(
         Unit of ``q`` (and ``q_ref``) in the file, for files without a ``q_unit``
         attribute (CSV, v5 MAT, HDF5 without it); default m.  A file whose
         attribute names another unit is refused (``--q-unit`` contradicts it).
-    fmt : {"hdf5", "csv", "mat", "epos"}, optional
+    fmt : {"hdf5", "csv", "mat", "epos", "npy"}, optional
         Forces the format (``--format``).  Default: a maxon EPOS Studio
         recorder file is recognised from its content
         (:mod:`commission.logs.epos`: rotary axis, q in rad integrated from
@@ -194,7 +199,7 @@ def load_log(
     if fmt is None:
         raise InputFileError(
             f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
-            "(expected .h5, .hdf5, .csv or .mat); EPOS recorder files are recognised from their content "
+            "(expected .h5, .hdf5, .csv, .mat, .npy or .npz); EPOS recorder files are recognised from their content "
             "and --format forces a format"
         )
     need_t = sample_rate is None
@@ -204,6 +209,8 @@ def load_log(
         raw = _read_hdf5(data, label, "HDF5", mapping, need_t, matlab=False)
     elif fmt == "csv":
         raw = _read_csv(data, label, mapping, need_t)
+    elif fmt == "npy":
+        raw = (_read_npz if looks_like_npz(data) else _read_npy)(data, label, mapping, need_t)
     elif _hdf5_offset(data) is not None:
         raw = _read_hdf5(data, label, "MATLAB v7.3", mapping, need_t, matlab=True)
     else:
