@@ -314,7 +314,7 @@ def deployable_gains(arc: ArcGains, guards: Mapping[str, Any] | None = None) -> 
     through the controller.json layout (what the runtime will run)."""
     if guards:
         arc = dataclasses.replace(arc, **guards)
-    probe = ControllerConfig(gains=arc, sample_rate=1.0 / arc.Ts, units={"u": "u", "q": "m"}, validated={},
+    probe = ControllerConfig(gains=arc, sample_rate=1.0 / arc.Ts, units={"u": "V", "q": "m"}, validated={},
                              provenance=ControllerProvenance(None, "0" * 64, "0" * 64, "", ""))
     doc = json.loads(json.dumps(probe.to_dict()))
     # Infinite limits pass the round trip here; the floors (commission.gate.FLOORS) then refuse to emit them.
