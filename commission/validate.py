@@ -553,9 +553,23 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
     if isinstance(narrowed, dict):
         lo, hi = embedded["theta"]["min"][2], embedded["theta"]["max"][2]
         t3min, t3max = narrowed.get("theta3_min"), narrowed.get("theta3_max")
-        if isinstance(t3min, (int, float)) and isinstance(t3max, (int, float)) and t3min <= lo <= hi <= t3max:
+        if (isinstance(t3min, (int, float)) and isinstance(t3max, (int, float)) and t3min <= lo <= hi <= t3max
+                and _narrowed_as_recorded(narrowed, lo, hi, embedded["theta"]["max"][0])):
             embedded["theta"]["min"][2], embedded["theta"]["max"][2] = t3min, t3max
     return embedded
+
+
+def _narrowed_as_recorded(narrowed: Mapping[str, Any], lo: float, hi: float, theta1_max: float) -> bool:
+    """The narrowed theta3 box is the one tune recorded as a force range (``narrowed_force_range``,
+    theta3 x the lightest mass 1/theta1_max), so that a box shrunk further by hand inside the
+    narrowing is not taken for tune's; a record without the force range is taken as it is."""
+    rec = narrowed.get("narrowed_force_range")
+    if rec is None:
+        return True
+    if not (isinstance(rec, list) and len(rec) == 2 and all(isinstance(x, (int, float)) for x in rec)):
+        return False
+    m_light = 1.0 / theta1_max
+    return all(math.isclose(r, v * m_light, rel_tol=1e-9, abs_tol=1e-300) for r, v in zip(rec, (lo, hi)))
 
 
 def check_provenance(tuning: Tuning, tuning_path: str) -> None:
@@ -568,7 +582,7 @@ def check_provenance(tuning: Tuning, tuning_path: str) -> None:
       (relative to the working folder) and beside tuning.json under the same name.  Its
       sha256 must be ``provenance.ident_sha256``, and the embedded identification must be
       that file's content, up to the theta3 narrowing that tune records
-      (``bounds.narrowed_by_tune``, within the file's box).
+      (``bounds.narrowed_by_tune``: within the file's box, and the box tune recorded).
     - **ident.json not at hand** (tuning.json travels alone): ident.json as this tool writes
       it is the canonical JSON (:func:`commission.jsonio.canonical_json`) of its content, and
       tune embeds that content verbatim, so the canonical JSON of the embedded
