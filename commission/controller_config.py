@@ -133,9 +133,11 @@ PLAUSIBLE: dict[str, tuple[tuple[str, str], str]] = {
 }
 
 
-def _plausible(r: Reader, key: str, value: float) -> None:
-    """Refuse ``value`` at ``r.path + key`` outside its :data:`PLAUSIBLE` range, naming the field."""
-    rng, unit = PLAUSIBLE[key]
+def _plausible(r: Reader, key: str, value: float, unit: str | None = None) -> None:
+    """Refuse ``value`` at ``r.path + key`` outside its :data:`PLAUSIBLE` range, naming the field
+    (``unit``: the file's own unit of the value, when it has one)."""
+    rng, default_unit = PLAUSIBLE[key]
+    unit = unit or default_unit
     lo, hi = RANGES[rng]
     if not lo <= value <= hi:
         raise r.fail(f"{value!r} {unit} is outside the plausible range [{lo:g}, {hi:g}] {unit}", f"{r.path}.{key}")
@@ -291,7 +293,7 @@ class ControllerConfig:
                                       f"{sr.path}.{n}")
                     kw[n] = sr.num(n, positive=True)
                     if n == "u_max":
-                        _plausible(sr, n, kw[n])
+                        _plausible(sr, n, kw[n], units["u"])
                 else:
                     kw[n] = sr.num(n)
         fr = r.obj("friction_compensation")
