@@ -366,7 +366,10 @@ class Identification:
                 params[name] = None
                 continue
             er = pr.obj(name)
-            params[name] = Estimate(er.num("value"), er.num("std", nonneg=True))
+            # vs and xi are positive by construction (identify searches log vs and xi in a positive
+            # box); a file that says otherwise is refused rather than replaced by the simulator's default
+            params[name] = Estimate(er.num("value", positive=name in ("vs", "xi")),  # type: ignore[arg-type]
+                                    er.num("std", nonneg=True))  # type: ignore[arg-type]
         M = params["M"]
         if M is not None and M.value <= 0:
             raise r.fail(f"expected a positive mass, got {M.value!r}", "$.parameters.M.value")

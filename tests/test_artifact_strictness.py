@@ -108,6 +108,8 @@ BAD_IDENT = [
     ("units.q", "mm", "expected one of"),
     ("units.extra", "V", "unknown field"),
     ("model.ripple_pitch", -0.03, "expected a positive number"),
+    ("parameters.vs.value", -0.01, "expected a positive number"),
+    ("parameters.xi.value", 0.0, "expected a positive number"),
     ("bounds.disturbance_bound_defaulted", "yes", "expected true or false"),
     ("not_identified", [], "expected an object"),
     ("warnings", "none", "expected a list of strings"),
