@@ -103,11 +103,10 @@ def _check_extra(r: Reader) -> None:
             else:
                 read_sha256(src, "sha256")
     read_sha256(r, "log_sha256", optional=True)
-    for holder in (_optional_obj(r, "encoder"), r):
-        if holder is not None:  # encoder.quantization (what identify writes) or the older top-level key
-            _in_range(holder, "quantization", ("controller", "quantization"), "m")
+    _in_range(r, "quantization", ("controller", "quantization"), "m")  # the older place of encoder.quantization
     enc = _optional_obj(r, "encoder")
     if enc is not None:
+        _in_range(enc, "quantization", ("controller", "quantization"), "m")
         _in_range(enc, "noise_std", ("plant", "noise_std"), "m")
         enc.num("apparent_resolution", optional=True, nonneg=True)
     model = _optional_obj(r, "model")

@@ -200,8 +200,8 @@ def read_json(path: str | os.PathLike[str]) -> Any:
         return obj
 
     try:
-        tree = json.loads(data.decode("utf-8"), parse_int=parse_int, parse_float=parse_float, parse_constant=parse_constant,
-                          object_pairs_hook=object_pairs)
+        tree = json.loads(data.decode("utf-8"), parse_int=parse_int, parse_float=parse_float,
+                          parse_constant=parse_constant, object_pairs_hook=object_pairs)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SchemaError(f"{p}: not valid JSON ({exc})") from None
     except RecursionError:
