@@ -437,6 +437,10 @@ class Tuning:
         arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
         pidr = r.obj("pid")
         pid = _gains_from_reader(PidGains, pidr, _PID_INF_OK, skip=("pole", "design_mass"))
+        lo, hi = RANGES[("controller", "u_max")]  # a finite output limit is a plausible one, as in controller.json
+        for section, gains in (("arc", arc), ("pid", pid)):
+            if math.isfinite(gains.u_max) and not lo <= gains.u_max <= hi:
+                raise r.fail(f"{gains.u_max!r} is outside the plausible range [{lo:g}, {hi:g}]", f"$.{section}.u_max")
         obr = r.obj("observer")
         P = _matrix(obr, "P", 2, 2)
         dp = obr.num("discrete_pole", optional=True)

@@ -165,6 +165,7 @@ def test_vocabulary_is_what_identify_accepts():
     (lambda d: _set(d["identification"], "encoder.quantization", -1e-6), "$.identification.encoder.quantization"),
     (lambda d: _set(d["identification"], "units.u", "parsec"), "$.identification.units.u"),
     (lambda d: _set(d, "plant.quantization", 0.5), "$.plant.quantization"),
+    (lambda d: _set(d, "arc.u_max", 1e308), "$.arc.u_max"),
     (lambda d: _set(d, "provenance.ident_sha256", "x" * 64), "$.provenance.ident_sha256"),
 ])
 def test_tuning_json_is_as_strict_as_ident_json(edit, path):
