@@ -12,12 +12,133 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from commission.jsonio import Reader, read_json
+from commission.logs.model import U_UNITS
+from commission.spec import RANGES
 
 IDENT_KIND = "identification"
 IDENT_SCHEMA_VERSION = 1
 
 #: Parameters of CONTRACT §2 in a stable order.
 PARAMETER_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset")
+
+#: ``units.u`` of every artifact: exactly the command units this tool itself can write
+#: (:data:`commission.logs.model.U_UNITS`: a log's ``u_unit`` attribute, an EPOS file's torque
+#: unit, ``--u-unit``).  A fixed vocabulary rather than free text, because the unit travels from
+#: ident.json through tuning.json and controller.json into generated code and reports.
+UNIT_VOCABULARY_U = U_UNITS
+#: ``units.q``: a linear axis in m (a log in mm or um is converted on reading), a rotary one in rad.
+UNIT_VOCABULARY_Q = ("m", "rad")
+
+
+def read_units(r: Reader) -> dict[str, str]:
+    """``$.units`` of an artifact root, each unit checked against its fixed vocabulary.
+
+    Shared by ident.json, tuning.json (its embedded identification) and controller.json, so
+    that a unit the tool could not have written is refused wherever it is planted, with its
+    JSON path, before it can reach a report or generated code.
+
+    Raises
+    ------
+    SchemaError
+        ``ident.json: $.units.u: expected one of [...], got 'parsec'``, or an unknown key.
+    """
+    ur = r.obj("units")
+    for k in ur.keys():
+        if k not in ("u", "q"):
+            raise ur.fail("unknown field", f"{ur.path}.{k}")
+    return {"u": ur.str_("u", choices=UNIT_VOCABULARY_U),  # type: ignore[dict-item]
+            "q": ur.str_("q", choices=UNIT_VOCABULARY_Q)}
+
+
+def read_sha256(r: Reader, key: str, *, optional: bool = False) -> str | None:
+    """A sha256 field: 64 lowercase hex digits (what :mod:`hashlib` writes), or None when optional and absent.
+
+    A digest is whitelisted by its form because it is copied into provenance records and
+    generated files; free text there would be a channel for anything.
+    """
+    v = r.str_(key, optional=optional)
+    if v is not None and not _is_sha256(v):
+        raise r.fail(f"expected a sha256 (64 lowercase hex digits), got {v[:80]!r}", f"{r.path}.{key}")
+    return v
+
+
+def _is_sha256(v: object) -> bool:
+    return isinstance(v, str) and len(v) == 64 and all(c in "0123456789abcdef" for c in v)
+
+
+def _in_range(r: Reader, key: str, rng: tuple[str, str], unit: str) -> None:
+    """An optional number at ``key`` that, when present, lies in the spec's range :data:`commission.spec.RANGES`."""
+    v = r.num(key, optional=True)
+    lo, hi = RANGES[rng]
+    if v is not None and not lo <= v <= hi:
+        raise r.fail(f"must be within [{lo:g}, {hi:g}] {unit}, got {v!r}", f"{r.path}.{key}")
+
+
+def _optional_obj(r: Reader, key: str) -> Reader | None:
+    return r.obj(key) if r.has(key) else None
+
+
+def _check_extra(r: Reader) -> None:
+    """Check the optional ident.json fields that ``tune`` and ``validate`` use, where present.
+
+    A missing optional field (or null) takes its documented default downstream
+    (:func:`commission.scenarios.resolve_quantization`, :func:`commission.tune.log_sample_rate`,
+    ...); a field that is **present** with a value of the wrong type or outside its range is
+    refused here, naming its JSON path, instead of being replaced by that default further on
+    (an encoder step of -1 um is not "no encoder step recorded").  The ranges are the spec's
+    (:data:`commission.spec.RANGES`) where the spec has the same quantity.
+    """
+    src = _optional_obj(r, "source")
+    if src is not None:
+        src.num("sample_rate", optional=True, positive=True)
+        if src.has("n_samples") and src.int_("n_samples") < 0:
+            raise src.fail("expected a non-negative integer", f"{src.path}.n_samples")
+        if src.has("sha256"):
+            digests = src.child("sha256")
+            if isinstance(digests.data, list):
+                for i, d in enumerate(digests.data):
+                    if not _is_sha256(d):
+                        raise src.fail(f"expected a sha256 (64 lowercase hex digits), got {str(d)[:80]!r}",
+                                       f"{digests.path}[{i}]")
+            else:
+                read_sha256(src, "sha256")
+    read_sha256(r, "log_sha256", optional=True)
+    _in_range(r, "quantization", ("controller", "quantization"), "m")  # the older place of encoder.quantization
+    enc = _optional_obj(r, "encoder")
+    if enc is not None:
+        _in_range(enc, "quantization", ("controller", "quantization"), "m")
+        _in_range(enc, "noise_std", ("plant", "noise_std"), "m")
+        enc.num("apparent_resolution", optional=True, nonneg=True)
+    model = _optional_obj(r, "model")
+    if model is not None:
+        model.num("ripple_pitch", optional=True, positive=True)
+        if model.has("ripple_amp"):
+            amp = model.child("ripple_amp")
+            if isinstance(amp.data, dict):
+                amp.num("value")
+                amp.num("std", nonneg=True)
+            else:
+                model.num("ripple_amp")
+    ripple = _optional_obj(r, "ripple")
+    if ripple is not None:
+        ripple.num("pitch", positive=True)
+        for k in ("amplitude", "amp"):
+            ripple.num(k, optional=True)
+    bounds = _optional_obj(r, "bounds")
+    if bounds is not None:
+        if bounds.has("disturbance_bound_defaulted"):
+            bounds.bool_("disturbance_bound_defaulted")
+        bounds.num("disturbance_bound", optional=True, nonneg=True)
+        nb = _optional_obj(bounds, "narrowed_by_tune")
+        if nb is not None:
+            lo, hi = nb.num("theta3_min"), nb.num("theta3_max")
+            if not lo <= hi:  # type: ignore[operator]
+                raise nb.fail(f"theta3_min {lo!r} exceeds theta3_max {hi!r}")
+            nb.num("u_max", optional=True, positive=True)
+    if r.has("warnings"):
+        w = r.child("warnings")
+        if not isinstance(w.data, list) or not all(isinstance(x, str) for x in w.data):
+            raise w.fail("expected a list of strings")
 
 
 def mass_wording(units: Mapping[str, str]) -> tuple[str, str]:
@@ -228,11 +349,11 @@ class Identification:
     def from_dict(cls, data: Any, source: str = "ident.json") -> "Identification":
         r = Reader(data, "$", source)
         r.header(IDENT_KIND, IDENT_SCHEMA_VERSION)
-        units_r = r.obj("units")
-        units = {"u": units_r.str_("u"), "q": units_r.str_("q")}
+        units = read_units(r)
         pr = r.obj("parameters")
         params: dict[str, Estimate | None] = {}
-        not_identified = data.get("not_identified") or {}
+        not_identified = data.get("not_identified")
+        not_identified = {} if not_identified is None else not_identified  # present: an object, even if empty
         if not isinstance(not_identified, dict) or not all(isinstance(v, str) for v in not_identified.values()):
             raise r.fail("expected an object of parameter -> reason", "$.not_identified")
         for name in PARAMETER_NAMES:
@@ -244,7 +365,10 @@ class Identification:
                 params[name] = None
                 continue
             er = pr.obj(name)
-            params[name] = Estimate(er.num("value"), er.num("std", nonneg=True))
+            # vs and xi are positive by construction (identify searches log vs and xi in a positive
+            # box); a file that says otherwise is refused rather than replaced by the simulator's default
+            params[name] = Estimate(er.num("value", positive=name in ("vs", "xi")),  # type: ignore[arg-type]
+                                    er.num("std", nonneg=True))  # type: ignore[arg-type]
         M = params["M"]
         if M is not None and M.value <= 0:
             raise r.fail(f"expected a positive mass, got {M.value!r}", "$.parameters.M.value")
@@ -266,6 +390,7 @@ class Identification:
         known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}
         extra = {k: v for k, v in data.items() if k not in known}
         _structural_model(data, source)  # a malformed optional section fails here, naming its path
+        _check_extra(r)  # so do the optional fields tune and validate read: none is replaced by a default
         return cls(
             units=units,
             parameters=params,

@@ -68,9 +68,11 @@ import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+from commission.artifacts import read_sha256, read_units
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.errors import SchemaError, UsageError
 from commission.jsonio import Reader, canonical_json, read_json, sha256_json
+from commission.spec import RANGES
 
 CONTROLLER_KIND = "controller"
 CONTROLLER_SCHEMA_VERSION = 1
@@ -122,6 +124,23 @@ LIMITS = ("u_max", "k1s_max", "k2s_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
 #: Allowed relative mismatch between sample_period and 1/sample_rate.
 _PERIOD_RTOL = 1e-9
+#: Physical plausibility of a loaded controller, (lowest, highest) inclusive: the spec's own
+#: ranges (:data:`commission.spec.RANGES`, one definition), so that a file cannot carry a rate
+#: or an output limit that ``tune`` would have refused to start from (a 1e308 u_max is no clamp).
+PLAUSIBLE: dict[str, tuple[tuple[str, str], str]] = {
+    "sample_rate": (("controller", "sample_rate"), "Hz"),
+    "u_max": (("controller", "u_max"), "u-unit"),
+}
+
+
+def _plausible(r: Reader, key: str, value: float, unit: str | None = None) -> None:
+    """Refuse ``value`` at ``r.path + key`` outside its :data:`PLAUSIBLE` range, naming the field
+    (``unit``: the file's own unit of the value, when it has one)."""
+    rng, default_unit = PLAUSIBLE[key]
+    unit = unit or default_unit
+    lo, hi = RANGES[rng]
+    if not lo <= value <= hi:
+        raise r.fail(f"{value!r} {unit} is outside the plausible range [{lo:g}, {hi:g}] {unit}", f"{r.path}.{key}")
 
 
 @dataclass(frozen=True)
@@ -228,7 +247,8 @@ class ControllerConfig:
         SchemaError
             ``controller.json: $.gains.g1: ...`` naming the first field that is
             missing, mistyped or out of range (a null or non-finite limit
-            included), ``controller.json: $.checksum: ...`` when the content does
+            included; a sample rate or u_max outside :data:`PLAUSIBLE`; a unit outside
+            :data:`commission.artifacts.UNIT_VOCABULARY_U`), ``controller.json: $.checksum: ...`` when the content does
             not match its checksum (edited or corrupted), or ``$.signature: ...``
             when a key is given and the file is unsigned or signed under another key.
         """
@@ -251,8 +271,8 @@ class ControllerConfig:
         assert rate is not None and Ts is not None
         if abs(Ts * rate - 1.0) > _PERIOD_RTOL:
             raise r.fail(f"{Ts!r} s does not match sample_rate {rate!r} Hz", "$.sample_period")
-        ur = r.obj("units")
-        units = {"u": ur.str_("u"), "q": ur.str_("q")}
+        _plausible(r, "sample_rate", rate)
+        units = read_units(r)
         kw: dict[str, Any] = {"Ts": Ts}
         for section, names in SECTIONS.items():
             sr = r.obj(section)
@@ -272,6 +292,8 @@ class ControllerConfig:
                         raise sr.fail(f"null: a controller without a finite {n} is refused (no limit)",
                                       f"{sr.path}.{n}")
                     kw[n] = sr.num(n, positive=True)
+                    if n == "u_max":
+                        _plausible(sr, n, kw[n], units["u"])
                 else:
                     kw[n] = sr.num(n)
         fr = r.obj("friction_compensation")
@@ -296,9 +318,9 @@ class ControllerConfig:
         validated = r.obj("validated").data
         pr = r.obj("provenance")
         prov = ControllerProvenance(
-            log_sha256=pr.str_("log_sha256", optional=True),
-            ident_sha256=pr.str_("ident_sha256"),  # type: ignore[arg-type]
-            tuning_sha256=pr.str_("tuning_sha256"),  # type: ignore[arg-type]
+            log_sha256=read_sha256(pr, "log_sha256", optional=True),
+            ident_sha256=read_sha256(pr, "ident_sha256"),  # type: ignore[arg-type]
+            tuning_sha256=read_sha256(pr, "tuning_sha256"),  # type: ignore[arg-type]
             tool_version=pr.str_("tool_version"),  # type: ignore[arg-type]
             created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
         )

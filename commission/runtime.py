@@ -94,8 +94,17 @@ class Controller:
         return self._s[S_REJECTED] != 0.0
 
     def reset(self, y0: float) -> None:
-        """Start at rest at the measured position ``y0`` (m): filters at rest, theta_hat = theta0."""
-        y0 = float(y0)
+        """Start at rest at the measured position ``y0`` (m): filters at rest, theta_hat = theta0.
+
+        Raises
+        ------
+        UsageError
+            ``y0`` is not a finite number (a ``ValueError``, so callers that catch that still do).
+        """
+        try:
+            y0 = float(y0)
+        except (TypeError, ValueError, OverflowError):
+            raise UsageError(_not_a_number("reset", ("y0",), (y0,))) from None
         if not np.isfinite(y0):
             raise UsageError(f"reset: y0 must be a finite position in m, got {y0}")
         arc_reset(self._p, self._s, y0)
@@ -109,7 +118,8 @@ class Controller:
         y : float
             Measured position, m.
         qd, dqd, ddqd : float
-            Desired position (m), velocity (m/s) and acceleration (m/s^2).
+            Desired position (m), velocity (m/s) and acceleration (m/s^2): anything
+            ``float()`` converts; a non-finite value latches a fault (module docstring).
 
         Returns
         -------
@@ -117,10 +127,34 @@ class Controller:
             Command, u-unit (``config.units["u"]``), within ``+-u_max``.  Once a
             fault latches (:attr:`fault`, :attr:`fault_reason`) it is the safe
             command 0 until :meth:`reset`.
+
+        Raises
+        ------
+        UsageError
+            An argument ``float()`` refuses (``'abc'``, None, a list), named: a caller's bug, not
+            a measurement, so it is not turned into a fault.  A ``ValueError``, as before.
         """
         if not self._ready:
             raise UsageError("step: call reset(y0) first")
-        return float(arc_step(self._p, self._s, float(y), float(qd), float(dqd), float(ddqd)))
+        try:  # the conversion the kernel needs anyway; the names are looked up only on failure
+            a = (float(y), float(qd), float(dqd), float(ddqd))
+        except (TypeError, ValueError, OverflowError):
+            raise UsageError(_not_a_number("step", ("y", "qd", "dqd", "ddqd"), (y, qd, dqd, ddqd))) from None
+        return float(arc_step(self._p, self._s, *a))
+
+
+#: Units of the arguments of :meth:`Controller.step` and :meth:`Controller.reset`, for the messages.
+_ARG_UNITS = {"y": "m", "y0": "m", "qd": "m", "dqd": "m/s", "ddqd": "m/s^2"}
+
+
+def _not_a_number(method: str, names: tuple[str, ...], values: tuple[object, ...]) -> str:
+    """The message for the first of ``values`` that ``float()`` refuses, naming its argument."""
+    for name, v in zip(names, values):
+        try:
+            float(v)  # type: ignore[arg-type]
+        except (TypeError, ValueError, OverflowError):
+            return f"{method}: {name} must be a number in {_ARG_UNITS[name]}, got {type(v).__name__} {v!r:.60}"
+    return f"{method}: the arguments must be numbers"  # pragma: no cover - float() failed on one of them
 
 
 def load_controller(path: str | os.PathLike[str], key: bytes | None = None) -> Controller:

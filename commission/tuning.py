@@ -47,7 +47,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from commission.artifacts import Identification
+from commission.artifacts import Identification, read_sha256
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.pid import PidGains
@@ -55,7 +55,7 @@ from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, write_json_atomic
 from commission.robustness import LoopMargins
-from commission.spec import Spec, spec_from_mapping
+from commission.spec import RANGES, Spec, spec_from_mapping
 
 TUNING_KIND = "tuning"
 TUNING_SCHEMA_VERSION = 1
@@ -413,7 +413,8 @@ class Tuning:
         r = Reader(data, "$", source)
         r.header(TUNING_KIND, TUNING_SCHEMA_VERSION)
         pr = r.obj("provenance")
-        prov = Provenance(ident_sha256=pr.str_("ident_sha256"), log_sha256=pr.str_("log_sha256", optional=True),  # type: ignore[arg-type]
+        prov = Provenance(ident_sha256=read_sha256(pr, "ident_sha256"),  # type: ignore[arg-type]
+                          log_sha256=read_sha256(pr, "log_sha256", optional=True),
                           tool_version=pr.str_("tool_version"), created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
                           seed=pr.int_("seed"), ident_path=pr.str_("ident_path"))  # type: ignore[arg-type]
         sr = r.obj("spec")
@@ -430,9 +431,16 @@ class Tuning:
         plant = np.array([plr.num(n) if i < 9 or plr.has(n) else default[i] for i, n in enumerate(PLANT_NAMES)],
                          dtype=np.float64)
         quant = plr.num("quantization", nonneg=True)
+        lo, hi = RANGES[("controller", "quantization")]  # the spec's range for the same encoder step
+        if not lo <= quant <= hi:  # type: ignore[operator]
+            raise plr.fail(f"must be within [{lo:g}, {hi:g}] m, got {quant!r}", f"{plr.path}.quantization")
         arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
         pidr = r.obj("pid")
         pid = _gains_from_reader(PidGains, pidr, _PID_INF_OK, skip=("pole", "design_mass"))
+        lo, hi = RANGES[("controller", "u_max")]  # a finite output limit is a plausible one, as in controller.json
+        for section, gains in (("arc", arc), ("pid", pid)):
+            if math.isfinite(gains.u_max) and not lo <= gains.u_max <= hi:
+                raise r.fail(f"{gains.u_max!r} is outside the plausible range [{lo:g}, {hi:g}]", f"$.{section}.u_max")
         obr = r.obj("observer")
         P = _matrix(obr, "P", 2, 2)
         dp = obr.num("discrete_pole", optional=True)

@@ -43,7 +43,7 @@ TUNING_DOC = json.loads((Path(__file__).parent / "data" / "tuning_paper_budget8.
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
     doc = copy.deepcopy(TUNING_DOC)
-    doc["provenance"]["ident_path"] = "not-here/ident.json"  # no ident.json at hand: no provenance check
+    doc["provenance"]["ident_path"] = "not-here/ident.json"  # no ident.json at hand: checked against ident_sha256
     path = d / "tuning.json"
     write_json_atomic(path, doc)
     return path

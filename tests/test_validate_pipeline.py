@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.simulate import KIND_ARC, simulate
-from commission.jsonio import read_json, sha256_file, write_json_atomic
+from commission.jsonio import read_json, sha256_file, sha256_json, write_json_atomic
 from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.scenarios import plant_substeps, scenario_matrix
@@ -38,8 +38,9 @@ runner = CliRunner()
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
     ident = reference_identification(delta_d=0.5)
+    # ident_sha256 as if ident.json were written by identify (its canonical JSON): validate checks it
     t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
-             ident_sha256="1" * 64, log_sha256="2" * 64)
+             ident_sha256=sha256_json(ident.to_dict()), log_sha256="2" * 64)
     path = d / "tuning.json"
     t.save(str(path))
     # The gate of these tests: MARGIN x the worst value this (short, 8-candidate) tuning reaches
@@ -85,7 +86,7 @@ def test_passing_validation_writes_report_figures_and_controller(tuned, tmp_path
     ctrl_doc = read_json(out / "controller.json")
     prov = ctrl_doc["provenance"]
     assert prov["tuning_sha256"] == sha256_file(tpath)
-    assert prov["ident_sha256"] == "1" * 64 and prov["log_sha256"] == "2" * 64
+    assert prov["ident_sha256"] == tuning.provenance.ident_sha256 and prov["log_sha256"] == "2" * 64
     assert ctrl_doc["validated"]["gate"] == val["gate"]
     assert ctrl_doc["validated"]["gate"]["e_rms"] == pytest.approx(MARGIN * tuned[2]["e_rms"])
     worst = ctrl_doc["validated"]["worst"]
@@ -228,6 +229,11 @@ def test_report_states_a_theta3_box_that_tune_narrowed(tuned, tmp_path):
     bounds = doc["identification"].setdefault("bounds", {})
     bounds["narrowed_by_tune"] = {"theta3_min": -120.0, "theta3_max": 110.0, "u_max": 10.0,
                                   "force_range": [-3.0, 2.8], "narrowed_force_range": [-1.0, 1.0]}
+    # as tune writes it: ident_sha256 is the hash of the identification before the narrowing
+    before = copy.deepcopy(doc["identification"])
+    before["bounds"].pop("narrowed_by_tune")
+    before["theta"]["min"][2], before["theta"]["max"][2] = -120.0, 110.0
+    doc["provenance"]["ident_sha256"] = sha256_json(before)
     narrowed = tmp_path / "tuning.json"
     narrowed.write_text(json.dumps(doc))
     out = tmp_path / "val"
