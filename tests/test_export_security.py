@@ -90,7 +90,10 @@ def base():
     config = ControllerConfig(gains=g, sample_rate=1.0 / g.Ts, units={"u": MARK, "q": "m"},
                               validated={"simulation": {"quantization": LSB}}, provenance=prov)
     packs = {"arc": A.arc_pack(g), "pid": P.pid_pack(pid_baseline(ident, spec)[0])}
-    return dict(config=config, packs=packs, checksum=_checksum(config))
+    # The files the CLI loads carry a unit of the vocabulary load_controller accepts; the rendering
+    # tests use MARK to find where the unit lands.
+    file_config = dataclasses.replace(config, units={"u": "V", "q": "m"})
+    return dict(config=config, file_config=file_config, packs=packs, checksum=_checksum(config))
 
 
 def _render(base, config, kind, target):
@@ -290,7 +293,7 @@ def _export(path, out, *extra, env=None):
 @pytest.mark.parametrize("case", ["edited", "unsigned", "other"])
 def test_export_with_the_key_refuses_a_tampered_unsigned_or_foreign_file(base, tmp_path, keys, case):
     """Must-show 3: signed, then u_max edited (checksum recomputed) -> exit 2, nothing written."""
-    paths = _signed_variants(base["config"], tmp_path / "in")
+    paths = _signed_variants(base["file_config"], tmp_path / "in")
     out = tmp_path / "out"
     r = _export(paths[case], out, "--sign-key", str(keys[0]))
     assert r.exit_code == 2 and r.output.startswith("error: ") and len(r.output.strip().splitlines()) == 1
@@ -302,7 +305,7 @@ def test_export_with_the_key_refuses_a_tampered_unsigned_or_foreign_file(base, t
 
 
 def test_the_key_from_the_environment_is_used(base, tmp_path, keys):
-    paths = _signed_variants(base["config"], tmp_path / "in")
+    paths = _signed_variants(base["file_config"], tmp_path / "in")
     env = {SIGN_KEY_ENV: str(keys[0])}
     r = _export(paths["edited"], tmp_path / "a", env=env)
     assert r.exit_code == 2 and "$.signature" in r.output and not (tmp_path / "a").exists()
@@ -313,7 +316,7 @@ def test_the_key_from_the_environment_is_used(base, tmp_path, keys):
 
 
 def test_require_signature_refuses_without_a_key_and_unsigned_files(base, tmp_path, keys):
-    paths = _signed_variants(base["config"], tmp_path / "in")
+    paths = _signed_variants(base["file_config"], tmp_path / "in")
     r = _export(paths["good"], tmp_path / "a", "--require-signature", env={SIGN_KEY_ENV: ""})
     assert r.exit_code == 2 and "--sign-key" in r.output and not (tmp_path / "a").exists()
     r = _export(paths["unsigned"], tmp_path / "a", "--require-signature", "--sign-key", str(keys[0]))
@@ -328,7 +331,7 @@ def test_require_signature_refuses_without_a_key_and_unsigned_files(base, tmp_pa
 @pytest.fixture()
 def controller(base, tmp_path):
     path = tmp_path / "controller.json"
-    write_json_atomic(path, base["config"].to_dict())
+    write_json_atomic(path, base["file_config"].to_dict())
     return path
 
 
@@ -464,7 +467,7 @@ def test_the_key_file_cannot_be_an_output(base, tmp_path):
     key = out / "README.md"
     key.write_bytes(KEY)
     path = tmp_path / "signed.json"
-    write_json_atomic(path, base["config"].to_dict(sign_key=KEY))
+    write_json_atomic(path, base["file_config"].to_dict(sign_key=KEY))
     for extra, env in ((["--sign-key", str(key)], None), ([], {SIGN_KEY_ENV: str(key)})):
         r = runner.invoke(app, ["export", str(path), "--out-dir", str(out), "--force", *extra], env=env)
         assert r.exit_code == 2 and "is also an input" in r.output and key.read_bytes() == KEY
