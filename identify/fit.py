@@ -75,6 +75,7 @@ from commission.identify.ls import (FrictionModel, readonly_copy, regressor, rip
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, default_settings, preprocess_segments,
                                          quantization_step, segment_rates)
 from commission.identify.steady import SteadySegments, find_steady_segments
+from commission.units import unit
 
 Method = Literal["dynamic", "steady+dynamic"]
 
@@ -266,11 +267,11 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
     n_low = int(np.sum(speeds < 3.0 * vs))
     head = f"too few samples below 3*vs for the Stribeck curve ({what}): "
     if n_low < n_need:
-        raise StribeckNotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} m/s, need {n_need}; {hint}")
+        raise StribeckNotIdentifiableError(head + f"{n_low} below 3*vs = {3 * vs:.3g} {unit('v')}, need {n_need}; {hint}")
     if not abs(fs - fc) > 3.0 * sd_hump:
         raise StribeckNotIdentifiableError(head + f"no Stribeck hump shows (fs - fc = {fs - fc:.3g} +- {sd_hump:.2g}); {hint}")
     if "vs" in sep.at_bound:
-        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} m/s lies on the edge of the speeds seen; {hint}")
+        raise StribeckNotIdentifiableError(head + f"vs = {vs:.3g} {unit('v')} lies on the edge of the speeds seen; {hint}")
     if "xi" in sep.at_bound:
         warnings.append(f"stribeck: xi = {sep.value[i['xi']]:.3g} at the edge of its search box {XI_BOUNDS}; "
                         "the shape of the curve is poorly determined")
@@ -343,7 +344,7 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
                         vs_bounds=(0.3 * speed.min(), 0.5 * speed.max()))
     params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
     _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
-                    f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} m/s",
+                    f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} {unit('v')}",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
                     "(it does not average out on slow legs), or use friction='coulomb'", warnings)
     return params
@@ -377,7 +378,7 @@ def _map_fit_coulomb(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[
         fast = np.abs(v) > knee
         if min(_distinct_speeds(v[fast & (v > 0)]), _distinct_speeds(-v[fast & (v < 0)])) >= 2:
             keep = fast
-            warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} m/s "
+            warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} {unit('v')} "
                             "(3 vs of the map's Stribeck hump) left out of the Coulomb fit")
     res = solve(np.column_stack([v[keep], np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
     return {nm: (float(th), float(sd)) for nm, th, sd in zip(("B", "fc", "offset"), res.theta, res.std)}
@@ -450,7 +451,7 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
         n_rows = int(rows.sum())
         if n_rows < 10 * X_rip.shape[1]:
             raise MassNotIdentifiableError(
-                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} m/s away from reversals "
+                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} {unit('v')} away from reversals "
                 "(need dynamic motion at speed for the mass)")
         return rows
 
