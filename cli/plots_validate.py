@@ -173,7 +173,8 @@ def _inputs(result: ValidationResult, path: Path) -> Path:
     return path
 
 
-def _scatter(result: ValidationResult, path: Path) -> Path:
+def monte_carlo_figure(result: ValidationResult, path: Path) -> Path:
+    """``monte_carlo.png``: e_rms of ARC against PID on every scenario, with the gate's lines inside the axes."""
     small = unit_of("small", result.units)
     fig, ax = plt.subplots(figsize=(6, 5.5))
     pts = {"fixed": ([], []), "monte_carlo": ([], [])}
@@ -270,7 +271,7 @@ def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path
         paths.append(_tracking(result, case, out / f"tracking_{case}.png", with_trajectory=(case == "case2")))
     paths.append(_theta(result, out / "theta_hat.png"))
     paths.append(_inputs(result, out / "control_input.png"))
-    paths.append(_scatter(result, out / "monte_carlo.png"))
+    paths.append(monte_carlo_figure(result, out / "monte_carlo.png"))
     if result.loops:
         paths.append(_loops(result, out / "loops.png"))
     return paths

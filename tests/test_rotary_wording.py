@@ -195,7 +195,7 @@ def test_run_on_a_rotary_log_reports_in_rad(tmp_path, figure_texts):
     assert res.exit_code in (0, 1), res.output
     _no_linear_unit(res, out / "ident.json", figure_texts, tmp_path)
     report = (out / "report.md").read_text()
-    assert linear_units(report) == [] and "urad" in report and "Kp = " in report
+    assert linear_units(report) == [] and "urad" in report and " Nm/rad, Ki = " in report  # PID gains with units
     assert "ARC peak|u| Nm" in res.output and "ARC e_rms urad" in res.output
 
 
