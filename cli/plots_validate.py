@@ -126,8 +126,8 @@ def tracking_figure(result: ValidationResult, case: str, with_trajectory: bool):
 def _theta(result: ValidationResult, path: Path) -> Path:
     """theta_hat on every fixed scenario of each case (one column per case), legends below the data."""
     tags = {r.name: r.tags for r in result.runs}
-    unit, q = result.units.get("u", "u"), result.units.get("q", "m")
-    labels = (f"theta_1 = 1/M [{q}/({unit}·s²)]", "theta_2 = B/M [1/s]", f"theta_3 = d_n/M [{q}/s²]")
+    labels = (f"theta_1 = 1/M [{unit_of('theta1', result.units)}]", "theta_2 = B/M [1/s]",
+              f"theta_3 = d_n/M [{unit_of('theta3', result.units)}]")
     fig, axes = plt.subplots(3, len(CASES), figsize=(13, 8.5), sharex="col", squeeze=False)
     g = result.arc_gains
     for c, case in enumerate(CASES):

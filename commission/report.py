@@ -14,7 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from commission.units import axis_units_context, mass_wording, nominal, unit as unit_of
+from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
 from commission.scenarios import CASES, VARIANTS, plant_dynamics
@@ -179,10 +179,9 @@ def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
     return L
 
 
-#: Parameter -> (unit template, description); ``{u}`` is the command unit, ``{q}`` the position unit.
-_PARAM_UNITS = {"M": ("{u}·s²/{q}", "mass"), "B": ("{u}·s/{q}", "viscous friction"), "fc": ("{u}", "Coulomb level"),
-                "fs": ("{u}", "static level"), "vs": ("{q}/s", "Stribeck velocity"), "xi": ("-", "Stribeck exponent"),
-                "offset": ("{u}", "command offset")}
+#: Parameter -> description (units: :func:`commission.units.parameter_units`).
+_PARAM_WHAT = {"M": "mass", "B": "viscous friction", "fc": "Coulomb level", "fs": "static level",
+               "vs": "Stribeck velocity", "xi": "Stribeck exponent", "offset": "command offset"}
 #: Figures of the identification (``identify --plot``; ``run`` writes them beside the report).
 _IDENT_CAPTIONS = {
     "force_fit.png": "Inverse-dynamics fit: measured against fitted force, and the residual, over the log.",
@@ -228,11 +227,11 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
     for name, est in ident.parameters.items():
         if est is None:
             continue
-        unit, what = _PARAM_UNITS.get(name, ("", name))
+        unit, what = parameter_units(ident.units).get(name, ""), _PARAM_WHAT.get(name, name)
         if name == "M" and rotary:
             what = "inertia J"
         rel = f"{abs(est.std / est.value) * 100:.2g} %" if est.value else "-"
-        L.append(f"| {name} ({what}) | {_g(est.value)} | {_g(est.std, 2)} | {rel} | {unit.format(u=u, q=q)} |")
+        L.append(f"| {name} ({what}) | {_g(est.value)} | {_g(est.std, 2)} | {rel} | {unit} |")
     if ident.theta is not None:
         L += ["", f"theta = [1/M, B/M, d_n/M]{' (M the inertia J)' if rotary else ''} in [{q}/({u}·s²), 1/s, {q}/s²]: nominal {_vec(ident.theta.nominal)}, "
                   f"box min {_vec(ident.theta.min)}, max {_vec(ident.theta.max)}; delta_d = {_g(ident.delta_d or 0.0, 3)} "
