@@ -75,7 +75,7 @@ from commission.identify.ls import (FrictionModel, readonly_copy, regressor, rip
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, default_settings, preprocess_segments,
                                          quantization_step, segment_rates)
 from commission.identify.steady import SteadySegments, find_steady_segments
-from commission.units import unit
+from commission.identify.units import unit
 
 Method = Literal["dynamic", "steady+dynamic"]
 

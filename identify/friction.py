@@ -35,7 +35,7 @@ import numpy as np
 from scipy import optimize
 
 from commission.identify.errors import NotIdentifiableError, StribeckNotIdentifiableError
-from commission.units import unit
+from commission.identify.units import unit
 
 #: Bounds of the Stribeck exponent searched.
 XI_BOUNDS = (0.3, 5.0)

@@ -18,7 +18,7 @@ from typing import Literal
 import numpy as np
 
 from commission.identify.errors import NotIdentifiableError
-from commission.units import unit
+from commission.identify.units import unit
 
 FrictionModel = Literal["coulomb", "stribeck"]
 
