@@ -286,3 +286,19 @@ def test_implausible_units_are_warned_naming_the_likely_unit(tmp_path):
     # the sample as it is: none of these
     res = runner.invoke(app, ["identify", str(SAMPLE_H5), "--out", str(tmp_path / "e.json")])
     assert "implausib" not in _warnings(tmp_path / "e.json") and "torque" not in _warnings(tmp_path / "e.json")
+
+
+def test_the_numerics_word_their_messages_in_the_unit_the_identify_stage_sets():
+    """identify's numerics do not know the axis; the stage sets the unit their messages use (default m)."""
+    from commission.identify.friction import friction_compensation_curve
+    from commission.units import axis_units_context
+
+    def message() -> str:
+        with pytest.raises(ValueError) as exc:
+            friction_compensation_curve(0.1, None, None, None, v_max=0.0, v_resolution=1.0)
+        return str(exc.value)
+
+    assert "> 0 m/s" in message()
+    with axis_units_context("rad"):
+        assert "> 0 rad/s" in message() and not linear_units(message())
+    assert "> 0 m/s" in message()  # restored on leaving the block
