@@ -7,9 +7,10 @@ from typing import List, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
-from commission.artifacts import mass_wording
+from commission.units import mass_wording, parameter_label, parameter_units, unit
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.files import Outputs
@@ -29,8 +30,8 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     """One-screen summary: parameters +- std, fit, bounds, warnings."""
     ident, fit = outcome.ident, outcome.fit
     u, q = ident.units["u"], ident.units["q"]
-    units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
-    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
+    units = parameter_units(ident.units)
+    labels = {"M": parameter_label("M", ident.units)}
     t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
@@ -49,22 +50,25 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
             t.add_row(f"ripple P={h['pitch']:.4g} {q}", f"{h['amp']['value']:.4g}", f"{h['amp']['std']:.2g}",
                       f"phase {h['phase']['value']:+.3f} rad", u)
     console.print(t)
-    q = outcome.checks.quantization_step
+    step = outcome.checks.quantization_step
     lines = [
         f"samples {outcome.log.t.size} at {outcome.log.sample_rate:.6g} Hz; encoder step "
-        + (f"{q:.3g} m" if q else f"not on a grid (smallest step {outcome.checks.apparent_resolution:.3g} m)"),
+        + (f"{step:.3g} {q}" if step else
+           f"not on a grid (smallest step {outcome.checks.apparent_resolution:.3g} {q})"),
         f"relative error {ident.relative_error:.4f}, condition number {ident.condition_number:.4g}"
         + (f", validation relative error {ident.validation_relative_error:.4f}"
            if ident.validation_relative_error is not None else ""),
     ]
     if ident.theta is not None:
+        theta_units = escape(f"in [{units['theta1']}, {units['theta2']}, {units['theta3']}]")  # not rich markup
         lines += [
-            "theta nominal [" + ", ".join(f"{x:.4g}" for x in ident.theta.nominal) + "]",
-            "theta min     [" + ", ".join(f"{x:.4g}" for x in ident.theta.min) + "]",
-            "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "]",
-            f"delta_d {ident.delta_d:.4g} m/s²",
+            "theta nominal [" + ", ".join(f"{x:.4g}" for x in ident.theta.nominal) + "] " + theta_units,
+            "theta min     [" + ", ".join(f"{x:.4g}" for x in ident.theta.min) + "] " + theta_units,
+            "theta max     [" + ", ".join(f"{x:.4g}" for x in ident.theta.max) + "] " + theta_units,
+            f"delta_d {ident.delta_d:.4g} {units['delta_d']}",
         ]
-    lines.append(f"friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u}")
+    lines.append(f"friction compensation {ident.fric_level:.4g}·(2/π)·atan({ident.fric_slope:.4g}·v) {u} "
+                 f"(v in {unit('v', ident.units)}, slope in s/{q})")
     if ident.theta is not None:
         lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
     for name, why in missing.items():
@@ -80,8 +84,8 @@ def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
     """One-screen summary of a friction test: the curve's parameters, the map, what is not identified."""
     ident = outcome.ident
     u, q = ident.units["u"], ident.units["q"]
-    units = {"M": f"{u}·s²/{q}", "B": f"{u}·s/{q}", "fc": u, "fs": u, "vs": f"{q}/s", "xi": "-", "offset": u}
-    labels = {"M": "M (inertia J)" if q == "rad" else "M (mass)"}
+    units = parameter_units(ident.units)
+    labels = {"M": parameter_label("M", ident.units)}
     t = Table(title=f"Friction test: {len(outcome.logs) - len(outcome.excluded)} constant-speed legs "
                     f"({ident.extra['model']['friction']})")
     for col in ("parameter", "value", "± std", "unit"):
@@ -153,6 +157,8 @@ def identify_command(
     log_format: Optional[str] = opt("--format"),
     resample: Optional[float] = opt("--resample"),
     fix: List[str] = opt("--fix"),
+    lead: Optional[float] = opt("--lead"),
+    gear: Optional[float] = opt("--gear"),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
@@ -163,7 +169,8 @@ def identify_command(
                          friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
-                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix)
+                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
+                         lead=lead, gear=gear)
     files = expand_log_paths([str(p) for p in logs])
     val_files = expand_log_paths([o.validate_on]) if o.validate_on else []
     several = len(files) > 1

@@ -23,6 +23,7 @@ imported only when that command runs or its own help is asked for
 from __future__ import annotations
 
 import os
+import re
 import signal
 import sys
 
@@ -226,7 +227,7 @@ def run(argv: list[str] | None = None) -> int:
     except typer.Exit as exc:
         code = exc.exit_code
     except ClickException as exc:  # usage errors: one line naming the flag
-        msg = " ".join(exc.format_message().split())
+        msg = _did_you_mean(" ".join(exc.format_message().split()))
         sys.stderr.write(f"error: {msg} (see commission {_sub(argv)}--help)\n")
         code = 2
     except (typer.Abort, KeyboardInterrupt):
@@ -252,6 +253,17 @@ def run(argv: list[str] | None = None) -> int:
     if verbose:
         sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code
+
+
+def _did_you_mean(msg: str) -> str:
+    """Click's "No such command 'identfy'." with the closest command names (options get theirs from click)."""
+    import difflib
+
+    m = re.match(r"No such command '(.+)'\.?$", msg)
+    if not m:
+        return msg
+    close = difflib.get_close_matches(m.group(1), list(commands.COMMANDS), n=2, cutoff=0.6)
+    return msg if not close else f"{msg} Did you mean {' or '.join(repr(c) for c in close)}?"
 
 
 def _say(line: str) -> None:

@@ -24,8 +24,13 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
-Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm or um; "
-               "default m. Refused when it contradicts the file's attribute.")
+Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm, um, or rad "
+               "(a rotary axis); default m. Refused when it contradicts the file's attribute.")
+LEAD_HELP = ("Screw lead in m per rad of the screw (5 mm/rev: 0.005/(2π) = 7.958e-4): converts a rotary log's q "
+             "(rad) to the carriage's position in m before identification; everything derived is then in m. "
+             "Refused for a log not in rad.")
+GEAR_HELP = ("Gear ratio, motor rad per load rad (> 0): the log's motor angle divided by it is the load's angle; "
+             "with --lead, the screw's angle. Refused for a log not in rad.")
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
                  "with a warning; stribeck: refuse a log that does not support it.")
 
@@ -54,6 +59,8 @@ _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
                        "extension).", None),
     "--resample": (None, "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
                          "polling).", "HZ"),
+    "--lead": (None, LEAD_HELP, "M_PER_RAD"),
+    "--gear": (None, GEAR_HELP, "RATIO"),
     "--fix": ([], "A known parameter, e.g. M=0.027 (u-unit·s²/m): not fitted; a log without acceleration content "
                   "then still gives theta and its box.", "NAME=VALUE"),
 }
@@ -103,7 +110,7 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
                      payload_min: Optional[float], payload_max: Optional[float], payload_min_kg: Optional[float],
                      payload_max_kg: Optional[float], force_constant: Optional[float],
                      disturbance_bound: Optional[float], log_format: Optional[str], resample: Optional[float],
-                     fix: List[str]) -> IdentifyOptions:
+                     fix: List[str], lead: Optional[float] = None, gear: Optional[float] = None) -> IdentifyOptions:
     """The parsed identify flags as one :class:`IdentifyOptions` (bad values: :class:`UsageError`).
 
     Checked here, before any output is touched: ``--input-gain`` other than 1 needs
@@ -116,4 +123,4 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
         ripple_pitch=tuple(ripple_pitch), validate_on=str(validate_on) if validate_on is not None else None,
         bounds=bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg, payload_max_kg,
                               force_constant, disturbance_bound),
-        u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix))
+        u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear)

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from commission.identification import IdentifyOutcome, friction_curve  # noqa: E402
+from commission.units import unit as unit_of  # noqa: E402
 
 
 def identification_plots(outcome: IdentifyOutcome, out_dir: str | Path) -> list[Path]:
@@ -54,7 +55,7 @@ def identification_plots(outcome: IdentifyOutcome, out_dir: str | Path) -> list[
     ax.plot(v, comp, "--", color="C2", lw=1.0, label="compensation (atan) + B v + offset")
     if fit.steady_velocity.size:
         ax.plot(fit.steady_velocity, fit.steady_force, "o", ms=4, color="C0", label="constant-velocity legs")
-    ax.set_xlabel("velocity [m/s]")
+    ax.set_xlabel(f"velocity [{unit_of('v', ident.units)}]")
     ax.set_ylabel(f"friction [{unit}]")
     ax.set_title(f"Friction ({fit.friction}, {fit.method})")
     ax.axhline(0, color="0.8", lw=0.5)
@@ -97,7 +98,7 @@ def bode_plot(outcome: IdentifyOutcome, path: Path) -> Path:
     if fr.band_hz is not None:
         for ax in (axm, axp, axc):
             ax.axvspan(fr.band_hz[0], fr.band_hz[1], color="C2", alpha=0.08)
-    axm.set_ylabel(f"|q/u| [m/{unit}]")
+    axm.set_ylabel(f"|q/u| [{unit_of('q/u', outcome.ident.units)}]")
     title = "Frequency response u → q"
     if fr.band_hz is not None:
         title += f"; rigid model backed {fr.band_hz[0]:.3g}–{fr.band_hz[1]:.3g} Hz (shaded)"

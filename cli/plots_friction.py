@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from commission.identification import LegsOutcome, friction_curve  # noqa: E402
+from commission.units import unit  # noqa: E402
 
 
 def friction_map_plot(outcome: LegsOutcome, path: Path) -> Path:
@@ -20,7 +21,7 @@ def friction_map_plot(outcome: LegsOutcome, path: Path) -> Path:
     logarithmic speed axis, where the slow legs (the Stribeck region) are visible.
     """
     ident, fmap = outcome.ident, outcome.fmap
-    u, q = ident.units["u"], ident.units["q"]
+    u = ident.units["u"]
     v, F, sd = fmap.velocity, fmap.force, fmap.std
     fig, (ax, axl) = plt.subplots(1, 2, figsize=(12, 5))
     vmax = float(np.max(np.abs(v)))
@@ -31,7 +32,7 @@ def friction_map_plot(outcome: LegsOutcome, path: Path) -> Path:
     ax.plot(grid, curve, color="k", lw=1.2, label=f"fitted B v + Ff(v) + offset ({ident.extra['model']['friction']})")
     ax.axhline(0, color="0.8", lw=0.5)
     ax.axvline(0, color="0.8", lw=0.5)
-    ax.set_xlabel(f"mean speed [{q}/s]")
+    ax.set_xlabel(f"mean speed [{unit('v', ident.units)}]")
     ax.set_ylabel(f"command [{u}]")
     ax.set_title(f"Friction map: {v.size} legs, relative error {ident.relative_error:.3f}")
     ax.legend(loc="best", fontsize=8)
@@ -43,7 +44,7 @@ def friction_map_plot(outcome: LegsOutcome, path: Path) -> Path:
             g = np.geomspace(np.abs(v[sel]).min(), np.abs(v[sel]).max(), 400)
             axl.plot(g, np.abs(friction_curve(ident, sign * g)), color=color, lw=1.0)
     axl.set_xscale("log")
-    axl.set_xlabel(f"|speed| [{q}/s] (log)")
+    axl.set_xlabel(f"|speed| [{unit('v', ident.units)}] (log)")
     axl.set_ylabel(f"|command| [{u}]")
     axl.set_title("Low-speed detail (Stribeck region)")
     axl.legend(loc="best", fontsize=8)

@@ -29,6 +29,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from commission.scenarios import CASES, VARIANTS  # noqa: E402
+from commission.units import unit as unit_of  # noqa: E402
 from commission.validate import ValidationResult  # noqa: E402
 
 _ARC = dict(color="C3", lw=0.7, label="ARC")
@@ -101,7 +102,7 @@ def tracking_figure(result: ValidationResult, case: str, with_trajectory: bool):
     if with_trajectory and names:
         tr = result.traces[names[0]]
         _plot(axes[0], tr.t, tr.qd * 1e3, color="k", lw=0.8)
-        axes[0].set_ylabel("q_d [mm]")
+        axes[0].set_ylabel(f"q_d [m{unit_of('q', result.units)}]")
         axes[0].set_title(f"{case}: desired trajectory")
         k = 1
     for i, name in enumerate(names):
@@ -112,7 +113,7 @@ def tracking_figure(result: ValidationResult, case: str, with_trajectory: bool):
         r = result.run(name)
         flag = " (ARC diverged)" if r.arc.diverged else ""
         ax.set_title(f"{name}{flag}", fontsize=9, loc="left")
-        ax.set_ylabel("e [um]")
+        ax.set_ylabel(f"e [{unit_of('small', result.units)}]")
         fit_error_axis(ax, tr.e_arc * 1e6, tr.e_pid * 1e6)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
@@ -125,8 +126,8 @@ def tracking_figure(result: ValidationResult, case: str, with_trajectory: bool):
 def _theta(result: ValidationResult, path: Path) -> Path:
     """theta_hat on every fixed scenario of each case (one column per case), legends below the data."""
     tags = {r.name: r.tags for r in result.runs}
-    unit, q = result.units.get("u", "u"), result.units.get("q", "m")
-    labels = (f"theta_1 = 1/M [{q}/({unit}·s²)]", "theta_2 = B/M [1/s]", f"theta_3 = d_n/M [{q}/s²]")
+    labels = (f"theta_1 = 1/M [{unit_of('theta1', result.units)}]", "theta_2 = B/M [1/s]",
+              f"theta_3 = d_n/M [{unit_of('theta3', result.units)}]")
     fig, axes = plt.subplots(3, len(CASES), figsize=(13, 8.5), sharex="col", squeeze=False)
     g = result.arc_gains
     for c, case in enumerate(CASES):
@@ -172,7 +173,9 @@ def _inputs(result: ValidationResult, path: Path) -> Path:
     return path
 
 
-def _scatter(result: ValidationResult, path: Path) -> Path:
+def monte_carlo_figure(result: ValidationResult, path: Path) -> Path:
+    """``monte_carlo.png``: e_rms of ARC against PID on every scenario, with the gate's lines inside the axes."""
+    small = unit_of("small", result.units)
     fig, ax = plt.subplots(figsize=(6, 5.5))
     pts = {"fixed": ([], []), "monte_carlo": ([], [])}
     div = []
@@ -194,15 +197,18 @@ def _scatter(result: ValidationResult, path: Path) -> Path:
         if ratio != 1.0 or slack > 0:
             xs = np.geomspace(lo, hi, 64)
             ax.plot(xs, ratio * xs + slack, color="k", lw=0.8, ls="--",
-                    label=f"gate: ARC = {ratio:g} PID + {slack:.3g} um")
+                    label=f"gate: ARC = {ratio:g} PID + {slack:.3g} {small}")
+    lim = result.verdict.limits.e_rms * 1e6
+    if allv:
         ax.set_xlim(lo, hi)
-        ax.set_ylim(lo, hi)
+        # The gate's horizontal line is never on the border: the y range holds it with the same
+        # margin (a factor 1.5 on the log axis) as the points.
+        ax.set_ylim(min(lo, lim / 1.5) if lim > 0 else lo, max(hi, lim * 1.5))
         ax.set_xscale("log")
         ax.set_yscale("log")
-    lim = result.verdict.limits.e_rms * 1e6
-    ax.axhline(lim, color="C2", lw=0.8, ls=":", label=f"gate e_rms {lim:.3g} um")
-    ax.set_xlabel("PID ||e||rms [um]")
-    ax.set_ylabel("ARC ||e||rms [um]")
+    ax.axhline(lim, color="C2", lw=0.8, ls=":", label=f"gate e_rms {lim:.3g} {small}")
+    ax.set_xlabel(f"PID ||e||rms [{small}]")
+    ax.set_ylabel(f"ARC ||e||rms [{small}]")
     title = "ARC vs PID on every scenario (below the diagonal: ARC better)"
     if div:
         title += f"\n{len(div)} scenario(s) with a diverged run not shown"
@@ -265,7 +271,7 @@ def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path
         paths.append(_tracking(result, case, out / f"tracking_{case}.png", with_trajectory=(case == "case2")))
     paths.append(_theta(result, out / "theta_hat.png"))
     paths.append(_inputs(result, out / "control_input.png"))
-    paths.append(_scatter(result, out / "monte_carlo.png"))
+    paths.append(monte_carlo_figure(result, out / "monte_carlo.png"))
     if result.loops:
         paths.append(_loops(result, out / "loops.png"))
     return paths

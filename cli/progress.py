@@ -5,7 +5,8 @@ from __future__ import annotations
 from typing import Callable
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
 from commission.cli import verbosity
 
 
@@ -37,8 +38,9 @@ class StageProgress:
         if self._bar is None:
             if done <= 0:
                 return  # nothing done yet: inputs may still be refused
+            # Elapsed, then the estimate of what remains (rich's, from the recent rate of steps).
             self._bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                                 TimeElapsedColumn(), console=self._console)
+                                 TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=self._console)
             self._bar.start()
         if stage not in self._tasks:
             self._tasks[stage] = self._bar.add_task(stage, total=None)

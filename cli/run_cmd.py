@@ -53,6 +53,8 @@ def run_command(
     log_format: Optional[str] = opt("--format"),
     resample: Optional[float] = opt("--resample"),
     fix: List[str] = opt("--fix"),
+    lead: Optional[float] = opt("--lead"),
+    gear: Optional[float] = opt("--gear"),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
     from commission.cli.plots import identification_plots
@@ -63,7 +65,8 @@ def run_command(
                          friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
-                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix)
+                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
+                         lead=lead, gear=gear)
     key = load_sign_key(sign_key)
     stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
     with StageProgress(err) as bar:

@@ -17,6 +17,7 @@ from commission.files import Outputs
 from commission.spec import check_flags
 from commission.tune import load_tune_inputs, pid_chatter, pid_pole_note, run_tune
 from commission.tuning import Tuning
+from commission.units import nominal, unit
 
 _HELP = """Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
 
@@ -57,17 +58,20 @@ def _um(x: float) -> str:
 def print_summary(t: Tuning, console: Console) -> None:
     """Chosen gains, the design checks, and ARC vs PID on every tuning scenario."""
     g = t.arc
+    units = t.identification.units
+    u, q, small = units.get("u", "u-unit"), unit("q", units), unit("small", units)
     gains = Table(title="Chosen gains")
     gains.add_column("gain")
     gains.add_column("value", justify="right")
     rows = [
-        ("sample rate (Hz)", f"{1 / g.Ts:g}"),
+        ("sample rate (Hz)", nominal(1 / g.Ts, "{:g}")),
         ("observer pole (rad/s): k1, k2", f"{t.observer.pole:g}: {g.k1:.4g}, {g.k2:.4g}"),
         ("g1, g2 (1/s)", f"{g.g1:.4g}, {g.g2:.4g}"),
         ("k1s_max, k2s_max (1/s)", f"{g.k1s_max:.4g}, {g.k2s_max:.4g}"),
-        ("Gamma", ", ".join(f"{x:.3g}" for x in g.Gamma)),
-        ("theta_hat(0)", ", ".join(f"{x:.4g}" for x in g.theta0)),
-        ("PID Kp, Ki, Kd", f"{t.pid.Kp:.4g}, {t.pid.Ki:.4g}, {t.pid.Kd:.4g}"),
+        ("Gamma (theta_i's unit per unit of tau_i, per s)", ", ".join(f"{x:.3g}" for x in g.Gamma)),
+        (f"theta_hat(0) ({unit('theta1', units)}, 1/s, {unit('a', units)})",
+         ", ".join(f"{x:.4g}" for x in g.theta0)),
+        (f"PID Kp ({u}/{q}), Ki ({u}/({q}·s)), Kd ({u}·s/{q})", f"{t.pid.Kp:.4g}, {t.pid.Ki:.4g}, {t.pid.Kd:.4g}"),
         ("Theorem 1 condition", f"{'holds' if t.theorem1.holds else 'FAILS'} (min ratio {t.theorem1.min_ratio:.3g})"),
         ("discrete feasibility (ARC)",
          f"{'holds' if t.feasibility['arc'].holds else 'FAILS'} (rho_max {t.feasibility['arc'].rho_max:.4f})"),
@@ -83,7 +87,7 @@ def print_summary(t: Tuning, console: Console) -> None:
     for r in rows:
         gains.add_row(*r)
     console.print(gains)
-    sc = Table(title="ARC / PID on the tuning scenarios (errors in um)")
+    sc = Table(title=f"ARC / PID on the tuning scenarios (errors in {small})")
     sc.add_column("scenario", no_wrap=True)
     for h in ("e_M", "e_F", "e_rms", "c_u"):
         sc.add_column(f"{h} ARC / PID", justify="right", no_wrap=True)
@@ -134,6 +138,7 @@ def tune_command(
         if chatter is not None:
             err.print(f"warning: the PID baseline itself exceeds the gate's c_u <= {chatter.limit:g} on "
                       f"{chatter.count} tuning scenario(s) (worst {chatter.worst:.2f}, {chatter.scenario}): "
-                      f"at {t.spec.sample_rate:g} Hz an encoder step of {t.quantization * 1e6:.3g} um chatters "
+                      f"at {t.spec.sample_rate:g} Hz an encoder step of {t.quantization * 1e6:.3g} "
+                      f"{unit('small', t.identification.units)} chatters "
                       f"any loop that tracks within it; a finer encoder or a gate.toml c_u states what this "
                       f"axis can do", highlight=False)

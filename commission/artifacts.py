@@ -14,6 +14,7 @@ from typing import Any, Mapping
 from commission.jsonio import Reader, read_json
 from commission.logs.model import U_UNITS
 from commission.spec import RANGES
+from commission.units import mass_wording  # noqa: F401  (the wording lives in commission.units)
 
 IDENT_KIND = "identification"
 IDENT_SCHEMA_VERSION = 1
@@ -139,30 +140,6 @@ def _check_extra(r: Reader) -> None:
         w = r.child("warnings")
         if not isinstance(w.data, list) or not all(isinstance(x, str) for x in w.data):
             raise w.fail("expected a list of strings")
-
-
-def mass_wording(units: Mapping[str, str]) -> tuple[str, str]:
-    """How people call ``M`` on this axis, with its unit: ``("mass M", "N·s²/m")`` or ``("inertia J", "Nm·s²/rad")``.
-
-    The model keeps one symbol ``M`` for the coefficient of the acceleration in every
-    file (``parameters.M``); on a rotary axis (``units.q = "rad"``) that coefficient is
-    the inertia seen by the command, in u-unit·s²/rad, and every message and report
-    says so.
-
-    Parameters
-    ----------
-    units : mapping
-        ``{"u": u-unit, "q": "m" or "rad"}`` (ident.json's ``units``).
-
-    Returns
-    -------
-    name : str
-        ``"inertia J"`` on a rotary axis, else ``"mass M"``.
-    unit : str
-        ``"{u}·s²/{q}"``.
-    """
-    u, q = units.get("u", "u-unit"), units.get("q", "m")
-    return ("inertia J" if q == "rad" else "mass M"), f"{u}·s²/{q}"
 
 
 @dataclass(frozen=True)

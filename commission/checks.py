@@ -203,9 +203,10 @@ def check_log(
         )
 
     # 4. Motion and excitation.
+    q_unit = "rad" if log.q_unit_in_file == "rad" else "m"  # q is in m once read, unless rotary
     q_min, q_max = float(q.min()), float(q.max())
     if q_min == q_max:
-        raise DataError(f"{src}: channel q: constant (all {n} samples = {q_min!r} m); the axis never moved")
+        raise DataError(f"{src}: channel q: constant (all {n} samples = {q_min!r} {q_unit}); the axis never moved")
     u_min, u_max = float(u.min()), float(u.max())
     if u_min == u_max:
         raise DataError(
@@ -246,12 +247,11 @@ def check_log(
     step, resolution = encoder_resolution(q)
     if step is None:
         warns.append(
-            f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} m): the record may be "
+            f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} {q_unit}): the record may be "
             "resampled or filtered, so the encoder resolution is unknown"
         )
 
-    if log.q_unit_in_file != "rad":
-        warns += plausibility_warnings(t, q, step)
+    warns += plausibility_warnings(t, q, step, rotary=log.q_unit_in_file == "rad", u_unit=log.u_unit)
 
     return CheckReport(
         source=src, n=n, sample_rate=rate, duration=duration,
@@ -320,18 +320,43 @@ def _rail_runs(u: np.ndarray, rail: float, min_run: int) -> tuple[int, int | Non
 PLAUSIBLE_SPEED = 10.0
 #: Encoder step [m] above which the declared unit is implausible for a precision axis.
 PLAUSIBLE_STEP = 1e-4
+#: Travel [m] above which a linear log is more likely a rotary angle in rad read as metres
+#: (one revolution is 6.3 "m"); precision linear axes have strokes of a few metres at most.
+PLAUSIBLE_TRAVEL = 5.0
+#: Speed [rad/s] above which a rotary log is implausible (about 19 000 rpm): an angle in
+#: degrees or encoder counts read as rad reads 57 or thousands of times too fast.
+PLAUSIBLE_ROTARY_SPEED = 2000.0
+#: Mass [kg] (M with u in N, q in m) below which a linear axis is implausible: a log in mm or um
+#: read as metres makes the mass 1e3 or 1e6 times too small.
+PLAUSIBLE_MASS_KG = 1e-3
 
 
-def plausibility_warnings(t: np.ndarray, q: np.ndarray, step: float | None) -> list[str]:
-    """Warnings, with the figure, when speed or encoder step are implausible for q in metres.
+def plausibility_warnings(t: np.ndarray, q: np.ndarray, step: float | None, *, rotary: bool = False,
+                          u_unit: str | None = None) -> list[str]:
+    """Warnings, with the figure and the likely unit, when the log's q cannot be in its declared unit.
 
-    The peak speed is the 99.9th percentile of ``|dq/dt|`` (a single glitch does not count).
-    The remedy named is ``--q-unit`` (the usual cause: a log in mm read as m).
+    Linear axis (q in m): a peak speed or an encoder step implausible for a positioning axis
+    (the usual cause: a log in mm or um read as m), or a travel or a torque command (u in Nm)
+    that says the axis is rotary (q an angle in rad).  Rotary axis (q in rad): a peak speed
+    no motor reaches (an angle in degrees or counts).  The peak speed is the 99.9th percentile
+    of ``|dq/dt|`` (a single glitch does not count).  The remedy named is ``--q-unit``.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
         speed = np.abs(np.diff(q) / np.diff(t))
     speed = speed[np.isfinite(speed)]
     out = []
+    if rotary:
+        if speed.size and (peak := float(np.percentile(speed, 99.9))) > PLAUSIBLE_ROTARY_SPEED:
+            out.append(f"q: peak speed {peak:.3g} rad/s ({peak * 30 / math.pi:.3g} rpm) is implausible for a "
+                       f"motor (> {PLAUSIBLE_ROTARY_SPEED:g} rad/s); q is probably in degrees or encoder counts, "
+                       "not rad: convert it to rad")
+        return out
+    travel = float(q.max() - q.min()) if q.size else 0.0
+    if travel > PLAUSIBLE_TRAVEL:
+        out.append(f"q: travel {travel:.3g} m is implausible for a linear positioning axis (> {PLAUSIBLE_TRAVEL:g} "
+                   "m); if q is a rotary axis's angle in rad, pass --q-unit rad (in mm: --q-unit mm)")
+    elif u_unit == "Nm":
+        out.append("u is a torque (Nm) but q is read in m: if q is a rotary axis's angle in rad, pass --q-unit rad")
     if speed.size and (peak := float(np.percentile(speed, 99.9))) > PLAUSIBLE_SPEED:
         out.append(f"q: peak speed {peak:.3g} m/s is implausible for a positioning axis (> {PLAUSIBLE_SPEED:g} "
                    "m/s); if the file's q is in mm or um, pass --q-unit mm (or um)")
@@ -339,3 +364,15 @@ def plausibility_warnings(t: np.ndarray, q: np.ndarray, step: float | None) -> l
         out.append(f"q: encoder step {step:.3g} m is implausibly coarse (> {PLAUSIBLE_STEP:g} m); if the file's "
                    "q is in mm or um, pass --q-unit mm (or um)")
     return out
+
+
+def mass_plausibility_warnings(units: dict[str, str], mass: float | None) -> list[str]:
+    """A warning naming the likely unit when the identified M is implausible for a linear axis in N and m.
+
+    Only the linear axis with a command in newtons has a mass in kg to judge
+    (:data:`PLAUSIBLE_MASS_KG`); other command units carry an unknown gain.
+    """
+    if mass is None or units.get("u") != "N" or units.get("q") != "m" or not mass < PLAUSIBLE_MASS_KG:
+        return []
+    return [f"M = {mass:.3g} kg is implausibly light for a linear axis (< {PLAUSIBLE_MASS_KG:g} kg): q is probably "
+            "in mm or um read as m; pass --q-unit mm (or um)"]

@@ -98,6 +98,7 @@ from typing import Any, Callable, Mapping, Sequence
 from commission.errors import SpecError
 from commission.files import read_toml
 from commission.tuning import Score
+from commission.units import unit
 
 DEFAULT_E_F_LSB = 30.0
 DEFAULT_E_F_TRAVEL = 1e-4
@@ -467,7 +468,8 @@ class GateVerdict:
 
 
 def _um(x: float) -> str:
-    return f"{x * 1e6:.3g} um" if math.isfinite(x) else "n/a"
+    """A length in micro-units of q: um, or urad on a rotary axis (:func:`commission.units.unit`)."""
+    return f"{x * 1e6:.3g} {unit('small')}" if math.isfinite(x) else "n/a"
 
 
 def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]],

@@ -21,7 +21,7 @@ import numpy as np
 
 from commission import __version__
 from commission.artifacts import Estimate, Identification, ThetaBox, mass_wording
-from commission.checks import CheckReport, check_log
+from commission.checks import CheckReport, check_log, mass_plausibility_warnings
 from commission.errors import DataError, IdentifiabilityError, UsageError
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds, theta_bounds_from
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
@@ -32,6 +32,7 @@ from commission.identify.ls import ripple_name, ripple_pitches
 from commission.identify.signals import quantization_step
 from commission.identify.steady import FrictionMap, friction_map
 from commission.logs import ExcitationLog, load_log
+from commission.units import axis_units_context
 
 
 #: Command units of CONTRACT §1.
@@ -108,6 +109,9 @@ class IdentifyOptions:
         Hz (``--resample``).
     fix : mapping of str to float
         Known parameters (``--fix``).
+    lead, gear : float or None
+        ``--lead`` (m per load rad) and ``--gear`` (motor rad per load rad): a rotary
+        log's angle converted before anything is fitted (:func:`convert_axis`).
     """
 
     mapping: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -122,13 +126,69 @@ class IdentifyOptions:
     fmt: str | None = None
     resample: float | None = None
     fix: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    lead: float | None = None
+    gear: float | None = None
 
     def kwargs(self) -> dict[str, object]:
         """Keywords of :func:`identify_log`."""
         return {"mapping": dict(self.mapping), "input_gain": self.input_gain, "sample_rate": self.sample_rate,
                 "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
                 "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
-                "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix)}
+                "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix), "lead": self.lead,
+                "gear": self.gear}
+
+
+def convert_axis(logs: Sequence[ExcitationLog], lead: float | None, gear: float | None) -> list[ExcitationLog]:
+    """A rotary log's motor angle as the load's angle (``--gear``) or the carriage's position (``--lead``).
+
+    The encoder of a screw or geared drive usually sits on the motor, so the log holds the
+    motor angle in rad, while the user may want the model (and every parameter, bound and
+    figure after it) in the load's coordinate: the load angle ``q / gear`` [rad], or the
+    carriage position ``q lead / gear`` [m] of a screw whose lead is ``lead`` m per rad of
+    the screw (a 5 mm/rev screw: 0.005/(2π)).  ``q`` and ``q_ref`` are scaled; time and
+    command are not, so M, B, the friction speeds and everything derived from them come
+    out in the converted unit (M in u-unit·s²/m after ``--lead``).  Converting before the
+    checks means the plausibility checks see the unit the model will use.
+
+    Parameters
+    ----------
+    logs : sequence of ExcitationLog
+        As loaded; all must be rotary (``q_unit_in_file == "rad"``) when ``lead`` or ``gear`` is given.
+    lead : float or None
+        m of carriage travel per rad of the load (the screw); None: stay rotary.
+    gear : float or None
+        Motor rad per load rad (> 0); None: 1.
+
+    Returns
+    -------
+    list of ExcitationLog
+        The logs, unchanged when neither is given; after ``lead`` their ``q_unit_in_file`` is ``"m"``.
+
+    Raises
+    ------
+    UsageError
+        A ratio that is not a positive finite number, or a log that is not in rad, named.
+    """
+    if lead is None and gear is None:
+        return list(logs)
+    for flag, v in (("--lead", lead), ("--gear", gear)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise UsageError(f"{flag} must be a positive finite number, got {v}")
+    for lg in logs:
+        if lg.q_unit_in_file != "rad":
+            flag = "--lead" if lead is not None else "--gear"
+            raise UsageError(f"{flag} converts a rotary log's angle (q in rad), but {lg.source}'s q is in "
+                             f"{lg.q_unit_in_file}; drop {flag}, or give the log in rad (--q-unit rad)")
+    k = (1.0 if lead is None else lead) / (1.0 if gear is None else gear)
+    unit = "m" if lead is not None else "rad"
+    return [dataclasses.replace(lg, q=lg.q * k, q_ref=None if lg.q_ref is None else lg.q_ref * k,
+                                q_unit_in_file=unit) for lg in logs]
+
+
+def _conversion_record(file_q_unit: str, lead: float | None, gear: float | None) -> dict[str, object]:
+    """ident.json's ``source.conversion``: what :func:`convert_axis` did (only when it did something)."""
+    return {"from": file_q_unit, "to": "m" if lead is not None else "rad", "lead_m_per_rad": lead,
+            "gear_motor_rad_per_load_rad": gear}
 
 
 def check_input_gain(input_gain: float, u_unit: str | None) -> None:
@@ -297,6 +357,8 @@ def identify_log(
     fmt: str | None = None,
     resample: float | None = None,
     fix: Mapping[str, float] | None = None,
+    lead: float | None = None,
+    gear: float | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -334,8 +396,9 @@ def identify_log(
     u_unit : {"V", "N", "A", "Nm", "%"}, optional
         Unit of ``u`` after ``input_gain``; default the file's unit, allowed only
         when ``input_gain`` is 1 (:func:`check_input_gain`).
-    q_unit : {"m", "mm", "um"}, optional
-        Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m.
+    q_unit : {"m", "mm", "um", "rad"}, optional
+        Unit of ``q`` in files without a ``q_unit`` attribute (CSV, v5 MAT); default m
+        (``"rad"``: a rotary axis).
         Applies to ``validate_on`` too.
     fmt : {"hdf5", "csv", "mat", "epos"}, optional
         Forces the log format (``--format``); default: recognised from the content
@@ -345,6 +408,10 @@ def identify_log(
         (:func:`resample_log`), for irregular time stamps.
     fix : mapping, optional
         Known parameters (``{"M": u-unit s^2/m}``, ``--fix``), not fitted.
+    lead, gear : float, optional
+        ``--lead`` (m per load rad) and ``--gear`` (motor rad per load rad): the rotary
+        log(s), ``validate_on`` too, converted first (:func:`convert_axis`); ``ripple_pitch``
+        and ``fix`` are then in the converted unit.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -364,11 +431,13 @@ def identify_log(
     try:
         pitches = ripple_pitches(ripple_pitch)
     except ValueError:
-        raise UsageError(f"--ripple-pitch must be > 0 m, got {ripple_pitch}") from None
+        raise UsageError(f"--ripple-pitch must be > 0 (m, or rad on a rotary axis), got {ripple_pitch}") from None
     ripple_pitch = (pitches[0] if len(pitches) == 1 else pitches) if pitches else None
     check_input_gain(input_gain, u_unit)
     load = dict(mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
     logs = list(_loaded[0]) if _loaded is not None else [load_log(p, **load) for p in paths]  # type: ignore[arg-type]
+    file_q_unit = logs[0].q_unit_in_file
+    logs = convert_axis(logs, lead, gear)
     if resample is not None:
         logs = [resample_log(lg, resample) for lg in logs]
     all_checks = [check_log(lg) for lg in logs]
@@ -377,6 +446,7 @@ def identify_log(
     # Load and check the validation logs before the (long) fit: bad input fails fast.
     val_logs = (list(_loaded[1]) if _loaded is not None
                 else [load_log(p, **load) for p in val_paths])  # type: ignore[arg-type]
+    val_logs = convert_axis(val_logs, lead, gear)
     if resample is not None:
         val_logs = [resample_log(lg, resample) for lg in val_logs]
     for lg in val_logs:
@@ -384,7 +454,9 @@ def identify_log(
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     fix = dict(fix or {})
-    fit, friction_warnings = _fit_with_context(logs, friction=friction, ripple_pitch=ripple_pitch, mass=fix.get("M"))
+    with axis_units_context(_units(u_unit, logs[0])["q"]):  # the numerics' messages in the axis's unit
+        fit, friction_warnings = _fit_with_context(logs, friction=friction, ripple_pitch=ripple_pitch,
+                                                   mass=fix.get("M"))
     has_mass = "M" in fit.parameters
     val_err = None
     if val_logs:
@@ -419,7 +491,9 @@ def identify_log(
     log_warnings = [w if len(logs) == 1 else f"{c.source}: {w}" for c in all_checks for w in c.warnings]
     warnings = (friction_warnings + log_warnings + list(fit.warnings)
                 + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
-                                       fit.relative_error, fit.condition_number))
+                                       fit.relative_error, fit.condition_number)
+                + mass_plausibility_warnings(_units(u_unit, logs[0]),
+                                             fit.parameters["M"][0] if has_mass and "M" not in fix else None))
     several, val_several = len(logs) > 1, len(val_logs) > 1
     extra: dict[str, object] = {
         "tool": {"name": "commission", "version": __version__},
@@ -431,7 +505,7 @@ def identify_log(
             "sample_rate": float(logs[0].sample_rate),
             "input_gain": float(input_gain),
             "mapping": dict(mapping or {}),
-            "q_unit": logs[0].q_unit_in_file,
+            "q_unit": file_q_unit,
             "resampled_hz": resample,
         },
         "validation_source": (
@@ -471,6 +545,8 @@ def identify_log(
         extra["model"]["segments"] = [int(lg.t.size) for lg in logs]  # type: ignore[index]
     if fix:
         extra["model"]["fixed"] = dict(fix)  # type: ignore[index]
+    if lead is not None or gear is not None:
+        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear)  # type: ignore[index]
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
@@ -699,6 +775,8 @@ def identify_legs(
     q_unit: str | None = None,
     fmt: str | None = None,
     validate_on: Sequence[str] = (),
+    lead: float | None = None,
+    gear: float | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> LegsOutcome:
     """Identify the friction curve from a friction test: several logs, one constant-speed leg each.
@@ -722,7 +800,7 @@ def identify_legs(
     validate_on : sequence of str
         Legs of a second friction test (files, folders expanded): the fitted curve's
         relative error on their map is ``validation_relative_error``.
-    mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt
+    mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt, lead, gear
         As in :func:`identify_log`, applied to every file.
 
     Returns
@@ -742,6 +820,8 @@ def identify_legs(
                 for p in paths]
         val_logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
                              fmt=fmt) for p in validate_on]  # loaded before the fit: bad input fails fast
+    file_q_unit = logs[0].q_unit_in_file if logs else "m"
+    logs, val_logs = convert_axis(logs, lead, gear), convert_axis(val_logs, lead, gear)
     _same_axis_units(logs)
     legs, excluded, warnings = [], [], []
     for lg in logs:
@@ -838,7 +918,7 @@ def identify_legs(
             "sample_rate": float(first.sample_rate),
             "input_gain": float(input_gain),
             "mapping": dict(mapping or {}),
-            "q_unit": first.q_unit_in_file,
+            "q_unit": file_q_unit,
             "excluded": excluded,
         },
         "validation_source": ({"path": [lg.source for lg in val_logs], "sha256": [lg.sha256 for lg in val_logs]}
@@ -859,6 +939,8 @@ def identify_legs(
     }
     if tb is not None:
         extra["bounds"] = _bounds_record(bounds, tb)
+    if lead is not None or gear is not None:
+        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear)  # type: ignore[index]
     ident = Identification(
         units=_units(u_unit, first),
         parameters=params,
@@ -917,6 +999,16 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
     gain = float(options.get("input_gain", 1.0))  # type: ignore[arg-type]
     logs = [load_log(p, input_gain=gain, **load) for p in paths]  # type: ignore[arg-type]
     val_logs = [load_log(p, input_gain=gain, **load) for p in validate_on]  # type: ignore[arg-type]
+    rotary = options.get("lead") is None and logs[0].q_unit_in_file == "rad"
+    with axis_units_context("rad" if rotary else "m"):  # the numerics' messages in the axis's unit
+        return _identify_loaded(paths, logs, val_logs, validate_on=validate_on, ripple_pitch=ripple_pitch,
+                                resample=resample, options=options)
+
+
+def _identify_loaded(paths: list[str], logs: list[ExcitationLog], val_logs: list[ExcitationLog], *,
+                     validate_on: Sequence[str], ripple_pitch: float | Sequence[float] | None,
+                     resample: float | None, options: Mapping[str, object]) -> IdentifyOutcome | LegsOutcome:
+    """:func:`identify_files` once its logs are read: a friction test or segments of one fit."""
     kind, note = classify_logs(logs)
     if kind == "legs":
         for flag, value in (("--ripple-pitch", ripple_pitch or None), ("--resample", resample)):
@@ -924,7 +1016,7 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
                 raise UsageError(f"{flag}: not available for a friction test of several logs ({note}; one map "
                                  "point per leg, no ripple or time base to fit): drop it, or give one file")
         legs_kw = {k: options[k] for k in ("mapping", "input_gain", "sample_rate", "friction", "fix", "bounds",
-                                            "u_unit", "q_unit", "fmt") if k in options}
+                                            "u_unit", "q_unit", "fmt", "lead", "gear") if k in options}
         return identify_legs(paths, validate_on=list(validate_on), _loaded=(logs, val_logs),
                              **legs_kw)  # type: ignore[arg-type]
     out = identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,

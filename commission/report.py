@@ -15,7 +15,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from commission.next_steps import next_steps
-from commission.artifacts import mass_wording
+from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
 from commission.scenarios import CASES, VARIANTS, plant_dynamics
@@ -23,9 +23,9 @@ from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
 TABLE1_ROWS = (
-    ("e_M (um)", "e_M", 1e6, "{:.3g}"),
-    ("e_F (um)", "e_F", 1e6, "{:.3g}"),
-    ("‖e‖rms (um)", "e_rms", 1e6, "{:.3g}"),
+    ("e_M ({s})", "e_M", 1e6, "{:.3g}"),
+    ("e_F ({s})", "e_F", 1e6, "{:.3g}"),
+    ("‖e‖rms ({s})", "e_rms", 1e6, "{:.3g}"),
     ("‖u‖rms ({u})", "u_rms", 1.0, "{:.3g}"),
     ("‖Δu‖rms ({u})", "du_rms", 1.0, "{:.3g}"),
     ("c_u", "c_u", 1.0, "{:.2f}"),
@@ -65,7 +65,7 @@ def table1_markdown(result: Any, case: str, unit: str) -> str:
         for n in names:
             r = runs[n]
             cells += [_cell(r.pid, key, scale, fmt), _cell(r.arc, key, scale, fmt)]
-        lines.append(f"| {label.format(u=unit)} | " + " | ".join(cells) + " |")
+        lines.append(f"| {label.format(u=unit, s=unit_of('small', result.units))} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -92,7 +92,7 @@ def _limit_text(key: str, limits: Any) -> str:
     if key == "divergence":
         return "required" if limits.no_divergence else "not checked"
     if key in ("e_F", "e_M", "e_rms"):
-        return f"{getattr(limits, key) * 1e6:.3g} um"
+        return f"{getattr(limits, key) * 1e6:.3g} {unit_of('small')}"
     if key == "c_u":
         return f"{limits.c_u:.3g}"
     if key == "u_peak":
@@ -100,7 +100,7 @@ def _limit_text(key: str, limits: Any) -> str:
     if key == "margins":
         return "1 (every floor met)"
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
-    return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} um" if slack > 0 else "")
+    return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} {unit_of('small')}" if slack > 0 else "")
 
 
 def _basis_key(key: str) -> str:
@@ -117,7 +117,7 @@ def _value_text(c: Any) -> str:
     if c.criterion == "divergence":
         return "none" if c.passed else f"at t = {c.value:.4g} s"
     if c.criterion in ("e_F", "e_M", "e_rms"):
-        return f"{c.value * 1e6:.3g} um" if math.isfinite(c.value) else "n/a (diverged)"
+        return f"{c.value * 1e6:.3g} {unit_of('small')}" if math.isfinite(c.value) else "n/a (diverged)"
     if not math.isfinite(c.value):
         return "n/a (diverged)"
     return f"{c.value:.3g}"
@@ -180,14 +180,15 @@ def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
     return L
 
 
-#: Parameter -> (unit template, description); ``{u}`` is the command unit, ``{q}`` the position unit.
-_PARAM_UNITS = {"M": ("{u}·s²/{q}", "mass"), "B": ("{u}·s/{q}", "viscous friction"), "fc": ("{u}", "Coulomb level"),
-                "fs": ("{u}", "static level"), "vs": ("{q}/s", "Stribeck velocity"), "xi": ("-", "Stribeck exponent"),
-                "offset": ("{u}", "command offset")}
+#: Parameter -> description (units: :func:`commission.units.parameter_units`).
+_PARAM_WHAT = {"M": "mass", "B": "viscous friction", "fc": "Coulomb level", "fs": "static level",
+               "vs": "Stribeck velocity", "xi": "Stribeck exponent", "offset": "command offset"}
 #: Figures of the identification (``identify --plot``; ``run`` writes them beside the report).
 _IDENT_CAPTIONS = {
     "force_fit.png": "Inverse-dynamics fit: measured against fitted force, and the residual, over the log.",
     "friction_curve.png": "Identified friction curve over the constant-velocity legs, with the atan compensation.",
+    "friction_curve.png/no legs": "Identified friction curve, with the atan compensation (the log holds no "
+                                  "constant-velocity leg to plot over it).",
     "residuals.png": "Histogram of the fit's residuals.",
     "bode.png": "Measured frequency response u -> q with its coherence, against the rigid and the fitted model.",
 }
@@ -227,11 +228,11 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
     for name, est in ident.parameters.items():
         if est is None:
             continue
-        unit, what = _PARAM_UNITS.get(name, ("", name))
+        unit, what = parameter_units(ident.units).get(name, ""), _PARAM_WHAT.get(name, name)
         if name == "M" and rotary:
             what = "inertia J"
         rel = f"{abs(est.std / est.value) * 100:.2g} %" if est.value else "-"
-        L.append(f"| {name} ({what}) | {_g(est.value)} | {_g(est.std, 2)} | {rel} | {unit.format(u=u, q=q)} |")
+        L.append(f"| {name} ({what}) | {_g(est.value)} | {_g(est.std, 2)} | {rel} | {unit} |")
     if ident.theta is not None:
         L += ["", f"theta = [1/M, B/M, d_n/M]{' (M the inertia J)' if rotary else ''} in [{q}/({u}·s²), 1/s, {q}/s²]: nominal {_vec(ident.theta.nominal)}, "
                   f"box min {_vec(ident.theta.min)}, max {_vec(ident.theta.max)}; delta_d = {_g(ident.delta_d or 0.0, 3)} "
@@ -251,8 +252,10 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
             L += ["", text + "."]
     shown = [f for f in figures if f in _IDENT_CAPTIONS]
     if shown:
+        no_legs = not model.get("steady_points")
         for f in shown:
-            L += ["", f"![{f}]({f})", "", _IDENT_CAPTIONS[f]]
+            caption = _IDENT_CAPTIONS[f"{f}/no legs" if no_legs and f"{f}/no legs" in _IDENT_CAPTIONS else f]
+            L += ["", f"![{f}]({f})", "", caption]
     else:
         L += ["", "Identification figures: `commission identify LOG --plot DIR` (`commission run` writes them "
                   "beside this report)."]
@@ -369,7 +372,7 @@ def discussion_markdown(result: Any, tuning: Tuning) -> list[str]:
         unit = result.units.get("u", "u")
         worst = max(lc.items(), key=lambda kv: kv[1][0])
         L.append(f"- **The PID baseline hunts at standstill** in {len(lc)} scenario(s) ({', '.join(sorted(lc))}): "
-                 f"in the dwells its error swings ±{_g(worst[1][0] * 1e6, 2)} um with a ±{_g(worst[1][1], 2)} {unit} "
+                 f"in the dwells its error swings ±{_g(worst[1][0] * 1e6, 2)} {unit_of('small', result.units)} with a ±{_g(worst[1][1], 2)} {unit} "
                  f"command ({worst[0]}), a limit cycle of the integrator against stiction. It inflates the PID's e_F "
                  f"and e_rms there, so the ARC/PID ratios of those scenarios flatter the ARC.")
     fixed = [r for r in result.runs if "monte_carlo" not in r.tags and "robustness" not in r.tags
@@ -405,7 +408,15 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
         ``{"tuning": path, "gate": path or None}`` as given on the command line.
     tuning_sha256 : str, optional
         sha256 of the tuning.json validated.
+
+    Every unit is the axis's (``result.units``: m or rad, :mod:`commission.units`).
     """
+    with axis_units_context(result.units.get("q", "m")):
+        return _report_markdown(result, tuning, figures=figures, sources=sources, tuning_sha256=tuning_sha256)
+
+
+def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
+                     sources: Mapping[str, str | None] | None, tuning_sha256: str | None) -> str:
     sources = sources or {}
     unit = result.units.get("u", "u")
     ident = tuning.identification
@@ -433,26 +444,32 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     L.append("")
     L.append(f"- tuning: `{sources.get('tuning') or 'tuning.json'}`; gate: `{sources.get('gate') or 'defaults'}`")
     L.append(f"- identified model: see Identification below; theta box min {_vec(ident.theta.min)}, "
-             f"max {_vec(ident.theta.max)}, nominal {_vec(ident.theta.nominal)}; delta_d = {_g(ident.delta_d)} m/s^2")
+             f"max {_vec(ident.theta.max)}, nominal {_vec(ident.theta.nominal)}; delta_d = {_g(ident.delta_d)} "
+             f"{unit_of('a')}")
     bounds = ident.extra.get("bounds")
     narrowed = bounds.get("narrowed_by_tune") if isinstance(bounds, dict) else None
     if isinstance(narrowed, dict) and all(isinstance(narrowed.get(k), (int, float))
                                           for k in ("theta3_min", "theta3_max", "u_max")):
         lo, hi = narrowed["theta3_min"], narrowed["theta3_max"]
-        L.append(f"- **theta3 narrowed by tune** from [{lo:.4g}, {hi:.4g}] m/s^2: identify's defaulted load-force "
+        L.append(f"- **theta3 narrowed by tune** from [{lo:.4g}, {hi:.4g}] {unit_of('a')}: identify's defaulted load-force "
                  f"bound left the {narrowed['u_max']:g} {unit} drive no room for any envelope; loads outside the box above were not validated "
                  f"(state the real one with `commission identify --disturbance-bound`)")
-    L.append(f"- sample rate {spec.sample_rate:g} Hz; encoder resolution {result.quantization * 1e6:.3g} um; "
+    L.append(f"- sample rate {nominal(spec.sample_rate, '{:g}')} Hz; encoder resolution "
+             f"{result.quantization * 1e6:.3g} {unit_of('small')}; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
-    L.append(f"- envelope: travel {spec.travel:g} m, v_max {spec.v_max:g} m/s, a_max {spec.a_max:g} m/s^2 "
-             f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} m")
+    L.append(f"- envelope: travel {spec.travel:g} {unit_of('q')}, v_max {spec.v_max:g} {unit_of('v')}, "
+             f"a_max {spec.a_max:g} {unit_of('a')} (Case 1 and Case 2 scaled to it); abort when |q - q_d| > "
+             f"{result.e_abort:g} {unit_of('q')}")
     g = result.arc_gains
     L.append(f"- ARC: observer k1 = {_g(g.k1)} 1/s, k2 = {_g(g.k2)} 1/s^2; g1 = {_g(g.g1)} 1/s, g2 = {_g(g.g2)} 1/s, "
-             f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)}; "
-             f"theta0 = {_vec(g.theta0)}; u_max = {g.u_max:g} {unit}")
+             f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)} "
+             f"(adaptation rates of (19): theta_i's unit per unit of tau_i, per s); "
+             f"theta0 = {_vec(g.theta0)} [{unit_of('theta1', result.units)}, 1/s, {unit_of('a')}]; "
+             f"u_max = {g.u_max:g} {unit}")
     p = tuning.pid
-    L.append(f"- PID baseline (57): Kp = {p.Kp:.4g}, Ki = {p.Ki:.4g}, Kd = {p.Kd:.4g}, M_hat = {p.M_hat:.4g}, "
-             f"B_hat = {p.B_hat:.4g}")
+    q = unit_of("q")
+    L.append(f"- PID baseline (57): Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), "
+             f"Kd = {p.Kd:.4g} {unit}·s/{q}, M_hat = {p.M_hat:.4g} {unit}·s²/{q}, B_hat = {p.B_hat:.4g} {unit}·s/{q}")
     L.append("")
     L.extend(identification_markdown(tuning, figures))
     L.extend(discussion_markdown(result, tuning))
@@ -487,8 +504,9 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
         L.append("")
         L.append("| | ARC median | ARC worst | PID median | PID worst |")
         L.append("|---|---:|---:|---:|---:|")
-        for key, label, scale in (("e_M", "e_M (um)", 1e6), ("e_F", "e_F (um)", 1e6),
-                                  ("e_rms", "‖e‖rms (um)", 1e6), ("c_u", "c_u", 1.0),
+        small = unit_of("small")
+        for key, label, scale in (("e_M", f"e_M ({small})", 1e6), ("e_F", f"e_F ({small})", 1e6),
+                                  ("e_rms", f"‖e‖rms ({small})", 1e6), ("c_u", "c_u", 1.0),
                                   ("u_peak", f"peak command ({unit})", 1.0)):
             a, b = mc["arc"][key], mc["pid"][key]
             L.append(f"| {label} | {_fmt(a[0], '{:.3g}', scale)} | {_fmt(a[1], '{:.3g}', scale)} | "
@@ -554,7 +572,9 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
 
 def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the stdout summary: each fixed scenario, then the Monte-Carlo aggregate."""
-    head = ["scenario", "ARC e_M um", "ARC e_F um", "ARC e_rms um", "ARC c_u", "ARC peak|u|", "PID e_rms um", "gate"]
+    s_, u_ = unit_of("small", result.units), result.units.get("u", "u-unit")
+    head = ["scenario", f"ARC e_M {s_}", f"ARC e_F {s_}", f"ARC e_rms {s_}", "ARC c_u", f"ARC peak|u| {u_}",
+            f"PID e_rms {s_}", "gate"]
     failed = {c.scenario for c in result.verdict.failures}
     rows: list[list[str]] = []
 

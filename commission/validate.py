@@ -68,6 +68,7 @@ from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin
 from commission.scenarios import check_run_length, plant_substeps, scenario_matrix
 from commission.spec import check_flags, nominal_rate
 from commission.tuning import Score, Tuning, log_sha256_of
+from commission.units import axis_units_context
 
 Progress = Callable[[int, int], None]
 
@@ -444,7 +445,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     floors = FloorContext(runs=[(r.name, r.arc, r.arc_t_abort) for r in runs],
                           limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
                           drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
-    gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
+    with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
+        gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
     verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors)), limits)
     # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
     rob_names = {r.name for r in runs if "robustness" in r.tags}

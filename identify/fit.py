@@ -75,6 +75,7 @@ from commission.identify.ls import (FrictionModel, readonly_copy, regressor, rip
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, default_settings, preprocess_segments,
                                          quantization_step, segment_rates)
 from commission.identify.steady import SteadySegments, find_steady_segments
+from commission.identify.units import unit
 
 Method = Literal["dynamic", "steady+dynamic"]
 
@@ -256,7 +257,8 @@ def _check_mass(M: float, std: float, cond: float) -> None:
 
 
 def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: str, hint: str,
-                    warnings: list[str], *, dip: tuple[float, float] | None = None, speed_unit: str = "m/s") -> None:
+                    warnings: list[str], *, dip: tuple[float, float] | None = None,
+                    speed_unit: str | None = None) -> None:
     """Refuse a Stribeck fit the data cannot support; warn about softer issues.
 
     Refused: fewer than ``n_need`` of ``speeds`` below ``3 vs`` (with ``dip``: inside the
@@ -273,6 +275,7 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
     residual sums of squares of the two fits): the dip is kept when ``p`` is below
     :data:`STRIBECK_DIP_P_VALUE`, whatever the spread of ``fs`` alone.
     """
+    speed_unit = speed_unit or unit("v")
     i = {nm: k for k, nm in enumerate(sep.names)}
     fc, fs, vs, xi = (sep.value[i[k]] for k in ("fc", "fs", "vs", "xi"))
     g = np.zeros(len(sep.names))
@@ -367,7 +370,7 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
                         vs_bounds=(0.3 * speed.min(), 0.5 * speed.max()))
     params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
     _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
-                    f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} m/s",
+                    f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} {unit('v')}",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
                     "(it does not average out on slow legs), or use friction='coulomb'", warnings)
     return params
@@ -471,7 +474,7 @@ def _map_fit_coulomb(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[
         fast = np.abs(v) > knee
         if min(_distinct_speeds(v[fast & (v > 0)]), _distinct_speeds(-v[fast & (v < 0)])) >= 2:
             keep = fast
-            warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} m/s "
+            warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} {unit('v')} "
                             "(3 vs of the map's Stribeck hump) left out of the Coulomb fit")
     res = solve(np.column_stack([v[keep], np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
     return {nm: (float(th), float(sd)) for nm, th, sd in zip(("B", "fc", "offset"), res.theta, res.std)}
@@ -544,7 +547,7 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
         n_rows = int(rows.sum())
         if n_rows < 10 * X_rip.shape[1]:
             raise MassNotIdentifiableError(
-                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} m/s away from reversals "
+                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} {unit('v')} away from reversals "
                 "(need dynamic motion at speed for the mass)")
         return rows
 
@@ -616,7 +619,7 @@ class MapFit:
 
 
 def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: FrictionModel,
-                     speed_unit: str = "m/s", force_unit: str = "u-unit") -> MapFit:
+                     speed_unit: str | None = None, force_unit: str = "u-unit") -> MapFit:
     """Fit ``F = B v + Ff(v) + offset`` to friction-map points (one per constant-velocity leg).
 
     The same map fit as step 1 of the ``"steady+dynamic"`` method, on legs that are
@@ -632,7 +635,8 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
         A Stribeck curve is fitted to the map's odd part when the legs come in pairs of
         opposite directions (:func:`_map_fit_stribeck_legs`).
     speed_unit, force_unit : str
-        Units of ``velocity`` and ``force`` in messages (``"rad/s"`` on a rotary axis).
+        Units of ``velocity`` and ``force`` in messages (default speed unit: the axis's,
+        :func:`commission.identify.units.unit`).
 
     Returns
     -------
@@ -645,6 +649,7 @@ def fit_friction_map(velocity: np.ndarray, force: np.ndarray, *, friction: Frict
     StribeckNotIdentifiableError
         The Stribeck curve is not supported by the map.
     """
+    speed_unit = speed_unit or unit("v")
     v = np.asarray(velocity, dtype=np.float64)
     F = np.asarray(force, dtype=np.float64)
     n_pos, n_neg = _distinct_speeds(v[v > 0]), _distinct_speeds(-v[v < 0])

@@ -35,6 +35,7 @@ import numpy as np
 from scipy import optimize
 
 from commission.identify.errors import NotIdentifiableError, StribeckNotIdentifiableError
+from commission.identify.units import unit
 
 #: Bounds of the Stribeck exponent searched.
 XI_BOUNDS = (0.3, 5.0)
@@ -148,12 +149,12 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
     if not (math.isfinite(vs_bounds[0]) and math.isfinite(vs_bounds[1]) and vs_bounds[0] > 0):
         # A stalled leg (mean speed 0) makes the lower edge 0: no Stribeck speed can be told apart.
         raise StribeckNotIdentifiableError(
-            f"stribeck: the slowest speed seen is {vs_bounds[0]:g} m/s, so there is no search box for vs "
+            f"stribeck: the slowest speed seen is {vs_bounds[0]:g} {unit('v')}, so there is no search box for vs "
             f"(a leg that does not move, or a stalled axis)")
     lo = np.array([math.log(vs_bounds[0]), xi_bounds[0]])
     hi = np.array([math.log(vs_bounds[1]), xi_bounds[1]])
     if not np.all(hi > lo):
-        raise StribeckNotIdentifiableError(f"stribeck: empty search box vs in {vs_bounds} m/s, xi in {xi_bounds}")
+        raise StribeckNotIdentifiableError(f"stribeck: empty search box vs in {vs_bounds} {unit('v')}, xi in {xi_bounds}")
 
     # The residual of y on [Phi0, s] is that of y on Phi0 minus its projection on the
     # part of s orthogonal to Phi0: one QR of Phi0 makes every evaluation O(N p0).
@@ -309,7 +310,7 @@ def friction_compensation_curve(fc: float, fs: float | None, vs: float | None, x
     FrictionCompensation
     """
     if not (v_max > v_resolution > 0):
-        raise ValueError(f"need v_max > v_resolution > 0 m/s, got v_max={v_max}, v_resolution={v_resolution}")
+        raise ValueError(f"need v_max > v_resolution > 0 {unit('v')}, got v_max={v_max}, v_resolution={v_resolution}")
     v = np.geomspace(v_resolution / 10.0, v_max, n_grid)
     # Triangular kernel by the midpoint rule (no node at e = 0, where Ff jumps).
     m = 400

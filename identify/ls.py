@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 
 from commission.identify.errors import NotIdentifiableError
+from commission.identify.units import unit
 
 FrictionModel = Literal["coulomb", "stribeck"]
 
@@ -57,7 +58,7 @@ def ripple_pitches(ripple_pitch: float | Sequence[float] | None) -> tuple[float,
     out = (float(ripple_pitch),) if np.ndim(ripple_pitch) == 0 else tuple(float(p) for p in ripple_pitch)  # type: ignore[union-attr]
     for p in out:
         if not (np.isfinite(p) and p > 0):
-            raise ValueError(f"ripple_pitch must be > 0 m, got {p}")
+            raise ValueError(f"ripple_pitch must be > 0 {unit('q')}, got {p}")
     return out
 
 

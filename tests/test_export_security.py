@@ -162,7 +162,12 @@ def test_no_hostile_string_leaves_its_comment(base, value, field, kind, target):
         _assert_escaped(st_comment(value))
         _assert_escaped(markdown_code(value)[1:-1])
         assert files == _expected(base, harmless, value, _checksum(hostile_config))
-    else:  # units.q and free-form validated text reach no generated file (but the checksum line)
+    elif field == "units.q":  # the position unit reaches the README only, as escaped code spans
+        _assert_escaped(markdown_code(value)[1:-1])
+        expected = _expected(base, harmless, MARK, _checksum(hostile_config))
+        expected["README.md"] = expected.get("README.md", "").replace("`m`", markdown_code(value))
+        assert {n: t for n, t in files.items()} == {n: t for n, t in expected.items() if n in files}
+    else:  # free-form validated text reaches no generated file (but the checksum line)
         assert files == _expected(base, harmless, MARK, _checksum(hostile_config))
 
 

@@ -51,3 +51,254 @@ def test_tune_refuses_a_rotary_identification_without_inertia_naming_the_inertia
     assert "mass" not in msg and not (tmp_path / "t.json").exists()
     (gap,) = _ident("m", "N", with_mass=False).tuning_gaps()
     assert "tune needs the mass M (N·s²/m)" in gap and "inertia" not in gap
+
+
+# --------------------------------------------------------------------------------------------------
+# Must-show 3 of issue 32: a rotary log gives no linear unit anywhere -- console, ident.json, report,
+# figure labels -- unless --lead converts it to the carriage's metres.
+
+import math  # noqa: E402
+import re  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from shared_paths import ODRIVE_DIR, TRO2021_DIR  # noqa: E402
+
+matplotlib = pytest.importorskip("matplotlib")
+h5py = pytest.importorskip("h5py")
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.text import Text  # noqa: E402
+
+SAMPLE_H5 = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
+SAMPLE_CSV = SAMPLE_H5.with_suffix(".csv")
+TRO_DRIVE1 = TRO2021_DIR / "driveNo1" / "steady_state" / "0.096kg"
+ODRIVE_RUN = ODRIVE_DIR / "slow_0.03revps" / "nocomp_0.npy"
+
+#: A linear unit as a label or a number's unit says it: m, mm, um, µm (alone, or per s, s², a u-unit
+#: over m, u·s²/m) and the word "mass".  Not inside a word or a path ("/tmp/...", "mrad", "max").
+LINEAR = re.compile(r"(?<![\w/.\\-])(?:m|mm|um|µm)(?:/s(?:²|\^2)?)?(?![\w(])|(?<=[\w²)])/m\b|\bmass\b")
+
+
+def linear_units(text: str) -> list[str]:
+    """Each linear unit in ``text``, with 30 characters of context either side."""
+    return [text[max(0, m.start() - 30):m.end() + 30] for m in LINEAR.finditer(text)]
+
+
+def test_the_scanner_finds_every_way_a_linear_unit_is_written():
+    for text in ("velocity [m/s]", "encoder step 5e-07 m", "0.0963 m/s", "|q/u| [m/V]", "M (mass)", "e [um]",
+                 "vs 3 m/s²", "M 2 N·s²/m", "delta_d 4.9 m/s^2", "q_d [mm]", "travel 0.4 m, v_max"):
+        assert linear_units(text), text
+    for text in ("velocity [rad/s]", "5e-07 rad", "e [urad]", "q_d [mrad]", "J (Nm·s²/rad)", "max 3 ms",
+                 "model", "e_M (urad)", "mass_range"):
+        assert not linear_units(text), text
+
+
+@pytest.fixture()
+def figure_texts(monkeypatch):
+    """Every text (titles, axis labels, legends, captions) of every figure saved while the test runs."""
+    texts: list[str] = []
+    save = Figure.savefig
+
+    def savefig(fig, *args, **kwargs):
+        texts.extend(t.get_text() for t in fig.findobj(Text) if t.get_text())
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    return texts
+
+
+def _json_strings(doc, skip=("path", "sha256", "created_utc")):
+    """Every string of an ident.json (keys and values), file names and digests left out."""
+    if isinstance(doc, dict):
+        return [s for k, v in doc.items() if k not in skip for s in [k, *_json_strings(v, skip)]]
+    if isinstance(doc, list):
+        return [s for v in doc for s in _json_strings(v, skip)]
+    return [doc] if isinstance(doc, str) else []
+
+
+def _rotary_copy(src: Path, dst: Path, *, u_unit="Nm", q_scale=1.0) -> Path:
+    """The sample log relabelled as a rotary axis (q in rad, u in ``u_unit``), q times ``q_scale``."""
+    with h5py.File(src) as f:
+        data = {k: f[k][()] for k in f.keys()}
+    with h5py.File(dst, "w") as g:
+        for k, v in data.items():
+            g[k] = v * q_scale if k in ("q", "q_ref") else v
+        g.attrs["q_unit"], g.attrs["u_unit"] = "rad", u_unit
+    return dst
+
+
+def _no_linear_unit(res, out_json: Path, texts, where: Path):
+    console = res.output.replace(str(where), "<tmp>")
+    assert linear_units(console) == [], console
+    doc = json.loads(out_json.read_text())
+    assert doc["units"]["q"] == "rad"
+    assert linear_units("\n".join(_json_strings(doc))) == []
+    assert texts and linear_units("\n".join(texts)) == [], sorted(set(texts))
+
+
+def test_the_sample_log_as_it_is_says_m_everywhere_the_scanner_looks(tmp_path, figure_texts):
+    """The counterpart: the same checks on a linear log find its metres (the scan can fail)."""
+    res = runner.invoke(app, ["identify", str(SAMPLE_H5), "--out", str(tmp_path / "i.json"),
+                              "--plot", str(tmp_path / "p")])
+    assert res.exit_code == 0, res.output
+    assert linear_units(res.output) and linear_units("\n".join(figure_texts))
+    assert json.loads((tmp_path / "i.json").read_text())["units"]["q"] == "m"
+
+
+def test_a_rotary_hdf5_log_says_rad_in_console_ident_json_and_figures(tmp_path, figure_texts):
+    log = _rotary_copy(SAMPLE_H5, tmp_path / "rotary.h5")
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "i.json"), "--plot", str(tmp_path / "p")])
+    assert res.exit_code == 0, res.output
+    _no_linear_unit(res, tmp_path / "i.json", figure_texts, tmp_path)
+    text = " ".join(res.output.split())
+    assert "encoder step 5e-07 rad" in text and "rad/s²" in text and "M (inertia J)" in text
+    assert {"velocity [rad/s]", "|q/u| [rad/Nm]"} <= set(figure_texts)
+    # the report's identification section, with the figures' captions
+    from commission.identification import IDENT_FIGURE_NAMES
+
+    ident = Identification.load(str(tmp_path / "i.json"))
+    md = "\n".join(identification_markdown(SimpleNamespace(identification=ident), IDENT_FIGURE_NAMES))
+    assert linear_units(md) == [] and "rad/s²" in md
+
+
+@pytest.mark.skipif(not TRO_DRIVE1.is_dir(), reason="TRO2021 data not present")
+def test_tro2021_drive_1_friction_test_has_no_linear_unit(tmp_path, figure_texts):
+    """The README's command on the screw drive's folder of legs (q in rad from the motor's rpm, u in %)."""
+    res = runner.invoke(app, ["identify", str(TRO_DRIVE1), "--out", str(tmp_path / "d1.json"),
+                              "--plot", str(tmp_path / "d1")])
+    assert res.exit_code == 0, res.output
+    _no_linear_unit(res, tmp_path / "d1.json", figure_texts, tmp_path)
+    assert "rad/s" in res.output and "[rad/s]" in " ".join(figure_texts)
+
+
+@pytest.mark.skipif(not ODRIVE_RUN.is_file(), reason="ODrive data not present")
+def test_odrive_run_in_rad_has_no_linear_unit(tmp_path, figure_texts):
+    t, counts, iq = np.load(ODRIVE_RUN)
+    keep = t > 0.5
+    log = tmp_path / "odrive.h5"
+    with h5py.File(log, "w") as f:
+        f["t"], f["q"], f["u"] = t[keep] - t[keep][0], counts[keep] * 2 * math.pi / 8192, iq[keep]
+        f.attrs["q_unit"], f.attrs["u_unit"] = "rad", "A"
+    res = runner.invoke(app, ["identify", str(log), "--resample", "400", "--ripple-pitch", repr(2 * math.pi / 7),
+                              "--out", str(tmp_path / "o.json"), "--plot", str(tmp_path / "p")])
+    assert res.exit_code == 0, res.output
+    _no_linear_unit(res, tmp_path / "o.json", figure_texts, tmp_path)
+
+
+@pytest.mark.slow  # a whole run with a short tune: report.md, summary and every figure of validate
+def test_run_on_a_rotary_log_reports_in_rad(tmp_path, figure_texts):
+    log = _rotary_copy(SAMPLE_H5, tmp_path / "rotary.h5")
+    (tmp_path / "spec.toml").write_text("[tune]\nbudget = 8\n")
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["run", str(log), "--out-dir", str(out), "--spec", str(tmp_path / "spec.toml"),
+                              "--monte-carlo", "2"])
+    assert res.exit_code in (0, 1), res.output
+    _no_linear_unit(res, out / "ident.json", figure_texts, tmp_path)
+    report = (out / "report.md").read_text()
+    assert linear_units(report) == [] and "urad" in report and " Nm/rad, Ki = " in report  # PID gains with units
+    assert "ARC peak|u| Nm" in res.output and "ARC e_rms urad" in res.output
+
+
+def test_lead_and_gear_convert_a_rotary_log_to_the_carriage_s_metres(tmp_path):
+    """q_lin = q lead / gear: M and B scale by gear/lead, vs by lead/gear, the levels stay; recorded in source."""
+    log = _rotary_copy(SAMPLE_H5, tmp_path / "rotary.h5")
+    lead, gear = 0.005 / (2 * math.pi), 4.0
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "rot.json")])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "lin.json"), "--lead", repr(lead),
+                              "--gear", "4"])
+    assert res.exit_code == 0, res.output
+    rot, lin = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("rot", "lin"))
+    k = lead / gear
+    assert lin["units"] == {"u": "Nm", "q": "m"} and rot["units"] == {"u": "Nm", "q": "rad"}
+    assert lin["source"]["q_unit"] == "rad" and "conversion" not in rot["source"]
+    assert lin["source"]["conversion"] == {"from": "rad", "to": "m", "lead_m_per_rad": lead,
+                                           "gear_motor_rad_per_load_rad": gear}
+    p, r = lin["parameters"], rot["parameters"]
+    assert p["M"]["value"] == pytest.approx(r["M"]["value"] / k, rel=1e-3)
+    assert p["B"]["value"] == pytest.approx(r["B"]["value"] / k, rel=1e-3)
+    assert p["vs"]["value"] == pytest.approx(r["vs"]["value"] * k, rel=1e-3)
+    assert p["fc"]["value"] == pytest.approx(r["fc"]["value"], rel=1e-3)
+    assert "M (mass)" in res.output and "Nm·s²/m" in res.output
+    # --gear alone: the load's angle, still rad
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "g.json"), "--gear", "4"])
+    g = json.loads((tmp_path / "g.json").read_text())
+    assert res.exit_code == 0 and g["units"]["q"] == "rad" and g["source"]["conversion"]["to"] == "rad"
+    assert g["parameters"]["M"]["value"] == pytest.approx(r["M"]["value"] * 4, rel=1e-3)
+
+
+@pytest.mark.parametrize("flag", ["--lead", "--gear"])
+def test_lead_or_gear_on_a_log_not_in_rad_is_refused_naming_the_flag(tmp_path, flag):
+    out = tmp_path / "i.json"
+    res = runner.invoke(app, ["identify", str(SAMPLE_H5), "--out", str(out), flag, "0.001"])
+    msg = " ".join(res.output.split())
+    assert res.exit_code == 2 and f"{flag} converts a rotary log's angle" in msg and "is in m" in msg, msg
+    assert not out.exists()
+    res = runner.invoke(app, ["identify", str(_rotary_copy(SAMPLE_H5, tmp_path / "r.h5")), "--out", str(out),
+                              flag, "-1"])
+    assert res.exit_code == 2 and f"{flag} must be a positive finite number" in res.output
+
+
+def test_help_lists_rad_for_q_unit_and_the_conversion_flags():
+    for cmd in ("identify", "run"):
+        text = re.sub(r"[│╭╮╰╯─\s]+", " ", runner.invoke(app, [cmd, "-h"]).output)  # rich's boxes unwrapped
+        assert "m, mm, um, or rad" in text and "--lead" in text and "--gear" in text, cmd
+
+
+def _csv(path: Path, q_scale: float) -> Path:
+    rows = np.loadtxt(SAMPLE_CSV, delimiter=",", skiprows=1)
+    head = SAMPLE_CSV.read_text().splitlines()[0]
+    assert head.split(",")[:3] == ["t", "q", "u"]
+    rows[:, 1] *= q_scale
+    if rows.shape[1] > 3:
+        rows[:, 3] *= q_scale
+    np.savetxt(path, rows, delimiter=",", header=head, comments="", fmt="%.12g")
+    return path
+
+
+def _warnings(path: Path) -> str:
+    return " ".join(json.loads(path.read_text())["warnings"])
+
+
+def test_implausible_units_are_warned_naming_the_likely_unit(tmp_path):
+    # An angle read as metres: 100 x the sample's travel is tens of "metres".
+    res = runner.invoke(app, ["identify", str(_csv(tmp_path / "a.csv", 100.0)), "--out", str(tmp_path / "a.json")])
+    assert res.exit_code == 0, res.output
+    assert "is implausible for a linear positioning axis" in _warnings(tmp_path / "a.json")
+    assert "--q-unit rad" in _warnings(tmp_path / "a.json")
+    # mm read as metres, with u in N: the mass is a thousand times too light.
+    res = runner.invoke(app, ["identify", str(_csv(tmp_path / "b.csv", 1000.0)), "--u-unit", "N",
+                              "--out", str(tmp_path / "b.json")])
+    assert res.exit_code == 0, res.output
+    assert "kg is implausibly light" in _warnings(tmp_path / "b.json")
+    assert "--q-unit mm" in _warnings(tmp_path / "b.json")
+    # a torque command with q in m
+    log = _rotary_copy(SAMPLE_H5, tmp_path / "nm.h5")
+    with h5py.File(log, "a") as f:
+        f.attrs["q_unit"] = "m"
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "c.json")])
+    assert res.exit_code == 0 and "u is a torque (Nm)" in _warnings(tmp_path / "c.json")
+    # a rotary log whose angle is in counts: no motor turns that fast
+    log = _rotary_copy(SAMPLE_H5, tmp_path / "counts.h5", q_scale=1e4)
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "d.json")])
+    assert res.exit_code == 0, res.output
+    assert "degrees or encoder counts" in _warnings(tmp_path / "d.json")
+    # the sample as it is: none of these
+    res = runner.invoke(app, ["identify", str(SAMPLE_H5), "--out", str(tmp_path / "e.json")])
+    assert "implausib" not in _warnings(tmp_path / "e.json") and "torque" not in _warnings(tmp_path / "e.json")
+
+
+def test_the_numerics_word_their_messages_in_the_unit_the_identify_stage_sets():
+    """identify's numerics do not know the axis; the stage sets the unit their messages use (default m)."""
+    from commission.identify.friction import friction_compensation_curve
+    from commission.units import axis_units_context
+
+    def message() -> str:
+        with pytest.raises(ValueError) as exc:
+            friction_compensation_curve(0.1, None, None, None, v_max=0.0, v_resolution=1.0)
+        return str(exc.value)
+
+    assert "> 0 m/s" in message()
+    with axis_units_context("rad"):
+        assert "> 0 rad/s" in message() and not linear_units(message())
+    assert "> 0 m/s" in message()  # restored on leaving the block

@@ -240,7 +240,7 @@ def test_report_states_a_theta3_box_that_tune_narrowed(tuned, tmp_path):
     r = invoke("validate", narrowed, "--out-dir", out, "--gate", gate, "--monte-carlo", MC)
     assert r.exit_code in (0, 1), r.output
     report = (out / "report.md").read_text()
-    assert "**theta3 narrowed by tune** from [-120, 110] m/s^2" in report
+    assert "**theta3 narrowed by tune** from [-120, 110] m/s²" in report
     assert "the 10 V drive no room for any envelope" in report
     # an untouched tuning says nothing of the kind
     r = invoke("validate", tpath, "--out-dir", tmp_path / "plain", "--gate", gate, "--monte-carlo", MC)
