@@ -16,23 +16,30 @@ Outputs
 1. :meth:`Outputs.add` declares a *target* -- an output file (``--out``) or
    an output folder (``--out-dir``) and the names the command may write into
    it -- and checks it before any computation: not the same file as an input,
-   not a folder where a file is expected (or the reverse), no existing output
-   without ``force``.
+   not a folder where a file is expected (or the reverse), not a dangling
+   symlink, no existing output without ``force``.
 2. :meth:`Outputs.open` takes an exclusive lock per target (``fcntl.flock`` on
    ``.NAME.lock`` beside it; a second process is refused naming the holder's
    pid, command and start time) and creates a staging folder
-   ``.NAME.tmp-XXXX`` beside it.  That both proves the location writable
-   before the work starts.
+   ``.NAME.tmp-XXXX`` beside it (inside it, for a folder that exists).  That
+   both proves the location writable before the work starts.  Locks and
+   staging use the *resolved* path: a folder reached through a symlink,
+   ``..`` or a relative spelling is the same folder with the same lock.
 3. The command writes every file into :meth:`Outputs.path`.
-4. :meth:`Outputs.commit` moves the staged files into place with SIGINT and
-   SIGTERM blocked, removes the outputs this run did not produce (so that a
-   folder never pairs a new report with an old ``controller.json``), and
-   releases the locks.  Any exception before that -- including the
-   :class:`KeyboardInterrupt` of Ctrl-C and the :class:`SystemExit` the CLI
-   raises on SIGTERM -- removes the staging folders and locks and leaves the
-   targets as they were.  An interrupted run therefore leaves either nothing
-   or a complete set, and never a temporary file.  (SIGKILL and power loss
-   can leave a staging folder; it is named so that it is plainly not an output.)
+4. :meth:`Outputs.commit` moves the staged files into place, all or nothing:
+   it removes the outputs this run did not produce (so that a folder never
+   pairs a new report with an old ``controller.json``), puts every old file
+   back if a move fails, and releases the locks.  SIGINT and SIGTERM are held
+   during the commit and acted on after it, when the outcome is settled
+   (:func:`committed_outputs` tells the CLI the set is in place).  Any
+   exception before that -- including the :class:`KeyboardInterrupt` of
+   Ctrl-C and the exception the CLI raises on SIGTERM -- removes the staging
+   folders and locks and leaves the targets as they were; an :class:`OSError`
+   of writing (a full disk) becomes one :class:`commission.errors.OutputError`
+   naming the output.  An interrupted or failed run therefore leaves either
+   nothing or a complete set, and never a temporary file.  (SIGKILL and power
+   loss can leave a staging folder; it is named so that it is plainly not an
+   output.)
 """
 
 from __future__ import annotations
@@ -168,7 +175,7 @@ def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
 
 #: errno values that say the output location cannot take the files (full disk, quota, size limit,
 #: read-only file system): whatever file the error names, it is the writing that failed.
-_WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
 
 #: Outputs opened and neither committed nor aborted (:func:`abort_unfinished`).
 _LIVE: list["Outputs"] = []
@@ -560,7 +567,7 @@ class Outputs:
 
         That is: an :class:`OSError` naming a file in a staging folder (or, during the
         commit, ``in_place``, in a target), or one whose errno says the disk cannot take
-        the files (:data:`_WRITE_ERRNOS`) whatever it names.  Anything else (an input
+        the files (:data:`WRITE_ERRNOS`) whatever it names.  Anything else (an input
         that cannot be read, a bug) is left as it is.
         """
         if not isinstance(exc, OSError) or isinstance(exc, CommissionError):
@@ -575,7 +582,7 @@ class Outputs:
                 target = t
                 break
         if target is None:
-            if exc.errno not in _WRITE_ERRNOS or not self._targets:
+            if exc.errno not in WRITE_ERRNOS or not self._targets:
                 return None
             target = self._targets[0]
         return OutputError(f"{target.flag} {target.dest}: {what} ({exc.strerror or exc}); "
@@ -645,4 +652,4 @@ def _read_holder(fd: int, wait_s: float = 1.0) -> str:
 
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
-           "read_toml", "same_file", "Outputs", "committed_outputs", "forget_commits", "abort_unfinished"]
+           "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits", "abort_unfinished"]

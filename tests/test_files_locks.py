@@ -306,3 +306,15 @@ def test_cli_a_full_disk_is_one_line_exit_2_and_nothing_written(tmp_path, monkey
                         r"device\); nothing written or replaced\n", err), err
     assert listing(out) == {"ident.json": b"the old one\n"}
     assert leftovers(tmp_path, out) == []
+
+
+def test_cli_a_write_error_outside_outputs_is_one_line_too(tmp_path, monkeypatch):
+    import commission.cli.identify_cmd as cmd
+
+    def full(paths):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "somewhere"))
+
+    monkeypatch.setattr(cmd, "expand_log_paths", full)
+    r = runner.invoke(app, _identify(tmp_path))
+    assert r.exit_code == 2
+    assert r.stderr == f"error: {tmp_path / 'somewhere'}: cannot write (No space left on device)\n"
