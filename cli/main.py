@@ -270,8 +270,8 @@ def run(argv: list[str] | None = None) -> int:
         # The command finished (an interrupt raised inside a finaliser cannot propagate) or its
         # outputs were already in place: its code stands, and says so.
         term = signal.SIGTERM in late or any(isinstance(e, Terminated) for e in swallowed)
-        _say(f"{'terminated' if term else 'interrupted'} after the outputs were complete: "
-             f"kept them (exit {code})")
+        what = "after the outputs were complete: kept them" if files.committed_outputs() else "as it finished"
+        _say(f"{'terminated' if term else 'interrupted'} {what} (exit {code})")
     if verbose:
         sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code

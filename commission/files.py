@@ -625,7 +625,11 @@ class Outputs:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         if exc_type is None:
             if self._open:
-                self.commit()
+                try:
+                    self.commit()  # aborts itself on failure before its point of no return
+                except BaseException:
+                    self.abort()  # an interrupt as the commit started; a no-op once it committed
+                    raise
             return
         failed = self._output_error(exc, "cannot write")
         self.abort()
