@@ -264,16 +264,19 @@ def run(argv: list[str] | None = None) -> int:
         sys.unraisablehook = old_hook
         verbose = verbosity.level() >= verbosity.VERBOSE
         verbosity.restore_stdout()
+    try:
+        if (late or swallowed) and code in (0, 1):
+            # The command finished (an interrupt raised inside a finaliser cannot propagate) or its
+            # outputs were already in place: its code stands, and says so.
+            term = signal.SIGTERM in late or any(isinstance(e, Terminated) for e in swallowed)
+            what = "after the outputs were complete: kept them" if files.committed_outputs() else "as it finished"
+            _say(f"{'terminated' if term else 'interrupted'} {what} (exit {code})")
+        if verbose:
+            sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
+        _decided[:] = [code]  # before the handlers go back: a signal from now on cannot change it
+    finally:
         signal.signal(signal.SIGINT, old[0])
         signal.signal(signal.SIGTERM, old[1])
-    if (late or swallowed) and code in (0, 1):
-        # The command finished (an interrupt raised inside a finaliser cannot propagate) or its
-        # outputs were already in place: its code stands, and says so.
-        term = signal.SIGTERM in late or any(isinstance(e, Terminated) for e in swallowed)
-        what = "after the outputs were complete: kept them" if files.committed_outputs() else "as it finished"
-        _say(f"{'terminated' if term else 'interrupted'} {what} (exit {code})")
-    if verbose:
-        sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code
 
 
@@ -291,11 +294,49 @@ def _sub(argv: list[str] | None) -> str:
     return f"{sub} " if sub else ""
 
 
+#: The exit code :func:`run` decided, for :func:`_ending` (empty until then).
+_decided: list[int] = []
+
+
+def _ending(signum: int, frame: object) -> None:
+    """SIGINT/SIGTERM outside :func:`run` in the console script: before it, nothing has been
+    written (as during start-up, ``commission/__init__.py``); after it, the exit code is
+    decided and a late signal ends the process with that code, not with 128 + the signal."""
+    if not _decided:
+        _say("interrupted")
+        os._exit(128 + signum)
+    _flush()
+    os._exit(_decided[0])
+
+
+def _flush() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, RuntimeError):  # a closed pipe (commission ... | head); a re-entrant flush
+            pass
+
+
 def main() -> None:
-    """Console-script entry."""
+    """Console-script entry.
+
+    The process ends with :func:`os._exit` once the atexit functions have run and the
+    streams are flushed: the rest of the interpreter's shutdown (garbage collection,
+    module teardown, which numba and matplotlib make slow) runs after Python has put
+    SIGINT and SIGTERM back to their default action, and a signal then would kill the
+    process -- a shell reports 130 or 143 -- after a command whose outputs are complete
+    and whose exit code is 0.  Nothing the tool writes depends on that teardown: every
+    output is closed and moved into place by then.
+    """
+    import atexit
+
+    _decided.clear()
+    signal.signal(signal.SIGINT, _ending)
+    signal.signal(signal.SIGTERM, _ending)
     code = run()
+    _flush()
     try:
-        sys.stdout.flush()
-    except (OSError, ValueError):  # a closed pipe (commission ... | head): nothing more to say
-        pass
-    sys.exit(code)
+        atexit._run_exitfuncs()
+    finally:
+        _flush()
+        os._exit(code)

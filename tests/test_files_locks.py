@@ -318,3 +318,34 @@ def test_cli_a_write_error_outside_outputs_is_one_line_too(tmp_path, monkeypatch
     r = runner.invoke(app, _identify(tmp_path))
     assert r.exit_code == 2
     assert r.stderr == f"error: {tmp_path / 'somewhere'}: cannot write (No space left on device)\n"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("when", ["atexit", "teardown"])
+def test_console_script_a_signal_as_the_process_shuts_down_keeps_the_exit_code(tmp_path, sig, when):
+    # After its outputs are in place the process still runs the atexit functions and, in a plain
+    # interpreter exit, a slow module teardown with the default signal action back in place.
+    import subprocess
+    import sys
+
+    out = tmp_path / "ident.json"
+    script = f"""
+import os, sys
+sys.argv = ["commission", "identify", {str(SAMPLE)!r}, "--out", {str(out)!r}]
+from commission.cli import main as m
+
+class Late:
+    def __del__(self):
+        os.kill(os.getpid(), {int(sig)})
+
+if {when!r} == "atexit":
+    import atexit
+    atexit.register(lambda: os.kill(os.getpid(), {int(sig)}))
+else:
+    m.late_probe = Late()  # dropped when the modules are torn down
+m.main()
+"""
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, (p.returncode, p.stderr)
+    assert out.is_file() and "Traceback" not in p.stderr
+    assert leftovers(tmp_path) == []
