@@ -329,6 +329,9 @@ class Outputs:
             raise UsageError(f"{flag} {dest}: is a directory; give a file name such as {dest / 'out.json'}")
         if dest.name in ("", ".", ".."):
             raise UsageError(f"{flag} {dest}: not a file name")
+        if dest.is_symlink() and not dest.exists():
+            raise UsageError(f"{flag} {dest}: a symlink to {os.readlink(dest)}, which does not exist; "
+                             f"remove the link or give another name")
         self._check_not_input(dest, flag)
         if dest.exists() or dest.is_symlink():
             if not self.force:
@@ -656,4 +659,5 @@ def _read_holder(fd: int, wait_s: float = 1.0) -> str:
 
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
-           "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits", "abort_unfinished"]
+           "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits",
+           "abort_unfinished"]

@@ -100,9 +100,10 @@ def test_a_file_written_through_a_symlink_lands_in_the_file_it_points_to(tmp_pat
     o = Outputs(force=True)
     o.add_file(link, "--out")
     with o:
-        o.path(link).write_text("new")
+        staged = o.path(link)
+        staged.write_text("new")
     assert link.is_symlink() and real.read_text() == "new"
-    assert o.final(o._targets[0].staged_at / "link.json") == link
+    assert o.final(staged) == link  # what the user typed, for the "wrote" line
     assert leftovers(tmp_path, real.parent) == []
 
 
@@ -114,11 +115,14 @@ def test_two_targets_that_are_one_place_are_refused(tmp_path):
         o.add_file(tmp_path / "link" / "x.json", "--plot")
 
 
-def test_an_out_dir_that_is_a_dangling_symlink_is_refused_by_name(tmp_path):
+def test_an_output_that_is_a_dangling_symlink_is_refused_by_name(tmp_path):
     (tmp_path / "gone").symlink_to(tmp_path / "missing")
     o = Outputs(force=True)
     with pytest.raises(UsageError, match=r"^--out-dir \S+/gone: a symlink to \S+/missing, which does not exist"):
         o.add_dir(tmp_path / "gone", NAMES, "--out-dir")
+    with pytest.raises(UsageError, match=r"^--out \S+/gone: a symlink to \S+/missing, which does not exist"):
+        o.add_file(tmp_path / "gone", "--out")
+    assert os.listdir(tmp_path) == ["gone"]
 
 
 def test_an_existing_folder_under_an_unwritable_parent_is_locked_inside(tmp_path, monkeypatch):
