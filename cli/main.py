@@ -206,6 +206,7 @@ def run(argv: list[str] | None = None) -> int:
     from commission import files
 
     files.forget_commits()
+    outer = files.unfinished()  # a caller's own (run() called in-process): not this command's to abort
     late: list[int] = []  # signals that came once the outputs were in place, or the command had ended
     ended = False
 
@@ -238,7 +239,7 @@ def run(argv: list[str] | None = None) -> int:
             rc: Any = cmd.main(args=argv, prog_name="commission", standalone_mode=False)
         finally:
             ended = True
-            files.abort_unfinished()  # an interrupt between two statements may have skipped a cleanup
+            files.abort_unfinished(keep=outer)  # an interrupt between two statements may have skipped a cleanup
         code = rc if isinstance(rc, int) else 0
         if code == EXIT_INTERRUPTED:  # typer turns a KeyboardInterrupt into this code itself
             _say("interrupted: no output written or replaced")
@@ -260,7 +261,7 @@ def run(argv: list[str] | None = None) -> int:
         code = _internal_error(exc)
     finally:
         ended = True
-        files.abort_unfinished()
+        files.abort_unfinished(keep=outer)
         sys.unraisablehook = old_hook
         verbose = verbosity.level() >= verbosity.VERBOSE
         verbosity.restore_stdout()

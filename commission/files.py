@@ -197,15 +197,23 @@ def forget_commits() -> None:
     _COMMITTED.clear()
 
 
-def abort_unfinished() -> None:
-    """Abort every :class:`Outputs` still open (staging folders, backups and locks removed).
+def unfinished() -> tuple["Outputs", ...]:
+    """The :class:`Outputs` opened and neither committed nor aborted yet."""
+    return tuple(_LIVE)
+
+
+def abort_unfinished(keep: Iterable["Outputs"] = ()) -> None:
+    """Abort every :class:`Outputs` still open but those in ``keep`` (staging, backups and locks removed).
 
     ``with outputs:`` aborts on any exception, but an interrupt can land between a
     statement and the ``with`` that would clean up after it; the CLI calls this when a
-    command ends so that no staging folder or lock file outlives the process.
+    command ends (keeping what was open before it started, :func:`unfinished`) so that
+    no staging folder or lock file outlives the command.
     """
+    kept = {id(o) for o in keep}
     for o in list(_LIVE):
-        o.abort()
+        if id(o) not in kept:
+            o.abort()
 
 
 @contextlib.contextmanager
@@ -660,4 +668,4 @@ def _read_holder(fd: int, wait_s: float = 1.0) -> str:
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
            "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits",
-           "abort_unfinished"]
+           "unfinished", "abort_unfinished"]

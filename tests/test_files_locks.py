@@ -285,11 +285,19 @@ def test_cli_an_interrupt_that_skips_the_with_blocks_cleanup_still_leaves_nothin
     def commit(self):
         raise KeyboardInterrupt
 
+    mine = Outputs(force=False)  # the caller's own, open before the command: not the command's to abort
+    mine.add_dir(tmp_path / "mine", NAMES, "--out-dir")
+    mine.open()
     monkeypatch.setattr(Outputs, "commit", commit)
     monkeypatch.setattr(Outputs, "__exit__", lambda self, *exc: self.commit())
     code = run(_identify(tmp_path))
     assert code == 130, capfd.readouterr().err
-    assert list(tmp_path.iterdir()) == []
+    assert sorted(n[:9] for n in leftovers(tmp_path)) == [".mine.loc", ".mine.tmp"]  # still open
+    assert not (tmp_path / "out").exists()
+    monkeypatch.undo()
+    write_set(mine, tmp_path / "mine")
+    mine.commit()
+    assert sorted(os.listdir(tmp_path)) == ["mine"]
 
 
 def test_cli_a_full_disk_is_one_line_exit_2_and_nothing_written(tmp_path, monkeypatch, capfd):
