@@ -16,8 +16,13 @@ imported only when that command runs or its own help is asked for
   of a log file that holds the traceback, and exit ``2``; never a traceback
   on stderr (``--verbose`` adds it);
 * Ctrl-C exits ``130`` and SIGTERM ``143`` (128 + the signal) with one line,
-  at any moment including start-up; the outputs are then either untouched or
-  complete (:class:`commission.files.Outputs`).
+  at any moment including start-up, and then nothing was written or replaced
+  (:class:`commission.files.Outputs` removes its staging folder and lock).  Once
+  the command's outputs are in place (:func:`commission.files.committed_outputs`)
+  the command is done as far as the files go: a signal arriving from then on (or
+  during the final move, which holds it) is noted on stderr and the command ends
+  with its own code, 0 or 1.  The exit code thus always tells the truth: 130/143
+  means nothing in place, 0/1 the complete set.
 """
 
 from __future__ import annotations
@@ -168,10 +173,6 @@ def _root(
     verbosity.set_level(verbosity.QUIET if quiet else verbosity.VERBOSE if verbose else verbosity.NORMAL)
 
 
-def _on_sigterm(signum: int, frame: object) -> None:
-    raise Terminated()
-
-
 def _crash_log(exc: BaseException) -> str:
     """Write the traceback of an unexpected error to a log file; return its path."""
     import tempfile
@@ -203,7 +204,22 @@ def _internal_error(exc: BaseException) -> int:
 
 def run(argv: list[str] | None = None) -> int:
     """Run the command line on ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
-    old = signal.signal(signal.SIGINT, signal.default_int_handler), signal.signal(signal.SIGTERM, _on_sigterm)
+    from commission import files
+
+    files.forget_commits()
+    outer = files.unfinished()  # a caller's own (run() called in-process): not this command's to abort
+    late: list[int] = []  # signals that came once the outputs were in place, or the command had ended
+    ended = False
+
+    def on_signal(signum: int, frame: object) -> None:
+        # Before the outputs are in place: stop the command (Outputs then removes what it staged).
+        # After: the files are complete and the command's own exit code is the truthful one.
+        if ended or files.committed_outputs():
+            late.append(signum)
+            return
+        raise KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
+
+    old = signal.signal(signal.SIGINT, on_signal), signal.signal(signal.SIGTERM, on_signal)
     old_hook = sys.unraisablehook
     swallowed: list[BaseException] = []
 
@@ -219,8 +235,12 @@ def run(argv: list[str] | None = None) -> int:
     sys.unraisablehook = unraisable
     start = time.perf_counter()
     try:
-        cmd = typer.main.get_command(app)
-        rc: Any = cmd.main(args=argv, prog_name="commission", standalone_mode=False)
+        try:
+            cmd = typer.main.get_command(app)
+            rc: Any = cmd.main(args=argv, prog_name="commission", standalone_mode=False)
+        finally:
+            ended = True
+            files.abort_unfinished(keep=outer)  # an interrupt between two statements may have skipped a cleanup
         code = rc if isinstance(rc, int) else 0
         if code == EXIT_INTERRUPTED:  # typer turns a KeyboardInterrupt into this code itself
             _say("interrupted: no output written or replaced")
@@ -241,17 +261,24 @@ def run(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that catches what escapes
         code = _internal_error(exc)
     finally:
+        ended = True
+        files.abort_unfinished(keep=outer)
         sys.unraisablehook = old_hook
         verbose = verbosity.level() >= verbosity.VERBOSE
         verbosity.restore_stdout()
+    try:
+        if (late or swallowed) and code in (0, 1):
+            # The command finished (an interrupt raised inside a finaliser cannot propagate) or its
+            # outputs were already in place: its code stands, and says so.
+            term = signal.SIGTERM in late or any(isinstance(e, Terminated) for e in swallowed)
+            what = "after the outputs were complete: kept them" if files.committed_outputs() else "as it finished"
+            _say(f"{'terminated' if term else 'interrupted'} {what} (exit {code})")
+        if verbose:
+            sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
+        _decided[:] = [code]  # before the handlers go back: a signal from now on cannot change it
+    finally:
         signal.signal(signal.SIGINT, old[0])
         signal.signal(signal.SIGTERM, old[1])
-    if swallowed and code in (0, 1):
-        term = isinstance(swallowed[0], Terminated)
-        _say(f"{'terminated' if term else 'interrupted'} after the outputs were complete")
-        code = EXIT_TERMINATED if term else EXIT_INTERRUPTED
-    if verbose:
-        sys.stderr.write(f"elapsed {time.perf_counter() - start:.2f} s\n")
     return code
 
 
@@ -280,11 +307,49 @@ def _sub(argv: list[str] | None) -> str:
     return f"{sub} " if sub else ""
 
 
+#: The exit code :func:`run` decided, for :func:`_ending` (empty until then).
+_decided: list[int] = []
+
+
+def _ending(signum: int, frame: object) -> None:
+    """SIGINT/SIGTERM outside :func:`run` in the console script: before it, nothing has been
+    written (as during start-up, ``commission/__init__.py``); after it, the exit code is
+    decided and a late signal ends the process with that code, not with 128 + the signal."""
+    if not _decided:
+        _say("interrupted")
+        os._exit(128 + signum)
+    _flush()
+    os._exit(_decided[0])
+
+
+def _flush() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, RuntimeError):  # a closed pipe (commission ... | head); a re-entrant flush
+            pass
+
+
 def main() -> None:
-    """Console-script entry."""
+    """Console-script entry.
+
+    The process ends with :func:`os._exit` once the atexit functions have run and the
+    streams are flushed: the rest of the interpreter's shutdown (garbage collection,
+    module teardown, which numba and matplotlib make slow) runs after Python has put
+    SIGINT and SIGTERM back to their default action, and a signal then would kill the
+    process -- a shell reports 130 or 143 -- after a command whose outputs are complete
+    and whose exit code is 0.  Nothing the tool writes depends on that teardown: every
+    output is closed and moved into place by then.
+    """
+    import atexit
+
+    _decided.clear()
+    signal.signal(signal.SIGINT, _ending)
+    signal.signal(signal.SIGTERM, _ending)
     code = run()
+    _flush()
     try:
-        sys.stdout.flush()
-    except (OSError, ValueError):  # a closed pipe (commission ... | head): nothing more to say
-        pass
-    sys.exit(code)
+        atexit._run_exitfuncs()
+    finally:
+        _flush()
+        os._exit(code)

@@ -47,5 +47,13 @@ class InputFileError(CommissionError, FileNotFoundError):
     """An input file is missing or not readable as the format its name says."""
 
 
+class OutputError(CommissionError, OSError):
+    """An output could not be written or moved into place (a full disk, a read-only file system).
+
+    Raised by :class:`commission.files.Outputs` after it has put everything back: the
+    message says which output and why, and nothing was written or replaced.
+    """
+
+
 class UsageError(CommissionError, ValueError):
     """A flag or an argument combination is invalid."""

@@ -16,27 +16,35 @@ Outputs
 1. :meth:`Outputs.add` declares a *target* -- an output file (``--out``) or
    an output folder (``--out-dir``) and the names the command may write into
    it -- and checks it before any computation: not the same file as an input,
-   not a folder where a file is expected (or the reverse), no existing output
-   without ``force``.
+   not a folder where a file is expected (or the reverse), not a dangling
+   symlink, no existing output without ``force``.
 2. :meth:`Outputs.open` takes an exclusive lock per target (``fcntl.flock`` on
    ``.NAME.lock`` beside it; a second process is refused naming the holder's
    pid, command and start time) and creates a staging folder
-   ``.NAME.tmp-XXXX`` beside it.  That both proves the location writable
-   before the work starts.
+   ``.NAME.tmp-XXXX`` beside it (inside it, for a folder that exists).  That
+   both proves the location writable before the work starts.  Locks and
+   staging use the *resolved* path: a folder reached through a symlink,
+   ``..`` or a relative spelling is the same folder with the same lock.
 3. The command writes every file into :meth:`Outputs.path`.
-4. :meth:`Outputs.commit` moves the staged files into place with SIGINT and
-   SIGTERM blocked, removes the outputs this run did not produce (so that a
-   folder never pairs a new report with an old ``controller.json``), and
-   releases the locks.  Any exception before that -- including the
-   :class:`KeyboardInterrupt` of Ctrl-C and the :class:`SystemExit` the CLI
-   raises on SIGTERM -- removes the staging folders and locks and leaves the
-   targets as they were.  An interrupted run therefore leaves either nothing
-   or a complete set, and never a temporary file.  (SIGKILL and power loss
-   can leave a staging folder; it is named so that it is plainly not an output.)
+4. :meth:`Outputs.commit` moves the staged files into place, all or nothing:
+   it removes the outputs this run did not produce (so that a folder never
+   pairs a new report with an old ``controller.json``), puts every old file
+   back if a move fails, and releases the locks.  SIGINT and SIGTERM are held
+   during the commit and acted on after it, when the outcome is settled
+   (:func:`committed_outputs` tells the CLI the set is in place).  Any
+   exception before that -- including the :class:`KeyboardInterrupt` of
+   Ctrl-C and the exception the CLI raises on SIGTERM -- removes the staging
+   folders and locks and leaves the targets as they were; an :class:`OSError`
+   of writing (a full disk) becomes one :class:`commission.errors.OutputError`
+   naming the output.  An interrupted or failed run therefore leaves either
+   nothing or a complete set, and never a temporary file.  (SIGKILL and power
+   loss can leave a staging folder; it is named so that it is plainly not an
+   output.)
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import errno
 import fcntl
@@ -46,12 +54,13 @@ import signal
 import stat
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
-from commission.errors import InputFileError, SpecError, UsageError
+from commission.errors import CommissionError, InputFileError, OutputError, SpecError, UsageError
 
 try:  # Python >= 3.11
     import tomllib as _toml
@@ -164,21 +173,117 @@ def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
         return False
 
 
+#: errno values that say the output location cannot take the files (full disk, quota, size limit,
+#: read-only file system): whatever file the error names, it is the writing that failed.
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+
+#: Outputs opened and neither committed nor aborted (:func:`abort_unfinished`).
+_LIVE: list["Outputs"] = []
+#: Targets moved into place since :func:`forget_commits` (:func:`committed_outputs`).
+_COMMITTED: list[Path] = []
+
+
+def committed_outputs() -> tuple[Path, ...]:
+    """The targets whose files this process moved into place since :func:`forget_commits`.
+
+    The CLI asks this when a signal arrives: once a set is in place the command is
+    finished as far as the files go, and its exit code must say so (``cli/main.py``).
+    """
+    return tuple(_COMMITTED)
+
+
+def forget_commits() -> None:
+    """Start a new record for :func:`committed_outputs` (the CLI calls it as each command starts)."""
+    _COMMITTED.clear()
+
+
+def unfinished() -> tuple["Outputs", ...]:
+    """The :class:`Outputs` opened and neither committed nor aborted yet."""
+    return tuple(_LIVE)
+
+
+def abort_unfinished(keep: Iterable["Outputs"] = ()) -> None:
+    """Abort every :class:`Outputs` still open but those in ``keep`` (staging, backups and locks removed).
+
+    ``with outputs:`` aborts on any exception, but an interrupt can land between a
+    statement and the ``with`` that would clean up after it; the CLI calls this when a
+    command ends (keeping what was open before it started, :func:`unfinished`) so that
+    no staging folder or lock file outlives the command.
+    """
+    kept = {id(o) for o in keep}
+    for o in list(_LIVE):
+        if id(o) not in kept:
+            o.abort()
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM for the duration: recorded, then handed to the previous handlers after.
+
+    Python runs signal handlers in the main thread between bytecodes, and a signal
+    sent to the process may be taken by any thread (numba's, a pool's), so blocking
+    it with ``pthread_sigmask`` in the main thread does not stop a
+    :class:`KeyboardInterrupt` in the middle of a sequence of renames.  Replacing the
+    Python-level handlers does: the signal is noted, the block finishes, and the
+    handler in place before (the CLI's, or ``default_int_handler``) then decides.
+    Outside the main thread handlers cannot be set, but neither can an interrupt be
+    raised there: nothing to do.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+
+    def record(signum: int, frame: object) -> None:
+        got.append(signum)
+
+    old: dict[int, Any] = {}
+    try:
+        for s in (signal.SIGINT, signal.SIGTERM):
+            prev = signal.getsignal(s)
+            if prev is None or prev is signal.SIG_IGN:
+                continue  # a handler set outside Python, or an ignored signal: leave it as it is
+            old[s] = prev
+            signal.signal(s, record)
+        yield
+    finally:
+        for s, prev in old.items():
+            signal.signal(s, prev)
+        for s in dict.fromkeys(got):
+            prev = old[s]
+            if prev is signal.SIG_DFL:
+                signal.raise_signal(s)
+            elif callable(prev):
+                prev(s, None)
+
+
 @dataclass
 class _Target:
-    dest: Path          # the output file, or the output folder
+    dest: Path          # the output file, or the output folder, as the user spelled it
     names: tuple[str, ...]  # files of a folder target; (dest.name,) for a file target
     is_dir: bool
     flag: str
+    real: Path = Path()  # dest with every symlink, ``..`` and ``.`` resolved: where the files go
     lock_fd: int | None = None
     lock_path: Path | None = None
     staging: Path | None = None
     staged_at: Path | None = None  # the staging folder, remembered after commit for final()
+    backup: Path | None = None  # the replaced files during commit (same folder: renames only)
+    moved_whole: bool = False  # the staging folder itself became the output folder
     made_dirs: list[Path] = field(default_factory=list)
 
     @property
     def folder(self) -> Path:
-        return self.dest if self.is_dir else self.dest.parent
+        return self.real if self.is_dir else self.real.parent
+
+    def final(self, name: str) -> Path:
+        """Where the staged file ``name`` goes."""
+        return self.real / name if self.is_dir else self.real
+
+
+def _resolved(p: Path) -> Path:
+    """``p`` with every symlink, ``..`` and ``.`` resolved (parts that do not exist yet kept as written)."""
+    return Path(os.path.realpath(p))
 
 
 class Outputs:
@@ -190,6 +295,30 @@ class Outputs:
         Overwrite existing outputs (the ``--force`` flag of every command).
     inputs : sequence of path
         Files the command reads; an output that is one of them is refused even with ``force``.
+
+    Notes
+    -----
+    Every file operation uses the target's *resolved* path (symlinks, ``..`` and ``.``
+    resolved; what the user typed stays in messages and in :meth:`final`).  One folder
+    therefore has one lock whatever its spelling, and the files are written into the
+    folder a symlink points to rather than over the symlink.
+
+    Where the lock goes: ``.NAME.lock`` beside the resolved target, so that a folder
+    that does not exist yet has its lock too (it appears in one rename at commit).  An
+    existing output folder whose parent is not writable (``--out-dir .`` in a home
+    folder under a read-only ``/home``) takes the lock inside itself instead: such a
+    folder can only be written in place, so every process that may write it takes the
+    same lock.  The staging folder of an existing output folder is inside it (the same
+    file system, so that every move is a rename).
+
+    The commit is all or nothing.  Each file already in place is first set aside in
+    a backup folder beside it (a hard link, else a rename), then the new file is
+    renamed over it; an error on the way (a full disk, a permission) puts every
+    file back as it was before the error is reported, and only when every target is
+    in place is the commit recorded (:func:`committed_outputs`) and the backups
+    dropped.  SIGINT and SIGTERM are held meanwhile (:func:`_signals_held`) and
+    handed on after, so a signal during the commit is acted on once the outcome is
+    settled: the set in place and recorded, or the old state and nothing recorded.
     """
 
     def __init__(self, *, force: bool, inputs: Iterable[str | os.PathLike[str] | None] = ()) -> None:
@@ -197,6 +326,8 @@ class Outputs:
         self.inputs = [os.fspath(p) for p in inputs if p is not None]
         self._targets: list[_Target] = []
         self._open = False
+        #: Every file in place (set by :meth:`commit` at its point of no return).
+        self.committed = False
 
     # -- declaration (before any computation) ------------------------------------------------
     def add_file(self, path: str | os.PathLike[str], flag: str) -> Path:
@@ -206,6 +337,9 @@ class Outputs:
             raise UsageError(f"{flag} {dest}: is a directory; give a file name such as {dest / 'out.json'}")
         if dest.name in ("", ".", ".."):
             raise UsageError(f"{flag} {dest}: not a file name")
+        if dest.is_symlink() and not dest.exists():
+            raise UsageError(f"{flag} {dest}: a symlink to {os.readlink(dest)}, which does not exist; "
+                             f"remove the link or give another name")
         self._check_not_input(dest, flag)
         if dest.exists() or dest.is_symlink():
             if not self.force:
@@ -213,12 +347,15 @@ class Outputs:
             if not dest.is_file():
                 raise UsageError(f"{flag} {dest}: exists and is not a regular file")
         self._check_parent(dest.parent, flag, dest)
-        self._targets.append(_Target(dest, (dest.name,), False, flag))
+        self._add(_Target(dest, (dest.name,), False, flag, _resolved(dest)))
         return dest
 
     def add_dir(self, path: str | os.PathLike[str], names: Sequence[str], flag: str) -> Path:
         """Declare an output folder (``--out-dir``) and every name the command may write into it."""
         dest = Path(path)
+        if dest.is_symlink() and not dest.exists():
+            raise UsageError(f"{flag} {dest}: a symlink to {os.readlink(dest)}, which does not exist; "
+                             f"create that folder or give another")
         if dest.exists() and not dest.is_dir():
             raise UsageError(f"{flag} {dest}: exists and is not a folder")
         for n in names:
@@ -229,8 +366,14 @@ class Outputs:
             if p.is_dir():
                 raise UsageError(f"{p}: is a directory; remove it")
         self._check_parent(dest if dest.exists() else dest.parent, flag, dest)
-        self._targets.append(_Target(dest, tuple(names), True, flag))
+        self._add(_Target(dest, tuple(names), True, flag, _resolved(dest)))
         return dest
+
+    def _add(self, t: _Target) -> None:
+        for o in self._targets:
+            if o.real == t.real:
+                raise UsageError(f"{t.flag} {t.dest}: the same place as {o.flag} {o.dest}; give two outputs")
+        self._targets.append(t)
 
     def _check_not_input(self, p: Path, flag: str) -> None:
         for src in self.inputs:
@@ -250,10 +393,16 @@ class Outputs:
     # -- lock and staging ----------------------------------------------------------------------
     def open(self) -> "Outputs":
         """Lock every target and create its staging folder (proves the location writable)."""
+        _LIVE.append(self)
         try:
             for t in self._targets:
                 self._lock(t)
-                t.staging = Path(tempfile.mkdtemp(prefix=f".{t.dest.name}.tmp-", dir=t.dest.parent))
+                where = t.real if t.is_dir and t.real.is_dir() else t.real.parent
+                try:
+                    t.staging = Path(tempfile.mkdtemp(prefix=f".{t.real.name}.tmp-", dir=where))
+                except OSError as exc:
+                    raise OutputError(f"{t.flag} {t.dest}: cannot write in {where} ({exc.strerror or exc}); "
+                                      f"nothing written") from None
                 t.staged_at = t.staging
         except BaseException:
             self.abort()
@@ -277,13 +426,16 @@ class Outputs:
             t.made_dirs.append(d)
 
     def _lock(self, t: _Target) -> None:
-        self._makedirs(t, t.dest.parent)
-        lock = t.dest.parent / f".{t.dest.name}.lock"
+        self._makedirs(t, t.real.parent)
+        parent = t.real.parent
+        inside = t.is_dir and t.real.is_dir() and not os.access(parent, os.W_OK)
+        lock = (t.real if inside else parent) / f".{t.real.name}.lock"
+        where = t.real if inside else parent
         while True:
             try:
                 fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
             except OSError as exc:
-                raise UsageError(f"{t.flag} {t.dest}: cannot write in {t.dest.parent} "
+                raise UsageError(f"{t.flag} {t.dest}: cannot write in {where} "
                                  f"({exc.strerror or exc})") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -303,11 +455,15 @@ class Outputs:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
+        t.lock_fd, t.lock_path = fd, lock
         started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
         cmd = " ".join(os.path.basename(a) if i == 0 else a for i, a in enumerate(sys.argv[:3]))
-        os.write(fd, f"pid {os.getpid()}, {cmd}, since {started}\n".encode())
-        t.lock_fd, t.lock_path = fd, lock
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"pid {os.getpid()}, {cmd}, since {started}\n".encode())
+        except OSError as exc:
+            raise OutputError(f"{t.flag} {t.dest}: cannot write in {where} ({exc.strerror or exc}); "
+                              f"nothing written") from None
 
     # -- writing -------------------------------------------------------------------------------
     def path(self, dest: str | os.PathLike[str]) -> Path:
@@ -340,59 +496,125 @@ class Outputs:
         raise ValueError(f"{staged}: not in a staging folder")
 
     def commit(self) -> None:
-        """Move every staged file into place (signals held), drop stale outputs, release the locks."""
+        """Move every staged file into place, all or nothing (class notes), and release the locks.
+
+        Raises
+        ------
+        OutputError
+            A file could not be moved (e.g. a full disk); everything was put back and
+            the staging folders and locks removed.
+        """
         if not self._open:
             raise RuntimeError("Outputs.commit before open()")
-        for t in self._targets:  # a file nobody declared was never checked against --force: refuse it all
-            assert t.staging is not None
-            stray = sorted(f.name for f in t.staging.iterdir() if f.name not in t.names)
-            if stray:
+        with _signals_held():
+            try:
+                for t in self._targets:  # a file nobody declared was never checked against --force
+                    assert t.staging is not None
+                    stray = sorted(f.name for f in t.staging.iterdir() if f.name not in t.names)
+                    if stray:
+                        raise RuntimeError(f"{t.dest}: undeclared outputs {stray} (add them to the command's "
+                                           f"output names)")
+                undo: list[tuple[Path, Path]] = []
+                try:
+                    self._move_all(undo)
+                except BaseException:
+                    for src, dst in reversed(undo):  # put back: the old files, then nothing else
+                        try:
+                            os.replace(src, dst)
+                        except OSError:
+                            pass
+                    raise
+            except BaseException as exc:
+                failed = self._output_error(exc, "cannot move the outputs into place", in_place=True)
                 self.abort()
-                raise RuntimeError(f"{t.dest}: undeclared outputs {stray} (add them to the command's output names)")
-        sigs = {signal.SIGINT, signal.SIGTERM}
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-        try:
-            umask = os.umask(0)
-            os.umask(umask)
+                if failed is not None:
+                    raise failed from None
+                raise
+            # The point of no return: every file is in place.
+            self.committed = True
+            _COMMITTED.extend(t.dest for t in self._targets)
             for t in self._targets:
-                assert t.staging is not None
-                for f in t.staging.iterdir():
-                    os.chmod(f, 0o666 & ~umask)  # mkstemp/mkdtemp create 0600/0700
-                if t.is_dir:
-                    if not t.dest.exists():
-                        os.chmod(t.staging, 0o777 & ~umask)
-                        os.rename(t.staging, t.dest)  # the whole set appears at once
-                    else:
-                        for n in t.names:
-                            src, dst = t.staging / n, t.dest / n
-                            if src.exists():
-                                os.replace(src, dst)
-                            elif dst.exists() or dst.is_symlink():
-                                dst.unlink()  # an output this run did not produce (e.g. controller.json)
-                        shutil.rmtree(t.staging, ignore_errors=True)
-                else:
-                    os.replace(t.staging / t.dest.name, t.dest)
-                    shutil.rmtree(t.staging, ignore_errors=True)
-                t.staging = None
+                for d in (None if t.moved_whole else t.staging, t.backup):
+                    if d is not None:
+                        shutil.rmtree(d, ignore_errors=True)
+                t.staging = t.backup = None
                 t.made_dirs = []
-        finally:
             self._release()
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    def _move_all(self, undo: list[tuple[Path, Path]]) -> None:
+        """The moves of :meth:`commit`; each step that changed the folder appends (from, to) to ``undo``."""
+        umask = os.umask(0)
+        os.umask(umask)
+        for t in self._targets:
+            assert t.staging is not None
+            for f in t.staging.iterdir():
+                os.chmod(f, 0o666 & ~umask)  # mkstemp/mkdtemp create 0600/0700
+            if t.is_dir and not t.real.exists():
+                os.chmod(t.staging, 0o777 & ~umask)
+                os.rename(t.staging, t.real)  # the whole set appears at once
+                undo.append((t.real, t.staging))
+                t.moved_whole = True
+                continue
+            t.backup = Path(tempfile.mkdtemp(prefix=f".{t.real.name}.old-", dir=t.folder))
+            for n in t.names:
+                src, dst = t.staging / n, t.final(n)
+                if dst.exists() or dst.is_symlink():
+                    kept = t.backup / n
+                    try:
+                        os.link(dst, kept, follow_symlinks=False)  # dst stays in place until the rename
+                    except OSError:
+                        os.rename(dst, kept)
+                    undo.append((kept, dst))
+                    if not src.exists():
+                        if dst.exists() or dst.is_symlink():
+                            dst.unlink()  # an output this run did not produce (e.g. controller.json)
+                        continue
+                if src.exists():
+                    os.rename(src, dst)
+                    undo.append((dst, src))
+
+    def _output_error(self, exc: BaseException, what: str, in_place: bool = False) -> "OutputError | None":
+        """``exc`` as a one-line :class:`OutputError` when it is a failure to write this command's files.
+
+        That is: an :class:`OSError` naming a file in a staging folder (or, during the
+        commit, ``in_place``, in a target), or one whose errno says the disk cannot take
+        the files (:data:`WRITE_ERRNOS`) whatever it names.  Anything else (an input
+        that cannot be read, a bug) is left as it is.
+        """
+        if not isinstance(exc, OSError) or isinstance(exc, CommissionError):
+            return None
+        names = [os.path.realpath(os.fsdecode(n)) for n in (exc.filename, exc.filename2)
+                 if isinstance(n, (str, bytes, os.PathLike))]
+        target = None
+        for t in self._targets:
+            roots = [str(p) for p in (t.staged_at, t.backup, t.lock_path, t.real if in_place else None)
+                     if p is not None]
+            if any(n == r or n.startswith(r + os.sep) for n in names for r in roots):
+                target = t
+                break
+        if target is None:
+            if exc.errno not in WRITE_ERRNOS or not self._targets:
+                return None
+            target = self._targets[0]
+        return OutputError(f"{target.flag} {target.dest}: {what} ({exc.strerror or exc}); "
+                           f"nothing written or replaced")
 
     def abort(self) -> None:
         """Remove staging folders, locks and folders this run created; leave the targets as they were."""
-        for t in self._targets:
-            if t.staging is not None:
-                shutil.rmtree(t.staging, ignore_errors=True)
-                t.staging = None
-        self._release()
-        for t in self._targets:
-            for d in reversed(t.made_dirs):
-                try:
-                    d.rmdir()
-                except OSError:
-                    break
-            t.made_dirs = []
+        with _signals_held():
+            for t in self._targets:
+                for d in (t.staging, t.backup):
+                    if d is not None:
+                        shutil.rmtree(d, ignore_errors=True)
+                t.staging = t.backup = None
+            self._release()
+            for t in self._targets:
+                for d in reversed(t.made_dirs):
+                    try:
+                        d.rmdir()
+                    except OSError:
+                        break
+                t.made_dirs = []
 
     def _release(self) -> None:
         for t in self._targets:
@@ -405,6 +627,8 @@ class Outputs:
                 os.close(t.lock_fd)
                 t.lock_fd = None
         self._open = False
+        if self in _LIVE:
+            _LIVE.remove(self)
 
     def __enter__(self) -> "Outputs":
         return self.open()
@@ -412,9 +636,16 @@ class Outputs:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         if exc_type is None:
             if self._open:
-                self.commit()
-        else:
-            self.abort()
+                try:
+                    self.commit()  # aborts itself on failure before its point of no return
+                except BaseException:
+                    self.abort()  # an interrupt as the commit started; a no-op once it committed
+                    raise
+            return
+        failed = self._output_error(exc, "cannot write")
+        self.abort()
+        if failed is not None:
+            raise failed from None
 
 
 def _read_holder(fd: int, wait_s: float = 1.0) -> str:
@@ -436,4 +667,5 @@ def _read_holder(fd: int, wait_s: float = 1.0) -> str:
 
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
-           "read_toml", "same_file", "Outputs"]
+           "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits",
+           "unfinished", "abort_unfinished"]

@@ -57,6 +57,12 @@ POOR_FIT_RELATIVE_ERROR = 0.3
 UNDETERMINED_REL_STD = 1.0
 #: Parameters ``--fix`` accepts.
 FIXABLE = ("M",)
+#: Accepted range of each ``--fix`` value, u-unit·s²/m, both ends inclusive.  ``theta1 = 1/M``
+#: is what tune and the controller work with, so M's range is the reciprocal of the range
+#: the tune spec accepts for theta1 (``controller.theta1_0``, :data:`commission.spec.RANGES`):
+#: whatever the unit of u, an axis outside it is a typo or a unit slip, and the arithmetic of
+#: the fit (``M qdd`` squared and summed over the log) and of the theta box stays finite inside it.
+FIX_RANGES = {"M": (1e-12, 1e12)}
 
 
 @dataclass(frozen=True)
@@ -626,12 +632,35 @@ def resample_log(log: ExcitationLog, rate: float) -> ExcitationLog:
 def expand_log_paths(paths: Sequence[str]) -> list[str]:
     """The log files named by ``paths``: files as given, folders as their log files (sorted by name).
 
+    The same file reached twice -- given twice, given with a folder that holds it,
+    or through a symlink or a hard link -- is refused: its samples would be fitted
+    twice, and the standard deviations (hence the theta box) would shrink by sqrt(2)
+    with nothing to show for it.  Files are compared by device and inode, so every
+    spelling of one file is caught.
+
     Raises
     ------
     UsageError
-        A path that does not exist, or a folder without a log file.
+        A path that does not exist, a folder without a log file, or one file twice
+        (naming both spellings).
     """
     out: list[str] = []
+    seen: dict[tuple[int, int], str] = {}
+
+    def add(name: str, via: str | None) -> None:
+        spelled = name if via is None else f"{name} (in the folder {via})"
+        try:
+            st = os.stat(name)
+        except OSError:
+            st = None  # unreadable: the reader names it
+        if st is not None:
+            key = (st.st_dev, st.st_ino)
+            if key in seen:
+                raise UsageError(f"{seen[key]} and {spelled}: the same file given twice; "
+                                 "give each log once (its samples would be fitted twice)")
+            seen[key] = spelled
+        out.append(name)
+
     for p in paths:
         path = Path(p)
         if path.is_dir():
@@ -639,29 +668,48 @@ def expand_log_paths(paths: Sequence[str]) -> list[str]:
                            key=lambda f: f.name)
             if not found:
                 raise UsageError(f"{p}: a folder without log files ({', '.join(LOG_EXTENSIONS)})")
-            out.extend(str(f) for f in found)
+            for f in found:
+                add(str(f), str(p))
         elif path.exists():
-            out.append(str(p))
+            add(str(p), None)
         else:
             raise UsageError(f"{p}: no such file or folder")
     return out
 
 
 def parse_fix(items: Sequence[str]) -> dict[str, float]:
-    """``["M=0.027"]`` -> ``{"M": 0.027}`` (``--fix``; positive finite values of :data:`FIXABLE`)."""
+    """``["M=0.027"]`` -> ``{"M": 0.027}`` (``--fix``; values of :data:`FIXABLE` within :data:`FIX_RANGES`).
+
+    A parameter given twice is refused rather than the last one kept: the two
+    values disagree (or one is a typo), and which one the user meant is theirs
+    to say.  A value outside its range is refused by name (the range and why
+    are at :data:`FIX_RANGES`).
+
+    Raises
+    ------
+    UsageError
+        Naming the ``--fix`` item.
+    """
     out: dict[str, float] = {}
+    given: dict[str, str] = {}
     for item in items:
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or name not in FIXABLE:
             raise UsageError(f"--fix {item!r}: expected NAME=VALUE with NAME one of {', '.join(FIXABLE)}")
+        if name in given:
+            raise UsageError(f"--fix {name}: given twice ({given[name]!r} and {item!r}); give it once")
         try:
             v = float(value)
         except ValueError:
             raise UsageError(f"--fix {item!r}: {value!r} is not a number") from None
+        lo, hi = FIX_RANGES[name]
         if not (math.isfinite(v) and v > 0):
             raise UsageError(f"--fix {item!r}: {name} must be a positive finite number (u-unit·s²/m)")
-        out[name] = v
+        if not lo <= v <= hi:
+            raise UsageError(f"--fix {item!r}: {name} = {v:g} is outside the plausible range [{lo:g}, {hi:g}] "
+                             f"u-unit·s²/m (theta1 = 1/{name} must lie in tune's range for theta1)")
+        given[name], out[name] = item, v
     return out
 
 

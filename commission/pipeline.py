@@ -118,6 +118,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     paths = expand_log_paths([os.fspath(p) for p in ([log_path] if isinstance(log_path, (str, os.PathLike))
                                                       else log_path)])
     log_path = paths[0] if len(paths) == 1 else paths
+    if opts.validate_on is not None:
+        expand_log_paths([os.fspath(opts.validate_on)])  # refused now (missing, one file twice), not after the lock
     outputs = Outputs(force=force, inputs=(*paths, spec_path, gate_path, opts.validate_on))
     out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *IDENT_FIGURE_NAMES, *output_names()), "--out-dir")
     with outputs:  # locked and proved writable before any stage runs; moved into place at the end

@@ -356,17 +356,41 @@ def test_a_signal_at_any_moment_leaves_nothing_or_a_complete_set(tuned, tmp_path
             p.send_signal(sig)
             _, err = p.communicate(timeout=300)
             assert "Traceback" not in err, err
-            # -sig: the signal came while the interpreter was shutting down after its last write
-            # (CPython restores the default handlers then); the set is complete by then.
-            assert p.returncode in (0, 1, 128 + sig, -sig), (p.returncode, err)
+            # Never -sig: a signal while the interpreter shuts down cannot kill it with the set in place.
+            assert p.returncode in (0, 1, 128 + sig), (p.returncode, err)
             names = _names(out)
             assert names in ([], full) if not existing else names == full, (frac, names)
-            if p.returncode == -sig:
-                assert names == full
-            if existing and p.returncode == 128 + sig:
-                now = listing(out)
-                assert now == before or set(now) == set(before)
+            if p.returncode in (0, 1):  # finished: the new set is in place
+                assert names == full and (not existing or listing(out) != before), (frac, p.returncode)
+            else:  # 130/143: nothing written or replaced
+                assert (listing(out) == before) if existing else names == [], (frac, p.returncode, err)
+                assert err.strip().splitlines()[-1].endswith(": no output written or replaced"), err
             _no_leftovers(tmp_path)
+            _no_leftovers(out) if out.exists() else None
+
+
+def test_a_full_disk_under_validate_is_one_line_and_leaves_everything_as_it_was(tuned, tmp_path, monkeypatch):
+    import errno
+
+    import commission.validate as validate
+
+    out = tmp_path / "v"
+    out.mkdir()
+    (out / "report.md").write_text("the old report\n")
+    before = listing(out)
+
+    def full(path, text):  # the report half-written, then the disk is full
+        Path(path).write_text(text[: len(text) // 2])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(validate, "write_text_atomic", full)
+    r = invoke(*_validate_argv(tuned, out))
+    assert r.exit_code == 2, r.output
+    assert re.fullmatch(r"error: --out-dir \S+/v: cannot write \(No space left on device\); nothing written or "
+                        r"replaced", r.stderr.strip().splitlines()[-1]), r.stderr  # after the progress bar
+    assert "Traceback" not in r.output
+    assert listing(out) == before
+    _no_leftovers(tmp_path)
 
 
 # --------------------------------------------------------------------------- must-show 3
