@@ -157,7 +157,10 @@ P_DY_FAULT = 56  # a jump |y_k - y_good| beyond this latches a fault at once, m 
 P_NREJ_MAX = 57  # this many rejected samples in a row latch a fault (inf: never)
 P_E_MAX = 58  # tracking-error watchdog on the accepted |y - q_d|, m (inf: none)
 P_FREEZE_SAT = 59  # 1: no adaptation in a sample whose command is saturated at u_max (0: adapt)
-NP = 60
+P_A_MAX = 60  # largest plausible acceleration of the axis, m/s^2 (inf: no innovation check)
+P_Y_ERR = 61  # largest error of one measurement (rounding + noise), m (0: exact readings)
+P_NFRZ_MAX = 62  # this many still samples in a row that must have moved latch a fault (inf: never)
+NP = 63
 
 #: Bound on R Ts, R = K2 - theta_hat1 d(alpha1)/dy the rate of the sampled v-loop
 #: (module docstring); applied whenever ``k2s_max`` is finite.
@@ -185,7 +188,14 @@ S_EGOOD = 23  # y - q_d at the last accepted measurement, m
 S_NREJ = 24  # measurements rejected in a row
 S_REJECTED = 25  # 1 when this sample's y was rejected (a glitch) and replaced by q_d + S_EGOOD
 S_FROZEN = 26  # 1 when the adaptation was frozen in this sample (y rejected, or command saturated)
-NS = 27
+S_VLAST = 27  # velocity of the last accepted pair of measurements, m/s
+S_VPREV = 28  # velocity of the accepted pair before the last one, m/s: what the prediction uses
+S_YSTILL = 29  # raw measurement at the start of the current still run, m
+S_NSTILL = 30  # samples of the still run that should have moved (command at u_max, or y rejected)
+S_DU = 31  # |u_k - u_k-1| of the last three commands (3), most recent first, u-unit
+S_INNOV = 34  # innovation y - y_pred of this sample's raw measurement, m (logged)
+S_BOUND = 35  # the innovation bound it was held to, m (logged)
+NS = 36
 
 # Fault reason codes held in s[S_FAULT] (0: no fault); latched until arc_reset.
 FAULT_NONE = 0
@@ -193,6 +203,7 @@ FAULT_NONFINITE = 1  # an input (y, q_d, dq_d, ddq_d) or an intermediate value (
 FAULT_JUMP = 2  # one measurement jumped farther than dy_fault from the last accepted one
 FAULT_GLITCH_RUN = 3  # n_reject_max measurements in a row were implausible
 FAULT_TRACKING = 4  # the accepted tracking error |y - q_d| exceeded e_max
+FAULT_FROZEN = 5  # n_frozen_max still measurements in a row while the command was at u_max or y was implausible
 #: Reason code -> name (the runtime's ``fault_reason``).
 FAULT_REASONS = {
     FAULT_NONE: "none",
@@ -200,6 +211,7 @@ FAULT_REASONS = {
     FAULT_JUMP: "measurement jump beyond dy_fault",
     FAULT_GLITCH_RUN: "n_reject_max implausible measurements in a row",
     FAULT_TRACKING: "tracking error beyond e_max",
+    FAULT_FROZEN: "measurement frozen while the command is at u_max or the axis must move",
 }
 #: The entries of s that carry the controller's dynamics from one sample to the next
 #: (the others are flags or values logged for the caller); what a linearisation perturbs.
@@ -208,7 +220,8 @@ S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA
 
 
 #: ArcGains fields of the runtime guards (optional everywhere: absent = off).
-RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation")
+RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation",
+                  "accel_max", "y_err", "n_frozen_max")
 
 
 def _vec3(name: str, v) -> tuple[float, float, float]:
@@ -313,6 +326,9 @@ class ArcGains:
     n_reject_max: float = math.inf
     e_max: float = math.inf
     freeze_on_saturation: bool = False
+    accel_max: float = math.inf
+    y_err: float = 0.0
+    n_frozen_max: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0"):
@@ -335,9 +351,14 @@ class ArcGains:
             val = getattr(self, name)
             if not val > 0 or math.isnan(val):
                 raise ArcGainsError(f"ArcGains.{name}: must be > 0 m (inf allowed), got {val}")
-        n = self.n_reject_max
-        if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
-            raise ArcGainsError(f"ArcGains.n_reject_max: must be an integer >= 1 (inf allowed), got {n}")
+        if not self.accel_max > 0 or math.isnan(self.accel_max):
+            raise ArcGainsError(f"ArcGains.accel_max: must be > 0 m/s^2 (inf allowed), got {self.accel_max}")
+        if not (math.isfinite(self.y_err) and self.y_err >= 0):
+            raise ArcGainsError(f"ArcGains.y_err: must be finite and >= 0 m, got {self.y_err}")
+        for name in ("n_reject_max", "n_frozen_max"):
+            n = getattr(self, name)
+            if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
+                raise ArcGainsError(f"ArcGains.{name}: must be an integer >= 1 (inf allowed), got {n}")
         if not isinstance(self.freeze_on_saturation, bool):
             raise ArcGainsError(f"ArcGains.freeze_on_saturation: must be a bool, got {self.freeze_on_saturation!r}")
         for name, floor in (("k1s_max", "g1"), ("k2s_max", "g2")):
@@ -430,6 +451,7 @@ def arc_pack(g: ArcGains) -> np.ndarray:
     p[P_BD1:P_BD1 + 2] = Bd1
     p[P_DY_MAX], p[P_DY_FAULT], p[P_NREJ_MAX], p[P_E_MAX] = g.dy_max, g.dy_fault, g.n_reject_max, g.e_max
     p[P_FREEZE_SAT] = 1.0 if g.freeze_on_saturation else 0.0
+    p[P_A_MAX], p[P_Y_ERR], p[P_NFRZ_MAX] = g.accel_max, g.y_err, g.n_frozen_max
     return p
 
 
@@ -479,6 +501,7 @@ def arc_reset(p, s, y0):
         s[S_THETA + i] = p[P_THETA0 + i]
     s[S_YPREV] = y0
     s[S_YGOOD] = y0
+    s[S_YSTILL] = y0
     s[S_XHAT] = y0
     s[S_XHAT + 1] = p[P_THETA0 + 1] * y0
 
@@ -629,21 +652,54 @@ def arc_step(p, s, y, qd, dqd, ddqd):
         return 0.0
     if not (math.isfinite(y) and math.isfinite(qd) and math.isfinite(dqd) and math.isfinite(ddqd)):
         return _fault(s, 1.0)
-    # --- runtime guards: measurement plausibility, then the tracking-error watchdog
+    # --- runtime guards: measurement plausibility, frozen encoder, then the tracking-error watchdog
     rejected = 0.0
     if s[S_PRIMED] != 0.0:
         jump = abs(y - s[S_YGOOD])
         if jump > p[P_DY_FAULT]:
             return _fault(s, 2.0)
-        if jump > p[P_DY_MAX] * (1.0 + s[S_NREJ]):
-            s[S_NREJ] = s[S_NREJ] + 1.0
-            if s[S_NREJ] >= p[P_NREJ_MAX]:
-                return _fault(s, 3.0)
-            # a glitch: go on with the prediction "the tracking error is what it last was"
-            y = qd + s[S_EGOOD]
+        # samples since the last accepted measurement, and the prediction from it with the
+        # velocity of the pair before (a glitch among the last accepted cannot bend it)
+        n = 1.0 + s[S_NREJ]
+        innov = y - (s[S_YGOOD] + s[S_VPREV] * p[P_TS] * n)
+        # what the envelope's acceleration, the drive's own recent command steps (on the
+        # lightest plant of the box) and the reading errors can explain
+        du = s[S_DU]
+        if s[S_DU + 1] > du:
+            du = s[S_DU + 1]
+        if s[S_DU + 2] > du:
+            du = s[S_DU + 2]
+        bound = (p[P_TS] * p[P_TS] * (n * (n + 3.0) / 2.0) * (p[P_A_MAX] + p[P_TMAX] * du * ((n + 3.0) / 2.0))
+                 + p[P_Y_ERR] * (2.0 + 2.0 * n))
+        s[S_INNOV] = innov
+        s[S_BOUND] = bound
+        if jump > p[P_DY_MAX] * n or abs(innov) > bound:
+            s[S_NREJ] = n
             rejected = 1.0
         else:
             s[S_NREJ] = 0.0
+            v = (y - s[S_YGOOD]) / (p[P_TS] * n)
+            if n == 1.0:
+                s[S_VPREV] = s[S_VLAST]
+            else:
+                s[S_VPREV] = v
+            s[S_VLAST] = v
+        # frozen encoder: a measurement that stays put while the axis must move (the command
+        # was at u_max over the last period, or the prediction says it moved) counts
+        if abs(y - s[S_YSTILL]) > 2.0 * p[P_Y_ERR]:
+            s[S_YSTILL] = y
+            s[S_NSTILL] = 0.0
+        elif rejected != 0.0 or abs(s[S_U]) >= p[P_UMAX]:
+            s[S_NSTILL] = s[S_NSTILL] + 1.0
+            if s[S_NSTILL] >= p[P_NFRZ_MAX]:
+                return _fault(s, 5.0)
+        else:
+            s[S_NSTILL] = 0.0
+        if s[S_NREJ] >= p[P_NREJ_MAX]:
+            return _fault(s, 3.0)
+        if rejected != 0.0:
+            # an implausible y: go on with the prediction "the tracking error is what it last was"
+            y = qd + s[S_EGOOD]
     if rejected == 0.0:
         s[S_YGOOD] = y
         s[S_EGOOD] = y - qd
@@ -783,6 +839,9 @@ def arc_step(p, s, y, qd, dqd, ddqd):
     s[S_K1] = K1
     s[S_K2] = K2
     s[S_USTAR] = ustar
+    s[S_DU + 2] = s[S_DU + 1]
+    s[S_DU + 1] = s[S_DU]
+    s[S_DU] = abs(u - s[S_U])
     s[S_U] = u
     return u
 
