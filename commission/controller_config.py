@@ -25,7 +25,7 @@ validated against and where it came from::
                        compiled step (:mod:`commission.controllers.arc`, "Runtime guards"):
                        dy_max (m), dy_fault (m), n_reject_max (count), e_max (m),
                        freeze_on_saturation (bool); optional accel_max (m/s^2), y_err (m),
-                       n_frozen_max (count) (absent: that guard off); written by
+                       n_frozen_max (count), u_free (u-unit) (absent: off); written by
                        validate, which simulated with exactly these
     validated          what validate checked: the resolved gate, the worst value of
                        each criterion with its scenario, the ARC's indexes on the
@@ -118,7 +118,7 @@ _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
 RUNTIME_FIELDS = RUNTIME_GUARDS
 #: Runtime keys added after the section existed (frozen-encoder and innovation guards): optional on
 #: load, each absent one off (ArcGains' default), so that older files load and keep their checksum.
-RUNTIME_ADDED = ("accel_max", "y_err", "n_frozen_max")
+RUNTIME_ADDED = ("accel_max", "y_err", "n_frozen_max", "u_free")
 #: May be null (infinite): a robust term switched off, a runtime guard off.
 _INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max", "accel_max",
            "n_frozen_max")

@@ -54,7 +54,7 @@ import numpy as np
 import commission
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.controllers.arc import ArcGains, arc_pack
-from commission.controllers.plant import P_B, P_DELAY, P_M, P_OFFSET
+from commission.controllers.plant import P_B, P_DELAY, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
 from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
@@ -65,8 +65,8 @@ from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, Ga
 from commission.jsonio import canonical_json, read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
-from commission.scenarios import (case1_trajectory, case2_trajectory, check_run_length, plant_substeps,
-                                  resolve_encoder_noise, scenario_matrix)
+from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
+                                  force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
 from commission.tuning import Score, Tuning, log_sha256_of
 
@@ -279,13 +279,17 @@ def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
       closed loop adds its own transients to it, hence :data:`GUARD_ACCEL_MARGIN`.
       y_err bounds the error of one reading: half an encoder step and
       :data:`GUARD_NOISE_SIGMAS` standard deviations of the simulated encoder noise.
-    * ``n_frozen_max = max(3, ceil(sqrt(64 y_err / a_sat) / Ts) + delay samples)``
-      with a_sat = theta1_min u_max / 2: under a command at the rail the axis
-      accelerates at least a_sat (half the drive's force left after friction and
-      load, on the lightest-accelerating plant of the box), so within that many
-      samples after the plant's input delay its readings must spread over more
-      than the 8 y_err a still run allows (a constant acceleration a spreads
-      positions over at least a T^2/8 in a time T, whatever the initial speed).
+    * ``u_free`` (:func:`holding_force`): the largest command that may leave the
+      axis at rest -- friction, ripple, the box's constant forces, the disturbance step.
+    * ``n_frozen_max = max(3, ceil(sqrt(64 y_err / a_rail) / Ts) + delay samples)``
+      with a_rail = theta1_min (u_max - u_free): under a command at the rail the
+      axis accelerates at least a_rail (the lightest-accelerating plant of the
+      box, every holding force against it), so within that many samples after
+      the plant's input delay its readings must spread over more than the 8 y_err
+      a still run allows (a constant acceleration a spreads positions over at
+      least a T^2/8 in a time T, whatever the initial speed).  A smaller push
+      counts sqrt of its fraction of the rail's (the same spread takes 1/sqrt(a)
+      as long); a rejected reading counts 1.
     * ``dy_fault = travel``: no reading can move by the whole stroke in one sample.
     * ``n_reject_max = max(2, ceil(GUARD_REJECT_TIME / Ts))``: the prediction
       (tracking error held) carries the loop through at most 2 ms of glitches.
@@ -298,17 +302,33 @@ def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
       theta_hat out of the box's corners while the drive is at its limit.
 
     None of them acts in a validation that passes: the speed bound is twice the
-    envelope's, the acceleration bound three times the trajectories', the frozen
-    count needs a command at u_max (which the gate fails) or an implausible y.
+    envelope's, the acceleration bound three times the trajectories' (plus what the
+    drive's own command steps explain), and the frozen count needs an implausible y
+    or a command that must move the axis, held while the readings stay put.
     ``validate`` simulates with them (see :func:`deployable_gains`), so what it
     proved is what runs.
     """
     spec, Ts = tuning.spec, tuning.arc.Ts
     return guard_values(Ts, tuning.quantization, spec.v_max, spec.travel, limits.e_M,
-                        a_max=envelope_acceleration(spec, Ts),
+                        a_max=envelope_acceleration(spec, Ts), u_free=holding_force(tuning),
                         noise_std=resolve_encoder_noise(tuning.identification, spec),
                         theta1_min=tuning.arc.theta_min[0], u_max=tuning.arc.u_max,
                         delay=float(tuning.plant[P_DELAY]))
+
+
+def holding_force(tuning: Tuning) -> float:
+    """The largest command that may leave the axis at rest in the validated scenarios, u-unit.
+
+    Static friction and force ripple of the identified plant at the friction scenarios' +20 %
+    (:data:`commission.scenarios.FRICTION_SCALE`), plus the largest constant force the theta
+    box admits at every mass (:func:`commission.scenarios.force_range`), plus the
+    Assumption-1 disturbance step delta_d M.  A command beyond it accelerates the axis.
+    """
+    ident, plant = tuning.identification, tuning.plant
+    lo, hi = force_range(ident)
+    step = abs(ident.delta_d * ident.value("M")) if ident.delta_d is not None else 0.0
+    return ((1.0 + FRICTION_SCALE) * (abs(float(plant[P_FS])) + abs(float(plant[P_RIPPLE_AMP])))
+            + max(abs(lo), abs(hi)) + step)
 
 
 def envelope_acceleration(spec: Spec, Ts: float) -> float:
@@ -321,8 +341,8 @@ def envelope_acceleration(spec: Spec, Ts: float) -> float:
 
 
 def guard_values(Ts: float, lsb: float, v_max: float, travel: float, e_M: float, *, a_max: float | None = None,
-                 theta1_min: float | None = None, u_max: float | None = None, noise_std: float = 0.0,
-                 delay: float = 0.0) -> dict[str, Any]:
+                 theta1_min: float | None = None, u_max: float | None = None, u_free: float = 0.0,
+                 noise_std: float = 0.0, delay: float = 0.0) -> dict[str, Any]:
     """:func:`runtime_guards` from the numbers it uses.
 
     Parameters
@@ -345,6 +365,8 @@ def guard_values(Ts: float, lsb: float, v_max: float, travel: float, e_M: float,
         Lower bound of theta1 = 1/M, m/(u-unit s^2).
     u_max : float, optional
         Output limit, u-unit.
+    u_free : float
+        Largest command that may leave the axis at rest, u-unit (:func:`holding_force`).
     noise_std : float
         Encoder noise simulated, m rms.
     delay : float
@@ -361,10 +383,11 @@ def guard_values(Ts: float, lsb: float, v_max: float, travel: float, e_M: float,
     if a_max is None or theta1_min is None or u_max is None:
         return guards
     y_err = 0.5 * lsb + GUARD_NOISE_SIGMAS * noise_std
-    a_sat = 0.5 * theta1_min * u_max
-    n_frozen = math.ceil(math.sqrt(64.0 * y_err / a_sat) / Ts - 1e-9) + math.ceil(delay / Ts - 1e-9)
-    guards.update(accel_max=GUARD_ACCEL_MARGIN * a_max, y_err=y_err,
-                  n_frozen_max=float(max(GUARD_FROZEN_MIN, n_frozen)))
+    guards.update(accel_max=GUARD_ACCEL_MARGIN * a_max, y_err=y_err)
+    if u_free < u_max:
+        a_rail = theta1_min * (u_max - u_free)
+        n_frozen = math.ceil(math.sqrt(64.0 * y_err / a_rail) / Ts - 1e-9) + math.ceil(delay / Ts - 1e-9)
+        guards.update(n_frozen_max=float(max(GUARD_FROZEN_MIN, n_frozen)), u_free=u_free)
     return guards
 
 
@@ -744,5 +767,6 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
     "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance", "check_out_dir",
-    "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration", "log_sha256_of",
+    "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration", "holding_force",
+    "log_sha256_of",
 ]

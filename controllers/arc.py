@@ -159,8 +159,9 @@ P_E_MAX = 58  # tracking-error watchdog on the accepted |y - q_d|, m (inf: none)
 P_FREEZE_SAT = 59  # 1: no adaptation in a sample whose command is saturated at u_max (0: adapt)
 P_A_MAX = 60  # largest plausible acceleration of the axis, m/s^2 (inf: no innovation check)
 P_Y_ERR = 61  # largest error of one measurement (rounding + noise), m (0: exact readings)
-P_NFRZ_MAX = 62  # this many still samples in a row that must have moved latch a fault (inf: never)
-NP = 63
+P_NFRZ_MAX = 62  # still samples in a row that must have moved (weighted) that latch a fault (inf: never)
+P_U_FREE = 63  # largest command that may leave the axis at rest (friction, offsets, loads), u-unit
+NP = 64
 
 #: Bound on R Ts, R = K2 - theta_hat1 d(alpha1)/dy the rate of the sampled v-loop
 #: (module docstring); applied whenever ``k2s_max`` is finite.
@@ -191,7 +192,7 @@ S_FROZEN = 26  # 1 when the adaptation was frozen in this sample (y rejected, or
 S_VLAST = 27  # velocity of the last accepted pair of measurements, m/s
 S_VPREV = 28  # velocity of the accepted pair before the last one, m/s: what the prediction uses
 S_YSTILL = 29  # raw measurement at the start of the current still run, m
-S_NSTILL = 30  # samples of the still run that should have moved (command at u_max, or y rejected)
+S_NSTILL = 30  # evidence of the still run that the axis must have moved: 1 per rejected y, <= 1 per push
 S_DU = 31  # |u_k - u_k-1| of the last three commands (3), most recent first, u-unit
 S_INNOV = 34  # innovation y - y_pred of this sample's raw measurement, m (logged)
 S_BOUND = 35  # the innovation bound it was held to, m (logged)
@@ -221,7 +222,7 @@ S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA
 
 #: ArcGains fields of the runtime guards (optional everywhere: absent = off).
 RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation",
-                  "accel_max", "y_err", "n_frozen_max")
+                  "accel_max", "y_err", "n_frozen_max", "u_free")
 
 
 def _vec3(name: str, v) -> tuple[float, float, float]:
@@ -329,6 +330,7 @@ class ArcGains:
     accel_max: float = math.inf
     y_err: float = 0.0
     n_frozen_max: float = math.inf
+    u_free: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0"):
@@ -353,8 +355,10 @@ class ArcGains:
                 raise ArcGainsError(f"ArcGains.{name}: must be > 0 m (inf allowed), got {val}")
         if not self.accel_max > 0 or math.isnan(self.accel_max):
             raise ArcGainsError(f"ArcGains.accel_max: must be > 0 m/s^2 (inf allowed), got {self.accel_max}")
-        if not (math.isfinite(self.y_err) and self.y_err >= 0):
-            raise ArcGainsError(f"ArcGains.y_err: must be finite and >= 0 m, got {self.y_err}")
+        for name in ("y_err", "u_free"):
+            val = getattr(self, name)
+            if not (math.isfinite(val) and val >= 0):
+                raise ArcGainsError(f"ArcGains.{name}: must be finite and >= 0, got {val}")
         for name in ("n_reject_max", "n_frozen_max"):
             n = getattr(self, name)
             if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
@@ -451,7 +455,7 @@ def arc_pack(g: ArcGains) -> np.ndarray:
     p[P_BD1:P_BD1 + 2] = Bd1
     p[P_DY_MAX], p[P_DY_FAULT], p[P_NREJ_MAX], p[P_E_MAX] = g.dy_max, g.dy_fault, g.n_reject_max, g.e_max
     p[P_FREEZE_SAT] = 1.0 if g.freeze_on_saturation else 0.0
-    p[P_A_MAX], p[P_Y_ERR], p[P_NFRZ_MAX] = g.accel_max, g.y_err, g.n_frozen_max
+    p[P_A_MAX], p[P_Y_ERR], p[P_NFRZ_MAX], p[P_U_FREE] = g.accel_max, g.y_err, g.n_frozen_max, g.u_free
     return p
 
 
@@ -684,17 +688,28 @@ def arc_step(p, s, y, qd, dqd, ddqd):
             else:
                 s[S_VPREV] = v
             s[S_VLAST] = v
-        # frozen encoder: a measurement that stays put while the axis must move (the command
-        # was at u_max over the last period, or the prediction says it moved) counts
+        # frozen encoder: a reading that stays put while the axis must move counts -- 1 when the
+        # prediction says it moved (y rejected), sqrt(w) when the command held over the last
+        # period pushed w = (|u| - u_free)/(u_max - u_free) of the rail's push beyond the forces
+        # that may hold the axis (1 at the rail; the time to move a given distance goes as 1/sqrt(a))
         if abs(y - s[S_YSTILL]) > 2.0 * p[P_Y_ERR]:
             s[S_YSTILL] = y
             s[S_NSTILL] = 0.0
-        elif rejected != 0.0 or abs(s[S_U]) >= p[P_UMAX]:
-            s[S_NSTILL] = s[S_NSTILL] + 1.0
-            if s[S_NSTILL] >= p[P_NFRZ_MAX]:
-                return _fault(s, 5.0)
         else:
-            s[S_NSTILL] = 0.0
+            w = 0.0
+            if rejected != 0.0:
+                w = 1.0
+            elif p[P_UMAX] > p[P_U_FREE] and abs(s[S_U]) > p[P_U_FREE]:
+                w = (abs(s[S_U]) - p[P_U_FREE]) / (p[P_UMAX] - p[P_U_FREE])
+                if w > 1.0:
+                    w = 1.0
+                w = math.sqrt(w)
+            if w > 0.0:
+                s[S_NSTILL] = s[S_NSTILL] + w
+                if s[S_NSTILL] >= p[P_NFRZ_MAX]:
+                    return _fault(s, 5.0)
+            else:
+                s[S_NSTILL] = 0.0
         if s[S_NREJ] >= p[P_NREJ_MAX]:
             return _fault(s, 3.0)
         if rejected != 0.0:
