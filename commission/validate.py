@@ -52,6 +52,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 import commission
+from commission.artifacts import Identification
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.plant import P_B, P_DELAY, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
@@ -310,21 +311,26 @@ def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
     """
     spec, Ts = tuning.spec, tuning.arc.Ts
     return guard_values(Ts, tuning.quantization, spec.v_max, spec.travel, limits.e_M,
-                        a_max=envelope_acceleration(spec, Ts), u_free=holding_force(tuning),
+                        a_max=envelope_acceleration(spec, Ts), u_free=holding_force(tuning.identification, tuning.plant),
                         noise_std=resolve_encoder_noise(tuning.identification, spec),
                         theta1_min=tuning.arc.theta_min[0], u_max=tuning.arc.u_max,
                         delay=float(tuning.plant[P_DELAY]))
 
 
-def holding_force(tuning: Tuning) -> float:
+def holding_force(ident: Identification, plant: np.ndarray) -> float:
     """The largest command that may leave the axis at rest in the validated scenarios, u-unit.
 
     Static friction and force ripple of the identified plant at the friction scenarios' +20 %
     (:data:`commission.scenarios.FRICTION_SCALE`), plus the largest constant force the theta
     box admits at every mass (:func:`commission.scenarios.force_range`), plus the
     Assumption-1 disturbance step delta_d M.  A command beyond it accelerates the axis.
+
+    Parameters
+    ----------
+    ident : Identification
+    plant : numpy.ndarray
+        The identified plant vector (:func:`commission.scenarios.identified_plant`).
     """
-    ident, plant = tuning.identification, tuning.plant
     lo, hi = force_range(ident)
     step = abs(ident.delta_d * ident.value("M")) if ident.delta_d is not None else 0.0
     return ((1.0 + FRICTION_SCALE) * (abs(float(plant[P_FS])) + abs(float(plant[P_RIPPLE_AMP])))
