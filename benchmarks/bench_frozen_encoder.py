@@ -21,8 +21,9 @@ step receives (the same ``arc_step`` the runtime and the exported C run):
   samples at the rail any of them costs.
 
 For each case the figures are: samples at the rail (|u| >= u_max) from the
-event on, samples from the event to the fault (``-``: none), the fault's
-reason, and the true plant at the fault -- position error q - q_d and speed
+event on, samples from the event's first sample to the one whose step latched
+the fault and returned 0 (``-``: none), the readings rejected before it, the
+fault's reason, and the true plant at the fault -- position error q - q_d and speed
 -- and after it, with the drive at the safe command 0 until the axis stops:
 its peak speed and the distance it coasts.  ``ideal coast`` is the distance
 the axis would coast had the drive been disabled at the event's first sample
@@ -93,7 +94,8 @@ def figures(r: dict, traj, k0: int, u_max: float) -> dict:
     faulted = np.nonzero(r["fault"][k0:] != 0)[0]
     kf = k0 + int(faulted[0]) if faulted.size else None
     out = dict(rail=rail, to_fault=None if kf is None else kf - k0,
-               reason=A.FAULT_REASONS[int(r["fault"][-1])], rejected=int(np.sum(r["rejected"][k0:] != 0)),
+               reason=A.FAULT_REASONS[int(r["fault"][-1])],
+               rejected=int(np.sum(r["rejected"][k0:n if kf is None else kf] != 0)),
                e_f=math.nan, v_f=math.nan, v_peak=math.nan, coast=math.nan)
     if kf is not None:
         q, v = r["q"], r["v"]
@@ -178,15 +180,18 @@ def main(argv: list[str]) -> None:
             tf = "-" if f["to_fault"] is None else str(f["to_fault"])
             print(f"{name:34s} {f['rail']:4d} {tf:>8s} {f['rejected']:8d} {f['e_f'] * 1e3:8.3f} mm {f['v_f']:6.3f} m/s "
                   f"{f['v_peak']:7.3f} {f['coast'] * 1e3:5.1f} mm {ideal * 1e3:5.1f} mm  {f['reason']}")
-        worst = (0, 0.0)
+        worst, smallest = (0, 0.0), math.inf
         for amp in np.geomspace(2e-6, 1e-3, 40):
             for sign in (1.0, -1.0):
                 r = closed_loop(gains, plant, traj, quant, glitch(k_cruise, sign * amp), k_cruise + 200)
                 rail = int(np.sum(np.abs(r["u"][k_cruise:]) >= g.u_max))
                 if rail > worst[0]:
                     worst = (rail, sign * amp)
+                if rail:
+                    smallest = min(smallest, amp)
         print(f"glitch sweep 2 um - 1 mm (80 glitches): most samples at the rail {worst[0]}"
-              + (f" (glitch {worst[1] * 1e6:+.1f} um)" if worst[0] else ""))
+              + (f" (glitch {worst[1] * 1e6:+.1f} um); the smallest that reaches it {smallest * 1e6:.1f} um"
+                 if worst[0] else ""))
 
 
 if __name__ == "__main__":

@@ -390,10 +390,10 @@ def guard_values(Ts: float, lsb: float, v_max: float, travel: float, e_M: float,
         return guards
     y_err = 0.5 * lsb + GUARD_NOISE_SIGMAS * noise_std
     guards.update(accel_max=GUARD_ACCEL_MARGIN * a_max, y_err=y_err)
-    if u_free < u_max:
-        a_rail = theta1_min * (u_max - u_free)
-        n_frozen = math.ceil(math.sqrt(64.0 * y_err / a_rail) / Ts - 1e-9) + math.ceil(delay / Ts - 1e-9)
-        guards.update(n_frozen_max=float(max(GUARD_FROZEN_MIN, n_frozen)), u_free=u_free)
+    push = 0.0 < u_free < u_max  # else no command is known to move the axis: only rejected readings count
+    a_rail = theta1_min * (u_max - u_free if push else u_max)
+    n_frozen = math.ceil(math.sqrt(64.0 * y_err / a_rail) / Ts - 1e-9) + math.ceil(delay / Ts - 1e-9)
+    guards.update(n_frozen_max=float(max(GUARD_FROZEN_MIN, n_frozen)), u_free=u_free if push else 0.0)
     return guards
 
 

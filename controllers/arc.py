@@ -52,12 +52,49 @@ Checked at the top of each sample, before anything is updated, each one
 switched off by its default (``inf``, ``False``), which leaves the law above
 unchanged bit for bit:
 
-* Measurement plausibility: a y farther than ``dy_max (1 + r)`` from the last
-  accepted measurement (r the samples rejected since) is a glitch.  The sample
-  then runs on the prediction y = q_d + e_good (the tracking error of the last
-  accepted sample held), and ``n_reject_max`` rejections in a row latch
-  :data:`FAULT_GLITCH_RUN`.  A y farther than ``dy_fault`` latches
-  :data:`FAULT_JUMP` at once.
+* Measurement plausibility: with n = 1 + r samples since the last accepted
+  measurement y_good (r the samples rejected since), y is predicted as
+  y_good + v n Ts, v being the velocity of the accepted pair *before* the last
+  one.  A y is implausible (a glitch) when it is farther than ``dy_max n``
+  from y_good (a speed beyond the envelope's) or when its innovation
+  y - y_pred exceeds::
+
+      b(n) = Ts^2 n (n + 3)/2 (accel_max + theta_max1 du (n + 3)/2) + y_err (2 + 2 n)
+
+  what an acceleration up to ``accel_max`` (the validated envelope's, with a
+  margin), the drive's own command steps (du the largest |u_k - u_k-1| of the
+  last three samples, on the lightest plant of the box: theta_max1 = 1/M_min)
+  and a reading error up to ``y_err`` per measurement can explain.  For n = 1
+  the innovation is the change of the increments y_k - y_k-1 - (y_k-2 - y_k-3),
+  Ts^2 times the accelerations of three periods, each weighted <= 1 and 2 in
+  all; the command term covers the part of them that follows the command's
+  steps in the window, the acceleration before it being the envelope's.  The delayed velocity is what makes the check robust: a
+  glitch g among the accepted readings moves the next three innovations by
+  -g, -g, +g, never more than the glitch itself, so the good readings after a
+  glitch that passed are accepted too; a glitch that is rejected leaves the
+  prediction on the readings before it.  A rejected sample runs on the
+  prediction y = q_d + e_good (the tracking error of the last accepted sample
+  held), and ``n_reject_max`` rejections in a row latch :data:`FAULT_GLITCH_RUN`.
+  A y farther than ``dy_fault`` latches :data:`FAULT_JUMP` at once.
+* Frozen encoder: a still run is a run of readings within 2 ``y_err`` of the
+  one it started with.  Each of its samples adds evidence that the axis must
+  have moved: 1 when the reading was rejected (the prediction moved away from
+  it), sqrt(w) when the command held over the last period pushed a fraction
+  w = (|u| - u_free)/(u_max - u_free) <= 1 of the rail's push beyond
+  ``u_free``, the largest command that may leave the axis at rest (friction,
+  constant and disturbance forces).  Evidence ``n_frozen_max`` latches
+  :data:`FAULT_FROZEN`; a still sample without either (a still axis, held)
+  clears it.  A constant acceleration a spreads the positions over at least
+  a T^2/8 in a time T whatever the initial speed, and a push of w takes
+  1/sqrt(w) as long as the rail's to spread them as far, hence the square root
+  (validate sizes ``n_frozen_max`` on the rail's push).  A frozen encoder thus
+  latches the fault within ``n_frozen_max`` samples once the command is at the
+  rail, and within ``n_frozen_max`` samples of freezing while the axis moves
+  faster than about accel_max Ts (n_frozen_max + 3)/2 (each reading rejected,
+  the law running on the prediction, no sample at the rail).
+  With the axis at rest and a command that stays below ``u_free`` no
+  reading can be told from a still axis: the jump of the reading when the
+  encoder recovers, the tracking watchdog or the push catches it.
 * Tracking-error watchdog: an accepted |y - q_d| > ``e_max`` latches
   :data:`FAULT_TRACKING`.
 * The adaptation is frozen in a rejected sample and, with
@@ -294,8 +331,21 @@ class ArcGains:
         Runtime guard: no adaptation in a sample whose command is at ``+-u_max``.
         The adaptation is always frozen while y is rejected.
 
-    The five runtime guards default to "off", which is the law as it was
-    before they existed bit for bit; ``commission validate`` sets them
+    accel_max : float
+        Runtime guard: largest plausible acceleration of the axis, m/s^2, in the
+        innovation bound of the measurement prediction (``math.inf``: no such check).
+    y_err : float
+        Runtime guard: largest error of one reading (half an encoder step, noise), m;
+        also the half-width of a "still" reading for the frozen-encoder guard (>= 0).
+    n_frozen_max : float
+        Runtime guard: evidence of still readings while the axis must move that latches
+        the frozen-encoder fault (>= 1; ``math.inf``: never).
+    u_free : float
+        Runtime guard: the largest command that may leave the axis at rest, u-unit; a
+        larger one pushes it (0: unknown, no push counts as evidence).
+
+    The runtime guards default to "off", which is the law as it was before
+    they existed bit for bit; ``commission validate`` sets them
     (:func:`commission.validate.runtime_guards`) and simulates with them.
     """
 
@@ -691,7 +741,8 @@ def arc_step(p, s, y, qd, dqd, ddqd):
         # frozen encoder: a reading that stays put while the axis must move counts -- 1 when the
         # prediction says it moved (y rejected), sqrt(w) when the command held over the last
         # period pushed w = (|u| - u_free)/(u_max - u_free) of the rail's push beyond the forces
-        # that may hold the axis (1 at the rail; the time to move a given distance goes as 1/sqrt(a))
+        # that may hold the axis (1 at the rail; the time to move a given distance goes as 1/sqrt(a));
+        # u_free = 0 (unknown) leaves the push out
         if abs(y - s[S_YSTILL]) > 2.0 * p[P_Y_ERR]:
             s[S_YSTILL] = y
             s[S_NSTILL] = 0.0
@@ -699,7 +750,7 @@ def arc_step(p, s, y, qd, dqd, ddqd):
             w = 0.0
             if rejected != 0.0:
                 w = 1.0
-            elif p[P_UMAX] > p[P_U_FREE] and abs(s[S_U]) > p[P_U_FREE]:
+            elif p[P_U_FREE] > 0.0 and p[P_UMAX] > p[P_U_FREE] and abs(s[S_U]) > p[P_U_FREE]:
                 w = (abs(s[S_U]) - p[P_U_FREE]) / (p[P_UMAX] - p[P_U_FREE])
                 if w > 1.0:
                     w = 1.0
