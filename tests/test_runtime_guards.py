@@ -123,6 +123,27 @@ def test_guards_chosen_from_envelope_and_gate(axis):
     assert g.n_frozen_max == 3.0  # the minimum: a 1 um encoder sees the push of the rail within 1 sample
 
 
+def test_validate_records_the_new_guards_from_the_tuning():
+    """runtime_guards on a tuning.json: the innovation and frozen-encoder limits come from its envelope,
+    encoder, box and identified forces, and controller.json carries them."""
+    from pathlib import Path
+
+    from commission.tuning import Tuning
+    from commission.validate import runtime_guards
+
+    tuning = Tuning.load(str(Path(__file__).parent / "data" / "tuning_paper_budget8.json"))
+    spec = tuning.spec
+    limits = resolve_gate(GateSpec(), lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max)
+    gd = runtime_guards(tuning, limits)
+    assert gd["accel_max"] == 3 * envelope_acceleration(spec, tuning.arc.Ts)
+    assert gd["y_err"] == 0.5 * tuning.quantization
+    assert gd["u_free"] == holding_force(tuning.identification, tuning.plant) and 0 < gd["u_free"] < spec.u_max
+    assert gd["n_frozen_max"] >= 3 and gd["n_frozen_max"] == int(gd["n_frozen_max"])
+    doc = controller(deployable_gains(tuning.arc, gd)).config.to_dict()
+    assert {k: doc["runtime"][k] for k in ("accel_max", "y_err", "n_frozen_max", "u_free")} == \
+        {k: gd[k] for k in ("accel_max", "y_err", "n_frozen_max", "u_free")}
+
+
 @pytest.mark.parametrize("case", ["case1", "case2"])
 def test_guards_never_act_in_a_normal_run(axis, case):
     traj = axis["trajs"][case]
