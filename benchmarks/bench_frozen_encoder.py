@@ -25,9 +25,10 @@ event on, samples from the event's first sample to the one whose step latched
 the fault and returned 0 (``-``: none), the readings rejected before it, the
 fault's reason, and the true plant at the fault -- position error q - q_d and speed
 -- and after it, with the drive at the safe command 0 until the axis stops:
-its peak speed and the distance it coasts.  ``ideal coast`` is the distance
-the axis would coast had the drive been disabled at the event's first sample
-(the least any detector can do).  The same cases run once more with the
+the peak of |q - q_d(t_fault)| (the motion is aborted at the fault: how far
+the axis ends up from where it was meant to be then) and the peak speed.
+``ideal e`` is that peak had the drive been disabled at the event's first
+sample, from the true state there (the least any detector can do).  The same cases run once more with the
 controller's runtime section as it was before issue 29 (the innovation and
 frozen-encoder guards off), for comparison.
 
@@ -96,27 +97,29 @@ def figures(r: dict, traj, k0: int, u_max: float) -> dict:
     out = dict(rail=rail, to_fault=None if kf is None else kf - k0,
                reason=A.FAULT_REASONS[int(r["fault"][-1])],
                rejected=int(np.sum(r["rejected"][k0:n if kf is None else kf] != 0)),
-               e_f=math.nan, v_f=math.nan, v_peak=math.nan, coast=math.nan)
+               e_f=math.nan, v_f=math.nan, v_peak=math.nan, e_peak=math.nan)
     if kf is not None:
         q, v = r["q"], r["v"]
         stop = kf + int(np.argmax(np.abs(v[kf:]) == 0.0)) if np.any(v[kf:] == 0.0) else n - 1
         out.update(e_f=q[kf] - traj.qd[kf], v_f=v[kf], v_peak=float(np.max(np.abs(v[kf:stop + 1]))),
-                   coast=abs(q[stop] - q[kf]))
+                   e_peak=float(np.max(np.abs(q[kf:stop + 1] - traj.qd[kf]))))
     return out
 
 
-def ideal_coast(plant: np.ndarray, r: dict, k0: int, Ts: float) -> float:
-    """Distance the axis coasts from its state at sample ``k0`` with the command 0 from then on."""
+def ideal_excursion(plant: np.ndarray, r: dict, traj, k0: int) -> float:
+    """Peak |q - q_d(k0)| had the drive been disabled at sample ``k0`` (command 0 from its true state on)."""
+    Ts = traj.Ts
     st = np.empty(NX)
     plant_start(plant, st, r["q"][k0])
     st[V_MOTOR] = r["v"][k0]
     st[2], st[3] = st[0], st[1]
-    x0 = st[0]
+    peak = abs(st[0] - traj.qd[k0])
     for _ in range(int(AFTER / Ts)):
         plant_step(plant, st, 0.0, Ts / 10, 10)
+        peak = max(peak, abs(st[0] - traj.qd[k0]))
         if st[V_MOTOR] == 0.0:
             break
-    return abs(st[0] - x0)
+    return peak
 
 
 def main(argv: list[str]) -> None:
@@ -172,14 +175,18 @@ def main(argv: list[str]) -> None:
                                                                    "(runtime section before issue 29)", old)):
         print(f"\n{label}")
         print(f"{'case':34s} {'rail':>4s} {'to fault':>8s} {'rejected':>8s} {'e at fault':>11s} {'v at fault':>10s} "
-              f"{'v peak':>7s} {'coast':>8s} {'ideal':>8s}  reason")
+              f"{'e peak':>8s} {'v peak':>7s} {'ideal e':>8s}  reason")
         for name, sensor, k0 in cases:
             r = closed_loop(gains, plant, traj, quant, sensor, k_end)
             f = figures(r, traj, k0, g.u_max)
-            ideal = ideal_coast(plant, r, k0, Ts) if name.startswith("frozen") else math.nan
+            ideal = ideal_excursion(plant, r, traj, k0) if name.startswith("frozen") else math.nan
             tf = "-" if f["to_fault"] is None else str(f["to_fault"])
+            if f["to_fault"] is None:
+                print(f"{name:34s} {f['rail']:4d} {tf:>8s} {f['rejected']:8d} {'-':>11s} {'-':>10s} {'-':>8s} {'-':>7s} "
+                      f"{'-':>8s}  {f['reason']}")
+                continue
             print(f"{name:34s} {f['rail']:4d} {tf:>8s} {f['rejected']:8d} {f['e_f'] * 1e3:8.3f} mm {f['v_f']:6.3f} m/s "
-                  f"{f['v_peak']:7.3f} {f['coast'] * 1e3:5.1f} mm {ideal * 1e3:5.1f} mm  {f['reason']}")
+                  f"{f['e_peak'] * 1e3:5.1f} mm {f['v_peak']:7.3f} {ideal * 1e3:5.1f} mm  {f['reason']}")
         worst, smallest = (0, 0.0), math.inf
         for amp in np.geomspace(2e-6, 1e-3, 40):
             for sign in (1.0, -1.0):
