@@ -120,8 +120,7 @@ RUNTIME_FIELDS = RUNTIME_GUARDS
 #: load, each absent one off (ArcGains' default), so that older files load and keep their checksum.
 RUNTIME_ADDED = ("accel_max", "y_err", "n_frozen_max", "u_free")
 #: May be null (infinite): a robust term switched off, a runtime guard off.
-_INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max", "accel_max",
-           "n_frozen_max")
+_INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max")
 #: Limits that must be finite in a controller.json (null refused unless ``allow_unbounded``).
 LIMITS = ("u_max", "k1s_max", "k2s_max")
 _VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
