@@ -128,8 +128,8 @@ def main(argv: list[str]) -> None:
     else:
         run_dir = Path(tempfile.mkdtemp(prefix="bench-frozen-")) / "run"
         print(f"running: commission run {SAMPLE.name} --out-dir {run_dir}", flush=True)
-        subprocess.run([sys.executable, "-m", "commission.cli.main", "run", str(SAMPLE), "--out-dir", str(run_dir)],
-                       check=True, capture_output=True)
+        subprocess.run([sys.executable, "-c", "from commission.cli.main import main; main()", "run", str(SAMPLE),
+                        "--out-dir", str(run_dir)], check=True, capture_output=True)
     cfg = ControllerConfig.load(str(run_dir / "controller.json"))
     tuning = Tuning.load(str(run_dir / "tuning.json"))
     g = cfg.gains
