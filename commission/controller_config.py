@@ -24,8 +24,9 @@ validated against and where it came from::
     runtime            OPTIONAL (absent: every guard off): the runtime guards of the
                        compiled step (:mod:`commission.controllers.arc`, "Runtime guards"):
                        dy_max (m), dy_fault (m), n_reject_max (count), e_max (m),
-                       freeze_on_saturation (bool); written by validate, which
-                       simulated with exactly these
+                       freeze_on_saturation (bool); optional accel_max (m/s^2), y_err (m),
+                       n_frozen_max (count), u_free (u-unit) (absent: off); written by
+                       validate, which simulated with exactly these
     validated          what validate checked: the resolved gate, the worst value of
                        each criterion with its scenario, the ARC's indexes on the
                        identified plant (nominal, per trajectory), scenario count, seed
@@ -117,6 +118,9 @@ SECTIONS: dict[str, tuple[str, ...]] = {
 _FRICTION = {"level": "fric_level", "slope": "fric_slope"}
 #: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
 RUNTIME_FIELDS = RUNTIME_GUARDS
+#: Runtime keys added after the section existed (frozen-encoder and innovation guards): optional on
+#: load, each absent one off (ArcGains' default), so that older files load and keep their checksum.
+RUNTIME_ADDED = ("accel_max", "y_err", "n_frozen_max", "u_free")
 #: May be null (infinite): a robust term switched off, a runtime guard off.
 _INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max")
 #: Limits that must be finite in a controller.json (null refused unless ``allow_unbounded``).
@@ -211,7 +215,10 @@ class ControllerConfig:
         if any(getattr(g, n) != f.default for n, f in _RUNTIME_DEFAULTS.items()):
             # only when set, so that a file written before the guards existed keeps its checksum
             doc["runtime"] = {n: (bool(getattr(g, n)) if n == "freeze_on_saturation" else _out(getattr(g, n)))
-                              for n in RUNTIME_FIELDS}
+                              for n in RUNTIME_FIELDS if n not in RUNTIME_ADDED}
+            if any(getattr(g, n) != _RUNTIME_DEFAULTS[n].default for n in RUNTIME_ADDED):
+                # the guards added later (issue 29) likewise: a file without them keeps its checksum
+                doc["runtime"].update({n: _out(getattr(g, n)) for n in RUNTIME_ADDED})
         doc["validated"] = dict(self.validated)
         doc["provenance"] = self.provenance.to_dict()
         return doc
@@ -305,6 +312,8 @@ class ControllerConfig:
                 if k not in RUNTIME_FIELDS:
                     raise rr.fail("unknown field", f"{rr.path}.{k}")
             for n in RUNTIME_FIELDS:
+                if n in RUNTIME_ADDED and not rr.has(n):
+                    continue  # optional: absent keeps ArcGains' default (that guard off)
                 if n == "freeze_on_saturation":
                     kw[n] = rr.bool_(n)
                 elif rr.child(n).data is None:

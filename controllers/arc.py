@@ -52,12 +52,49 @@ Checked at the top of each sample, before anything is updated, each one
 switched off by its default (``inf``, ``False``), which leaves the law above
 unchanged bit for bit:
 
-* Measurement plausibility: a y farther than ``dy_max (1 + r)`` from the last
-  accepted measurement (r the samples rejected since) is a glitch.  The sample
-  then runs on the prediction y = q_d + e_good (the tracking error of the last
-  accepted sample held), and ``n_reject_max`` rejections in a row latch
-  :data:`FAULT_GLITCH_RUN`.  A y farther than ``dy_fault`` latches
-  :data:`FAULT_JUMP` at once.
+* Measurement plausibility: with n = 1 + r samples since the last accepted
+  measurement y_good (r the samples rejected since), y is predicted as
+  y_good + v n Ts, v being the velocity of the accepted pair *before* the last
+  one.  A y is implausible (a glitch) when it is farther than ``dy_max n``
+  from y_good (a speed beyond the envelope's) or when its innovation
+  y - y_pred exceeds::
+
+      b(n) = Ts^2 n (n + 3)/2 (accel_max + theta_max1 du (n + 3)/2) + y_err (2 + 2 n)
+
+  what an acceleration up to ``accel_max`` (the validated envelope's, with a
+  margin), the drive's own command steps (du the largest |u_k - u_k-1| of the
+  last three samples, on the lightest plant of the box: theta_max1 = 1/M_min)
+  and a reading error up to ``y_err`` per measurement can explain.  For n = 1
+  the innovation is the change of the increments y_k - y_k-1 - (y_k-2 - y_k-3),
+  Ts^2 times the accelerations of three periods, each weighted <= 1 and 2 in
+  all; the command term covers the part of them that follows the command's
+  steps in the window, the acceleration before it being the envelope's.  The delayed velocity is what makes the check robust: a
+  glitch g among the accepted readings moves the next three innovations by
+  -g, -g, +g, never more than the glitch itself, so the good readings after a
+  glitch that passed are accepted too; a glitch that is rejected leaves the
+  prediction on the readings before it.  A rejected sample runs on the
+  prediction y = q_d + e_good (the tracking error of the last accepted sample
+  held), and ``n_reject_max`` rejections in a row latch :data:`FAULT_GLITCH_RUN`.
+  A y farther than ``dy_fault`` latches :data:`FAULT_JUMP` at once.
+* Frozen encoder: a still run is a run of readings within 2 ``y_err`` of the
+  one it started with.  Each of its samples adds evidence that the axis must
+  have moved: 1 when the reading was rejected (the prediction moved away from
+  it), sqrt(w) when the command held over the last period pushed a fraction
+  w = (|u| - u_free)/(u_max - u_free) <= 1 of the rail's push beyond
+  ``u_free``, the largest command that may leave the axis at rest (friction,
+  constant and disturbance forces).  Evidence ``n_frozen_max`` latches
+  :data:`FAULT_FROZEN`; a still sample without either (a still axis, held)
+  clears it.  A constant acceleration a spreads the positions over at least
+  a T^2/8 in a time T whatever the initial speed, and a push of w takes
+  1/sqrt(w) as long as the rail's to spread them as far, hence the square root
+  (validate sizes ``n_frozen_max`` on the rail's push).  A frozen encoder thus
+  latches the fault within ``n_frozen_max`` samples once the command is at the
+  rail, and within ``n_frozen_max`` samples of freezing while the axis moves
+  faster than about accel_max Ts (n_frozen_max + 3)/2 (each reading rejected,
+  the law running on the prediction, no sample at the rail).
+  With the axis at rest and a command that stays below ``u_free`` no
+  reading can be told from a still axis: the jump of the reading when the
+  encoder recovers, the tracking watchdog or the push catches it.
 * Tracking-error watchdog: an accepted |y - q_d| > ``e_max`` latches
   :data:`FAULT_TRACKING`.
 * The adaptation is frozen in a rejected sample and, with
@@ -157,7 +194,11 @@ P_DY_FAULT = 56  # a jump |y_k - y_good| beyond this latches a fault at once, m 
 P_NREJ_MAX = 57  # this many rejected samples in a row latch a fault (inf: never)
 P_E_MAX = 58  # tracking-error watchdog on the accepted |y - q_d|, m (inf: none)
 P_FREEZE_SAT = 59  # 1: no adaptation in a sample whose command is saturated at u_max (0: adapt)
-NP = 60
+P_A_MAX = 60  # largest plausible acceleration of the axis, m/s^2 (inf: no innovation check)
+P_Y_ERR = 61  # largest error of one measurement (rounding + noise), m (0: exact readings)
+P_NFRZ_MAX = 62  # still samples in a row that must have moved (weighted) that latch a fault (inf: never)
+P_U_FREE = 63  # largest command that may leave the axis at rest (friction, offsets, loads), u-unit
+NP = 64
 
 #: Bound on R Ts, R = K2 - theta_hat1 d(alpha1)/dy the rate of the sampled v-loop
 #: (module docstring); applied whenever ``k2s_max`` is finite.
@@ -185,7 +226,14 @@ S_EGOOD = 23  # y - q_d at the last accepted measurement, m
 S_NREJ = 24  # measurements rejected in a row
 S_REJECTED = 25  # 1 when this sample's y was rejected (a glitch) and replaced by q_d + S_EGOOD
 S_FROZEN = 26  # 1 when the adaptation was frozen in this sample (y rejected, or command saturated)
-NS = 27
+S_VLAST = 27  # velocity of the last accepted pair of measurements, m/s
+S_VPREV = 28  # velocity of the accepted pair before the last one, m/s: what the prediction uses
+S_YSTILL = 29  # raw measurement at the start of the current still run, m
+S_NSTILL = 30  # evidence of the still run that the axis must have moved: 1 per rejected y, <= 1 per push
+S_DU = 31  # |u_k - u_k-1| of the last three commands (3), most recent first, u-unit
+S_INNOV = 34  # innovation y - y_pred of this sample's raw measurement, m (logged)
+S_BOUND = 35  # the innovation bound it was held to, m (logged)
+NS = 36
 
 # Fault reason codes held in s[S_FAULT] (0: no fault); latched until arc_reset.
 FAULT_NONE = 0
@@ -193,6 +241,7 @@ FAULT_NONFINITE = 1  # an input (y, q_d, dq_d, ddq_d) or an intermediate value (
 FAULT_JUMP = 2  # one measurement jumped farther than dy_fault from the last accepted one
 FAULT_GLITCH_RUN = 3  # n_reject_max measurements in a row were implausible
 FAULT_TRACKING = 4  # the accepted tracking error |y - q_d| exceeded e_max
+FAULT_FROZEN = 5  # n_frozen_max still measurements in a row while the command was at u_max or y was implausible
 #: Reason code -> name (the runtime's ``fault_reason``).
 FAULT_REASONS = {
     FAULT_NONE: "none",
@@ -200,6 +249,7 @@ FAULT_REASONS = {
     FAULT_JUMP: "measurement jump beyond dy_fault",
     FAULT_GLITCH_RUN: "n_reject_max implausible measurements in a row",
     FAULT_TRACKING: "tracking error beyond e_max",
+    FAULT_FROZEN: "measurement frozen while the command is at u_max or the axis must move",
 }
 #: The entries of s that carry the controller's dynamics from one sample to the next
 #: (the others are flags or values logged for the caller); what a linearisation perturbs.
@@ -208,7 +258,8 @@ S_DYNAMIC = (S_ETA, S_ETA + 1, S_LAMBDA, S_LAMBDA + 1, S_PSI, S_PSI + 1, S_THETA
 
 
 #: ArcGains fields of the runtime guards (optional everywhere: absent = off).
-RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation")
+RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_saturation",
+                  "accel_max", "y_err", "n_frozen_max", "u_free")
 
 
 def _vec3(name: str, v) -> tuple[float, float, float]:
@@ -280,8 +331,21 @@ class ArcGains:
         Runtime guard: no adaptation in a sample whose command is at ``+-u_max``.
         The adaptation is always frozen while y is rejected.
 
-    The five runtime guards default to "off", which is the law as it was
-    before they existed bit for bit; ``commission validate`` sets them
+    accel_max : float
+        Runtime guard: largest plausible acceleration of the axis, m/s^2, in the
+        innovation bound of the measurement prediction (``math.inf``: no such check).
+    y_err : float
+        Runtime guard: largest error of one reading (half an encoder step, noise), m;
+        also the half-width of a "still" reading for the frozen-encoder guard (>= 0).
+    n_frozen_max : float
+        Runtime guard: evidence of still readings while the axis must move that latches
+        the frozen-encoder fault (>= 1; ``math.inf``: never).
+    u_free : float
+        Runtime guard: the largest command that may leave the axis at rest, u-unit; a
+        larger one pushes it (0: unknown, no push counts as evidence).
+
+    The runtime guards default to "off", which is the law as it was before
+    they existed bit for bit; ``commission validate`` sets them
     (:func:`commission.validate.runtime_guards`) and simulates with them.
     """
 
@@ -313,6 +377,10 @@ class ArcGains:
     n_reject_max: float = math.inf
     e_max: float = math.inf
     freeze_on_saturation: bool = False
+    accel_max: float = math.inf
+    y_err: float = 0.0
+    n_frozen_max: float = math.inf
+    u_free: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0"):
@@ -335,9 +403,16 @@ class ArcGains:
             val = getattr(self, name)
             if not val > 0 or math.isnan(val):
                 raise ArcGainsError(f"ArcGains.{name}: must be > 0 m (inf allowed), got {val}")
-        n = self.n_reject_max
-        if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
-            raise ArcGainsError(f"ArcGains.n_reject_max: must be an integer >= 1 (inf allowed), got {n}")
+        if not self.accel_max > 0 or math.isnan(self.accel_max):
+            raise ArcGainsError(f"ArcGains.accel_max: must be > 0 m/s^2 (inf allowed), got {self.accel_max}")
+        for name in ("y_err", "u_free"):
+            val = getattr(self, name)
+            if not (math.isfinite(val) and val >= 0):
+                raise ArcGainsError(f"ArcGains.{name}: must be finite and >= 0, got {val}")
+        for name in ("n_reject_max", "n_frozen_max"):
+            n = getattr(self, name)
+            if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
+                raise ArcGainsError(f"ArcGains.{name}: must be an integer >= 1 (inf allowed), got {n}")
         if not isinstance(self.freeze_on_saturation, bool):
             raise ArcGainsError(f"ArcGains.freeze_on_saturation: must be a bool, got {self.freeze_on_saturation!r}")
         for name, floor in (("k1s_max", "g1"), ("k2s_max", "g2")):
@@ -430,6 +505,7 @@ def arc_pack(g: ArcGains) -> np.ndarray:
     p[P_BD1:P_BD1 + 2] = Bd1
     p[P_DY_MAX], p[P_DY_FAULT], p[P_NREJ_MAX], p[P_E_MAX] = g.dy_max, g.dy_fault, g.n_reject_max, g.e_max
     p[P_FREEZE_SAT] = 1.0 if g.freeze_on_saturation else 0.0
+    p[P_A_MAX], p[P_Y_ERR], p[P_NFRZ_MAX], p[P_U_FREE] = g.accel_max, g.y_err, g.n_frozen_max, g.u_free
     return p
 
 
@@ -479,6 +555,7 @@ def arc_reset(p, s, y0):
         s[S_THETA + i] = p[P_THETA0 + i]
     s[S_YPREV] = y0
     s[S_YGOOD] = y0
+    s[S_YSTILL] = y0
     s[S_XHAT] = y0
     s[S_XHAT + 1] = p[P_THETA0 + 1] * y0
 
@@ -629,21 +706,66 @@ def arc_step(p, s, y, qd, dqd, ddqd):
         return 0.0
     if not (math.isfinite(y) and math.isfinite(qd) and math.isfinite(dqd) and math.isfinite(ddqd)):
         return _fault(s, 1.0)
-    # --- runtime guards: measurement plausibility, then the tracking-error watchdog
+    # --- runtime guards: measurement plausibility, frozen encoder, then the tracking-error watchdog
     rejected = 0.0
     if s[S_PRIMED] != 0.0:
         jump = abs(y - s[S_YGOOD])
         if jump > p[P_DY_FAULT]:
             return _fault(s, 2.0)
-        if jump > p[P_DY_MAX] * (1.0 + s[S_NREJ]):
-            s[S_NREJ] = s[S_NREJ] + 1.0
-            if s[S_NREJ] >= p[P_NREJ_MAX]:
-                return _fault(s, 3.0)
-            # a glitch: go on with the prediction "the tracking error is what it last was"
-            y = qd + s[S_EGOOD]
+        # samples since the last accepted measurement, and the prediction from it with the
+        # velocity of the pair before (a glitch among the last accepted cannot bend it)
+        n = 1.0 + s[S_NREJ]
+        innov = y - (s[S_YGOOD] + s[S_VPREV] * p[P_TS] * n)
+        # what the envelope's acceleration, the drive's own recent command steps (on the
+        # lightest plant of the box) and the reading errors can explain
+        du = s[S_DU]
+        if s[S_DU + 1] > du:
+            du = s[S_DU + 1]
+        if s[S_DU + 2] > du:
+            du = s[S_DU + 2]
+        bound = (p[P_TS] * p[P_TS] * (n * (n + 3.0) / 2.0) * (p[P_A_MAX] + p[P_TMAX] * du * ((n + 3.0) / 2.0))
+                 + p[P_Y_ERR] * (2.0 + 2.0 * n))
+        s[S_INNOV] = innov
+        s[S_BOUND] = bound
+        if jump > p[P_DY_MAX] * n or abs(innov) > bound:
+            s[S_NREJ] = n
             rejected = 1.0
         else:
             s[S_NREJ] = 0.0
+            v = (y - s[S_YGOOD]) / (p[P_TS] * n)
+            if n == 1.0:
+                s[S_VPREV] = s[S_VLAST]
+            else:
+                s[S_VPREV] = v
+            s[S_VLAST] = v
+        # frozen encoder: a reading that stays put while the axis must move counts -- 1 when the
+        # prediction says it moved (y rejected), sqrt(w) when the command held over the last
+        # period pushed w = (|u| - u_free)/(u_max - u_free) of the rail's push beyond the forces
+        # that may hold the axis (1 at the rail; the time to move a given distance goes as 1/sqrt(a));
+        # u_free = 0 (unknown) leaves the push out
+        if abs(y - s[S_YSTILL]) > 2.0 * p[P_Y_ERR]:
+            s[S_YSTILL] = y
+            s[S_NSTILL] = 0.0
+        else:
+            w = 0.0
+            if rejected != 0.0:
+                w = 1.0
+            elif p[P_U_FREE] > 0.0 and p[P_UMAX] > p[P_U_FREE] and abs(s[S_U]) > p[P_U_FREE]:
+                w = (abs(s[S_U]) - p[P_U_FREE]) / (p[P_UMAX] - p[P_U_FREE])
+                if w > 1.0:
+                    w = 1.0
+                w = math.sqrt(w)
+            if w > 0.0:
+                s[S_NSTILL] = s[S_NSTILL] + w
+                if s[S_NSTILL] >= p[P_NFRZ_MAX]:
+                    return _fault(s, 5.0)
+            else:
+                s[S_NSTILL] = 0.0
+        if s[S_NREJ] >= p[P_NREJ_MAX]:
+            return _fault(s, 3.0)
+        if rejected != 0.0:
+            # an implausible y: go on with the prediction "the tracking error is what it last was"
+            y = qd + s[S_EGOOD]
     if rejected == 0.0:
         s[S_YGOOD] = y
         s[S_EGOOD] = y - qd
@@ -783,6 +905,9 @@ def arc_step(p, s, y, qd, dqd, ddqd):
     s[S_K1] = K1
     s[S_K2] = K2
     s[S_USTAR] = ustar
+    s[S_DU + 2] = s[S_DU + 1]
+    s[S_DU + 1] = s[S_DU]
+    s[S_DU] = abs(u - s[S_U])
     s[S_U] = u
     return u
 

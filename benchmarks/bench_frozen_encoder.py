@@ -1,0 +1,205 @@
+"""Frozen and implausible encoder readings on the sample's controller (issue 29, item 6 and must-show 4).
+
+The controller is the one ``commission run sample_data/axis_excitation.h5``
+emits (controller.json, runtime guards included); the plant is the
+*identified* plant of its tuning.json (:func:`commission.scenarios.identified_plant`,
+the model validate simulates; not ``sample_data/truth.json``), run with the
+validated encoder step and ``plant_substeps`` sub-steps per sample, like
+``validate``'s simulator.  The desired motion is Case 2 (moves of the whole
+stroke at v_max, a_max).  Each case corrupts the measurement the compiled
+step receives (the same ``arc_step`` the runtime and the exported C run):
+
+* ``frozen 20 ms @ 1 m/s``: the encoder repeats its last reading for 20 ms
+  during the first move's cruise at v_max (must-show 4);
+* ``frozen 20 ms @ start``: frozen from 2 ms before the first move starts
+  (the axis at rest: the prediction says "still", so only the command at
+  the rail can tell);
+* ``frozen 20 ms @ accel``: frozen half way through the first acceleration;
+* one-sample glitches in the cruise: 0.3 mm, +-0.79 mm, 1 mm, and a glitch of
+  0.9 x the innovation bound the step held that sample to (accepted by design);
+* a sweep of one-sample glitches from 2 um to 1 mm, both signs: the most
+  samples at the rail any of them costs.
+
+For each case the figures are: samples at the rail (|u| >= u_max) from the
+event on, samples from the event's first sample to the one whose step latched
+the fault and returned 0 (``-``: none), the readings rejected before it, the
+fault's reason, and the true plant at the fault -- position error q - q_d and speed
+-- and after it, with the drive at the safe command 0 until the axis stops:
+the peak of |q - q_d(t_fault)| (the motion is aborted at the fault: how far
+the axis ends up from where it was meant to be then) and the peak speed.
+``ideal e`` is that peak had the drive been disabled at the event's first
+sample, from the true state there (the least any detector can do).  The same cases run once more with the
+controller's runtime section as it was before issue 29 (the innovation and
+frozen-encoder guards off), for comparison.
+
+Run: ``python benchmarks/bench_frozen_encoder.py [RUN_DIR]`` with RUN_DIR a
+``commission run`` output folder (controller.json, tuning.json); without it the
+sample is run once into a temporary folder (about a minute).  Prints figures;
+asserts nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from commission.controller_config import ControllerConfig
+from commission.controllers import arc as A
+from commission.controllers.plant import NX, P_DELAY, V_MOTOR, plant_output, plant_start, plant_step
+from commission.scenarios import case2_trajectory, identified_plant, plant_substeps
+from commission.tuning import Tuning
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"
+FREEZE = 0.02  # s
+AFTER = 0.6  # s simulated after the event (the axis coasts to rest well within it)
+
+
+def _quantize(x: float, q: float) -> float:
+    return q * math.floor(x / q + 0.5) if q > 0 else x
+
+
+def closed_loop(g: A.ArcGains, plant: np.ndarray, traj, quant: float, sensor, k_end: int) -> dict:
+    """The validated loop (ZOH command, exact plant sub-steps, encoder rounding) with ``sensor(k, y)``
+    between the encoder and the step; delay-free plants only (the sample's)."""
+    assert plant[P_DELAY] == 0.0, "this harness models a delay-free plant"
+    p = A.arc_pack(g)
+    s = A.arc_new_state(p)
+    st = np.empty(NX)
+    plant_start(plant, st, traj.qd[0])
+    Ts = traj.Ts
+    sub = plant_substeps(1.0 / Ts)
+    A.arc_reset(p, s, _quantize(plant_output(plant, st), quant))
+    out = {k: np.zeros(k_end) for k in ("y", "q", "v", "u", "fault", "rejected", "bound")}
+    for k in range(k_end):
+        x = plant_output(plant, st)
+        y = sensor(k, _quantize(x, quant))
+        u = A.arc_step(p, s, y, traj.qd[k], traj.dqd[k], traj.ddqd[k])
+        u = min(max(u, -g.u_max), g.u_max)
+        out["y"][k], out["q"][k], out["v"][k], out["u"][k] = y, x, st[V_MOTOR], u
+        out["fault"][k], out["rejected"][k], out["bound"][k] = s[A.S_FAULT], s[A.S_REJECTED], s[A.S_BOUND]
+        plant_step(plant, st, u, Ts / sub, sub)
+    return out
+
+
+def figures(r: dict, traj, k0: int, u_max: float) -> dict:
+    """Rail samples, samples to fault, and the true excursion for an event starting at sample ``k0``."""
+    n = r["u"].shape[0]
+    rail = int(np.sum(np.abs(r["u"][k0:]) >= u_max))
+    faulted = np.nonzero(r["fault"][k0:] != 0)[0]
+    kf = k0 + int(faulted[0]) if faulted.size else None
+    out = dict(rail=rail, to_fault=None if kf is None else kf - k0,
+               reason=A.FAULT_REASONS[int(r["fault"][-1])],
+               rejected=int(np.sum(r["rejected"][k0:n if kf is None else kf] != 0)),
+               e_f=math.nan, v_f=math.nan, v_peak=math.nan, e_peak=math.nan)
+    if kf is not None:
+        q, v = r["q"], r["v"]
+        stop = kf + int(np.argmax(np.abs(v[kf:]) == 0.0)) if np.any(v[kf:] == 0.0) else n - 1
+        out.update(e_f=q[kf] - traj.qd[kf], v_f=v[kf], v_peak=float(np.max(np.abs(v[kf:stop + 1]))),
+                   e_peak=float(np.max(np.abs(q[kf:stop + 1] - traj.qd[kf]))))
+    return out
+
+
+def ideal_excursion(plant: np.ndarray, r: dict, traj, k0: int) -> float:
+    """Peak |q - q_d(k0)| had the drive been disabled at sample ``k0`` (command 0 from its true state on)."""
+    Ts = traj.Ts
+    st = np.empty(NX)
+    plant_start(plant, st, r["q"][k0])
+    st[V_MOTOR] = r["v"][k0]
+    st[2], st[3] = st[0], st[1]
+    peak = abs(st[0] - traj.qd[k0])
+    for _ in range(int(AFTER / Ts)):
+        plant_step(plant, st, 0.0, Ts / 10, 10)
+        peak = max(peak, abs(st[0] - traj.qd[k0]))
+        if st[V_MOTOR] == 0.0:
+            break
+    return peak
+
+
+def main(argv: list[str]) -> None:
+    if argv:
+        run_dir = Path(argv[0])
+    else:
+        run_dir = Path(tempfile.mkdtemp(prefix="bench-frozen-")) / "run"
+        print(f"running: commission run {SAMPLE.name} --out-dir {run_dir}", flush=True)
+        subprocess.run([sys.executable, "-c", "from commission.cli.main import main; main()", "run", str(SAMPLE),
+                        "--out-dir", str(run_dir)], check=True, capture_output=True)
+    cfg = ControllerConfig.load(str(run_dir / "controller.json"))
+    tuning = Tuning.load(str(run_dir / "tuning.json"))
+    g = cfg.gains
+    plant = identified_plant(tuning.identification, tuning.spec)
+    quant = tuning.quantization
+    traj = case2_trajectory(tuning.spec).render(g.Ts, 0.0)
+    Ts, v_max = g.Ts, tuning.spec.v_max
+    k_move = int(np.argmax(np.abs(traj.dqd) > 0.0))
+    k_cruise = int(np.argmax(np.abs(traj.dqd) >= 0.999 * v_max)) + 50
+    k_accel = k_move + int(np.argmax(np.abs(traj.dqd[k_move:]) >= 0.5 * v_max))
+    k_end = k_cruise + int(round((FREEZE + AFTER) / Ts))
+    nf = int(round(FREEZE / Ts))
+    print(f"controller: {run_dir / 'controller.json'} (Ts = {Ts * 1e3:.3f} ms, u_max = {g.u_max:g}); plant: the "
+          f"identified plant of tuning.json; encoder step {quant * 1e6:g} um; Case 2 at v_max = {v_max:g} m/s")
+    print("runtime guards: " + ", ".join(f"{n} = {getattr(g, n):.6g}" for n in A.RUNTIME_GUARDS))
+    clean = closed_loop(g, plant, traj, quant, lambda k, y: y, k_end)
+    b = float(clean["bound"][k_cruise])
+    print(f"innovation bound at the cruise sample: {b * 1e6:.2f} um")
+
+    def frozen(k0):
+        held = {}
+
+        def sensor(k, y):
+            if k == k0 - 1:
+                held["y"] = y
+            return held["y"] if k0 <= k < k0 + nf else y
+        return sensor
+
+    def glitch(k0, amp):
+        return lambda k, y: y + amp if k == k0 else y
+
+    cases = [("frozen 20 ms @ 1 m/s", frozen(k_cruise), k_cruise),
+             ("frozen 20 ms @ start", frozen(k_move - 5), k_move - 5),
+             ("frozen 20 ms @ accel", frozen(k_accel), k_accel),
+             ("glitch +0.3 mm", glitch(k_cruise, 0.3e-3), k_cruise),
+             ("glitch +0.79 mm", glitch(k_cruise, 0.79e-3), k_cruise),
+             ("glitch -0.79 mm", glitch(k_cruise, -0.79e-3), k_cruise),
+             ("glitch +1 mm", glitch(k_cruise, 1e-3), k_cruise),
+             (f"glitch +0.9 bound ({0.9 * b * 1e6:.1f} um)", glitch(k_cruise, 0.9 * b), k_cruise),
+             (f"glitch -0.9 bound ({0.9 * b * 1e6:.1f} um)", glitch(k_cruise, -0.9 * b), k_cruise)]
+    old = dataclasses.replace(g, accel_max=math.inf, y_err=0.0, n_frozen_max=math.inf)
+    for label, gains in (("with the guards of this version", g), ("without the innovation and frozen guards "
+                                                                   "(runtime section before issue 29)", old)):
+        print(f"\n{label}")
+        print(f"{'case':34s} {'rail':>4s} {'to fault':>8s} {'rejected':>8s} {'e at fault':>11s} {'v at fault':>10s} "
+              f"{'e peak':>8s} {'v peak':>7s} {'ideal e':>8s}  reason")
+        for name, sensor, k0 in cases:
+            r = closed_loop(gains, plant, traj, quant, sensor, k_end)
+            f = figures(r, traj, k0, g.u_max)
+            ideal = ideal_excursion(plant, r, traj, k0) if name.startswith("frozen") else math.nan
+            tf = "-" if f["to_fault"] is None else str(f["to_fault"])
+            if f["to_fault"] is None:
+                print(f"{name:34s} {f['rail']:4d} {tf:>8s} {f['rejected']:8d} {'-':>11s} {'-':>10s} {'-':>8s} {'-':>7s} "
+                      f"{'-':>8s}  {f['reason']}")
+                continue
+            print(f"{name:34s} {f['rail']:4d} {tf:>8s} {f['rejected']:8d} {f['e_f'] * 1e3:8.3f} mm {f['v_f']:6.3f} m/s "
+                  f"{f['e_peak'] * 1e3:5.1f} mm {f['v_peak']:7.3f} {ideal * 1e3:5.1f} mm  {f['reason']}")
+        worst, smallest = (0, 0.0), math.inf
+        for amp in np.geomspace(2e-6, 1e-3, 40):
+            for sign in (1.0, -1.0):
+                r = closed_loop(gains, plant, traj, quant, glitch(k_cruise, sign * amp), k_cruise + 200)
+                rail = int(np.sum(np.abs(r["u"][k_cruise:]) >= g.u_max))
+                if rail > worst[0]:
+                    worst = (rail, sign * amp)
+                if rail:
+                    smallest = min(smallest, amp)
+        print(f"glitch sweep 2 um - 1 mm (80 glitches): most samples at the rail {worst[0]}"
+              + (f" (glitch {worst[1] * 1e6:+.1f} um); the smallest that reaches it {smallest * 1e6:.1f} um"
+                 if worst[0] else ""))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
