@@ -18,7 +18,7 @@ from commission.next_steps import next_steps
 from commission.artifacts import mass_wording
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
-from commission.scenarios import CASES, VARIANTS, plant_dynamics
+from commission.scenarios import VARIANTS, case_names, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
@@ -30,7 +30,8 @@ TABLE1_ROWS = (
     ("‖Δu‖rms ({u})", "du_rms", 1.0, "{:.3g}"),
     ("c_u", "c_u", 1.0, "{:.2f}"),
 )
-_CASE_TITLE = {"case1": "Case 1 (sinusoid through filter (58))", "case2": "Case 2 (back-and-forth point-to-point moves)"}
+_CASE_TITLE = {"case1": "Case 1 (sinusoid through filter (58))", "case2": "Case 2 (back-and-forth point-to-point moves)",
+               "user": "The machine's own moves (spec [trajectory] file or [[trajectory.move]])"}
 _CRITERION_TEXT = {
     "divergence": "no divergence",
     "e_F": "e_F (final accuracy, last 2 s)",
@@ -444,8 +445,15 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
                  f"(state the real one with `commission identify --disturbance-bound`)")
     L.append(f"- sample rate {spec.sample_rate:g} Hz; encoder resolution {result.quantization * 1e6:.3g} um; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
-    L.append(f"- envelope: travel {spec.travel:g} m, v_max {spec.v_max:g} m/s, a_max {spec.a_max:g} m/s^2 "
-             f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} m")
+    if spec.profile is None:
+        L.append(f"- envelope: travel {spec.travel:g} m, v_max {spec.v_max:g} m/s, a_max {spec.a_max:g} m/s^2 "
+                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} m")
+    else:
+        L.append(f"- envelope from the machine's moves ({spec.profile.describe()}): travel {spec.travel:g} m, "
+                 f"v_max {spec.v_max:g} m/s, a_max {spec.a_max:g} m/s^2 (the runtime guard's and the gate's; not "
+                 f"derived from u_max); the paper's Case 1 and Case 2 as reference scenarios at v_max "
+                 f"{spec.case_v_max:.4g} m/s, a_max {spec.case_a_max:.4g} m/s^2; abort when |q - q_d| > "
+                 f"{result.e_abort:g} m")
     g = result.arc_gains
     L.append(f"- ARC: observer k1 = {_g(g.k1)} 1/s, k2 = {_g(g.k2)} 1/s^2; g1 = {_g(g.g1)} 1/s, g2 = {_g(g.g2)} 1/s, "
              f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)}; "
@@ -475,7 +483,7 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
     L.append("")
     L.append("e_M = max |e|, e_F = max |e| over the last 2 s, ‖e‖rms and ‖u‖rms over the run, "
              "‖Δu‖rms = rms of the input increments (eq. 54), c_u = ‖Δu‖rms / ‖u‖rms.")
-    for case in CASES:
+    for case in case_names(spec):
         L.append("")
         L.append(f"### {_CASE_TITLE[case]}")
         L.append("")

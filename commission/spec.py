@@ -41,6 +41,18 @@ Keys and defaults
     ``dwell`` = 0.5 (s), ``moves`` = 6 (back-and-forth moves of Case 2),
     ``beta1`` = 100.0 (1/s) and ``beta2`` = 2500.0 (1/s^2): the reference
     filter (58).
+    The machine's own moves, validated beside Case 1 and Case 2 (:mod:`commission.moves`):
+    ``file`` (a CSV ``t,q[,v,a]``, the path relative to this file; ``file_sha256``: the
+    digest tune read, which tuning.json records and validate checks) or
+    ``[[trajectory.move]]`` tables (``to`` m, ``v_max`` m/s, ``a_max`` m/s^2, optional
+    ``j_max`` m/s^3 and ``dwell`` s: S-curves).  With them, ``v_max``, ``a_max`` and
+    ``travel`` default to the moves' peak |v|, peak |a| and span (given, they must cover
+    them): the envelope of the runtime guard and the gate, not derived from u_max.
+    ``reference_v_max`` (m/s), ``reference_a_max`` (m/s^2)
+        The envelope Case 1 and Case 2 are scaled to (with ``travel``); default ``v_max``,
+        ``a_max``.  With the machine's moves ``tune`` derives them when not given
+        (:func:`commission.tune.defaults.reference_envelope`): the paper's cases stay the
+        reference at an envelope this drive can move, while the moves set the envelope.
 ``[targets]``
     ``e_rms`` = 5e-6
         Accuracy target: rms tracking error, m (paper's ARC: 1.9-4.3 um).
@@ -186,7 +198,7 @@ class Spec:
     theta1_0 : float or None
         Initial estimate theta_hat1(0), m/(u-unit s^2); ``None``: chosen by the search.
     v_max, a_max, travel, dwell : float
-        Trajectory envelope: m/s, m/s^2, m, s.
+        Trajectory envelope: m/s, m/s^2, m, s (with the machine's moves: theirs, see ``profile``).
     moves : int
         Back-and-forth moves of the Case-2 trajectory.
     beta1, beta2 : float
@@ -208,6 +220,12 @@ class Spec:
         delay (samples) the user knows; ``None``: what ident.json's ``frequency_response`` found.
     min_gain_margin_db, min_phase_margin_deg, min_delay_margin_samples, min_modulus_margin : float
         ``[margins]``: the stability-margin floors, dB, deg, samples beyond the identified delay, -.
+    reference_v_max, reference_a_max : float or None
+        Envelope of Case 1 and Case 2, m/s and m/s^2; ``None``: ``v_max``, ``a_max``
+        (:attr:`case_v_max`, :attr:`case_a_max`).
+    profile : UserProfile or None
+        The machine's own moves (``[trajectory] file`` or ``[[trajectory.move]]``), validated as the
+        ``user/...`` scenarios; ``None``: only Case 1 and Case 2.
     """
 
     sample_rate: float = 2500.0

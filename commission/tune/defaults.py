@@ -149,7 +149,9 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     scenarios at once.  No Case-1 start-up counts here: the profile starts at rest on its own
     limits.  The refusal names each term with its figures, then values that would pass: the
     acceleration of the moves, and the load-force bound of ``commission identify`` when the
-    box's constant force is what does not fit.
+    box's constant force is what does not fit, both sized so that the worst plant's feedforward
+    takes at most :data:`DRIVE_HEADROOM` x u_max (the rest is the feedback's: a command that
+    reaches u_max fails validate's gate).
     """
     p = spec.profile
     if p is None:
@@ -165,7 +167,8 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     ripple = plant[P_RIPPLE_AMP]
     force = d.const - friction - ripple
     hints = []
-    a_ok = (spec.u_max - d.viscous * p.v_peak - d.const) / d.mass
+    budget = DRIVE_HEADROOM * spec.u_max
+    a_ok = (budget - d.viscous * p.v_peak - d.const) / d.mass
     if a_ok > 0:
         hints.append(f"moves with a_max <= {_floor3(a_ok):.3g} m/s^2 at their peak speed {p.v_peak:.3g} m/s")
     bounds = ident.extra.get("bounds")
@@ -173,14 +176,14 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     d_lo, d_hi = force_range(ident)
     step = abs(plant[P_OFFSET]) + ident.delta_d * plant[P_M]
     if isinstance(bound, (int, float)) and max(abs(d_lo), abs(d_hi)) > step:
-        excess = need - spec.u_max
+        excess = need - budget
         d_ok = bound - excess
         if d_ok > 0 and max(abs(d_lo), abs(d_hi)) - excess >= step:
-            dflt = " (now the default 10 max(fc, fs))" if bounds.get("disturbance_bound_defaulted") else ""
+            dflt = ", the default 10 max(fc, fs)" if bounds.get("disturbance_bound_defaulted") else ""
             hints.append(f"a load-force bound commission identify --disturbance-bound {_floor3(d_ok):.3g} ({u}; now "
-                         f"{bound:.4g}{dflt}) if the real load is that small")
-    hint = " or ".join(hints) + " would fit" if hints else (
-        f"no move fits: even at rest the plant needs {d.const:.4g} {u}")
+                         f"{bound:.4g} {u}{dflt}) if the real load is that small")
+    hint = (" or ".join(hints) + f" would leave the feedback {1 - DRIVE_HEADROOM:.0%} of u_max" if hints else
+            f"no move fits: even at rest the plant needs {d.const:.4g} {u}")
     raise SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.4g} {u} that {p.label} need on the "
         f"most demanding plant of the theta box (scenarios user/payload_heavy, user/friction_high, user/disturbance): "
