@@ -118,7 +118,7 @@ from typing import Any, Mapping
 
 from commission.errors import SpecError, UsageError
 from commission.files import read_toml
-from commission.moves import UserProfile, parse_profile, profile_keys
+from commission.moves import MOVE_KEYS, UserProfile, parse_profile, profile_keys
 
 #: Default observer pole as a fraction of the sample rate: p = 0.08 f_s (rad/s per Hz).
 OBSERVER_POLE_FRACTION = 0.08
@@ -331,6 +331,8 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("margins", "phase_deg"): (1e-3, 89.0),
     ("margins", "delay_samples"): (1e-3, 20.0),
     ("margins", "modulus"): (1e-3, 1.0),
+    # One [[trajectory.move]] table (commission.moves.MOVE_KEYS checks them).
+    **{("trajectory.move", k): (lo, hi) for k, (_req, _unit, lo, hi) in MOVE_KEYS.items()},
 }
 
 
