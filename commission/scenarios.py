@@ -460,6 +460,20 @@ def check_run_length(spec: Spec, source: str, prefix: str = "") -> None:
     SpecError
         Naming ``controller.sample_rate`` and the trajectory.
     """
+    check_user_length(spec, source, prefix)
+    check_trajectory_samples(source, prefix, spec.sample_rate,
+                             {"Case 1": case1_trajectory(spec).duration, "Case 2": case2_trajectory(spec).duration})
+
+
+def check_user_length(spec: Spec, source: str, prefix: str = "") -> None:
+    """Refuse machine moves whose run (+ :data:`CASE2_TAIL` s at rest) exceeds the sample cap, naming them.
+
+    Raises
+    ------
+    SpecError
+        Naming ``trajectory.file`` (the path) or ``trajectory.move``, the duration, the samples at
+        ``controller.sample_rate`` and the longest profile accepted.
+    """
     u = user_trajectory(spec)
     if u is not None:
         n = u.duration * spec.sample_rate
@@ -471,9 +485,7 @@ def check_run_length(spec: Spec, source: str, prefix: str = "") -> None:
                 f"{source}: {where}: the machine's moves last {p.end:.6g} s (+ {CASE2_TAIL:g} s at rest) = "  # type: ignore[union-attr]
                 f"{n:.0f} samples per run at controller.sample_rate = {spec.sample_rate:g} Hz, more than the "
                 f"{MAX_TRAJECTORY_SAMPLES} accepted; give at most {MAX_TRAJECTORY_SAMPLES / spec.sample_rate - CASE2_TAIL:.6g} s "
-                f"of moves (the part that matters: one cycle of the machine)")
-    check_trajectory_samples(source, prefix, spec.sample_rate,
-                             {"Case 1": case1_trajectory(spec).duration, "Case 2": case2_trajectory(spec).duration})
+                f"of moves (the part that matters: one cycle of the machine), or lower controller.sample_rate")
 
 
 def disturbance_step(ident: Identification, duration: float) -> StepDisturbance:

@@ -260,3 +260,16 @@ def test_moves_the_drive_cannot_make_are_refused_with_each_force_named():
     assert m, msg
     ok = {"controller": {"u_max": 4.0}, "trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": float(m.group(1))}]}}
     assert resolve_spec(ok, "spec.toml", ident).spec.a_max == pytest.approx(float(m.group(1)))
+
+
+def test_reference_keys_given_are_kept_and_stay_within_the_envelope():
+    ident = reference_identification()
+    move = [{"to": 0.05, "v_max": 1.0, "a_max": 30.0}]
+    rs = resolve_spec({"trajectory": {"reference_a_max": 0.5, "move": move}}, "spec.toml", ident)
+    s = rs.spec
+    assert s.reference_a_max == 0.5 and s.a_max == 30.0
+    # The derived speed is reachable within the travel, so tuning.json reloads (v^2/a <= travel).
+    assert s.reference_v_max ** 2 / s.reference_a_max <= s.travel
+    assert spec_from_mapping(s.to_dict(), "tuning.json", prefix="$.spec.") == s
+    with pytest.raises(SpecError, match=r"trajectory\.reference_v_max = 2 is above trajectory\.v_max = 1"):
+        spec_from_mapping({"trajectory": {"reference_v_max": 2.0, "move": move}}, "spec.toml")

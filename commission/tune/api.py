@@ -29,6 +29,7 @@ from commission.jsonio import read_json, sha256_file
 from commission.robustness import margin_table
 from commission.scenarios import (
     check_run_length,
+    check_user_length,
     identified_plant,
     resolve_quantization,
     trajectories,
@@ -37,6 +38,7 @@ from commission.scenarios import (
 from commission.spec import Spec, read_spec_toml, spec_from_mapping
 from commission.tuning import Provenance, SearchRecord, Tuning
 from commission.tune.defaults import (
+    check_moves_against_drive,
     check_spec_against_ident,
     fit_disturbance_to_drive,
     rate_scaled_envelope,
@@ -229,8 +231,10 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     given = set(traj) if isinstance(traj, dict) else set()
     if spec.profile is not None:
         # The machine's moves set the envelope: no derivation from u_max (the paper's Case 1 and
-        # Case 2 get theirs in reference_envelope).
+        # Case 2 get theirs in reference_envelope).  Their length and force first: they name the moves.
         given |= {"v_max", "a_max", "travel"}
+        check_user_length(spec, spec_name)
+        check_moves_against_drive(spec, ident, spec_name)
     spec, rate_notes = rate_scaled_envelope(spec, given)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
     spec, notes = default_envelope(spec, ident, given, spec_name)

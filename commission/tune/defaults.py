@@ -417,12 +417,11 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
         a = base.a_max if "a_max" in g else min(base.a_max, d.a_max(spec.u_max, v))
         if not (v > 0 and a > 0):
             raise
-    if "v_max" not in g:
-        v = min(v, spec.v_max)
     if "a_max" not in g:
         a = min(a, spec.a_max)
-        if "v_max" not in g:
-            v = min(v, math.sqrt(a * spec.travel))
+    if "v_max" not in g:
+        # Reachable within the travel, with a rounding margin so that tuning.json reloads (v^2/a <= travel).
+        v = min(v, spec.v_max, math.sqrt(a * spec.travel) * (1.0 - 1e-12))
     out = dataclasses.replace(spec, reference_v_max=v, reference_a_max=a)
     u = ident.units.get("u", "u-unit")
     note = (f"the machine's moves set the envelope: trajectory.v_max = {spec.v_max:.4g} m/s, a_max = "
