@@ -273,3 +273,36 @@ def test_reference_keys_given_are_kept_and_stay_within_the_envelope():
     assert spec_from_mapping(s.to_dict(), "tuning.json", prefix="$.spec.") == s
     with pytest.raises(SpecError, match=r"trajectory\.reference_v_max = 2 is above trajectory\.v_max = 1"):
         spec_from_mapping({"trajectory": {"reference_v_max": 2.0, "move": move}}, "spec.toml")
+
+
+def test_validate_runs_the_moves_with_the_guard_at_their_speed():
+    """The paper's axis tuned for its 1 m/s envelope (tests/data, budget 8), validated on moves at 1.5 m/s."""
+    import dataclasses
+    import json
+    import pathlib
+
+    from commission.tuning import Tuning
+    from commission.validate import validate
+
+    doc = json.loads((pathlib.Path(__file__).parent / "data" / "tuning_paper_budget8.json").read_text())
+    t = Tuning.from_dict(doc, "tuning.json")
+    sd = t.spec.to_dict()
+    for k in ("v_max", "a_max"):  # travel 0.4 m kept: the stroke, larger than the moves' 0.3 m
+        sd["trajectory"].pop(k)
+    sd["trajectory"].update(reference_v_max=t.spec.v_max, reference_a_max=t.spec.a_max, move=[
+        {"to": 0.3, "v_max": 1.5, "a_max": 12.0, "j_max": 500.0, "dwell": 0.3},
+        {"to": 0.0, "v_max": 1.5, "a_max": 12.0, "j_max": 500.0}])
+    spec = spec_from_mapping(sd, "spec.toml")
+    assert (spec.v_max, spec.travel, spec.case_v_max) == (1.5, 0.4, t.spec.v_max)
+    r = validate(dataclasses.replace(t, spec=spec), n_monte_carlo=3, workers=1)
+    names = [x.name for x in r.runs]
+    assert [n for n in names if n.startswith("user/")] == [
+        "user/nominal", "user/payload_light", "user/payload_heavy", "user/friction_low", "user/friction_high",
+        "user/disturbance", "user/delay+1"]
+    assert r.run("mc/002").tags[0] == "user"
+    # Case 1 and Case 2 at the reference envelope: the same indexes as without the moves.
+    plain = validate(t, n_monte_carlo=0, workers=1)
+    assert r.run("case2/nominal").arc == plain.run("case2/nominal").arc
+    # The plausibility guard at the moves' speed, and no run tripped it.
+    assert r.arc_gains.dy_max == pytest.approx(2 * 1.5 * spec.period + 2 * t.quantization)
+    assert r.passed, [c.to_dict() for c in r.verdict.failures]
