@@ -257,6 +257,7 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
     rows = csv.reader(io.StringIO(text))
     header: list[str] | None = None
     cols: list[list[float]] = []
+    data_lines: list[int] = []  # line number of each data row (the header is row 1; blank lines skipped)
     line = 0
     for row in rows:
         line += 1
@@ -288,14 +289,13 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
             if not math.isfinite(x):
                 raise SpecError(f"{path}: row {line}, column {header[j]}: {cell.strip()!r} is not a finite number")
             cols[j].append(x)
+        data_lines.append(line)
     if header is None:
         raise SpecError(f"{path}: empty (a profile has a header t,q[,v,a] and one row per sample)")
     n = len(cols[0])
     if n < 2:
         raise SpecError(f"{path}: {n} data rows; a profile needs at least 2")
     arr = {c: np.asarray(cols[j], dtype=np.float64) for j, c in enumerate(header)}
-    # Line numbers of the data rows (blank lines skipped): recomputed for messages below.
-    data_lines = [i + 1 for i, r in enumerate(csv.reader(io.StringIO(text))) if r and any(c.strip() for c in r)][1:]
     t = arr["t"]
     dt = np.diff(t)
     bad = np.flatnonzero(~(dt > 0))

@@ -478,14 +478,15 @@ def check_user_length(spec: Spec, source: str, prefix: str = "") -> None:
     if u is not None:
         n = u.duration * spec.sample_rate
         if not n <= MAX_TRAJECTORY_SAMPLES:
-            p = spec.profile
-            where = (f"{prefix}trajectory.file = {p.path!r}" if p.kind == "file"  # type: ignore[union-attr]
-                     else f"{prefix}trajectory.move")
+            p = u.profile
+            assert p is not None
+            where = f"{prefix}trajectory.file = {p.path!r}" if p.kind == "file" else f"{prefix}trajectory.move"
+            longest = MAX_TRAJECTORY_SAMPLES / spec.sample_rate - CASE2_TAIL
             raise SpecError(
-                f"{source}: {where}: the machine's moves last {p.end:.6g} s (+ {CASE2_TAIL:g} s at rest) = "  # type: ignore[union-attr]
+                f"{source}: {where}: the machine's moves last {p.end:.6g} s (+ {CASE2_TAIL:g} s at rest) = "
                 f"{n:.0f} samples per run at controller.sample_rate = {spec.sample_rate:g} Hz, more than the "
-                f"{MAX_TRAJECTORY_SAMPLES} accepted; give at most {MAX_TRAJECTORY_SAMPLES / spec.sample_rate - CASE2_TAIL:.6g} s "
-                f"of moves (the part that matters: one cycle of the machine), or lower controller.sample_rate")
+                f"{MAX_TRAJECTORY_SAMPLES} accepted; give at most {longest:.6g} s of moves (the part that "
+                f"matters: one cycle of the machine), or lower controller.sample_rate")
 
 
 def disturbance_step(ident: Identification, duration: float) -> StepDisturbance:

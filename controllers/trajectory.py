@@ -542,7 +542,8 @@ class Move:
     dwell: float = 0.0
 
 
-def scurve_schedule(moves: "list[Move] | tuple[Move, ...]", start: float = 0.0) -> tuple["JerkSchedule | AccelSchedule", list[tuple[float, float]]]:
+def scurve_schedule(moves: "list[Move] | tuple[Move, ...]",
+                    start: float = 0.0) -> tuple["JerkSchedule | AccelSchedule", list[tuple[float, float]]]:
     """The moves one after the other, each an S-curve (:func:`scurve_segments`), from rest at ``start``.
 
     Moves with a finite jerk limit become phases of constant jerk (a
