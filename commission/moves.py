@@ -287,7 +287,8 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
             except ValueError:
                 x = math.nan
             if not math.isfinite(x):
-                raise SpecError(f"{path}: row {line}, column {header[j]}: {cell.strip()!r} is not a finite number")
+                shown = cell.strip() if len(cell.strip()) <= 40 else cell.strip()[:40] + "..."
+                raise SpecError(f"{path}: row {line}, column {header[j]}: {shown!r} is not a finite number")
             cols[j].append(x)
         data_lines.append(line)
     if header is None:

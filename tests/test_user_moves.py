@@ -259,7 +259,9 @@ def test_moves_the_drive_cannot_make_are_refused_with_each_force_named():
     m = __import__("re").search(r"moves with a_max <= ([0-9.]+) m/s\^2", msg)
     assert m, msg
     ok = {"controller": {"u_max": 4.0}, "trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": float(m.group(1))}]}}
-    assert resolve_spec(ok, "spec.toml", ident).spec.a_max == pytest.approx(float(m.group(1)))
+    rs = resolve_spec(ok, "spec.toml", ident)
+    assert rs.spec.a_max == pytest.approx(float(m.group(1)))
+    assert any("have no j_max" in n for n in rs.notes)  # a trapezoid: its acceleration steps are said
 
 
 def test_reference_keys_given_are_kept_and_stay_within_the_envelope():

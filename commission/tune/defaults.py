@@ -431,7 +431,12 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
             + ("" if g == {"v_max", "a_max"} else
                f" (derived for controller.u_max = {spec.u_max:g} {u} as for a defaulted envelope, capped at the "
                f"moves'; set them to choose)"))
-    return out, (note,)
+    notes: tuple[str, ...] = (note,)
+    if spec.profile.kind == "moves" and not any(math.isfinite(m.j_max) for m in spec.profile.moves):
+        notes += ("the machine's moves have no j_max: their acceleration steps are validated as they are, and the "
+                  "ARC's command peaks at each step; give [[trajectory.move]] j_max when the drive's trajectory "
+                  "generator limits the jerk",)
+    return out, notes
 
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
