@@ -529,6 +529,8 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
             "tracking_case1.png": "Tracking errors, ARC vs PID, Case 1 scenarios (as the paper's Figs. 2-4); "
                                   "every axis holds both controllers' peaks (a symmetric-log axis where one is "
                                   "more than 20 times the other).",
+            "tracking_user.png": "Desired trajectory and tracking errors, ARC vs PID, on the machine's own moves "
+                                 "(the user/... scenarios).",
             "tracking_case2.png": "Desired trajectory and tracking errors, ARC vs PID, Case 2 scenarios "
                                   "(as the paper's Figs. 5-6).",
             "theta_hat.png": "The ARC's parameter estimates theta_hat on every fixed scenario of each case (dashed: "

@@ -84,6 +84,7 @@ def test_emps_at_its_own_speed_refusal_names_the_forces_then_its_value_gives_a_c
     report = (out / "report.md").read_text()
     assert "envelope from the machine's moves" in report and "actuator limit 351.5 N" in report
     assert "The machine's own moves" in report
+    assert (out / "tracking_user.png").is_file() and "![tracking_user.png](tracking_user.png)" in report
     # validate alone re-creates the same moves from tuning.json.
     r = runner.invoke(app, ["validate", str(out / "tuning.json"), "--out-dir", str(tmp_path / "v"),
                             "--monte-carlo", "3", "--workers", "1"])
