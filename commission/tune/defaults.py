@@ -379,8 +379,8 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
     guard's speed and stroke, the gate's travel) is the moves' own (:mod:`commission.spec`), not
     a derivation from u_max.  Case 1 and Case 2 stay as the paper's reference scenarios, but at
     the moves' envelope Case 1's start-up (filter (58) at rest under a moving reference:
-    beta1 x 0.2 v_max) can ask more of the drive than any move of the machine does: on EMPS
-    (0.128 m/s, 1.33 m/s^2, 351.5 N) it alone would refuse the moves.  So their envelope
+    beta1 x 0.2 v_max, a step of acceleration no S-curve of the machine makes) can ask more of
+    the drive than any of its moves does, and would refuse moves the drive can make.  So their envelope
     (``reference_v_max``, ``reference_a_max``) is, unless given, what ``tune`` derives for a
     defaulted envelope (the paper's scaled to the rate, :func:`rate_scaled_envelope`, lowered to
     the drive's feedforward budget, :func:`default_envelope`), capped at the moves' peaks and
