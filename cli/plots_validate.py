@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 
 from commission.scenarios import CASES, VARIANTS  # noqa: E402
 from commission.units import unit as unit_of  # noqa: E402
-from commission.validate import ValidationResult  # noqa: E402
+from commission.validate import USER_FIGURE_NAME, ValidationResult  # noqa: E402
 
 _ARC = dict(color="C3", lw=0.7, label="ARC")
 _PID = dict(color="C0", lw=0.7, label="PID", alpha=0.8)
@@ -269,6 +269,8 @@ def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path
     paths = []
     for case in CASES:
         paths.append(_tracking(result, case, out / f"tracking_{case}.png", with_trajectory=(case == "case2")))
+    if any(name.startswith("user/") for name in result.traces):  # the machine's own moves
+        paths.append(_tracking(result, "user", out / USER_FIGURE_NAME, with_trajectory=True))
     paths.append(_theta(result, out / "theta_hat.png"))
     paths.append(_inputs(result, out / "control_input.png"))
     paths.append(monte_carlo_figure(result, out / "monte_carlo.png"))

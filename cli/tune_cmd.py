@@ -38,6 +38,10 @@ Spec TOML keys (section.key; every key optional; defaults = the paper's setting)
     feedforward; values you set are checked, not changed.  When identify's defaulted load-force
     bound leaves no room for any envelope, the theta3 box is narrowed with a note instead)
   trajectory.beta1 = 100 1/s, beta2 = 2500 1/s^2 (reference filter 58)
+  trajectory.file = "moves.csv" (t,q[,v,a]) or [[trajectory.move]] tables (to m, v_max, a_max,
+    optional j_max, dwell): the machine's own moves, validated as user/* beside Case 1 and 2;
+    they set v_max, a_max, travel (no derivation from u_max); Case 1 and 2 then run at
+    trajectory.reference_v_max/reference_a_max, derived for the drive when not given
   targets.e_rms = 5e-6 m, e_f = 1e-5 m (max |e| over the last 2 s), c_u = 0.5
   pid.pole = 0.12 * sample_rate rad/s (paper: 300); when defaulted and that PID exceeds validate's
     c_u limit on a tuning scenario, the baseline runs at the fastest 0.95^k of it that does not

@@ -129,10 +129,13 @@ def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u
         w = _worst(by["u_peak"])
         # The command at the envelope's peak acceleration is about M a: scale a_max by the headroom.
         a_new = _round_up(spec.a_max * 0.8 * spec.u_max / max(w.value, spec.u_max), 2)
+        # With the machine's moves the envelope is theirs: slow the moves (or the reference cases).
+        where = (f"`[trajectory] a_max = {a_new:g}` ({q_unit}/s^2; now {spec.a_max:g})" if spec.profile is None else
+                 f"slower machine moves (a_max <= {a_new:g} {q_unit}/s^2 in the profile; now {spec.a_max:g}) or "
+                 f"`[trajectory] reference_a_max` for Case 1 and Case 2 (now {spec.case_a_max:.3g})")
         out.append(f"the command reached u_max = {spec.u_max:g} {u_unit} on {len(by['u_peak'])} scenarios "
-                   f"(worst {w.scenario}): tune again with a gentler envelope, `[trajectory] a_max = {a_new:g}` "
-                   f"({q_unit}/s^2; now {spec.a_max:g}) in spec.toml, or a narrower payload box "
-                   "(`commission identify --payload-max ...`) if the heaviest load is not needed")
+                   f"(worst {w.scenario}): tune again with a gentler envelope, {where} in spec.toml, or a narrower "
+                   "payload box (`commission identify --payload-max ...`) if the heaviest load is not needed")
     if "divergence" in by:
         names = sorted({c.scenario for c in by["divergence"]})
         shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")

@@ -18,7 +18,7 @@ from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
 from commission.gate import CRITERIA
 from commission.robustness import floor_violations
-from commission.scenarios import CASES, VARIANTS, plant_dynamics
+from commission.scenarios import VARIANTS, case_names, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
@@ -30,7 +30,8 @@ TABLE1_ROWS = (
     ("‖Δu‖rms ({u})", "du_rms", 1.0, "{:.3g}"),
     ("c_u", "c_u", 1.0, "{:.2f}"),
 )
-_CASE_TITLE = {"case1": "Case 1 (sinusoid through filter (58))", "case2": "Case 2 (back-and-forth point-to-point moves)"}
+_CASE_TITLE = {"case1": "Case 1 (sinusoid through filter (58))", "case2": "Case 2 (back-and-forth point-to-point moves)",
+               "user": "The machine's own moves (spec [trajectory] file or [[trajectory.move]])"}
 _CRITERION_TEXT = {
     "divergence": "no divergence",
     "e_F": "e_F (final accuracy, last 2 s)",
@@ -457,9 +458,16 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"- sample rate {nominal(spec.sample_rate, '{:g}')} Hz; encoder resolution "
              f"{result.quantization * 1e6:.3g} {unit_of('small')}; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
-    L.append(f"- envelope: travel {spec.travel:g} {unit_of('q')}, v_max {spec.v_max:g} {unit_of('v')}, "
-             f"a_max {spec.a_max:g} {unit_of('a')} (Case 1 and Case 2 scaled to it); abort when |q - q_d| > "
-             f"{result.e_abort:g} {unit_of('q')}")
+    q, v, a = unit_of("q"), unit_of("v"), unit_of("a")
+    if spec.profile is None:
+        L.append(f"- envelope: travel {spec.travel:g} {q}, v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} "
+                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} {q}")
+    else:
+        L.append(f"- envelope from the machine's moves ({spec.profile.describe()}): travel {spec.travel:g} {q}, "
+                 f"v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} (the runtime guard's and the gate's; not "
+                 f"derived from u_max); the paper's Case 1 and Case 2 as reference scenarios at v_max "
+                 f"{spec.case_v_max:.4g} {v}, a_max {spec.case_a_max:.4g} {a}; abort when |q - q_d| > "
+                 f"{result.e_abort:g} {q}")
     g = result.arc_gains
     L.append(f"- ARC: observer k1 = {_g(g.k1)} 1/s, k2 = {_g(g.k2)} 1/s^2; g1 = {_g(g.g1)} 1/s, g2 = {_g(g.g2)} 1/s, "
              f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)} "
@@ -492,7 +500,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append("")
     L.append("e_M = max |e|, e_F = max |e| over the last 2 s, ‖e‖rms and ‖u‖rms over the run, "
              "‖Δu‖rms = rms of the input increments (eq. 54), c_u = ‖Δu‖rms / ‖u‖rms.")
-    for case in CASES:
+    for case in case_names(spec):
         L.append("")
         L.append(f"### {_CASE_TITLE[case]}")
         L.append("")
@@ -539,6 +547,8 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
             "tracking_case1.png": "Tracking errors, ARC vs PID, Case 1 scenarios (as the paper's Figs. 2-4); "
                                   "every axis holds both controllers' peaks (a symmetric-log axis where one is "
                                   "more than 20 times the other).",
+            "tracking_user.png": "Desired trajectory and tracking errors, ARC vs PID, on the machine's own moves "
+                                 "(the user/... scenarios).",
             "tracking_case2.png": "Desired trajectory and tracking errors, ARC vs PID, Case 2 scenarios "
                                   "(as the paper's Figs. 5-6).",
             "theta_hat.png": "The ARC's parameter estimates theta_hat on every fixed scenario of each case (dashed: "

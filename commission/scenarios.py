@@ -45,8 +45,23 @@ extremes of the box the Monte-Carlo sample draws from), plus the identified
 plant with the largest force of :func:`force_range` of either sign
 (``offset/<case>/lo|hi``, tune-only), plus ``spec.monte_carlo`` Monte-Carlo plants.
 
+The machine's own moves (``user/...``)
+--------------------------------------
+When the spec gives the machine's moves (``[trajectory] file`` or ``[[trajectory.move]]``,
+:mod:`commission.moves`), a third trajectory ``user`` joins Case 1 and Case 2 everywhere
+above: ``user/nominal`` ... ``user/disturbance``, ``user/delay+1`` (and the mode variants),
+the box corners, largest forces and interior payloads of tune (``corner/user/...``,
+``offset/user/...``, ``payload/user/...``), and every third Monte-Carlo plant (the sample
+cycles through case1, case2, user).  The profile is rendered as it is, without filter (58):
+the drive follows its own generator's q, v, a; it is held at rest :data:`CASE2_TAIL` s after
+its end.  Case 1 and Case 2 stay as the paper's reference scenarios, scaled to
+``spec.case_v_max``/``case_a_max`` (the spec's ``reference_v_max``/``reference_a_max``;
+``tune`` derives them for this drive when not given: :func:`commission.tune.defaults.reference_envelope`).
+
 Trajectory scaling (paper: travel 0.4 m, v_max 1 m/s, a_max 12 m/s^2)
 ---------------------------------------------------------------------
+v_max and a_max here are the reference envelope ``spec.case_v_max``, ``spec.case_a_max``
+(the spec's v_max, a_max unless the machine's moves are given).
 Case 1: amplitude A = travel/8 and omega = min(0.2 v_max / A, sqrt(a_max / (15 A)))
 (both 4 rad/s for the paper's envelope, A = 0.05 m), 10 s or four periods,
 whichever is longer.  Case 2: ``moves`` moves of ``travel`` at v_max, a_max
@@ -77,7 +92,9 @@ from commission.controllers.plant import (
     P_OFFSET,
     plant_vector,
 )
-from commission.spec import DEFAULT_QUANTIZATION, Spec, check_trajectory_samples
+from commission.moves import UserProfile
+from commission.errors import SpecError
+from commission.spec import DEFAULT_QUANTIZATION, MAX_TRAJECTORY_SAMPLES, Spec, check_trajectory_samples
 
 #: Fraction of the run at which the disturbance step switches on / off (paper: 2.2 s, 7.2 s of 10 s).
 DISTURBANCE_ON = 0.22
@@ -128,7 +145,8 @@ class TrajectorySpec:
     Attributes
     ----------
     kind : str
-        ``"case1"`` (sinusoid through (58)) or ``"case2"`` (back-and-forth trapezoids).
+        ``"case1"`` (sinusoid through (58)), ``"case2"`` (back-and-forth trapezoids) or
+        ``"user"`` (the machine's own moves, :mod:`commission.moves`).
     duration : float
         Length of the run, s.
     amplitude, omega : float
@@ -139,6 +157,8 @@ class TrajectorySpec:
         Case 2: number of moves.
     beta1, beta2 : float
         Filter (58) / smoothing coefficients, 1/s and 1/s^2.
+    profile : UserProfile or None
+        ``"user"``: the profile, rendered as it is (no filter) and held at rest after its end.
     """
 
     kind: str
@@ -152,9 +172,12 @@ class TrajectorySpec:
     moves: int = 0
     beta1: float = 100.0
     beta2: float = 2500.0
+    profile: UserProfile | None = None
 
     def render(self, Ts: float, y0: float = 0.0) -> _traj.Trajectory:
         """Sample q_d, dq_d, ddq_d every ``Ts`` s starting with q_d(0) = ``y0`` (m)."""
+        if self.kind == "user" and self.profile is not None:
+            return self.profile.render(self.duration, Ts, y0)
         if self.kind == "case1":
             return _traj.sinusoid(self.duration, Ts, amplitude=self.amplitude, omega=self.omega,
                                   beta1=self.beta1, beta2=self.beta2, y0=y0)
@@ -162,10 +185,14 @@ class TrajectorySpec:
             return _traj.back_and_forth(self.duration, Ts, travel=self.travel, v_max=self.v_max,
                                         a_max=self.a_max, dwell=self.dwell, n_moves=self.moves,
                                         b1=self.beta1, b2=self.beta2, start=y0)
-        raise ValueError(f"TrajectorySpec.kind: expected 'case1' or 'case2', got {self.kind!r}")
+        raise ValueError(f"TrajectorySpec.kind: expected 'case1', 'case2' or 'user', got {self.kind!r}")
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+        out = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "profile"}
+        if self.profile is not None:
+            out["profile"] = {"kind": self.profile.kind, "sha256": self.profile.sha256, "end": self.profile.end,
+                              "v_peak": self.profile.v_peak, "a_peak": self.profile.a_peak, "span": self.profile.span}
+        return out
 
 
 @dataclass(frozen=True)
@@ -372,7 +399,7 @@ def resolve_encoder_noise(ident: Identification, spec: Spec) -> float:
 def case1_trajectory(spec: Spec) -> TrajectorySpec:
     """Case 1 scaled to the envelope (module docstring); the paper's 0.05 sin(4t), 10 s by default."""
     A = spec.travel / 8.0
-    omega = min(CASE1_SPEED_FRACTION * spec.v_max / A, math.sqrt(spec.a_max / (15.0 * A)))
+    omega = min(CASE1_SPEED_FRACTION * spec.case_v_max / A, math.sqrt(spec.case_a_max / (15.0 * A)))
     duration = max(CASE1_DURATION, 4.0 * 2.0 * math.pi / omega)
     return TrajectorySpec("case1", duration=duration, amplitude=A, omega=omega,
                           beta1=spec.beta1, beta2=spec.beta2)
@@ -380,11 +407,33 @@ def case1_trajectory(spec: Spec) -> TrajectorySpec:
 
 def case2_trajectory(spec: Spec) -> TrajectorySpec:
     """Case 2 on the envelope: ``moves`` moves of ``travel``, then :data:`CASE2_TAIL` s at rest."""
-    sched = _traj.trapezoid_moves(spec.travel, spec.v_max, spec.a_max, spec.dwell, spec.moves)
+    sched = _traj.trapezoid_moves(spec.travel, spec.case_v_max, spec.case_a_max, spec.dwell, spec.moves)
     duration = round(float(sched.t_switch[-1]) + CASE2_TAIL, 6)
-    return TrajectorySpec("case2", duration=duration, travel=spec.travel, v_max=spec.v_max,
-                          a_max=spec.a_max, dwell=spec.dwell, moves=spec.moves,
+    return TrajectorySpec("case2", duration=duration, travel=spec.travel, v_max=spec.case_v_max,
+                          a_max=spec.case_a_max, dwell=spec.dwell, moves=spec.moves,
                           beta1=spec.beta1, beta2=spec.beta2)
+
+
+def user_trajectory(spec: Spec) -> TrajectorySpec | None:
+    """The machine's own moves (``spec.profile``), then :data:`CASE2_TAIL` s at rest; None without them."""
+    if spec.profile is None:
+        return None
+    return TrajectorySpec("user", duration=round(spec.profile.end + CASE2_TAIL, 6), beta1=spec.beta1,
+                          beta2=spec.beta2, profile=spec.profile)
+
+
+def trajectories(spec: Spec) -> list[tuple[str, TrajectorySpec]]:
+    """``[(case, trajectory)]``: Case 1, Case 2 and, when the spec gives the machine's moves, ``"user"``."""
+    out = [("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))]
+    u = user_trajectory(spec)
+    if u is not None:
+        out.append(("user", u))
+    return out
+
+
+def case_names(spec: Spec) -> tuple[str, ...]:
+    """The trajectory names of :func:`trajectories` (:data:`CASES`, plus ``"user"`` with the machine's moves)."""
+    return CASES + (("user",) if spec.profile is not None else ())
 
 
 def _variant(base: np.ndarray, variant: str, ident: Identification) -> np.ndarray:
@@ -411,8 +460,33 @@ def check_run_length(spec: Spec, source: str, prefix: str = "") -> None:
     SpecError
         Naming ``controller.sample_rate`` and the trajectory.
     """
+    check_user_length(spec, source, prefix)
     check_trajectory_samples(source, prefix, spec.sample_rate,
                              {"Case 1": case1_trajectory(spec).duration, "Case 2": case2_trajectory(spec).duration})
+
+
+def check_user_length(spec: Spec, source: str, prefix: str = "") -> None:
+    """Refuse machine moves whose run (+ :data:`CASE2_TAIL` s at rest) exceeds the sample cap, naming them.
+
+    Raises
+    ------
+    SpecError
+        Naming ``trajectory.file`` (the path) or ``trajectory.move``, the duration, the samples at
+        ``controller.sample_rate`` and the longest profile accepted.
+    """
+    u = user_trajectory(spec)
+    if u is not None:
+        n = u.duration * spec.sample_rate
+        if not n <= MAX_TRAJECTORY_SAMPLES:
+            p = u.profile
+            assert p is not None
+            where = f"{prefix}trajectory.file = {p.path!r}" if p.kind == "file" else f"{prefix}trajectory.move"
+            longest = MAX_TRAJECTORY_SAMPLES / spec.sample_rate - CASE2_TAIL
+            raise SpecError(
+                f"{source}: {where}: the machine's moves last {p.end:.6g} s (+ {CASE2_TAIL:g} s at rest) = "
+                f"{n:.0f} samples per run at controller.sample_rate = {spec.sample_rate:g} Hz, more than the "
+                f"{MAX_TRAJECTORY_SAMPLES} accepted; give at most {longest:.6g} s of moves (the part that "
+                f"matters: one cycle of the machine), or lower controller.sample_rate")
 
 
 def disturbance_step(ident: Identification, duration: float) -> StepDisturbance:
@@ -515,9 +589,10 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
     base = identified_plant(ident, spec)
     qz = resolve_quantization(ident, spec)
     nz = resolve_encoder_noise(ident, spec)
-    trajs = {"case1": case1_trajectory(spec), "case2": case2_trajectory(spec)}
+    trajs = dict(trajectories(spec))
+    cases = tuple(trajs)
     out: list[Scenario] = []
-    for case in CASES:
+    for case in cases:
         tr = trajs[case]
         for variant in VARIANTS:
             dist = disturbance_step(ident, tr.duration) if variant == "disturbance" else NO_DISTURBANCE
@@ -527,7 +602,7 @@ def scenario_matrix(ident: Identification, spec: Spec, *, rng: np.random.Generat
     if n_monte_carlo:
         plants = monte_carlo_plants(ident, n_monte_carlo, rng, spec)
         for i in range(n_monte_carlo):
-            case = CASES[i % 2]
+            case = cases[i % len(cases)]
             out.append(Scenario(f"mc/{i:03d}", plants[i], trajs[case], NO_DISTURBANCE, 0.0,
                                 (case, "monte_carlo"), qz, nz))
     return out
@@ -561,7 +636,7 @@ def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
         p[P_MODE_DAMPING] *= MODE_DAMPING_FACTOR
         variants.append(("mode_damping_half", p))
     out = []
-    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+    for case, tr in trajectories(spec):
         for name, p in variants:
             out.append(Scenario(f"{case}/{name}", p, tr, NO_DISTURBANCE, 0.0, (case, "robustness"), qz, nz))
     return out
@@ -582,7 +657,7 @@ def corner_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     b_lo, b_hi = viscous_range(ident)
     d_lo, d_hi = force_range(ident)
     out: list[Scenario] = []
-    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+    for case, tr in trajectories(spec):
         for b in range(8):
             bits = ((b >> 2) & 1, (b >> 1) & 1, b & 1)
             p = base.copy()
@@ -610,7 +685,7 @@ def offset_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     nz = resolve_encoder_noise(ident, spec)
     d_lo, d_hi = force_range(ident)
     out: list[Scenario] = []
-    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+    for case, tr in trajectories(spec):
         for end, d in (("lo", d_lo), ("hi", d_hi)):
             p = base.copy()
             p[P_OFFSET] = -d
@@ -640,7 +715,7 @@ def payload_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     nz = resolve_encoder_noise(ident, spec)
     m0, m_heavy = base[P_M], 1.0 / ident.theta.min[0]
     out: list[Scenario] = []
-    for case, tr in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
+    for case, tr in trajectories(spec):
         for k in PAYLOAD_STEPS:
             p = base.copy()
             p[P_M] = m0 * (m_heavy / m0) ** k if m_heavy > m0 else m0

@@ -41,6 +41,18 @@ Keys and defaults
     ``dwell`` = 0.5 (s), ``moves`` = 6 (back-and-forth moves of Case 2),
     ``beta1`` = 100.0 (1/s) and ``beta2`` = 2500.0 (1/s^2): the reference
     filter (58).
+    The machine's own moves, validated beside Case 1 and Case 2 (:mod:`commission.moves`):
+    ``file`` (a CSV ``t,q[,v,a]``, the path relative to this file; ``file_sha256``: the
+    digest tune read, which tuning.json records and validate checks) or
+    ``[[trajectory.move]]`` tables (``to`` m, ``v_max`` m/s, ``a_max`` m/s^2, optional
+    ``j_max`` m/s^3 and ``dwell`` s: S-curves).  With them, ``v_max``, ``a_max`` and
+    ``travel`` default to the moves' peak |v|, peak |a| and span (given, they must cover
+    them): the envelope of the runtime guard and the gate, not derived from u_max.
+    ``reference_v_max`` (m/s), ``reference_a_max`` (m/s^2)
+        The envelope Case 1 and Case 2 are scaled to (with ``travel``); default ``v_max``,
+        ``a_max``.  With the machine's moves ``tune`` derives them when not given
+        (:func:`commission.tune.defaults.reference_envelope`): the paper's cases stay the
+        reference at an envelope this drive can move, while the moves set the envelope.
 ``[targets]``
     ``e_rms`` = 5e-6
         Accuracy target: rms tracking error, m (paper's ARC: 1.9-4.3 um).
@@ -101,11 +113,12 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Mapping
 
 from commission.errors import SpecError, UsageError
 from commission.files import read_toml
+from commission.moves import MOVE_KEYS, UserProfile, parse_profile, profile_keys
 
 #: Default observer pole as a fraction of the sample rate: p = 0.08 f_s (rad/s per Hz).
 OBSERVER_POLE_FRACTION = 0.08
@@ -133,6 +146,8 @@ _SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
         "moves": (int, 6, True, ""),
         "beta1": (float, 100.0, True, "1/s"),
         "beta2": (float, 2500.0, True, "1/s^2"),
+        "reference_v_max": (float, None, True, "m/s"),
+        "reference_a_max": (float, None, True, "m/s^2"),
     },
     "targets": {
         "e_rms": (float, 5e-6, True, "m"),
@@ -183,7 +198,7 @@ class Spec:
     theta1_0 : float or None
         Initial estimate theta_hat1(0), m/(u-unit s^2); ``None``: chosen by the search.
     v_max, a_max, travel, dwell : float
-        Trajectory envelope: m/s, m/s^2, m, s.
+        Trajectory envelope: m/s, m/s^2, m, s (with the machine's moves: theirs, see ``profile``).
     moves : int
         Back-and-forth moves of the Case-2 trajectory.
     beta1, beta2 : float
@@ -205,6 +220,12 @@ class Spec:
         delay (samples) the user knows; ``None``: what ident.json's ``frequency_response`` found.
     min_gain_margin_db, min_phase_margin_deg, min_delay_margin_samples, min_modulus_margin : float
         ``[margins]``: the stability-margin floors, dB, deg, samples beyond the identified delay, -.
+    reference_v_max, reference_a_max : float or None
+        Envelope of Case 1 and Case 2, m/s and m/s^2; ``None``: ``v_max``, ``a_max``
+        (:attr:`case_v_max`, :attr:`case_a_max`).
+    profile : UserProfile or None
+        The machine's own moves (``[trajectory] file`` or ``[[trajectory.move]]``), validated as the
+        ``user/...`` scenarios; ``None``: only Case 1 and Case 2.
     """
 
     sample_rate: float = 2500.0
@@ -236,15 +257,28 @@ class Spec:
     min_phase_margin_deg: float = 30.0
     min_delay_margin_samples: float = 1.0
     min_modulus_margin: float = 0.5
+    reference_v_max: float | None = None
+    reference_a_max: float | None = None
+    profile: UserProfile | None = None
 
     @property
     def period(self) -> float:
         """Sample period T = 1/sample_rate, s."""
         return 1.0 / self.sample_rate
 
+    @property
+    def case_v_max(self) -> float:
+        """Speed Case 1 and Case 2 are scaled to, m/s: ``reference_v_max``, else ``v_max``."""
+        return self.v_max if self.reference_v_max is None else self.reference_v_max
+
+    @property
+    def case_a_max(self) -> float:
+        """Acceleration Case 1 and Case 2 are scaled to, m/s^2: ``reference_a_max``, else ``a_max``."""
+        return self.a_max if self.reference_a_max is None else self.reference_a_max
+
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Nested mapping in the TOML layout, every default resolved."""
-        flat = asdict(self)
+        """Nested mapping in the TOML layout, every default resolved (a profile as the keys that re-create it)."""
+        flat = {f.name: getattr(self, f.name) for f in fields(self)}
         out: dict[str, dict[str, Any]] = {}
         for section, keys in _SCHEMA.items():
             out[section] = {}
@@ -252,6 +286,8 @@ class Spec:
                 attr = _ATTR.get((section, key), key)
                 if flat[attr] is not None:
                     out[section][key] = flat[attr]
+        if self.profile is not None:
+            out["trajectory"].update(self.profile.to_spec())
         return out
 
 
@@ -277,6 +313,8 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("trajectory", "moves"): (1, 100),
     ("trajectory", "beta1"): (1e-3, 1e6),
     ("trajectory", "beta2"): (1e-3, 1e12),
+    ("trajectory", "reference_v_max"): (1e-6, 100.0),
+    ("trajectory", "reference_a_max"): (1e-6, 1e5),
     ("targets", "e_rms"): (1e-12, 1.0),
     ("targets", "e_f"): (1e-12, 1.0),
     ("targets", "c_u"): (1e-6, 100.0),
@@ -293,6 +331,8 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("margins", "phase_deg"): (1e-3, 89.0),
     ("margins", "delay_samples"): (1e-3, 20.0),
     ("margins", "modulus"): (1e-3, 1.0),
+    # One [[trajectory.move]] table (commission.moves.MOVE_KEYS checks them).
+    **{("trajectory.move", k): (lo, hi) for k, (_req, _unit, lo, hi) in MOVE_KEYS.items()},
 }
 
 
@@ -441,8 +481,11 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         schema = _SCHEMA[section]
         for key, raw in table.items():
             path = f"{prefix}{section}.{key}"
+            if section == "trajectory" and key in profile_keys():
+                continue  # the machine's moves: parse_profile below
             if key not in schema:
-                raise _fail(source, path, f": unknown key (known in [{section}]: {', '.join(schema)})")
+                known = [*schema, *(profile_keys() if section == "trajectory" else ())]
+                raise _fail(source, path, f": unknown key (known in [{section}]: {', '.join(known)})")
             typ, _default, positive, unit = schema[key]
             u = f" {unit}" if unit else ""
             if typ is str:
@@ -498,15 +541,38 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
                 f" = {fs:g} Hz{dflt} is too low for {what} at -{omega:g} rad/s "
                 f"(need >= {need:g} Hz: omega*T <= {MAX_OMEGA_T:g})",
             )
+    traj = data.get("trajectory", {})
+    profile = parse_profile(traj, source, prefix)
+    if profile is not None:
+        # The envelope is the moves' own unless given; a given one must cover them.
+        for key, unit, have in (("v_max", "m/s", profile.v_peak), ("a_max", "m/s^2", profile.a_peak),
+                                ("travel", "m", profile.span)):
+            if ("trajectory", key) not in values:
+                check_range(source, f"{prefix}trajectory.{key} (from {profile.label})", ("trajectory", key), have, unit)
+                values[("trajectory", key)] = have
+            elif values[("trajectory", key)] < have * (1.0 - 1e-9):
+                what = {"v_max": "peak speed", "a_max": "peak acceleration", "travel": "span"}[key]
+                raise _fail(source, f"{prefix}trajectory.{key}",
+                            f" = {values[('trajectory', key)]:g} {unit} is below the {what} of {profile.label}, "
+                            f"{have:.6g} {unit}; leave trajectory.{key} out (the moves then set it) or raise it")
     travel, vmax, amax = get("trajectory", "travel"), get("trajectory", "v_max"), get("trajectory", "a_max")
-    if vmax * vmax / amax > travel:
-        # Still a valid (triangular) profile, but v_max is then unreachable: say so now.
-        raise _fail(
-            source,
-            f"{prefix}trajectory.v_max",
-            f" = {vmax:g} m/s cannot be reached within trajectory.travel = {travel:g} m at "
-            f"a_max = {amax:g} m/s^2 (need v_max^2/a_max <= travel)",
-        )
+    rv, ra = get("trajectory", "reference_v_max"), get("trajectory", "reference_a_max")
+    for key, val, top in (("reference_v_max", rv, vmax), ("reference_a_max", ra, amax)):
+        if val is not None and val > top * (1.0 + 1e-9):
+            raise _fail(source, f"{prefix}trajectory.{key}",
+                        f" = {val:g} is above trajectory.{key[10:]} = {top:g}: the reference scenarios (Case 1, "
+                        f"Case 2) stay within the envelope")
+    if profile is None or (rv is not None and ra is not None):
+        vmax_c, amax_c = (vmax if rv is None else rv), (amax if ra is None else ra)
+        key = "v_max" if rv is None else "reference_v_max"
+        if vmax_c * vmax_c / amax_c > travel:
+            # Still a valid (triangular) Case 2, but v_max is then unreachable: say so now.
+            raise _fail(
+                source,
+                f"{prefix}trajectory.{key}",
+                f" = {vmax_c:g} m/s cannot be reached within trajectory.travel = {travel:g} m at "
+                f"a_max = {amax_c:g} m/s^2 (need v_max^2/a_max <= travel)",
+            )
     return Spec(
         sample_rate=fs,
         u_max=get("controller", "u_max"),
@@ -520,6 +586,9 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         moves=get("trajectory", "moves"),
         beta1=b1,
         beta2=b2,
+        reference_v_max=rv,
+        reference_a_max=ra,
+        profile=profile,
         e_rms=get("targets", "e_rms"),
         e_f=get("targets", "e_f"),
         c_u=get("targets", "c_u"),

@@ -83,6 +83,8 @@ REPORT_NAME = "report.md"
 VALIDATION_NAME = "validation.json"
 CONTROLLER_NAME = "controller.json"
 #: Figures the CLI draws (cli/plots_validate.py); listed here so that --force checks cover them.
+#: The tracking figure of the machine's own moves, drawn only when the spec gives them.
+USER_FIGURE_NAME = "tracking_user.png"
 FIGURE_NAMES = ("tracking_case1.png", "tracking_case2.png", "theta_hat.png", "control_input.png",
                 "monte_carlo.png", "loops.png")
 
@@ -728,7 +730,7 @@ def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: 
 
 def output_names() -> tuple[str, ...]:
     """Every file ``validate`` may write into its output folder."""
-    return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES)
+    return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES, USER_FIGURE_NAME)
 
 
 def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,

@@ -384,3 +384,257 @@ def back_and_forth(duration: float = 8.0, Ts: float = 1.0 / 2500.0, *, travel: f
         raise TrajectoryError(
             f"duration: {duration} s is shorter than the {n_moves} moves ({sched.t_switch[-1]:.4g} s)")
     return smooth(sched, t, b1=b1, b2=b2)
+
+
+# ---------------------------------------------------------------------------
+# The machine's own moves: S-curve point-to-point moves and sampled profiles.
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class JerkSchedule:
+    """A reference with piecewise-constant jerk, starting at rest.
+
+    Attributes
+    ----------
+    t_switch : ndarray, shape (K+1,)
+        Segment boundaries, s, non-decreasing; jerk, acceleration and velocity
+        are zero before the first and after the last (a schedule ends at rest).
+    jerk : ndarray, shape (K,)
+        Jerk on each segment, m/s^3 (``inf`` is not allowed: an unlimited jerk
+        is a segment of zero length and is left out).
+    q0 : float
+        Position at ``t = 0``, m.
+    """
+
+    t_switch: np.ndarray
+    jerk: np.ndarray
+    q0: float = 0.0
+
+    def boundaries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position (m), velocity (m/s), acceleration (m/s^2) at each boundary, exact polynomials."""
+        ts, j = np.asarray(self.t_switch, float), np.asarray(self.jerk, float)
+        K = j.shape[0]
+        q, v, a = np.empty(K + 1), np.empty(K + 1), np.empty(K + 1)
+        q[0], v[0], a[0] = self.q0, 0.0, 0.0
+        for k in range(K):
+            d = ts[k + 1] - ts[k]
+            q[k + 1] = q[k] + v[k] * d + a[k] * d * d / 2.0 + j[k] * d ** 3 / 6.0
+            v[k + 1] = v[k] + a[k] * d + j[k] * d * d / 2.0
+            a[k + 1] = a[k] + j[k] * d
+        return q, v, a
+
+    def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact position (m), velocity (m/s), acceleration (m/s^2) at ``t`` (s).
+
+        After the last boundary the reference holds its final position at rest
+        (velocity and acceleration are exactly zero there, whatever the rounding
+        of the boundary values).
+        """
+        t = np.asarray(t, dtype=np.float64)
+        ts, j = np.asarray(self.t_switch, float), np.asarray(self.jerk, float)
+        qb, vb, ab = self.boundaries()
+        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(j))
+        inside = (t >= ts[0]) & (i < len(j))
+        jj = np.where(inside, np.append(j, 0.0)[i], 0.0)
+        tau = np.maximum(t - ts[i], 0.0)
+        a0 = np.where(inside, ab[i], 0.0)
+        v0 = np.where(inside, vb[i], 0.0)
+        q = qb[i] + v0 * tau + a0 * tau ** 2 / 2.0 + jj * tau ** 3 / 6.0
+        v = v0 + a0 * tau + jj * tau ** 2 / 2.0
+        a = a0 + jj * tau
+        return q, v, a
+
+    @property
+    def end(self) -> float:
+        """Time of the last boundary, s (the reference is at rest from then on)."""
+        return float(self.t_switch[-1])
+
+
+def scurve_segments(distance: float, v_max: float, a_max: float,
+                    j_max: float = math.inf) -> tuple[list[float], list[float], float, float]:
+    """Time-optimal rest-to-rest move under speed, acceleration and jerk limits (the S-curve).
+
+    Seven phases of constant jerk ``+j, 0, -j, 0, -j, 0, +j`` (times the move's
+    sign): the acceleration rises to its peak at ``j_max``, holds, falls to zero;
+    the speed cruises; the deceleration mirrors the acceleration.  A move too short
+    to reach ``v_max`` has no cruise, and one too short (or a jerk too low) to reach
+    ``a_max`` has no constant-acceleration phase; the peak speed is then the
+    largest one whose two ramps fit in ``distance``.  ``j_max = inf`` gives the
+    trapezoid (its jerk phases have zero length and are dropped).
+
+    Parameters
+    ----------
+    distance : float
+        Signed length of the move, m.
+    v_max, a_max : float
+        Speed (m/s) and acceleration (m/s^2) limits, positive.
+    j_max : float
+        Jerk limit, m/s^3, positive (``inf``: unlimited).
+
+    Returns
+    -------
+    durations : list of float
+        Phase durations, s (phases of zero length dropped).
+    jerks : list of float
+        Jerk of each phase, m/s^3 (0 on the constant-acceleration and cruise phases;
+        all 0 with ``j_max = inf``: :func:`scurve_schedule` then builds the trapezoid's
+        acceleration steps from the durations).
+    v_peak, a_peak : float
+        Peak speed (m/s) and acceleration (m/s^2) reached.
+    """
+    for name, val in (("v_max", v_max), ("a_max", a_max)):
+        if not (val > 0 and math.isfinite(val)):
+            raise TrajectoryError(f"{name}: must be a positive finite number, got {val}")
+    if not j_max > 0:
+        raise TrajectoryError(f"j_max: must be positive (inf: unlimited), got {j_max}")
+    D = abs(float(distance))
+    if D == 0.0:
+        return [], [], 0.0, 0.0
+    a, j = float(a_max), float(j_max)
+
+    def ramp(vp: float) -> tuple[float, float, float]:
+        """(jerk time, constant-acceleration time, peak acceleration) of a ramp 0 -> vp."""
+        if vp * j >= a * a:  # the acceleration reaches a_max
+            return a / j, vp / a - a / j, a
+        tj = math.sqrt(vp / j)
+        return tj, 0.0, j * tj
+
+    def ramp_time(vp: float) -> float:
+        tj, ta, _ = ramp(vp)
+        return 2.0 * tj + ta
+
+    vp = float(v_max)
+    if vp * ramp_time(vp) > D:  # no cruise: the largest peak speed whose ramps cover D
+        vp = a * (-a / j + math.sqrt((a / j) ** 2 + 4.0 * D / a)) / 2.0
+        if not vp * j >= a * a:
+            vp = (D * math.sqrt(j) / 2.0) ** (2.0 / 3.0)
+        vp = min(vp, float(v_max))
+    tj, ta, ap = ramp(vp)
+    tc = max(D / vp - (2.0 * tj + ta), 0.0)
+    s = 1.0 if distance > 0 else -1.0
+    dur = [tj, ta, tj, tc, tj, ta, tj]
+    jerk = [s * j, 0.0, -s * j, 0.0, -s * j, 0.0, s * j]
+    keep = [k for k, d in enumerate(dur) if d > 0.0]
+    return [dur[k] for k in keep], [jerk[k] if math.isfinite(jerk[k]) else 0.0 for k in keep], vp, ap
+
+
+@dataclass(frozen=True)
+class Move:
+    """One point-to-point move of the machine (see :func:`scurve_schedule`).
+
+    Attributes
+    ----------
+    to : float
+        Target position, m (absolute; a move to the current position is a pause).
+    v_max, a_max : float
+        Speed (m/s) and acceleration (m/s^2) limits of the move.
+    j_max : float
+        Jerk limit, m/s^3 (``inf``: unlimited, a trapezoidal velocity).
+    dwell : float
+        Rest at the target after the move, s.
+    """
+
+    to: float
+    v_max: float
+    a_max: float
+    j_max: float = math.inf
+    dwell: float = 0.0
+
+
+def scurve_schedule(moves: "list[Move] | tuple[Move, ...]",
+                    start: float = 0.0) -> tuple["JerkSchedule | AccelSchedule", list[tuple[float, float]]]:
+    """The moves one after the other, each an S-curve (:func:`scurve_segments`), from rest at ``start``.
+
+    Moves with a finite jerk limit become phases of constant jerk (a
+    :class:`JerkSchedule`); with every jerk unlimited the result is the exact
+    trapezoid (an :class:`AccelSchedule`, acceleration steps).  A mix of both is
+    refused: an acceleration step cannot be a phase of finite jerk.
+
+    Parameters
+    ----------
+    moves : sequence of Move
+    start : float
+        Position before the first move, m.
+
+    Returns
+    -------
+    schedule : JerkSchedule or AccelSchedule
+    peaks : list of (v_peak, a_peak)
+        Per move, m/s and m/s^2.
+    """
+    finite = [math.isfinite(m.j_max) for m in moves]
+    if any(finite) and not all(finite):
+        raise TrajectoryError("moves: give every move a j_max, or none (a trapezoid)")
+    t = 0.0
+    pos = float(start)
+    ts: list[float] = [0.0]
+    vals: list[float] = []
+    peaks: list[tuple[float, float]] = []
+    for m in moves:
+        if not (m.dwell >= 0 and math.isfinite(m.dwell)):
+            raise TrajectoryError(f"dwell: must be >= 0 s, got {m.dwell}")
+        dist = float(m.to) - pos
+        if all(finite):
+            dur, jerk, vp, ap = scurve_segments(dist, m.v_max, m.a_max, m.j_max)
+            for d, jv in zip(dur, jerk):
+                t += d
+                ts.append(t)
+                vals.append(jv)
+        else:
+            dur, _jerk, vp, ap = scurve_segments(dist, m.v_max, m.a_max, math.inf)
+            # dur = [ta, tc, ta] or [ta, ta] (constant acceleration, cruise, deceleration)
+            s = 1.0 if dist > 0 else -1.0
+            accs = [s * ap, 0.0, -s * ap] if len(dur) == 3 else [s * ap, -s * ap]
+            for d, av in zip(dur, accs):
+                t += d
+                ts.append(t)
+                vals.append(av)
+        pos = float(m.to)
+        peaks.append((vp, ap))
+        if m.dwell > 0:
+            t += m.dwell
+            ts.append(t)
+            vals.append(0.0)
+    if not vals:  # no motion at all: one resting segment
+        ts.append(max(t, 0.0))
+        vals.append(0.0)
+    if all(finite):
+        return JerkSchedule(np.array(ts), np.array(vals), float(start)), peaks
+    return AccelSchedule(np.array(ts), np.array(vals), float(start)), peaks
+
+
+def scheduled(schedule: "JerkSchedule | AccelSchedule", duration: float, Ts: float, *,
+              start: float | None = None) -> Trajectory:
+    """Sample a piecewise-polynomial reference as the desired trajectory itself (no filter), exactly.
+
+    The machine's drive follows its own trajectory generator's ``q, v, a``; so
+    does the simulated ARC: ``q_d, dq_d, ddq_d`` are the schedule's values at
+    ``k Ts``.  ``start`` shifts the positions so that ``q_d(0) = start`` (m).
+    """
+    t = sample_grid(duration, Ts)
+    if schedule.t_switch[-1] > t[-1] + Ts:
+        raise TrajectoryError(
+            f"duration: {duration} s is shorter than the moves ({schedule.t_switch[-1]:.4g} s)")
+    q, v, a = schedule.sample(t)
+    if start is not None:
+        q = q + (float(start) - float(schedule.q0))
+    return Trajectory(t, q, v, a)
+
+
+def resampled(t_src: np.ndarray, q_src: np.ndarray, v_src: np.ndarray, a_src: np.ndarray,
+              duration: float, Ts: float, *, start: float = 0.0) -> Trajectory:
+    """A sampled profile (time, q, v, a) on the controller grid: linear interpolation, held at its end.
+
+    ``t_src`` starts at 0 and increases strictly (s); positions are shifted so that
+    ``q_d(0) = start`` (m).  After the profile's last sample the trajectory holds its
+    last position at rest (the profile ends at rest: its caller checks it).  Linear
+    interpolation of each of q, v, a keeps every value within the profile's own range,
+    so the envelope the profile implies bounds the trajectory.
+    """
+    t = sample_grid(duration, Ts)
+    inside = t <= t_src[-1]
+    q = np.interp(t, t_src, q_src) - float(q_src[0]) + float(start)
+    v = np.where(inside, np.interp(t, t_src, v_src), 0.0)
+    a = np.where(inside, np.interp(t, t_src, a_src), 0.0)
+    return Trajectory(t, q, v, a)

@@ -17,7 +17,10 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    on the heaviest plant of the box).  Defaults are fitted to the axis first
    (:func:`resolve_spec`): the envelope to the sample rate and the drive, and a
    *defaulted* load-force bound that leaves the drive no room for any envelope
-   is narrowed (:func:`fit_disturbance_to_drive`).
+   is narrowed (:func:`fit_disturbance_to_drive`).  With the machine's own moves
+   (``[trajectory] file`` or ``[[trajectory.move]]``) the envelope is theirs, not fitted:
+   they are checked against the drive (:func:`check_moves_against_drive`) and only the
+   paper's Case 1 and Case 2 get a fitted envelope (:func:`reference_envelope`).
 2. Observer: double pole of A0 (10) at ``-spec.observer_pole``; k1 = 2p,
    k2 = p^2; P of (11) (:func:`controllers.design.observer_design`).
 3. Base ARC gains (:func:`base_arc_gains`): the paper's §4.3 gains carried
@@ -66,10 +69,12 @@ from commission.tune.defaults import (
     DriveNeed,
     drive_need,
     check_spec_against_ident,
+    check_moves_against_drive,
     DISTURBANCE_SHARE,
     fit_disturbance_to_drive,
     rate_scaled_envelope,
     default_envelope,
+    reference_envelope,
     default_gate_limits,
     log_sample_rate,
 )
@@ -165,6 +170,8 @@ __all__ = [
     "DriveNeed",
     "drive_need",
     "check_spec_against_ident",
+    "check_moves_against_drive",
+    "reference_envelope",
     "DISTURBANCE_SHARE",
     "fit_disturbance_to_drive",
     "rate_scaled_envelope",

@@ -29,20 +29,22 @@ from commission.jsonio import read_json, sha256_file
 from commission.robustness import margin_table
 from commission.scenarios import (
     check_run_length,
-    case1_trajectory,
-    case2_trajectory,
+    check_user_length,
     identified_plant,
     resolve_quantization,
+    trajectories,
     tuning_scenarios,
 )
 from commission.spec import Spec, read_spec_toml, spec_from_mapping
 from commission.tuning import Provenance, SearchRecord, Tuning
 from commission.tune.defaults import (
+    check_moves_against_drive,
     check_spec_against_ident,
     fit_disturbance_to_drive,
     rate_scaled_envelope,
     default_envelope,
     default_gate_limits,
+    reference_envelope,
     log_sample_rate,
 )
 from commission.tune.gains import base_arc_gains, free_gains
@@ -99,8 +101,9 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     gate = default_gate_limits(ident, spec)
     baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
-    traj_names = ["case1", "case2"]
-    trajs = [case1_trajectory(spec).render(spec.period), case2_trajectory(spec).render(spec.period)]
+    named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
+    traj_names = [name for name, _ in named]
+    trajs = [tr.render(spec.period) for _, tr in named]
 
     def feasible(g: ArcGains) -> FeasibilityReport:
         return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
@@ -226,9 +229,17 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     spec = spec_from_mapping(spec_data, spec_name, sample_rate_default=log_sample_rate(ident))
     traj = spec_data.get("trajectory")
     given = set(traj) if isinstance(traj, dict) else set()
+    if spec.profile is not None:
+        # The machine's moves set the envelope: no derivation from u_max (the paper's Case 1 and
+        # Case 2 get theirs in reference_envelope).  Their length and force first: they name the moves.
+        given |= {"v_max", "a_max", "travel"}
+        check_user_length(spec, spec_name)
+        check_moves_against_drive(spec, ident, spec_name)
     spec, rate_notes = rate_scaled_envelope(spec, given)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
     spec, notes = default_envelope(spec, ident, given, spec_name)
+    spec, ref_notes = reference_envelope(spec, ident, given, spec_name)
+    notes = notes + ref_notes
     tune_keys = spec_data.get("tune")
     budget_given = isinstance(tune_keys, dict) and "budget" in tune_keys
     spec, budget_notes = work_scaled_budget(spec, ident, budget_given)

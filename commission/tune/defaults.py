@@ -109,29 +109,88 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
             f"{source}: controller.theta1_0 = {spec.theta1_0:g} lies outside the identified theta1 box "
             f"[{ident.theta.min[0]:.4g}, {ident.theta.max[0]:.4g}]")
     d = drive_need(ident)
-    need = d.need(spec.v_max, spec.a_max, spec.beta1)
+    u = ident.units.get("u", "u-unit")
+    check_moves_against_drive(spec, ident, source)
+    vc, ac = spec.case_v_max, spec.case_a_max
+    ref = spec.reference_v_max is not None or spec.reference_a_max is not None
+    kv, ka = ("trajectory.reference_v_max", "trajectory.reference_a_max") if ref else ("trajectory.v_max",
+                                                                                      "trajectory.a_max")
+    need = d.need(vc, ac, spec.beta1)
     if need > spec.u_max:
-        u = ident.units.get("u", "u-unit")
         # Remedies in order: a smaller envelope (values that pass when followed: Case 1's start-up
         # acceleration counts), a narrower box, and only then a larger drive.
-        a_ok = d.a_max(spec.u_max, spec.v_max)
-        a1 = spec.beta1 * CASE1_SPEED_FRACTION * spec.v_max
+        a_ok = d.a_max(spec.u_max, vc)
+        a1 = spec.beta1 * CASE1_SPEED_FRACTION * vc
         v_ok = d.v_max(spec.u_max, spec.beta1)
         if a_ok > 0 and a_ok >= a1:
-            hint = f"set trajectory.a_max <= {_floor3(a_ok):.3g} m/s^2 at this v_max"
+            hint = f"set {ka} <= {_floor3(a_ok):.3g} m/s^2 at this v_max"
         elif v_ok > 0:
             v_fix = _floor3(v_ok)
             hint = (f"Case 1's start-up alone needs {a1:.3g} m/s^2 at this v_max, so no a_max fits; set "
-                    f"trajectory.v_max <= {v_fix:.3g} m/s with trajectory.a_max <= "
+                    f"{kv} <= {v_fix:.3g} m/s with {ka} <= "
                     f"{_floor3(d.a_max(spec.u_max, v_fix)):.3g} m/s^2")
         else:
             hint = f"no envelope fits: even at rest the plant needs {d.const:.3g} {u}"
         raise SpecError(
             f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.3g} {u} needed for "
-            f"trajectory.a_max = {spec.a_max:g} m/s^2 and v_max = {spec.v_max:g} m/s on the most demanding "
+            f"{ka} = {ac:g} m/s^2 and {kv.split('.')[1]} = {vc:g} m/s on the most demanding "
             f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}; else narrow the box "
             f"(commission identify --payload-max, --disturbance-bound); raise controller.u_max only if the "
             f"drive really has it")
+
+
+def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "spec.toml") -> None:
+    """Refuse the machine's moves (``spec.profile``) when the drive cannot make them on the worst plant.
+
+    The need is ``max_k (mass |a_k| + viscous |v_k|) + const`` along the profile sampled at the
+    controller's period (mass, viscous and const of :class:`DriveNeed`: the heaviest mass of the
+    box, the largest viscous coefficient, friction +20 %, ripple and the largest constant force),
+    the forces of the ``user/payload_heavy``, ``user/friction_high`` and ``user/disturbance``
+    scenarios at once.  No Case-1 start-up counts here: the profile starts at rest on its own
+    limits.  The refusal names each term with its figures, then values that would pass: the
+    acceleration of the moves, and the load-force bound of ``commission identify`` when the
+    box's constant force is what does not fit, both sized so that the worst plant's feedforward
+    takes at most :data:`DRIVE_HEADROOM` x u_max (the rest is the feedback's: a command that
+    reaches u_max fails validate's gate).
+    """
+    p = spec.profile
+    if p is None:
+        return
+    d = drive_need(ident)
+    u = ident.units.get("u", "u-unit")
+    dyn, v, a = p.drive_demand(d.mass, d.viscous, spec.period)
+    need = dyn + d.const
+    if need <= spec.u_max:
+        return
+    plant = identified_plant(ident)
+    friction = (1.0 + FRICTION_SCALE) * max(plant[P_FC], plant[P_FS])
+    ripple = plant[P_RIPPLE_AMP]
+    force = d.const - friction - ripple
+    hints = []
+    budget = DRIVE_HEADROOM * spec.u_max
+    a_ok = (budget - d.viscous * p.v_peak - d.const) / d.mass
+    if a_ok > 0:
+        hints.append(f"moves with a_max <= {_floor3(a_ok):.3g} m/s^2 at their peak speed {p.v_peak:.3g} m/s")
+    bounds = ident.extra.get("bounds")
+    bound = bounds.get("disturbance_bound") if isinstance(bounds, dict) else None
+    d_lo, d_hi = force_range(ident)
+    step = abs(plant[P_OFFSET]) + ident.delta_d * plant[P_M]
+    if isinstance(bound, (int, float)) and max(abs(d_lo), abs(d_hi)) > step:
+        excess = need - budget
+        d_ok = bound - excess
+        if d_ok > 0 and max(abs(d_lo), abs(d_hi)) - excess >= step:
+            dflt = ", the default 10 max(fc, fs)" if bounds.get("disturbance_bound_defaulted") else ""
+            hints.append(f"a load-force bound commission identify --disturbance-bound {_floor3(d_ok):.3g} ({u}; now "
+                         f"{bound:.4g} {u}{dflt}) if the real load is that small")
+    hint = (" or ".join(hints) + f" would leave the feedback {1 - DRIVE_HEADROOM:.0%} of u_max" if hints else
+            f"no move fits: even at rest the plant needs {d.const:.4g} {u}")
+    raise SpecError(
+        f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.4g} {u} that {p.label} need on the "
+        f"most demanding plant of the theta box (scenarios user/payload_heavy, user/friction_high, user/disturbance): "
+        f"M a = {d.mass:.4g} x {a:.4g} m/s^2 = {d.mass * a:.4g} {u}, B v = {d.viscous:.4g} x {v:.4g} m/s = "
+        f"{d.viscous * v:.4g} {u}, friction +20 % {friction:.4g} {u}, ripple {ripple:.4g} {u} and the box's largest "
+        f"constant load force {force:.4g} {u}; {hint}; else narrow the box (commission identify --payload-max, "
+        f"--disturbance-bound); raise controller.u_max only if the drive really has it")
 
 
 def _floor3(x: float) -> float:
@@ -310,6 +369,74 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
     return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
         spec, v, a, f"the most demanding plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs "
                     f"<= {DRIVE_HEADROOM:g} x controller.u_max = {budget:.3g} {u} of feedforward")
+
+
+def reference_envelope(spec: Spec, ident: Identification, given: set[str],
+                       source: str = "spec (defaults)") -> tuple[Spec, tuple[str, ...]]:
+    """The envelope of the paper's Case 1 and Case 2 when the spec gives the machine's moves.
+
+    With the machine's moves, the spec's envelope (``v_max``, ``a_max``, ``travel``: the runtime
+    guard's speed and stroke, the gate's travel) is the moves' own (:mod:`commission.spec`), not
+    a derivation from u_max.  Case 1 and Case 2 stay as the paper's reference scenarios, but at
+    the moves' envelope Case 1's start-up (filter (58) at rest under a moving reference:
+    beta1 x 0.2 v_max, a step of acceleration no S-curve of the machine makes) can ask more of
+    the drive than any of its moves does, and would refuse moves the drive can make.  So their envelope
+    (``reference_v_max``, ``reference_a_max``) is, unless given, what ``tune`` derives for a
+    defaulted envelope (the paper's scaled to the rate, :func:`rate_scaled_envelope`, lowered to
+    the drive's feedforward budget, :func:`default_envelope`), capped at the moves' peaks and
+    at ``sqrt(a travel)``.  When even that derivation refuses (friction and forces take more than
+    :data:`DRIVE_HEADROOM` x u_max) the cap is the whole of u_max instead.
+
+    Parameters
+    ----------
+    given : set of str
+        ``[trajectory]`` keys the user set (``reference_v_max``, ``reference_a_max`` are kept).
+
+    Returns
+    -------
+    spec : Spec
+        With ``reference_v_max``/``reference_a_max`` set (the same object without moves).
+    notes : tuple of str
+    """
+    if spec.profile is None:
+        return spec, ()
+    keys = {"reference_v_max", "reference_a_max"}
+    g = {k[len("reference_"):] for k in given & keys}
+    paper = Spec()
+    base = dataclasses.replace(
+        spec, profile=None, reference_v_max=None, reference_a_max=None,
+        v_max=spec.reference_v_max if "v_max" in g else paper.v_max,
+        a_max=spec.reference_a_max if "a_max" in g else paper.a_max)
+    base, _ = rate_scaled_envelope(base, g)
+    try:
+        base, _ = default_envelope(base, ident, g, source)
+        v, a = base.v_max, base.a_max
+    except SpecError:
+        d = drive_need(ident)
+        v = base.v_max if "v_max" in g else min(base.v_max, d.v_max(spec.u_max, spec.beta1))
+        a = base.a_max if "a_max" in g else min(base.a_max, d.a_max(spec.u_max, v))
+        if not (v > 0 and a > 0):
+            raise
+    if "a_max" not in g:
+        a = min(a, spec.a_max)
+    if "v_max" not in g:
+        # Reachable within the travel, with a rounding margin so that tuning.json reloads (v^2/a <= travel).
+        v = min(v, spec.v_max, math.sqrt(a * spec.travel) * (1.0 - 1e-12))
+    out = dataclasses.replace(spec, reference_v_max=v, reference_a_max=a)
+    u = ident.units.get("u", "u-unit")
+    note = (f"the machine's moves set the envelope: trajectory.v_max = {spec.v_max:.4g} m/s, a_max = "
+            f"{spec.a_max:.4g} m/s^2, travel = {spec.travel:.4g} m (runtime guard and gate; {spec.profile.describe()}); "
+            f"the paper's Case 1 and Case 2 stay as reference scenarios at trajectory.reference_v_max = {v:.3g} m/s, "
+            f"reference_a_max = {a:.3g} m/s^2"
+            + ("" if g == {"v_max", "a_max"} else
+               f" (derived for controller.u_max = {spec.u_max:g} {u} as for a defaulted envelope, capped at the "
+               f"moves'; set them to choose)"))
+    notes: tuple[str, ...] = (note,)
+    if spec.profile.kind == "moves" and not any(math.isfinite(m.j_max) for m in spec.profile.moves):
+        notes += ("the machine's moves have no j_max: their acceleration steps are validated as they are, and the "
+                  "ARC's command peaks at each step; give [[trajectory.move]] j_max when the drive's trajectory "
+                  "generator limits the jerk",)
+    return out, notes
 
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
