@@ -195,6 +195,23 @@ _IDENT_CAPTIONS = {
 }
 
 
+def md_code(text: object) -> str:
+    """Text from an input file as a Markdown code span: nothing inside it is a link, markup or HTML.
+
+    A backtick would close the span, so it is shown as ``'``; line breaks become spaces."""
+    return "`" + " ".join(str(text).replace("`", "'").split()) + "`"
+
+
+def md_text(text: object) -> str:
+    """Text from an input file in a Markdown paragraph: every character Markdown or HTML would
+    interpret (links, emphasis, tables, tags, headings) escaped, line breaks as spaces."""
+    out = " ".join(str(text).split())
+    out = out.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    for ch in "\\`*_[]|#!":
+        out = out.replace(ch, "\\" + ch)
+    return out
+
+
 def _g(x: float, digits: int = 4) -> str:
     """A number rounded for people (the JSON files keep every digit)."""
     return f"{x:.{digits}g}" if math.isfinite(x) else str(x)
@@ -213,10 +230,10 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
     model = ident.extra.get("model") if isinstance(ident.extra.get("model"), dict) else {}
     rotary = q == "rad"
     L = ["## Identification", ""]
-    head = f"From `{src.get('path', 'the log')}`"
+    head = f"From {md_code(src.get('path', 'the log'))}"
     if src.get("n_samples") and src.get("sample_rate"):
         head += f" ({src['n_samples']} samples at {_g(float(src['sample_rate']), 6)} Hz)"
-    head += (f"; friction model {model.get('friction', '?')} ({model.get('method', '?')} method). "
+    head += (f"; friction model {md_text(model.get('friction', '?'))} ({md_text(model.get('method', '?'))} method). "
              f"Fit: relative error {_g(ident.relative_error, 3)} (fraction of ‖u‖), condition number "
              f"{_g(ident.condition_number, 3)}")
     if ident.validation_relative_error is not None:
@@ -241,13 +258,13 @@ def identification_markdown(tuning: Tuning, figures: Sequence[str] = ()) -> list
     fr = ident.extra.get("frequency_response")
     if isinstance(fr, dict):
         if fr.get("note"):
-            L += ["", f"Frequency response: {fr['note']}"]
+            L += ["", f"Frequency response: {md_text(fr['note'])}"]
         else:
             band = fr.get("band_hz")
             text = (f"Frequency response: the rigid model is backed from {_g(band[0], 3)} to {_g(band[1], 3)} Hz"
                     if band else "Frequency response: no band backs the rigid model")
             for m in fr.get("modes") or []:
-                text += f"; {m['kind']} at {_g(m['frequency_hz'], 4)} Hz, damping {_g(m['damping'], 2)}"
+                text += f"; {md_text(m['kind'])} at {_g(m['frequency_hz'], 4)} Hz, damping {_g(m['damping'], 2)}"
             if fr.get("delay_samples") is not None:
                 text += f"; input delay {_g(fr['delay_samples'], 2)} samples"
             L += ["", text + "."]
@@ -443,7 +460,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.extend(next_steps(result, tuning, tuning_path=sources.get("tuning") or "tuning.json").markdown())
     L.append("## Axis and controller")
     L.append("")
-    L.append(f"- tuning: `{sources.get('tuning') or 'tuning.json'}`; gate: `{sources.get('gate') or 'defaults'}`")
+    L.append(f"- tuning: {md_code(sources.get('tuning') or 'tuning.json')}; gate: {md_code(sources.get('gate') or 'defaults')}")
     L.append(f"- identified model: see Identification below; theta box min {_vec(ident.theta.min)}, "
              f"max {_vec(ident.theta.max)}, nominal {_vec(ident.theta.nominal)}; delta_d = {_g(ident.delta_d)} "
              f"{unit_of('a')}")
@@ -458,16 +475,16 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"- sample rate {nominal(spec.sample_rate, '{:g}')} Hz; encoder resolution "
              f"{result.quantization * 1e6:.3g} {unit_of('small')}; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
-    q, v, a = unit_of("q"), unit_of("v"), unit_of("a")
+    uq, uv, ua = unit_of("q"), unit_of("v"), unit_of("a")
     if spec.profile is None:
-        L.append(f"- envelope: travel {spec.travel:g} {q}, v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} "
-                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} {q}")
+        L.append(f"- envelope: travel {spec.travel:g} {uq}, v_max {spec.v_max:g} {uv}, a_max {spec.a_max:g} {ua} "
+                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} {uq}")
     else:
-        L.append(f"- envelope from the machine's moves ({spec.profile.describe()}): travel {spec.travel:g} {q}, "
-                 f"v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} (the runtime guard's and the gate's; not "
+        L.append(f"- envelope from the machine's moves ({md_text(spec.profile.describe())}): travel {spec.travel:g} {uq}, "
+                 f"v_max {spec.v_max:g} {uv}, a_max {spec.a_max:g} {ua} (the runtime guard's and the gate's; not "
                  f"derived from u_max); the paper's Case 1 and Case 2 as reference scenarios at v_max "
-                 f"{spec.case_v_max:.4g} {v}, a_max {spec.case_a_max:.4g} {a}; abort when |q - q_d| > "
-                 f"{result.e_abort:g} {q}")
+                 f"{spec.case_v_max:.4g} {uv}, a_max {spec.case_a_max:.4g} {ua}; abort when |q - q_d| > "
+                 f"{result.e_abort:g} {uq}")
     g = result.arc_gains
     L.append(f"- ARC: observer k1 = {_g(g.k1)} 1/s, k2 = {_g(g.k2)} 1/s^2; g1 = {_g(g.g1)} 1/s, g2 = {_g(g.g2)} 1/s, "
              f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)} "
@@ -573,7 +590,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"- ident.json sha256: {pv.ident_sha256}")
     if tuning_sha256:
         L.append(f"- tuning.json sha256: {tuning_sha256}")
-    L.append(f"- tuning created {pv.created_utc} by commission {pv.tool_version} (seed {pv.seed})")
+    L.append(f"- tuning created {md_text(pv.created_utc)} by commission {md_text(pv.tool_version)} (seed {pv.seed})")
     L.append(f"- validation: {len(result.runs) * 2} simulations in {result.elapsed:.1f} s on {result.workers} threads; "
              f"Monte-Carlo seed {result.seed}")
     L.append("")

@@ -18,8 +18,9 @@ The compiled step guards itself (:mod:`commission.controllers.arc`, "Runtime
 guards", with the limits validate chose and simulated: ``controller.json``
 ``runtime``): an implausible measurement is replaced by a prediction and does
 not adapt theta_hat; a jump beyond the stroke, a run of implausible
-measurements, a tracking error beyond the watchdog or a non-finite value
-latches a fault.  Then :attr:`Controller.fault` is True,
+measurements, an encoder that stays frozen while the command must move the
+axis, a tracking error beyond the watchdog or a non-finite value latches a
+fault.  Then :attr:`Controller.fault` is True,
 :attr:`Controller.fault_reason` names the cause, and :meth:`Controller.step`
 returns the **safe command 0** (no force) until :meth:`Controller.reset`;
 theta_hat keeps its last good value.  The caller should disable the drive

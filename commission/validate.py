@@ -716,18 +716,6 @@ def check_provenance(tuning: Tuning, tuning_path: str) -> None:
                           f"tuning.json was edited after tune (the validated plant box would not be the identified one)")
 
 
-def check_out_dir(out_dir: str | os.PathLike[str], names: Sequence[str], force: bool) -> Path:
-    """The output-folder checks of :class:`commission.files.Outputs` without its lock and staging
-    (kept for ``commission export``, which writes its folder directly).
-
-    Raises
-    ------
-    UsageError
-        ``DIR/controller.json: exists; pass --force to overwrite``, or a folder that is a file.
-    """
-    return Outputs(force=force).add_dir(out_dir, names, "--out-dir")
-
-
 def output_names() -> tuple[str, ...]:
     """Every file ``validate`` may write into its output folder."""
     return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES, USER_FIGURE_NAME)
@@ -818,7 +806,7 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
-    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance", "check_out_dir",
+    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance",
     "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration", "holding_force",
     "log_sha256_of",
 ]

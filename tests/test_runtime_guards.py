@@ -53,7 +53,7 @@ def run(axis, g, traj, noise=None, disturbance=None):
 
 
 def controller(g):
-    prov = ControllerProvenance(None, "0" * 64, "0" * 64, "test", "2001-06-01T00:00:00Z")
+    prov = ControllerProvenance(None, "0" * 64, "0" * 64, "0.1.0", "2001-06-01T00:00:00Z")
     return Controller(ControllerConfig(gains=g, sample_rate=1.0 / g.Ts, units={"u": "V", "q": "m"}, validated={},
                                        provenance=prov))
 
