@@ -243,7 +243,8 @@ def test_help_lists_rad_for_q_unit_and_the_conversion_flags():
     for cmd in ("identify", "run"):
         text = re.sub(r"[│╭╮╰╯─\s]+", " ", runner.invoke(app, [cmd, "-h"]).output)  # rich's boxes unwrapped
         assert "m, mm, um, or rad" in text and "--lead" in text and "--gear" in text, cmd
-        assert "--counts-per-rev" in text and ".npy/.npz" in text, cmd
+        assert "--counts-per-rev" in text and "attribute (CSV, v5 .mat, .npy/.npz): m, mm, um" in text, cmd
+        assert text.count("u-unit·s²/m, or u-unit·s²/rad on a rotary axis") == 3, cmd  # payloads and --fix
 
 
 def _csv(path: Path, q_scale: float) -> Path:
@@ -426,3 +427,102 @@ def test_odrive_npy_with_counts_per_rev_has_no_linear_unit_and_the_converted_log
     assert amp == pytest.approx(ref["ripple_amp"]["value"], rel=0.01)
     assert abs(math.remainder(phase - ref["ripple_phase"]["value"], 2 * math.pi)) < 0.02
     assert amp == pytest.approx(0.868, rel=0.05)  # tests/test_identify_odrive.py's figure
+
+
+# --------------------------------------------------------------------------------------------------
+# tune's refusals and notes, the moves' description, the export README: in the axis's units.
+
+import dataclasses  # noqa: E402
+
+
+def _tune_messages(ident) -> list[str]:
+    """Every refusal and note of tune's spec defaulting (commission/tune/defaults.py) on ``ident``'s axis."""
+    from commission import tune as tune_mod
+    from commission.errors import SpecError
+    from commission.spec import spec_from_mapping
+
+    out = []
+
+    def refused(data) -> None:
+        with pytest.raises(SpecError) as exc:
+            tune_mod.resolve_spec(data, "s.toml", ident)
+        out.append(str(exc.value))
+
+    with pytest.raises(SpecError) as exc:  # Case 1's start-up: the hint lowers v_max and a_max
+        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
+    out.append(str(exc.value))
+    refused({"controller": {"u_max": 3.0}, "trajectory": {"a_max": 30.0}})  # a set a_max the drive cannot make
+    refused({"controller": {"u_max": 1.5}})  # the box's forces alone
+    refused({"controller": {"u_max": 4.0}, "trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 30.0}]}})
+    out += tune_mod.resolve_spec({"controller": {"u_max": 3.0}}, "s.toml", ident).notes  # lowered envelope
+    out += tune_mod.resolve_spec({"trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 2.0}]}}, "s.toml",
+                                 ident).notes  # the moves' envelope, with their description
+    out += tune_mod.rate_scaled_envelope(spec_from_mapping({"controller": {"sample_rate": 1000.0}}), set(),
+                                         ident.units)[1]
+    boxed = dataclasses.replace(ident, extra={**ident.extra, "bounds": {"disturbance_bound": 1.2,
+                                                                        "disturbance_bound_defaulted": True}})
+    out += tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", boxed).notes  # theta3 narrowed
+    return out
+
+
+def test_tune_s_refusals_and_notes_say_rad_on_a_rotary_axis():
+    from commission.paper import reference_identification
+
+    linear = reference_identification()
+    assert linear.units["q"] == "m"
+    rotary = dataclasses.replace(linear, units={"u": "Nm", "q": "rad"})
+    lin, rot = _tune_messages(linear), _tune_messages(rotary)
+    assert len(lin) == len(rot)
+    assert all(linear_units(b) == [] for b in rot), rot
+    # the counterpart: the same messages on a linear axis say m (the scan can fail), and each then says rad/s
+    worded = [(a, b) for a, b in zip(lin, rot) if linear_units(a)]
+    assert len(worded) >= 9, lin
+    assert all("rad/s" in b for _, b in worded), worded
+    text = " ".join(rot)
+    assert "peak |a| 2 rad/s^2, span 0.3 rad" in text and "travel = 0.3 rad" in text
+    assert "theta3 box narrowed from [-50, 50] to" in text and "] rad/s^2 (constant load force" in text
+
+
+def test_the_moves_description_is_in_the_axis_s_units():
+    from commission.spec import spec_from_mapping
+    from commission.units import axis_units_context
+
+    p = spec_from_mapping({"trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 2.0}]}}).profile
+    assert "peak |v| 0.7746 m/s, peak |a| 2 m/s^2, span 0.3 m" in p.describe()
+    assert "peak |v| 0.7746 rad/s, peak |a| 2 rad/s^2, span 0.3 rad" in p.describe({"u": "Nm", "q": "rad"})
+    with axis_units_context("rad"):  # the report words it by the axis it is rendering
+        assert "span 0.3 rad" in p.describe()
+
+
+def test_the_export_readme_words_the_fault_vectors_and_the_encoder_by_the_axis():
+    from commission.export import readme
+    from commission.export.c_target import TARGETS
+    from commission.export.text import markdown_code
+
+    base, arc = _export_config(), TARGETS["arc"]
+    lin = readme("arc", base, arc, True)
+    rot = readme("arc", dataclasses.replace(base, units={"u": "Nm", "q": "rad"}), arc, True)
+    assert "a one-sample glitch of 0.001 `m`, a jump of 1 `m`" in lin and "reading in `m`" in lin
+    assert "a one-sample glitch of 0.001 `rad`, a jump of 1 `rad`" in rot and "reading in `rad`" in rot
+    assert "`rad`/s²" in rot and "read_position()" in rot and "read_encoder_m" not in rot
+    assert linear_units(rot.replace("`", "")) == [], linear_units(rot.replace("`", ""))
+    assert linear_units(lin.replace("`", ""))  # the counterpart
+    # the unit reaches the README only through markdown_code
+    odd = readme("arc", dataclasses.replace(base, units={"u": "Nm", "q": "r`a*d"}), arc, True)
+    assert f"glitch of 0.001 {markdown_code('r`a*d')}" in odd and "r`a*d" not in odd
+
+
+def _export_config():
+    """A controller.json's config as tests/test_export_security.py builds it (the paper's axis)."""
+    from commission.controller_config import ControllerConfig, ControllerProvenance
+    from commission.paper import reference_identification
+    from commission.spec import default_spec
+    from commission.tune import base_arc_gains
+    from commission.validate import deployable_gains, guard_values
+
+    spec, ident = default_spec(), reference_identification(delta_d=0.5)
+    raw = base_arc_gains(ident, spec)
+    g = deployable_gains(raw, guard_values(raw.Ts, 1e-6, spec.v_max, spec.travel, 20e-6))
+    prov = ControllerProvenance("a" * 64, "b" * 64, "c" * 64, "0.1.0", "2001-06-01T00:00:00Z")
+    return ControllerConfig(gains=g, sample_rate=1.0 / g.Ts, units={"u": "V", "q": "m"},
+                            validated={"simulation": {"quantization": 1e-6}}, provenance=prov)
