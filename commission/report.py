@@ -458,16 +458,17 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"- sample rate {nominal(spec.sample_rate, '{:g}')} Hz; encoder resolution "
              f"{result.quantization * 1e6:.3g} {unit_of('small')}; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
-    q, v, a = unit_of("q"), unit_of("v"), unit_of("a")
+    # not v: that is the verdict, used below
+    uq, uv, ua = unit_of("q"), unit_of("v"), unit_of("a")
     if spec.profile is None:
-        L.append(f"- envelope: travel {spec.travel:g} {q}, v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} "
-                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} {q}")
+        L.append(f"- envelope: travel {spec.travel:g} {uq}, v_max {spec.v_max:g} {uv}, a_max {spec.a_max:g} {ua} "
+                 f"(Case 1 and Case 2 scaled to it); abort when |q - q_d| > {result.e_abort:g} {uq}")
     else:
-        L.append(f"- envelope from the machine's moves ({spec.profile.describe()}): travel {spec.travel:g} {q}, "
-                 f"v_max {spec.v_max:g} {v}, a_max {spec.a_max:g} {a} (the runtime guard's and the gate's; not "
+        L.append(f"- envelope from the machine's moves ({spec.profile.describe()}): travel {spec.travel:g} {uq}, "
+                 f"v_max {spec.v_max:g} {uv}, a_max {spec.a_max:g} {ua} (the runtime guard's and the gate's; not "
                  f"derived from u_max); the paper's Case 1 and Case 2 as reference scenarios at v_max "
-                 f"{spec.case_v_max:.4g} {v}, a_max {spec.case_a_max:.4g} {a}; abort when |q - q_d| > "
-                 f"{result.e_abort:g} {q}")
+                 f"{spec.case_v_max:.4g} {uv}, a_max {spec.case_a_max:.4g} {ua}; abort when |q - q_d| > "
+                 f"{result.e_abort:g} {uq}")
     g = result.arc_gains
     L.append(f"- ARC: observer k1 = {_g(g.k1)} 1/s, k2 = {_g(g.k2)} 1/s^2; g1 = {_g(g.g1)} 1/s, g2 = {_g(g.g2)} 1/s, "
              f"k1s_max = {_g(g.k1s_max)} 1/s, k2s_max = {_g(g.k2s_max)} 1/s; Gamma = {_vec(g.Gamma, 3)} "

@@ -429,6 +429,24 @@ def test_odrive_npy_with_counts_per_rev_has_no_linear_unit_and_the_converted_log
     assert amp == pytest.approx(0.868, rel=0.05)  # tests/test_identify_odrive.py's figure
 
 
+
+@pytest.mark.slow  # identify, a whole tune and validate
+@pytest.mark.skipif(not ODRIVE_RUN.is_file(), reason="ODrive data not present")
+def test_run_on_the_odrive_npy_reports_in_rad(tmp_path, figure_texts):
+    """Must-show 3 through ``run``: the raw .npy with --counts-per-rev, a known inertia (the log has none).
+
+    The report is checked as well as the console, ident.json and every figure; the gate's verdict
+    does not matter here (the rigid model leaves half of this current unexplained), only the words.
+    """
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["run", str(ODRIVE_RUN), *NPY_MAP, "--counts-per-rev", "8192", "--u-unit", "A",
+                              "--resample", "400", "--ripple-pitch", "0.8976", "--fix", "M=0.002",
+                              "--out-dir", str(out)])
+    assert res.exit_code in (0, 1), res.output
+    _no_linear_unit(res, out / "ident.json", figure_texts, tmp_path)
+    report = (out / "report.md").read_text()
+    assert linear_units(report) == [] and "rad/s" in report
+
 # --------------------------------------------------------------------------------------------------
 # tune's refusals and notes, the moves' description, the export README: in the axis's units.
 
