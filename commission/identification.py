@@ -1090,7 +1090,8 @@ def _identify_loaded(paths: list[str], logs: list[ExcitationLog], val_logs: list
                 raise UsageError(f"{flag}: not available for a friction test of several logs ({note}; one map "
                                  "point per leg, no ripple or time base to fit): drop it, or give one file")
         legs_kw = {k: options[k] for k in ("mapping", "input_gain", "sample_rate", "friction", "fix", "bounds",
-                                            "u_unit", "q_unit", "fmt", "lead", "gear", "counts_per_rev") if k in options}
+                                            "u_unit", "q_unit", "fmt", "lead", "gear", "counts_per_rev")
+                   if k in options}
         return identify_legs(paths, validate_on=list(validate_on), _loaded=(logs, val_logs),
                              **legs_kw)  # type: ignore[arg-type]
     out = identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,

@@ -366,8 +366,8 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
     refuse = SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
         f"plant (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs {d.const:.3g} {u} for friction and constant forces "
-        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} {v_unit}, a_max = {MIN_DEFAULT_A_MAX:g} {a_unit} within "
-        f"{DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
+        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} {v_unit}, a_max = {MIN_DEFAULT_A_MAX:g} {a_unit} "
+        f"within {DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
         f"(commission identify --payload-max, --disturbance-bound)")
     if free <= 0:
         raise refuse
