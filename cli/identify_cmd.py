@@ -159,6 +159,7 @@ def identify_command(
     fix: List[str] = opt("--fix"),
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
+    counts_per_rev: Optional[float] = opt("--counts-per-rev"),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
@@ -170,7 +171,7 @@ def identify_command(
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
-                         lead=lead, gear=gear)
+                         lead=lead, gear=gear, counts_per_rev=counts_per_rev)
     files = expand_log_paths([str(p) for p in logs])
     val_files = expand_log_paths([o.validate_on]) if o.validate_on else []
     several = len(files) > 1

@@ -15,7 +15,7 @@ import typer
 
 from commission.errors import UsageError
 from commission.identification import BoundsOptions, IdentifyOptions, check_input_gain, parse_fix, payload_from_kg
-from commission.logs import parse_mapping
+from commission.logs import check_counts_per_rev, parse_mapping
 
 
 class Friction(str, enum.Enum):
@@ -24,8 +24,11 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
-Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat): m, mm, um, or rad "
-               "(a rotary axis); default m. Refused when it contradicts the file's attribute.")
+Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat, .npy/.npz): m, mm, um, "
+               "or rad (a rotary axis); default m. Refused when it contradicts the file's attribute.")
+COUNTS_PER_REV_HELP = ("Encoder counts per revolution: q (and q_ref) in the file are counts, read as rad "
+                       "(q·2π/N; a rotary axis, e.g. 8192 for the ODrive runs), before --gear and --lead. "
+                       "Refused with a --q-unit other than rad, or for a file that declares its q_unit.")
 LEAD_HELP = ("Screw lead in m per rad of the screw (5 mm/rev: 0.005/(2π) = 7.958e-4): converts a rotary log's q "
              "(rad) to the carriage's position in m before identification; everything derived is then in m. "
              "Refused for a log not in rad.")
@@ -49,8 +52,9 @@ _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
                             "read as the identification's: legs, or segments fitted together).", "LOG2"),
     "--k-sigma": (3.0, "Standard deviations covered by the theta box.", None),
     "--model-margin": (0.2, "Relative margin on M and B for model error.", None),
-    "--payload-min": (None, "Least added mass, u-unit·s²/m (default 0).", None),
-    "--payload-max": (None, "Largest added mass, u-unit·s²/m (default 3 M).", None),
+    "--payload-min": (None, "Least added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 0).", None),
+    "--payload-max": (None, "Largest added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 3 M).",
+                      None),
     "--payload-min-kg": (None, "Least added mass in kg (needs --force-constant).", None),
     "--payload-max-kg": (None, "Largest added mass in kg (needs --force-constant).", None),
     "--force-constant": (None, "N per u-unit, to convert kg payloads.", None),
@@ -59,10 +63,11 @@ _IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
                        "extension).", None),
     "--resample": (None, "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
                          "polling).", "HZ"),
+    "--counts-per-rev": (None, COUNTS_PER_REV_HELP, "N"),
     "--lead": (None, LEAD_HELP, "M_PER_RAD"),
     "--gear": (None, GEAR_HELP, "RATIO"),
-    "--fix": ([], "A known parameter, e.g. M=0.027 (u-unit·s²/m): not fitted; a log without acceleration content "
-                  "then still gives theta and its box.", "NAME=VALUE"),
+    "--fix": ([], "A known parameter, e.g. M=0.027 (u-unit·s²/m, or u-unit·s²/rad on a rotary axis): not fitted; a "
+                  "log without acceleration content then still gives theta and its box.", "NAME=VALUE"),
 }
 
 
@@ -110,17 +115,21 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
                      payload_min: Optional[float], payload_max: Optional[float], payload_min_kg: Optional[float],
                      payload_max_kg: Optional[float], force_constant: Optional[float],
                      disturbance_bound: Optional[float], log_format: Optional[str], resample: Optional[float],
-                     fix: List[str], lead: Optional[float] = None, gear: Optional[float] = None) -> IdentifyOptions:
+                     fix: List[str], lead: Optional[float] = None, gear: Optional[float] = None,
+                     counts_per_rev: Optional[float] = None) -> IdentifyOptions:
     """The parsed identify flags as one :class:`IdentifyOptions` (bad values: :class:`UsageError`).
 
     Checked here, before any output is touched: ``--input-gain`` other than 1 needs
     ``--u-unit`` (:func:`commission.identification.check_input_gain`), so that every
-    artifact labels u with its unit after the gain.
+    artifact labels u with its unit after the gain; ``--counts-per-rev`` is a positive finite
+    number that no ``--q-unit`` contradicts (:func:`commission.logs.check_counts_per_rev`).
     """
     check_input_gain(input_gain, u_unit)
+    check_counts_per_rev(counts_per_rev, q_unit)
     return IdentifyOptions(
         mapping=parse_mapping(map_), input_gain=input_gain, sample_rate=sample_rate, friction=friction.value,
         ripple_pitch=tuple(ripple_pitch), validate_on=str(validate_on) if validate_on is not None else None,
         bounds=bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg, payload_max_kg,
                               force_constant, disturbance_bound),
-        u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear)
+        u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear,
+        counts_per_rev=counts_per_rev)

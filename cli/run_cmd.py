@@ -55,6 +55,7 @@ def run_command(
     fix: List[str] = opt("--fix"),
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
+    counts_per_rev: Optional[float] = opt("--counts-per-rev"),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
     from commission.cli.plots import identification_plots
@@ -66,7 +67,7 @@ def run_command(
                          model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
-                         lead=lead, gear=gear)
+                         lead=lead, gear=gear, counts_per_rev=counts_per_rev)
     key = load_sign_key(sign_key)
     stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
     with StageProgress(err) as bar:

@@ -118,6 +118,9 @@ class IdentifyOptions:
     lead, gear : float or None
         ``--lead`` (m per load rad) and ``--gear`` (motor rad per load rad): a rotary
         log's angle converted before anything is fitted (:func:`convert_axis`).
+    counts_per_rev : float or None
+        ``--counts-per-rev``: the log's q is in encoder counts, read as rad on loading
+        (:func:`commission.logs.load_log`), before ``gear`` and ``lead``.
     """
 
     mapping: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -134,6 +137,7 @@ class IdentifyOptions:
     fix: Mapping[str, float] = dataclasses.field(default_factory=dict)
     lead: float | None = None
     gear: float | None = None
+    counts_per_rev: float | None = None
 
     def kwargs(self) -> dict[str, object]:
         """Keywords of :func:`identify_log`."""
@@ -141,7 +145,7 @@ class IdentifyOptions:
                 "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
                 "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix), "lead": self.lead,
-                "gear": self.gear}
+                "gear": self.gear, "counts_per_rev": self.counts_per_rev}
 
 
 def convert_axis(logs: Sequence[ExcitationLog], lead: float | None, gear: float | None) -> list[ExcitationLog]:
@@ -191,10 +195,21 @@ def convert_axis(logs: Sequence[ExcitationLog], lead: float | None, gear: float 
                                 q_unit_in_file=unit) for lg in logs]
 
 
-def _conversion_record(file_q_unit: str, lead: float | None, gear: float | None) -> dict[str, object]:
-    """ident.json's ``source.conversion``: what :func:`convert_axis` did (only when it did something)."""
-    return {"from": file_q_unit, "to": "m" if lead is not None else "rad", "lead_m_per_rad": lead,
-            "gear_motor_rad_per_load_rad": gear}
+def _conversion_record(file_q_unit: str, lead: float | None, gear: float | None,
+                       counts_per_rev: float | None = None) -> dict[str, object]:
+    """ident.json's ``source.conversion``: what ``--counts-per-rev`` (on loading) and :func:`convert_axis` did.
+
+    Written only when one of them did something.  One record for the whole chain,
+    file unit to model unit (counts -> rad -> load rad -> m), each factor under its own
+    key and null for a flag not given, so a reader can redo the conversion.
+    """
+    return {"from": file_q_unit, "to": "m" if lead is not None else "rad", "counts_per_rev": counts_per_rev,
+            "lead_m_per_rad": lead, "gear_motor_rad_per_load_rad": gear}
+
+
+def _file_q_unit(log: ExcitationLog, counts_per_rev: float | None) -> str:
+    """ident.json's ``source.q_unit``: the unit of q in the file, ``"counts"`` under ``--counts-per-rev``."""
+    return "counts" if counts_per_rev is not None else log.q_unit_in_file
 
 
 def check_input_gain(input_gain: float, u_unit: str | None) -> None:
@@ -365,6 +380,7 @@ def identify_log(
     fix: Mapping[str, float] | None = None,
     lead: float | None = None,
     gear: float | None = None,
+    counts_per_rev: float | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -418,6 +434,10 @@ def identify_log(
         ``--lead`` (m per load rad) and ``--gear`` (motor rad per load rad): the rotary
         log(s), ``validate_on`` too, converted first (:func:`convert_axis`); ``ripple_pitch``
         and ``fix`` are then in the converted unit.
+    counts_per_rev : float, optional
+        ``--counts-per-rev``: q (and q_ref) of every log in encoder counts, N per
+        revolution, read as rad (:func:`commission.logs.load_log`); ``gear`` and ``lead``
+        apply after it.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -440,9 +460,10 @@ def identify_log(
         raise UsageError(f"--ripple-pitch must be > 0 (m, or rad on a rotary axis), got {ripple_pitch}") from None
     ripple_pitch = (pitches[0] if len(pitches) == 1 else pitches) if pitches else None
     check_input_gain(input_gain, u_unit)
-    load = dict(mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
+    load = dict(mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt,
+                counts_per_rev=counts_per_rev)
     logs = list(_loaded[0]) if _loaded is not None else [load_log(p, **load) for p in paths]  # type: ignore[arg-type]
-    file_q_unit = logs[0].q_unit_in_file
+    file_q_unit = _file_q_unit(logs[0], counts_per_rev)
     logs = convert_axis(logs, lead, gear)
     if resample is not None:
         logs = [resample_log(lg, resample) for lg in logs]
@@ -551,8 +572,9 @@ def identify_log(
         extra["model"]["segments"] = [int(lg.t.size) for lg in logs]  # type: ignore[index]
     if fix:
         extra["model"]["fixed"] = dict(fix)  # type: ignore[index]
-    if lead is not None or gear is not None:
-        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear)  # type: ignore[index]
+    if lead is not None or gear is not None or counts_per_rev is not None:
+        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear,  # type: ignore[index]
+                                                           counts_per_rev)
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
@@ -825,6 +847,7 @@ def identify_legs(
     validate_on: Sequence[str] = (),
     lead: float | None = None,
     gear: float | None = None,
+    counts_per_rev: float | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> LegsOutcome:
     """Identify the friction curve from a friction test: several logs, one constant-speed leg each.
@@ -848,7 +871,7 @@ def identify_legs(
     validate_on : sequence of str
         Legs of a second friction test (files, folders expanded): the fitted curve's
         relative error on their map is ``validation_relative_error``.
-    mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt, lead, gear
+    mapping, input_gain, sample_rate, friction, bounds, u_unit, q_unit, fmt, lead, gear, counts_per_rev
         As in :func:`identify_log`, applied to every file.
 
     Returns
@@ -864,11 +887,12 @@ def identify_legs(
     if _loaded is not None:  # loaded by identify_files
         logs, val_logs = list(_loaded[0]), list(_loaded[1])
     else:
-        logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt)
-                for p in paths]
-        val_logs = [load_log(p, mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit,
-                             fmt=fmt) for p in validate_on]  # loaded before the fit: bad input fails fast
-    file_q_unit = logs[0].q_unit_in_file if logs else "m"
+        load = dict(mapping=mapping, input_gain=input_gain, sample_rate=sample_rate, q_unit=q_unit, fmt=fmt,
+                    counts_per_rev=counts_per_rev)
+        logs = [load_log(p, **load) for p in paths]  # type: ignore[arg-type]
+        # loaded before the fit: bad input fails fast
+        val_logs = [load_log(p, **load) for p in validate_on]  # type: ignore[arg-type]
+    file_q_unit = _file_q_unit(logs[0], counts_per_rev) if logs else "m"
     logs, val_logs = convert_axis(logs, lead, gear), convert_axis(val_logs, lead, gear)
     _same_axis_units(logs)
     legs, excluded, warnings = [], [], []
@@ -987,8 +1011,9 @@ def identify_legs(
     }
     if tb is not None:
         extra["bounds"] = _bounds_record(bounds, tb)
-    if lead is not None or gear is not None:
-        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear)  # type: ignore[index]
+    if lead is not None or gear is not None or counts_per_rev is not None:
+        extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear,  # type: ignore[index]
+                                                           counts_per_rev)
     ident = Identification(
         units=_units(u_unit, first),
         parameters=params,
@@ -1030,7 +1055,8 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
         Logs for the cross-test relative error (folders expanded), read the same way.
     ripple_pitch, resample, **options
         As in :func:`identify_log` (``mapping``, ``input_gain``, ``sample_rate``,
-        ``friction``, ``bounds``, ``u_unit``, ``q_unit``, ``fmt``, ``fix``).
+        ``friction``, ``bounds``, ``u_unit``, ``q_unit``, ``fmt``, ``fix``, ``lead``, ``gear``,
+        ``counts_per_rev``).
 
     Returns
     -------
@@ -1043,7 +1069,7 @@ def identify_files(paths: Sequence[str], *, validate_on: Sequence[str] = (), rip
         return identify_log(paths[0], validate_on=list(validate_on) or None, ripple_pitch=ripple_pitch,
                             resample=resample, **options)  # type: ignore[arg-type]
     check_input_gain(options.get("input_gain", 1.0), options.get("u_unit"))  # type: ignore[arg-type]
-    load = {k: options.get(k) for k in ("mapping", "sample_rate", "q_unit", "fmt")}
+    load = {k: options.get(k) for k in ("mapping", "sample_rate", "q_unit", "fmt", "counts_per_rev")}
     gain = float(options.get("input_gain", 1.0))  # type: ignore[arg-type]
     logs = [load_log(p, input_gain=gain, **load) for p in paths]  # type: ignore[arg-type]
     val_logs = [load_log(p, input_gain=gain, **load) for p in validate_on]  # type: ignore[arg-type]
@@ -1064,7 +1090,8 @@ def _identify_loaded(paths: list[str], logs: list[ExcitationLog], val_logs: list
                 raise UsageError(f"{flag}: not available for a friction test of several logs ({note}; one map "
                                  "point per leg, no ripple or time base to fit): drop it, or give one file")
         legs_kw = {k: options[k] for k in ("mapping", "input_gain", "sample_rate", "friction", "fix", "bounds",
-                                            "u_unit", "q_unit", "fmt", "lead", "gear") if k in options}
+                                            "u_unit", "q_unit", "fmt", "lead", "gear", "counts_per_rev")
+                   if k in options}
         return identify_legs(paths, validate_on=list(validate_on), _loaded=(logs, val_logs),
                              **legs_kw)  # type: ignore[arg-type]
     out = identify_log(paths, validate_on=list(validate_on), ripple_pitch=ripple_pitch, resample=resample,

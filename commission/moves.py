@@ -41,6 +41,7 @@ import numpy as np
 
 from commission.controllers import trajectory as _traj
 from commission.errors import SpecError
+from commission.units import unit
 
 #: Largest profile file read, bytes.
 MAX_PROFILE_BYTES = 256 * 1024**2
@@ -146,12 +147,18 @@ class UserProfile:
             out.append(d)
         return {"move": out}
 
-    def describe(self) -> str:
-        """One line for notes and the report."""
+    def describe(self, units: Mapping[str, str] | None = None) -> str:
+        """One line for notes and the report, in the axis's ``units`` (ident.json's).
+
+        The profile itself is numbers in the axis's position unit (the spec does not say
+        which); ``units`` words them.  Without it the axis of
+        :func:`commission.units.axis_units_context` (default m), as every label.
+        """
+        q, v, a = (unit(k, units) for k in ("q", "v", "a"))
         what = (f"{len(self.moves)} point-to-point move{'s' if len(self.moves) != 1 else ''}" if self.kind == "moves"
                 else f"the profile {self.path}")
-        return (f"{what}: {self.end:.4g} s, peak |v| {self.v_peak:.4g} m/s, peak |a| {self.a_peak:.4g} m/s^2, "
-                f"span {self.span:.4g} m")
+        return (f"{what}: {self.end:.4g} s, peak |v| {self.v_peak:.4g} {v}, peak |a| {self.a_peak:.4g} "
+                f"{a.replace('²', '^2')}, span {self.span:.4g} {q}")
 
 
 def _num(source: str, path: str, raw: Any, unit: str, lo: float, hi: float) -> float:

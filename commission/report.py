@@ -475,6 +475,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"- sample rate {nominal(spec.sample_rate, '{:g}')} Hz; encoder resolution "
              f"{result.quantization * 1e6:.3g} {unit_of('small')}; "
              f"actuator limit {spec.u_max:g} {unit}; plant sub-steps per sample {result.to_dict()['simulation']['substeps']}")
+    # not v: that is the verdict, used below
     uq, uv, ua = unit_of("q"), unit_of("v"), unit_of("a")
     if spec.profile is None:
         L.append(f"- envelope: travel {spec.travel:g} {uq}, v_max {spec.v_max:g} {uv}, a_max {spec.a_max:g} {ua} "

@@ -27,10 +27,11 @@ recomputed by anyone, the other only says who emitted the file.
 Test vectors: three closed-loop scenarios of up to :data:`VECTOR_STEPS`
 samples each, simulated with the compiled step and replayed through the
 Python runtime: Case 1 and Case 2 of the validation, and a fault case (Case 1
-with a one-sample 1 mm glitch, then a 1 m jump, then a non-finite
-measurement).  With ``tuning`` (checked against the controller's provenance)
-they are the validated scenarios: the identified plant, the envelope's
-trajectories, the encoder and the actuator limit validate used.  Without it,
+with a one-sample glitch of 0.001, then a jump of 1, in the axis's position unit
+(m, or rad on a rotary axis), then a non-finite measurement).  With ``tuning``
+(checked against the controller's provenance) they are the validated scenarios:
+the identified plant, the envelope's trajectories, the encoder and the actuator
+limit validate used.  Without it,
 controller.json alone does not carry the plant: the vectors then run on the
 nominal plant its initial estimates describe (M = 1/theta0_1, B = theta0_2 M,
 offset = -theta0_3 M) with the default envelope; the vectors test the C
@@ -197,7 +198,14 @@ def _is_sha256(text: str) -> bool:
 
 
 def readme(kind: str, config: ControllerConfig, target: Target, with_tuning: bool) -> str:
-    """README.md of a C export; every unit it carries, as an escaped code span."""
+    """README.md of a C export; every unit it carries, as an escaped code span.
+
+    The position unit is worded by the axis (m, or rad on a rotary one) wherever a length
+    or an encoder read-out appears, and only ever as :func:`markdown_code` of the file's
+    ``units.q``: the code block of the interrupt example names a unit-neutral
+    ``read_position()``, since no text of the file may enter it, and the sentence after it
+    says the unit.
+    """
     from commission.units import nominal, unit  # printed rates at their nominal value, the axis's units
 
     q = markdown_code(unit("q", config.units))  # from the file: escaped like every free text
@@ -220,7 +228,7 @@ command in {markdown_code(config.units.get('u', 'u-unit'))}.
 - `{b}_params.c`: `{b}_params_validated`, the parameters as a `const` object (sample rate,
   units, the controller.json checksum and provenance in its comment).
 - `test_vectors.csv`: y, qd, dqd, ddqd and the command u of the Python runtime, three scenarios
-  (`case1`, `case2`, and `fault`: a 1 mm one-sample glitch, a 1 m jump, a non-finite sample).
+  (`case1`, `case2`, and `fault`: a one-sample glitch of 0.001 {q}, a jump of 1 {q}, a non-finite sample).
   {'The validated scenarios (identified plant, envelope, encoder).' if with_tuning else
    'Run on the nominal plant of the controller initial estimates (no tuning.json was given).'}
 - `test_main.c`: replays the vectors; prints the largest |u_C - u_Python| and exits 0 only when
@@ -240,11 +248,14 @@ command is then no longer the one that was validated. The same holds for other c
 
     static {b}_state axis;                        /* state: changes every sample */
     /* at enable, axis at rest: */
-    {b}_init(&axis, &{b}_params_validated, read_encoder_m());
+    {b}_init(&axis, &{b}_params_validated, read_position());
     /* every {nominal(config.gains.Ts, '{:.9g}')} s, in the servo interrupt: */
-    double u = {b}_step(&axis, &{b}_params_validated, read_encoder_m(), qd, dqd, ddqd);
+    double u = {b}_step(&axis, &{b}_params_validated, read_position(), qd, dqd, ddqd);
     if ({b}_fault(&axis)) {{ disable_drive(); /* reason: {b}_fault_reason({b}_fault(&axis)) */ }}
     else write_dac(u);                            /* hold until the next sample */
+
+`read_position()` stands for the encoder's reading in {q}, and `qd`, `dqd`, `ddqd` for the
+reference in {q}, {q}/s and {q}/s²: the units the controller was validated in.
 
 Fixed at export: everything in `{b}_params_validated` (gains, limits, runtime guards, the
 exact sampled filter matrices). State: `{b}_state` ({up}_NS doubles: filters, estimates,

@@ -52,6 +52,7 @@ __all__ = [
     "SAMPLE_RATE_TOLERANCE",
     "U_UNITS",
     "ExcitationLog",
+    "check_counts_per_rev",
     "load_log",
     "parse_mapping",
 ]
@@ -101,6 +102,29 @@ def parse_mapping(items: Iterable[str]) -> dict[str, str]:
     return out
 
 
+def check_counts_per_rev(counts_per_rev: float | None, q_unit: str | None) -> None:
+    """Refuse a ``--counts-per-rev`` that is not a positive finite number, or that ``--q-unit`` contradicts.
+
+    Encoder counts converted at ``2π/N`` rad per count are a rotary angle, so the only
+    ``--q-unit`` that agrees with the flag is ``rad`` (redundant, accepted); a linear unit
+    says the user thinks the same numbers are lengths, and one of the two flags is wrong.
+
+    Raises
+    ------
+    UsageError
+        Naming ``--counts-per-rev`` and, for a contradiction, the ``--q-unit`` given.
+    """
+    if counts_per_rev is None:
+        return
+    n = float(counts_per_rev)
+    if not (math.isfinite(n) and n > 0):
+        raise UsageError(f"--counts-per-rev must be a positive finite number (encoder counts per revolution), "
+                         f"got {counts_per_rev}")
+    if q_unit is not None and q_unit != "rad":
+        raise UsageError(f"--counts-per-rev {counts_per_rev:g} turns q from encoder counts into rad, but --q-unit "
+                         f"{q_unit} says q is a length: drop one of the two")
+
+
 def load_log(
     path: str | os.PathLike[str],
     *,
@@ -109,6 +133,7 @@ def load_log(
     sample_rate: float | None = None,
     q_unit: str | None = None,
     fmt: str | None = None,
+    counts_per_rev: float | None = None,
 ) -> ExcitationLog:
     """Load an excitation log (CONTRACT §1) from HDF5, CSV, MATLAB or NumPy.
 
@@ -184,6 +209,7 @@ def load_log(
             raise UsageError(f"--sample-rate: expected a finite positive rate in Hz, got {sample_rate!r}")
     if q_unit is not None and q_unit not in Q_UNITS:
         raise UsageError(f"--q-unit: expected one of {', '.join(Q_UNITS)}, got {q_unit!r}")
+    check_counts_per_rev(counts_per_rev, q_unit)
 
     if fmt is not None and fmt not in FORMATS:
         raise UsageError(f"--format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
@@ -215,5 +241,6 @@ def load_log(
         raw = _read_hdf5(data, label, "MATLAB v7.3", mapping, need_t, matlab=True)
     else:
         raw = _read_mat5(data, label, mapping, need_t)
-    return _assemble(raw, label, gain, sample_rate, q_unit, hashlib.sha256(data).hexdigest())
+    return _assemble(raw, label, gain, sample_rate, q_unit, hashlib.sha256(data).hexdigest(),
+                     counts_per_rev=None if counts_per_rev is None else float(counts_per_rev))
 

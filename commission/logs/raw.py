@@ -4,6 +4,7 @@ units.  A reader module only parses its format into a :class:`_Raw`."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -89,7 +90,7 @@ def _why(exc: BaseException) -> str:
 
 
 def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_unit_given: str | None,
-              digest: str) -> ExcitationLog:
+              digest: str, counts_per_rev: float | None = None) -> ExcitationLog:
     vec = raw.vectors
     q, q_shape, q_src = vec["q"]
     n = q.shape[0]
@@ -102,6 +103,11 @@ def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_u
     if n == 0:
         raise DataError(f"{label}: {_what('q', q_src)} is empty")
 
+    if counts_per_rev is not None and raw.q_unit is not None:
+        raise UsageError(f"--counts-per-rev {counts_per_rev:g} reads q as encoder counts, but {label} declares "
+                         f"q_unit={raw.q_unit!r}: its q is not in counts; drop --counts-per-rev")
+    if counts_per_rev is not None:
+        q_unit_given = "rad"  # counts * 2π/N are an angle
     q_unit = (q_unit_given or "m") if raw.q_unit is None else raw.q_unit
     u_unit = "V" if raw.u_unit is None else raw.u_unit
     if not isinstance(q_unit, str) or q_unit not in Q_UNITS:
@@ -117,6 +123,9 @@ def _assemble(raw: _Raw, label: str, gain: float, sample_rate: float | None, q_u
     q_ref = vec["q_ref"][0] if "q_ref" in vec else None
     if q_ref is not None and per_metre != 1.0:
         q_ref = q_ref / per_metre
+    if counts_per_rev is not None:
+        q = q * (2.0 * math.pi) / counts_per_rev
+        q_ref = None if q_ref is None else q_ref * (2.0 * math.pi) / counts_per_rev
     u = vec["u"][0]
     u = u * gain if gain != 1.0 else u
 

@@ -235,7 +235,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
         given |= {"v_max", "a_max", "travel"}
         check_user_length(spec, spec_name)
         check_moves_against_drive(spec, ident, spec_name)
-    spec, rate_notes = rate_scaled_envelope(spec, given)
+    spec, rate_notes = rate_scaled_envelope(spec, given, ident.units)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
     spec, notes = default_envelope(spec, ident, given, spec_name)
     spec, ref_notes = reference_envelope(spec, ident, given, spec_name)

@@ -13,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Mapping
+
 from commission.artifacts import Identification
 from commission.controllers.plant import P_B, P_FC, P_FS, P_M, P_OFFSET, P_RIPPLE_AMP
 from commission.errors import SpecError
@@ -26,6 +28,7 @@ from commission.scenarios import (
     viscous_range,
 )
 from commission.spec import Spec
+from commission.units import unit
 
 
 #: The paper's axis: theta1 = 37 at 2.5 kHz; the reference of the gain scaling.
@@ -45,6 +48,18 @@ MIN_DEFAULT_V_MAX = 0.1
 
 
 MIN_DEFAULT_A_MAX = 1.0
+
+
+def _axis_units(units: Mapping[str, str] | None) -> tuple[str, str, str]:
+    """Position, velocity and acceleration units of the refusals and notes here: ``("m", "m/s", "m/s^2")``.
+
+    From the identification's ``units`` (:func:`commission.units.unit`; without them, the
+    axis of :func:`commission.units.axis_units_context`, default m), so a rotary axis reads
+    rad, rad/s and rad/s^2.  The square is written ``^2``, as these messages always have:
+    they are one plain-text line that users and scripts search for the values to set.
+    """
+    q, v, a = (unit(k, units) for k in ("q", "v", "a"))
+    return q, v, a.replace("²", "^2")
 
 
 @dataclass(frozen=True)
@@ -110,6 +125,7 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
             f"[{ident.theta.min[0]:.4g}, {ident.theta.max[0]:.4g}]")
     d = drive_need(ident)
     u = ident.units.get("u", "u-unit")
+    _, v_unit, a_unit = _axis_units(ident.units)
     check_moves_against_drive(spec, ident, source)
     vc, ac = spec.case_v_max, spec.case_a_max
     ref = spec.reference_v_max is not None or spec.reference_a_max is not None
@@ -123,17 +139,17 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
         a1 = spec.beta1 * CASE1_SPEED_FRACTION * vc
         v_ok = d.v_max(spec.u_max, spec.beta1)
         if a_ok > 0 and a_ok >= a1:
-            hint = f"set {ka} <= {_floor3(a_ok):.3g} m/s^2 at this v_max"
+            hint = f"set {ka} <= {_floor3(a_ok):.3g} {a_unit} at this v_max"
         elif v_ok > 0:
             v_fix = _floor3(v_ok)
-            hint = (f"Case 1's start-up alone needs {a1:.3g} m/s^2 at this v_max, so no a_max fits; set "
-                    f"{kv} <= {v_fix:.3g} m/s with {ka} <= "
-                    f"{_floor3(d.a_max(spec.u_max, v_fix)):.3g} m/s^2")
+            hint = (f"Case 1's start-up alone needs {a1:.3g} {a_unit} at this v_max, so no a_max fits; set "
+                    f"{kv} <= {v_fix:.3g} {v_unit} with {ka} <= "
+                    f"{_floor3(d.a_max(spec.u_max, v_fix)):.3g} {a_unit}")
         else:
             hint = f"no envelope fits: even at rest the plant needs {d.const:.3g} {u}"
         raise SpecError(
             f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.3g} {u} needed for "
-            f"{ka} = {ac:g} m/s^2 and {kv.split('.')[1]} = {vc:g} m/s on the most demanding "
+            f"{ka} = {ac:g} {a_unit} and {kv.split('.')[1]} = {vc:g} {v_unit} on the most demanding "
             f"plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}); {hint}; else narrow the box "
             f"(commission identify --payload-max, --disturbance-bound); raise controller.u_max only if the "
             f"drive really has it")
@@ -158,6 +174,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
         return
     d = drive_need(ident)
     u = ident.units.get("u", "u-unit")
+    _, v_unit, a_unit = _axis_units(ident.units)
     dyn, v, a = p.drive_demand(d.mass, d.viscous, spec.period)
     need = dyn + d.const
     if need <= spec.u_max:
@@ -170,7 +187,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     budget = DRIVE_HEADROOM * spec.u_max
     a_ok = (budget - d.viscous * p.v_peak - d.const) / d.mass
     if a_ok > 0:
-        hints.append(f"moves with a_max <= {_floor3(a_ok):.3g} m/s^2 at their peak speed {p.v_peak:.3g} m/s")
+        hints.append(f"moves with a_max <= {_floor3(a_ok):.3g} {a_unit} at their peak speed {p.v_peak:.3g} {v_unit}")
     bounds = ident.extra.get("bounds")
     bound = bounds.get("disturbance_bound") if isinstance(bounds, dict) else None
     d_lo, d_hi = force_range(ident)
@@ -187,7 +204,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     raise SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.4g} {u} that {p.label} need on the "
         f"most demanding plant of the theta box (scenarios user/payload_heavy, user/friction_high, user/disturbance): "
-        f"M a = {d.mass:.4g} x {a:.4g} m/s^2 = {d.mass * a:.4g} {u}, B v = {d.viscous:.4g} x {v:.4g} m/s = "
+        f"M a = {d.mass:.4g} x {a:.4g} {a_unit} = {d.mass * a:.4g} {u}, B v = {d.viscous:.4g} x {v:.4g} {v_unit} = "
         f"{d.viscous * v:.4g} {u}, friction +20 % {friction:.4g} {u}, ripple {ripple:.4g} {u} and the box's largest "
         f"constant load force {force:.4g} {u}; {hint}; else narrow the box (commission identify --payload-max, "
         f"--disturbance-bound); raise controller.u_max only if the drive really has it")
@@ -270,16 +287,18 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification,
     extra["bounds"] = new_bounds
     out = dataclasses.replace(ident, theta=theta, extra=extra)
     was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
+    _, v_unit, a_unit = _axis_units(ident.units)  # theta3 is in q/s², as the acceleration
     note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
-            f"m/s^2 (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
-            f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} m/s, "
-            f"a_max = {a_min:g} m/s^2 on the most demanding plant; it now takes {DISTURBANCE_SHARE:g} of the "
+            f"{a_unit} (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
+            f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} {v_unit}, "
+            f"a_max = {a_min:g} {a_unit} on the most demanding plant; it now takes {DISTURBANCE_SHARE:g} of the "
             f"{budget:.3g} {u} feedforward budget.  State the real load with commission identify "
             f"--disturbance-bound")
     return out, (note,)
 
 
-def rate_scaled_envelope(spec: Spec, given: set[str]) -> tuple[Spec, tuple[str, ...]]:
+def rate_scaled_envelope(spec: Spec, given: set[str],
+                         units: Mapping[str, str] | None = None) -> tuple[Spec, tuple[str, ...]]:
     """Scale a *defaulted* envelope to a sample rate below the paper's 2.5 kHz.
 
     The defaults (1 m/s, 12 m/s^2) are the paper's envelope at its 2.5 kHz.  Every loop
@@ -290,7 +309,8 @@ def rate_scaled_envelope(spec: Spec, given: set[str]) -> tuple[Spec, tuple[str, 
     relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2).  Without
     it, 1 kHz axes of :func:`commission.synth.random_axis` miss the default gate's e_rms
     limit (20 um) by 1.1-2x on their heavy plants, with the ARC still ahead of the PID.
-    Keys the user set are kept; at or above 2.5 kHz nothing changes.
+    Keys the user set are kept; at or above 2.5 kHz nothing changes.  ``units`` (the
+    identification's) only words the notes: rad/s on a rotary axis; default m.
     """
     r = spec.sample_rate / PAPER_RATE
     if r >= 1.0:
@@ -299,13 +319,15 @@ def rate_scaled_envelope(spec: Spec, given: set[str]) -> tuple[Spec, tuple[str, 
     a = spec.a_max if "a_max" in given else spec.a_max * r * r
     return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
         spec, v, a, f"the sample rate {spec.sample_rate:g} Hz is {r:.3g} x the paper's {PAPER_RATE:g} Hz "
-                    f"(the envelope scales as r for v_max, r^2 for a_max)")
+                    f"(the envelope scales as r for v_max, r^2 for a_max)", units)
 
 
-def _envelope_notes(spec: Spec, v: float, a: float, why: str) -> tuple[str, ...]:
-    """One note per envelope key that (v, a) changes from ``spec``'s."""
-    return tuple(f"trajectory.{k} defaulted to {new:.3g} {unit} instead of {old:g}: {why}"
-                 for k, old, new, unit in (("v_max", spec.v_max, v, "m/s"), ("a_max", spec.a_max, a, "m/s^2"))
+def _envelope_notes(spec: Spec, v: float, a: float, why: str,
+                    units: Mapping[str, str] | None = None) -> tuple[str, ...]:
+    """One note per envelope key that (v, a) changes from ``spec``'s, in the axis's ``units``."""
+    _, v_unit, a_unit = _axis_units(units)
+    return tuple(f"trajectory.{k} defaulted to {new:.3g} {un} instead of {old:g}: {why}"
+                 for k, old, new, un in (("v_max", spec.v_max, v, v_unit), ("a_max", spec.a_max, a, a_unit))
                  if new != old)
 
 
@@ -340,11 +362,12 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
         return spec, ()
     free = budget - d.const
     u = ident.units.get("u", "u-unit")
+    q_unit, v_unit, a_unit = _axis_units(ident.units)
     refuse = SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
         f"plant (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs {d.const:.3g} {u} for friction and constant forces "
-        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} m/s, a_max = {MIN_DEFAULT_A_MAX:g} m/s^2 within "
-        f"{DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
+        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} {v_unit}, a_max = {MIN_DEFAULT_A_MAX:g} {a_unit} "
+        f"within {DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
         f"(commission identify --payload-max, --disturbance-bound)")
     if free <= 0:
         raise refuse
@@ -363,12 +386,12 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
         raise refuse
     if v * v / a > spec.travel:
         raise SpecError(
-            f"{source}: trajectory.v_max = {v:g} m/s cannot be reached within trajectory.travel = "
-            f"{spec.travel:g} m at the a_max = {a:.3g} m/s^2 this drive allows on the most demanding plant "
+            f"{source}: trajectory.v_max = {v:g} {v_unit} cannot be reached within trajectory.travel = "
+            f"{spec.travel:g} {q_unit} at the a_max = {a:.3g} {a_unit} this drive allows on the most demanding plant "
             f"of the theta box (need v_max^2/a_max <= travel)")
     return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
         spec, v, a, f"the most demanding plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs "
-                    f"<= {DRIVE_HEADROOM:g} x controller.u_max = {budget:.3g} {u} of feedforward")
+                    f"<= {DRIVE_HEADROOM:g} x controller.u_max = {budget:.3g} {u} of feedforward", ident.units)
 
 
 def reference_envelope(spec: Spec, ident: Identification, given: set[str],
@@ -424,10 +447,11 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
         v = min(v, spec.v_max, math.sqrt(a * spec.travel) * (1.0 - 1e-12))
     out = dataclasses.replace(spec, reference_v_max=v, reference_a_max=a)
     u = ident.units.get("u", "u-unit")
-    note = (f"the machine's moves set the envelope: trajectory.v_max = {spec.v_max:.4g} m/s, a_max = "
-            f"{spec.a_max:.4g} m/s^2, travel = {spec.travel:.4g} m (runtime guard and gate; {spec.profile.describe()}); "
-            f"the paper's Case 1 and Case 2 stay as reference scenarios at trajectory.reference_v_max = {v:.3g} m/s, "
-            f"reference_a_max = {a:.3g} m/s^2"
+    q_unit, v_unit, a_unit = _axis_units(ident.units)
+    note = (f"the machine's moves set the envelope: trajectory.v_max = {spec.v_max:.4g} {v_unit}, a_max = "
+            f"{spec.a_max:.4g} {a_unit}, travel = {spec.travel:.4g} {q_unit} (runtime guard and gate; "
+            f"{spec.profile.describe(ident.units)}); the paper's Case 1 and Case 2 stay as reference scenarios at "
+            f"trajectory.reference_v_max = {v:.3g} {v_unit}, reference_a_max = {a:.3g} {a_unit}"
             + ("" if g == {"v_max", "a_max"} else
                f" (derived for controller.u_max = {spec.u_max:g} {u} as for a defaulted envelope, capped at the "
                f"moves'; set them to choose)"))
