@@ -8,17 +8,13 @@ import re
 import tomllib
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from commission.cli.main import app
 from commission.gate import Check, GateLimits, GateVerdict
-from commission.jsonio import sha256_json
 from commission.next_steps import gate_changes
-from commission.paper import reference_identification
-from commission.spec import spec_from_mapping
-from commission.tune import tune
+from reference_tuning import reference_tuning
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"
@@ -54,10 +50,7 @@ def test_no_limit_is_offered_for_a_criterion_that_failed_on_a_diverged_run():
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
-    ident = reference_identification(delta_d=0.5)
-    # ident_sha256 as identify would have written it: validate checks the embedded identification against it
-    t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
-             ident_sha256=sha256_json(ident.to_dict()), log_sha256="2" * 64)
+    t = reference_tuning(budget=8)
     path = d / "tuning.json"
     t.save(str(path))
     return path

@@ -19,13 +19,11 @@ from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.simulate import KIND_ARC, simulate
 from commission.jsonio import read_json, sha256_file, sha256_json, write_json_atomic
-from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.scenarios import plant_substeps, scenario_matrix
-from commission.spec import spec_from_mapping
-from commission.tune import tune
 from commission.tuning import Tuning
 from commission.validate import FIGURE_NAMES, run_validate, validate
+from reference_tuning import reference_tuning
 
 MC = 8
 #: Margin of the test gate over the worst value the good tuning reached.
@@ -37,10 +35,7 @@ runner = CliRunner()
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
-    ident = reference_identification(delta_d=0.5)
-    # ident_sha256 as if ident.json were written by identify (its canonical JSON): validate checks it
-    t = tune(ident, spec_from_mapping({"tune": {"budget": 8}}), rng=np.random.default_rng(0), seed=0,
-             ident_sha256=sha256_json(ident.to_dict()), log_sha256="2" * 64)
+    t = reference_tuning(budget=8)
     path = d / "tuning.json"
     t.save(str(path))
     # The gate of these tests: MARGIN x the worst value this (short, 8-candidate) tuning reaches
