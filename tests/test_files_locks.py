@@ -220,8 +220,18 @@ def _signal_during_commit(monkeypatch, sig: int, at: int = 1):
     monkeypatch.setattr(os, "rename", rename)
 
 
+@pytest.fixture()
+def python_sigint():
+    """Python's own SIGINT handler for the test, whatever this process inherited: a job that a
+    non-interactive shell starts in the background begins with SIGINT ignored, and Python keeps it so."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.parametrize("existing", [False, True])
-def test_a_signal_during_the_commit_is_acted_on_once_the_set_is_in_place(tmp_path, monkeypatch, existing):
+def test_a_signal_during_the_commit_is_acted_on_once_the_set_is_in_place(tmp_path, monkeypatch, existing,
+                                                                        python_sigint):
     # Library semantics: the interrupt is raised after the commit, which completed.
     out = tmp_path / "out"
     if existing:
@@ -357,7 +367,9 @@ else:
     m.late_probe = Late()  # dropped when the modules are torn down
 m.main()
 """
-    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    # run outside the checkout: `python -c` puts the current folder first on sys.path, and the
+    # source folder commission/ there is not the installed package (commission.cli lives in cli/)
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert p.returncode == 0, (p.returncode, p.stderr)
     assert out.is_file() and "Traceback" not in p.stderr
     assert leftovers(tmp_path) == []
