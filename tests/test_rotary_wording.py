@@ -171,14 +171,21 @@ def test_tro2021_drive_1_friction_test_has_no_linear_unit(tmp_path, figure_texts
     assert "rad/s" in res.output and "[rad/s]" in " ".join(figure_texts)
 
 
-@pytest.mark.skipif(not ODRIVE_RUN.is_file(), reason="ODrive data not present")
-def test_odrive_run_in_rad_has_no_linear_unit(tmp_path, figure_texts):
+def _odrive_log_in_rad(tmp_path):
+    """The ODrive run converted by hand to a contract HDF5 log in rad (8192 counts per revolution),
+    as the README made it before --counts-per-rev: its first 0.5 s of start-up left out."""
     t, counts, iq = np.load(ODRIVE_RUN)
     keep = t > 0.5
     log = tmp_path / "odrive.h5"
     with h5py.File(log, "w") as f:
         f["t"], f["q"], f["u"] = t[keep] - t[keep][0], counts[keep] * 2 * math.pi / 8192, iq[keep]
         f.attrs["q_unit"], f.attrs["u_unit"] = "rad", "A"
+    return log
+
+
+@pytest.mark.skipif(not ODRIVE_RUN.is_file(), reason="ODrive data not present")
+def test_odrive_run_in_rad_has_no_linear_unit(tmp_path, figure_texts):
+    log = _odrive_log_in_rad(tmp_path)
     res = runner.invoke(app, ["identify", str(log), "--resample", "400", "--ripple-pitch", repr(2 * math.pi / 7),
                               "--out", str(tmp_path / "o.json"), "--plot", str(tmp_path / "p")])
     assert res.exit_code == 0, res.output
@@ -413,12 +420,7 @@ def test_odrive_npy_with_counts_per_rev_has_no_linear_unit_and_the_converted_log
     assert doc["units"] == {"q": "rad", "u": "A"} and doc["source"]["q_unit"] == "counts"
     assert doc["source"]["conversion"]["counts_per_rev"] == 8192.0
     # the converted log, as the README made it before this flag
-    t, counts, iq = np.load(ODRIVE_RUN)
-    keep = t > 0.5
-    log = tmp_path / "odrive.h5"
-    with h5py.File(log, "w") as f:
-        f["t"], f["q"], f["u"] = t[keep] - t[keep][0], counts[keep] * 2 * math.pi / 8192, iq[keep]
-        f.attrs["q_unit"], f.attrs["u_unit"] = "rad", "A"
+    log = _odrive_log_in_rad(tmp_path)
     res = runner.invoke(app, ["identify", str(log), "--resample", "400", "--ripple-pitch", pitch,
                               "--out", str(tmp_path / "h.json")])
     assert res.exit_code == 0, res.output
