@@ -99,7 +99,7 @@ _SCHEMA: dict[str, dict[str, tuple[str, Any, str | None, str]]] = {
         "moves": ("i", 6, "pos", ""),
         "dwell": ("f", 0.2, "nonneg", "s"),
         "jerk_time": ("f", 0.02, "pos", "s"),
-        "injection": ("s", "multisine", None, ""),
+        "injection": ("s", "prbs", None, ""),
         "injection_s": ("f", 8.0, "pos", "s"),
         "injection_fraction": ("f", 0.5, "frac", ""),
         "band_hz": ("fl", None, None, "Hz"),
@@ -569,9 +569,8 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
         info = dict(info)
         if name == "bump":
             tb = info["pulse_s"]
-            m1 = (tt >= 0.1) & (tt < 0.1 + tb)
-            m2 = (tt >= 0.1 + tb) & (tt < 0.1 + 2 * tb)
-            u_inj[m1], u_inj[m2] = u_bump, -u_bump
+            k0, nb = int(round(0.1 * fs)), max(int(round(tb * fs)), 1)  # whole samples: zero net impulse
+            u_inj[k0:k0 + nb], u_inj[k0 + nb:k0 + 2 * nb] = u_bump, -u_bump
         if name == "injection" or name.startswith("sine "):
             # the cruise of each leg: after its ramp, before its decel ramp
             for j in range(i, i + count):
