@@ -30,8 +30,8 @@ the synthetic logs (:func:`commission.synth._closed_loop`, a PID with the
 derivative on the backward-difference velocity).  The command is not clipped in the
 pre-simulation, so that its peak is seen.  Peak ``|u|``, the position range, peak
 ``|v|`` (backward difference) and peak ``|a|`` (second difference) are checked against
-``[limits]``; a broken limit first halves the injection (up to
-:data:`MAX_INJECTION_HALVINGS` times, the injection's amplitude being the plan's only
+``[limits]``; a broken limit in an injection segment first lowers the injection by 0.9 times the limit over
+the peak, between 5 % and a half (up to :data:`MAX_INJECTION_RETRIES` times, the injection's amplitude being the plan's only
 free scale), and if it still breaks one, the plan is refused naming the limit, the
 segment and the model.
 
@@ -54,8 +54,8 @@ from commission.errors import SchemaError, SpecError
 from commission.files import read_toml
 
 PLAN_SCHEMA_VERSION = 1
-#: Pre-simulation: how often the injection is halved before a plan is refused.
-MAX_INJECTION_HALVINGS = 4
+#: Pre-simulation: how often the injection is lowered before a plan is refused.
+MAX_INJECTION_RETRIES = 4
 #: Largest accepted 2 pi bandwidth_hz / sample_rate (Åström & Wittenmark's omega h <= 0.5, as spec.py).
 MAX_OMEGA_T = 0.5
 #: Damping ratio assumed for a loop given by its bandwidth.
@@ -663,12 +663,18 @@ class PlanRefused(SpecError):
 
 def presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], str | None]:
     """Play the plan on the conservative models; return (peaks, models, first violation or None)."""
+    return _presimulate(plan)[:3]
+
+
+def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], str | None, float]:
+    """:func:`presimulate`, and the broken limit over its peak (1 when none is broken)."""
     s = plan.spec
     T = 1.0 / s.sample_rate
     half = s.travel / 2.0
     peaks = {"u": 0.0, "q_min": 0.0, "q_max": 0.0, "v": 0.0, "a": 0.0}
     models = []
     violation = None
+    ratio = 1.0
     for label, M in zip(("light", "heavy"), mass_bracket(s)):
         gains = loop_gains_for(s, M)
         truth = _model_truth(s, M)
@@ -703,15 +709,16 @@ def presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], s
                 seg = next((g.name for g in plan.segments if g.t_start <= tk < g.t_end), plan.segments[-1].name)
                 what = "|q - start|" if key == "limits.travel" else f"|{key[7]}|"
                 lim_s = f"{lim:.4g} {unit}" + (" (travel / 2)" if key == "limits.travel" else "")
+                ratio = min(ratio, lim / float(np.max(x)))
                 violation = (f"{key}: the pre-simulation breaks it in segment '{seg}' at t = {tk:.4g} s "
                              f"(sample {k}): {what} = {float(np.max(x)):.4g} {unit} > {lim_s}, on the {label} "
                              f"model (M = {M:.4g} {s.u_unit} s^2/{s.q_unit})")
                 break
-    return peaks, models, violation
+    return peaks, models, violation, ratio
 
 
 def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
-    """Design the plan and pre-simulate it, halving the injection while it breaks a limit.
+    """Design the plan and pre-simulate it, lowering the injection while it breaks a limit.
 
     Raises
     ------
@@ -719,11 +726,11 @@ def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
         No plan keeps within the limits (named, with the segment).
     """
     scale = 1.0
-    for attempt in range(MAX_INJECTION_HALVINGS + 1):
+    for attempt in range(MAX_INJECTION_RETRIES + 1):
         plan = design_plan(spec, injection_scale=scale)
         if progress is not None:
             progress(f"pre-simulating {plan.duration:.1f} s of plan (attempt {attempt + 1}) ...")
-        peaks, models, violation = presimulate(plan)
+        peaks, models, violation, ratio = _presimulate(plan)
         if violation is None:
             return Plan(t=plan.t, q_ref=plan.q_ref, v_ref=plan.v_ref, a_ref=plan.a_ref, u_inject=plan.u_inject,
                         segments=plan.segments, spec=spec, models=tuple(models), peaks=peaks, injection_scale=scale)
@@ -731,7 +738,8 @@ def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
                        if f"segment '{g.name}'" in violation)
         if not injected:
             break
-        scale *= 0.5
+        # Lower the injection in proportion to the excess (at least by 5 %, at most by half).
+        scale *= min(max(0.9 * ratio, 0.5), 0.95)
     raise PlanRefused(f"plan refused: {violation}")
 
 
