@@ -573,12 +573,14 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
             u_inj[k0:k0 + nb], u_inj[k0 + nb:k0 + 2 * nb] = u_bump, -u_bump
         if name == "injection" or name.startswith("sine "):
             # the cruise of each leg: after its ramp, before its decel ramp
+            windows = []
             for j in range(i, i + count):
                 te, dmove, dw = ends[j]
                 ts_ = te - dw - dmove
                 ramp = moves[j].v_max / moves[j].a_max + jt
                 a_, b_ = ts_ + ramp, te - dw - ramp
                 m = (tt >= a_) & (tt < b_)
+                windows.append([float(a_), float(b_)])
                 if name == "injection":
                     inj_mask |= m
                 else:
@@ -587,6 +589,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
             if name.startswith("sine "):
                 sine_k += 1
             info["amplitude"] = inj_amp
+            info["windows_s"] = windows
         segments.append(Segment(name, purpose, float(t0), float(t1), info))
         t0 = t1
         i += count
@@ -771,6 +774,35 @@ def write_plan_h5(path: str | os.PathLike[str], plan: Plan) -> None:
         f.attrs["q_unit"] = plan.spec.q_unit
         f.attrs["u_unit"] = plan.spec.u_unit
         f.attrs["sample_rate"] = plan.spec.sample_rate
+
+
+def injection_ranges(plan: Mapping[str, Any], t: np.ndarray, trim_s: float = 0.05) -> list[tuple[int, int]]:
+    """Sample ranges ``[i0, i1)`` of a log recorded from ``plan`` (plan.json) that carry its broadband injection.
+
+    The log's time is taken to start with the plan's (``t - t[0]`` against the plan's ``t``);
+    each injection window (``segments[].windows_s``) is trimmed by ``trim_s`` s at both ends.
+
+    Raises
+    ------
+    UsageError
+        The log ends before the plan's injection does, or the plan has no injection segment.
+    """
+    from commission.errors import UsageError
+
+    tt = np.asarray(t, float) - float(t[0])
+    wins = [w for g in plan["segments"] if g["name"] == "injection" for w in g.get("windows_s", [])]
+    if not wins:
+        raise UsageError("--plan: the plan has no injection segment with windows_s")
+    end = max(b for _a, b in wins)
+    if tt[-1] < end - trim_s:
+        raise UsageError(f"--plan: the log ends at {tt[-1]:.4g} s, before the plan's injection does "
+                         f"({end:.4g} s): not a recording of this plan")
+    out = []
+    for a, b in wins:
+        i0, i1 = int(np.searchsorted(tt, a + trim_s)), int(np.searchsorted(tt, b - trim_s))
+        if i1 > i0:
+            out.append((i0, i1))
+    return out
 
 
 def load_plan_json(path: str | os.PathLike[str]) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from commission.cli.main import app
 from commission.errors import SpecError
-from commission.excite import (PlanRefused, excite_spec_from_mapping, load_plan_json, loop_gains_for, mass_bracket,
+from commission.excite import (PlanRefused, excite_spec_from_mapping, load_excite_spec, load_plan_json, loop_gains_for, mass_bracket,
                                plan_run, play, simulate_plan, _model_truth)
 
 runner = CliRunner()
@@ -203,3 +203,36 @@ def test_without_mass_plan_starts_with_bump():
     assert np.max(plan.u_inject[m]) > 0 and np.min(plan.u_inject[m]) < 0
     assert abs(float(np.sum(plan.u_inject[m]))) < 1e-9 * float(np.sum(np.abs(plan.u_inject[m])))  # zero net impulse
     assert np.all(plan.q_ref[m] == 0.0)  # at rest
+
+
+def test_identify_plan_uses_the_plans_injection_windows(tmp_path):
+    """`identify --plan plan.json` measures the frequency response on the plan's injection windows."""
+    from commission.synth import AxisTruth, write_log_h5
+
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, SMALL)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan_d = load_plan_json(out / "plan.json")
+    spec = load_excite_spec(tmp_path / "limits.toml")
+    plan = plan_run(spec)
+    assert np.allclose(plan.u_inject, np.loadtxt(out / "plan.csv", delimiter=",", skiprows=1)[:, 3], rtol=1e-11, atol=0)
+    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=1000.0,
+                      mode_hz=250.0, mode_damping=0.03, mode_ratio=0.3)
+    log = tmp_path / "log.h5"
+    write_log_h5(log, simulate_plan(plan, truth, np.random.default_rng(0)))
+    r = runner.invoke(app, ["identify", str(log), "--plan", str(out / "plan.json"), "--out", str(tmp_path / "i.json")])
+    assert r.exit_code == 0, r.output
+    fr = json.loads((tmp_path / "i.json").read_text())["frequency_response"]
+    wins = [w for g in plan_d["segments"] if g["name"] == "injection" for w in g["windows_s"]]
+    assert fr["source"] == "broadband" and len(fr["segments_s"]) == len(wins)
+    for (a, b), (wa, wb) in zip(fr["segments_s"], wins):
+        assert wa < a < b < wb
+    print("identify --plan, 1 kHz axis, 250 Hz mode:", fr["modes"], fr["delay_samples"], fr["band_hz"])
+    # a log that ends before the plan's injection does is not a recording of this plan
+    short = {k: v[: int(plan.segments[2].t_end * 1000)] for k, v in simulate_plan(plan, truth,
+                                                                                  np.random.default_rng(0)).items()}
+    write_log_h5(tmp_path / "short.h5", short)
+    r = runner.invoke(app, ["identify", str(tmp_path / "short.h5"), "--plan", str(out / "plan.json"),
+                            "--out", str(tmp_path / "s.json")])
+    assert r.exit_code == 2 and "--plan: the log ends at" in r.stderr, r.output
+    assert not (tmp_path / "s.json").exists()
