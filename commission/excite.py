@@ -455,6 +455,15 @@ def _prbs(n: int) -> np.ndarray:
     return 2.0 * bits.astype(float) - 1.0
 
 
+def _ramp_time(v: float, a: float, j: float) -> float:
+    """Time of an S-curve ramp from rest to ``v`` (q/s) under ``a`` (q/s^2) and ``j`` (q/s^3), s.
+
+    As :func:`commission.controllers.trajectory.scurve_segments`: ``v/a + a/j`` when the
+    acceleration reaches ``a``, else ``2 sqrt(v/j)``; the ramp covers ``v t / 2``.
+    """
+    return v / a + a / j if v * j >= a * a else 2.0 * math.sqrt(v / j)
+
+
 def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
     """The plan's segments and samples (no pre-simulation: :func:`plan_run` does both).
 
@@ -505,17 +514,18 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
     seg_moves.append(("moves", "acceleration-rich back-and-forth S-curves (M and B)",
                       {"speed": v_acc, "acceleration": a_acc, "count": int(p["moves"])}, int(p["moves"])))
     pos = s if int(p["moves"]) % 2 == 1 else -s
-    # Slow cruises for the injection: just past stiction (the ladder's third speed), both directions.
-    v_inj = float(speeds[min(2, speeds.size - 1)])
+    # Slow cruises for the injection, just past stiction: a quarter of the way (in log) from the ladder's
+    # slowest speed to its fastest, whatever the number of speeds; both directions.
+    v_inj = float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25)
+    t_ramp = _ramp_time(v_inj, a_mv, a_mv / jt)
     inj_legs = []
     remaining = p["injection_s"]
     inj_cruise = []
     while remaining > 1e-9:
-        d_max = 2 * s - v_inj * v_inj / a_mv
+        # toward the farther end of the span: the room there is s + |pos|
+        d_max = s + abs(pos) - v_inj * t_ramp
         cruise = min(remaining, d_max / v_inj)
-        if cruise < 0.5:
-            cruise = remaining if d_max / v_inj >= remaining else d_max / v_inj
-        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * v_inj / a_mv)
+        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
         inj_legs.append(mv(target, v_inj, a_mv, dwell))
         inj_cruise.append(cruise)
         pos = target
@@ -530,9 +540,9 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
     sine_legs = []
     for f in p["stepped_sine_hz"]:
         cruise = max(p["sine_cycles"] / f, 0.1)
-        d_max = 2 * s - v_inj * v_inj / a_mv
+        d_max = s + abs(pos) - v_inj * t_ramp
         cruise = min(cruise, d_max / v_inj)
-        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * v_inj / a_mv)
+        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
         moves.append(mv(target, v_inj, a_mv, dwell))
         sine_legs.append((f, cruise))
         seg_moves.append((f"sine {f:g} Hz", "stepped sine on a slow cruise (frequency response at one frequency)",
@@ -577,7 +587,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
             for j in range(i, i + count):
                 te, dmove, dw = ends[j]
                 ts_ = te - dw - dmove
-                ramp = moves[j].v_max / moves[j].a_max + jt
+                ramp = t_ramp
                 a_, b_ = ts_ + ramp, te - dw - ramp
                 m = (tt >= a_) & (tt < b_)
                 windows.append([float(a_), float(b_)])

@@ -236,3 +236,22 @@ def test_identify_plan_uses_the_plans_injection_windows(tmp_path):
                             "--out", str(tmp_path / "s.json")])
     assert r.exit_code == 2 and "--plan: the log ends at" in r.stderr, r.output
     assert not (tmp_path / "s.json").exists()
+
+
+def test_stepped_sine_segments_carry_their_frequency():
+    spec = excite_spec_from_mapping({
+        "limits": {"travel": 0.2, "v_max": 0.4, "a_max": 20.0, "u_max": 10.0},
+        "drive": {"sample_rate": 1000.0, "bandwidth_hz": 30.0}, "axis": {"mass": 0.03},
+        "plan": {"n_speeds": 3, "moves": 2, "injection_s": 1.0, "stepped_sine_hz": [40.0, 170.0]}})
+    plan = plan_run(spec)
+    sines = [g for g in plan.segments if g.name.startswith("sine ")]
+    assert [g.info["frequency_hz"] for g in sines] == [40.0, 170.0]
+    for g in sines:
+        (a, b), = g.info["windows_s"]
+        m = (plan.t >= a) & (plan.t < b)
+        x = plan.u_inject[m]
+        assert b - a >= 20 / g.info["frequency_hz"] - 2e-3  # sine_cycles = 20 by default
+        spec_x = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+        f = np.fft.rfftfreq(x.size, 1e-3)
+        assert f[np.argmax(spec_x)] == pytest.approx(g.info["frequency_hz"], abs=1000.0 / x.size + 1e-9)
+        assert np.all(plan.u_inject[(plan.t >= g.t_start) & (plan.t < g.t_end) & ~m] == 0.0)
