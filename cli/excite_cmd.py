@@ -54,8 +54,11 @@ def excite(
     console.print(f"  |q - start| {max(-pk['q_min'], pk['q_max']):.4g} {q} <= travel/2 {s.travel / 2:g} {q}")
     console.print(f"  |v| {pk['v']:.4g} {q}/s <= v_max {s.v_max:g} {q}/s")
     console.print(f"  |a| {pk['a']:.4g} {q}/s^2 <= a_max {s.a_max:g} {q}/s^2")
+    if plan.motion_scale < 1.0:
+        console.print(f"note: the moves' top speed and acceleration were lowered to {plan.motion_scale:.3g} of their "
+                      "design to stay within the limits")
     if plan.injection_scale < 1.0:
-        console.print(f"note: the injection was lowered to {plan.injection_scale:g} of its design amplitude "
+        console.print(f"note: the injection was lowered to {plan.injection_scale:.3g} of its design amplitude "
                       "to stay within the limits")
     for name in PLAN_NAMES:
         console.print(f"wrote {out_dir / name}")

@@ -153,6 +153,7 @@ class ExciteSpec:
     q_unit: str = "m"
     u_unit: str = "V"
     plan: Mapping[str, Any] = field(default_factory=dict)
+    source: str = "limits.toml"
 
     def to_dict(self) -> dict[str, Any]:
         """The spec as plan.json's ``spec`` (every key, ``null`` when not given)."""
@@ -270,7 +271,8 @@ def excite_spec_from_mapping(data: Mapping[str, Any], source: str = "limits.toml
         travel=g("limits", "travel"), v_max=g("limits", "v_max"), a_max=g("limits", "a_max"), u_max=umax,
         sample_rate=fs, bandwidth_hz=g("drive", "bandwidth_hz"), kp=g("drive", "kp"), kd=g("drive", "kd"),
         ki=(g("drive", "ki") or 0.0) if gains else None, mass=g("axis", "mass"), friction=fr,
-        viscous=g("axis", "viscous"), q_unit=g("axis", "q_unit"), u_unit=g("axis", "u_unit"), plan=plan)
+        viscous=g("axis", "viscous"), q_unit=g("axis", "q_unit"), u_unit=g("axis", "u_unit"), plan=plan,
+        source=source)
 
 
 def load_excite_spec(path: str | os.PathLike[str]) -> ExciteSpec:
@@ -318,6 +320,8 @@ class Plan:
         Pre-simulation peaks over the models: ``u``, ``q_min``, ``q_max``, ``v``, ``a``.
     injection_scale : float
         Fraction of the designed injection amplitude kept by the pre-simulation.
+    motion_scale : float
+        Fraction of the designed top speed and acceleration kept by the pre-simulation.
     """
 
     t: np.ndarray
@@ -330,6 +334,7 @@ class Plan:
     models: tuple[Mapping[str, float], ...] = ()
     peaks: Mapping[str, float] = field(default_factory=dict)
     injection_scale: float = 1.0
+    motion_scale: float = 1.0
 
     @property
     def duration(self) -> float:
@@ -361,7 +366,7 @@ class Plan:
             "spec": s.to_dict(),
             "segments": [g.to_dict() for g in self.segments],
             "presimulation": {"models": [dict(m) for m in self.models], "peaks": checks,
-                              "injection_scale": self.injection_scale,
+                              "injection_scale": self.injection_scale, "motion_scale": self.motion_scale,
                               "note": "rigid models bracketing the mass, holding loop of [drive], no quantization"},
         }
 
@@ -394,16 +399,18 @@ def _move_accel(spec: ExciteSpec) -> float:
     fc = spec.friction or 0.0
     budget = 0.5 * (spec.u_max - fc - (spec.viscous or 0.0) * spec.v_max)
     if budget <= 0:
-        raise SpecError(f"limits.u_max = {spec.u_max:g} {spec.u_unit} leaves no command for acceleration after "
+        raise SpecError(f"{spec.source}: limits.u_max = {spec.u_max:g} {spec.u_unit} leaves no command for acceleration after "
                         f"friction and viscous force at v_max")
     return min(0.6 * spec.a_max, budget / heavy)
 
 
-def ladder_speeds(spec: ExciteSpec) -> tuple[np.ndarray, float]:
+def ladder_speeds(spec: ExciteSpec, motion_scale: float = 1.0) -> tuple[np.ndarray, float]:
     """Speeds of the friction ladder (q/s) and its ramps' acceleration (q/s^2).
 
-    The fastest is the largest below ``v_max`` whose leg keeps ``min_cruise`` s of cruise
-    within the span; the slowest is ``plan.v_min`` (default ``v_max / 100``).
+    The fastest is the largest below ``0.8 v_max`` (times ``motion_scale``, which the
+    pre-simulation lowers) whose leg keeps ``min_cruise`` s of cruise within the span; the
+    slowest is ``plan.v_min`` (default ``v_max / 100``).  The ramps' acceleration is
+    :func:`_move_accel` times ``motion_scale``.
 
     Raises
     ------
@@ -411,7 +418,7 @@ def ladder_speeds(spec: ExciteSpec) -> tuple[np.ndarray, float]:
         The travel is too short for the slowest leg (``min_cruise`` s at ``v_min``).
     """
     p = spec.plan
-    a = _move_accel(spec)
+    a = _move_accel(spec) * motion_scale
     span = 2.0 * _half_span(spec)
     tc = p["min_cruise"]
     # v^2 / a + v tc <= span  (two ramps of v^2 / (2a) and a cruise of tc s)
@@ -421,10 +428,10 @@ def ladder_speeds(spec: ExciteSpec) -> tuple[np.ndarray, float]:
     q = spec.q_unit
     if need > span:
         raise SpecError(
-            f"limits.travel = {spec.travel:g} {q} is too short for the slowest friction-ladder leg: "
+            f"{spec.source}: limits.travel = {spec.travel:g} {q} is too short for the slowest friction-ladder leg: "
             f"{v_lo:g} {q}/s for plan.min_cruise = {tc:g} s needs {need / (1 - p['margin']):.4g} {q}; "
             f"raise travel or lower plan.v_min")
-    v_hi = min(0.9 * spec.v_max, v_fit)
+    v_hi = min(0.8 * spec.v_max * motion_scale, v_fit)
     if v_hi <= v_lo:
         return np.array([v_lo]), a
     return np.geomspace(v_lo, v_hi, int(p["n_speeds"])), a
@@ -464,19 +471,21 @@ def _ramp_time(v: float, a: float, j: float) -> float:
     return v / a + a / j if v * j >= a * a else 2.0 * math.sqrt(v / j)
 
 
-def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
+def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale: float = 1.0) -> Plan:
     """The plan's segments and samples (no pre-simulation: :func:`plan_run` does both).
 
     Parameters
     ----------
     spec : ExciteSpec
     injection_scale : float
-        Fraction of the designed injection amplitude (the pre-simulation lowers it).
+        Fraction of the designed injection (and bump) amplitude (the pre-simulation lowers it).
+    motion_scale : float
+        Fraction of the designed top speed and acceleration of the moves (the pre-simulation lowers it).
     """
     p = spec.plan
     fs = spec.sample_rate
     s = _half_span(spec)
-    speeds, a_mv = ladder_speeds(spec)
+    speeds, a_mv = ladder_speeds(spec, motion_scale)
     light, heavy = mass_bracket(spec)
     jt = p["jerk_time"]
     dwell = p["dwell"]
@@ -490,7 +499,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
         # A doublet at rest: +u for tb, -u for tb (zero net impulse), u sized on the light model to move
         # at most a tenth of the span open-loop: x = u tb^2 / M.
         tb = 0.02
-        u_bump = min(0.2 * (spec.u_max - (spec.friction or 0.0)), 0.1 * s * light / (tb * tb), 0.5 * light * spec.a_max)
+        u_bump = injection_scale * min(0.2 * (spec.u_max - (spec.friction or 0.0)), 0.1 * s * light / (tb * tb), 0.5 * light * spec.a_max)
         t_bump = 2 * tb + 0.5
         moves.append(Move(to=0.0, v_max=1.0, a_max=1.0, j_max=1.0 / jt, dwell=t_bump))
         seg_moves.append(("bump", "mass from a command doublet at rest (no [axis] mass given)",
@@ -508,7 +517,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
         seg_moves.append((f"ladder {i + 1}", "friction ladder: constant-velocity leg forward and back "
                           "(Stribeck curve, B, friction map)", {"speed": float(v), "leg_length": float(d)}, 2))
     a_acc = a_mv
-    v_acc = min(0.9 * spec.v_max, math.sqrt(a_acc * s))
+    v_acc = min(0.8 * spec.v_max * motion_scale, math.sqrt(a_acc * s))
     for k in range(int(p["moves"])):
         moves.append(mv(s if k % 2 == 0 else -s, v_acc, a_acc, 0.05))
     seg_moves.append(("moves", "acceleration-rich back-and-forth S-curves (M and B)",
@@ -608,7 +617,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0) -> Plan:
         sig = _multisine(k, fs, p["band_hz"], p["shaping"]) if p["injection"] == "multisine" else _prbs(k)
         u_inj[inj_mask] = inj_amp * sig
     return Plan(t=tt, q_ref=qr, v_ref=vr, a_ref=ar, u_inject=u_inj, segments=tuple(segments), spec=spec,
-                injection_scale=injection_scale)
+                injection_scale=injection_scale, motion_scale=motion_scale)
 
 
 # --------------------------------------------------------------------------- pre-simulation
@@ -693,10 +702,10 @@ def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], 
         truth = _model_truth(s, M)
         log = play(plan, truth, gains)
         pk = _peaks(log, T)
-        if not all(np.all(np.isfinite(x)) for x in pk.values()):
-            bad = "the loop diverged"
-        else:
-            bad = None
+        # The pre-simulation clips the command at 1e6 u_max only: a command past 1e5 u_max is a loop
+        # that diverges, not a plan that asks too much.
+        runaway = np.flatnonzero(~np.isfinite(pk["u"]) | (pk["u"] >= 1e5 * s.u_max))
+        bad = int(runaway[0]) if runaway.size else None
         models.append({"label": label, "M": M, "B": s.viscous or 0.0, "fc": s.friction or 0.0,
                        "kp": gains[0], "kd": gains[1], "ki": gains[2]})
         peaks["u"] = max(peaks["u"], float(np.max(pk["u"])))
@@ -710,9 +719,13 @@ def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], 
                   ("limits.travel", np.abs(pk["q"]), half, s.q_unit),
                   ("limits.v_max", pk["v"], s.v_max, f"{s.q_unit}/s"),
                   ("limits.a_max", pk["a"], s.a_max, f"{s.q_unit}/s^2")]
-        if bad:
-            violation = (f"the holding loop diverged on the {label} model (M = {M:.4g} {s.u_unit} s^2/{s.q_unit}); "
-                         "check [drive] or give [axis] mass")
+        if bad is not None:
+            k = int(np.flatnonzero(pk["u"] > s.u_max)[0]) if np.any(pk["u"] > s.u_max) else bad
+            tk = float(plan.t[k])
+            seg = next((g.name for g in plan.segments if g.t_start <= tk < g.t_end), plan.segments[-1].name)
+            violation = (f"limits.u_max: the holding loop diverges on the {label} model (M = {M:.4g} "
+                         f"{s.u_unit} s^2/{s.q_unit}): |u| passes u_max in segment '{seg}' at t = {tk:.4g} s "
+                         f"(sample {k}) and grows without bound; check [drive] (its gains) or [axis] mass")
             continue
         for key, x, lim, unit in checks:
             over = np.flatnonzero(x > lim)
@@ -731,29 +744,40 @@ def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], 
 
 
 def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
-    """Design the plan and pre-simulate it, lowering the injection while it breaks a limit.
+    """Design the plan and pre-simulate it, lowering the injection (or the moves) while it breaks a limit.
 
     Raises
     ------
     PlanRefused
         No plan keeps within the limits (named, with the segment).
     """
-    scale = 1.0
+    scale = motion = 1.0
     for attempt in range(MAX_INJECTION_RETRIES + 1):
-        plan = design_plan(spec, injection_scale=scale)
+        try:
+            plan = design_plan(spec, injection_scale=scale, motion_scale=motion)
+        except SpecError:
+            if attempt == 0:
+                raise
+            break  # slower moves no longer fit the travel: refuse with the violation that asked for them
         if progress is not None:
             progress(f"pre-simulating {plan.duration:.1f} s of plan (attempt {attempt + 1}) ...")
         peaks, models, violation, ratio = _presimulate(plan)
         if violation is None:
             return Plan(t=plan.t, q_ref=plan.q_ref, v_ref=plan.v_ref, a_ref=plan.a_ref, u_inject=plan.u_inject,
-                        segments=plan.segments, spec=spec, models=tuple(models), peaks=peaks, injection_scale=scale)
+                        segments=plan.segments, spec=spec, models=tuple(models), peaks=peaks, injection_scale=scale,
+                        motion_scale=motion)
+        if "diverges" in violation:
+            break
         injected = any(g.name in ("injection", "bump") or g.name.startswith("sine ") for g in plan.segments
                        if f"segment '{g.name}'" in violation)
-        if not injected:
-            break
-        # Lower the injection in proportion to the excess (at least by 5 %, at most by half).
-        scale *= min(max(0.9 * ratio, 0.5), 0.95)
-    raise PlanRefused(f"plan refused: {violation}")
+        # Lower the injection, or else the moves' speed and acceleration, in proportion to the excess
+        # (at least by 5 %, at most by half).
+        step = min(max(0.9 * ratio, 0.5), 0.95)
+        if injected:
+            scale *= step
+        else:
+            motion *= step
+    raise PlanRefused(f"{spec.source}: plan refused: {violation}")
 
 
 # --------------------------------------------------------------------------- files
