@@ -78,6 +78,13 @@ def test_cli_writes_plan_files(tmp_path):
     for key, chk in plan["presimulation"]["peaks"].items():
         assert chk["peak"] <= chk["limit"], key
     assert load_plan_json(out / "plan.json")["segments"] == plan["segments"]
+    # the folder is not overwritten without --force (checked before any work), and is with it
+    before = (out / "plan.json").read_bytes()
+    r = runner.invoke(app, ["excite", "--spec", str(tmp_path / "limits.toml"), "--out-dir", str(out)])
+    assert r.exit_code == 2 and "--force" in r.stderr, r.output
+    assert (out / "plan.json").read_bytes() == before
+    r = runner.invoke(app, ["excite", "--spec", str(tmp_path / "limits.toml"), "--out-dir", str(out), "--force"])
+    assert r.exit_code == 0, r.output
 
 
 @pytest.mark.parametrize("edit, pattern", [
