@@ -45,7 +45,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -529,14 +529,16 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
     t_ramp = _ramp_time(v_inj, a_mv, a_mv / jt)
     inj_legs = []
     remaining = p["injection_s"]
-    inj_cruise = []
     while remaining > 1e-9:
         # toward the farther end of the span: the room there is s + |pos|
         d_max = s + abs(pos) - v_inj * t_ramp
         cruise = min(remaining, d_max / v_inj)
+        if cruise < 0.1:
+            raise SpecError(f"{spec.source}: limits.travel = {spec.travel:g} {spec.q_unit} is too short for the "
+                            f"injection's cruise at {v_inj:.4g} {spec.q_unit}/s (0.1 s at least); raise travel or "
+                            f"lower plan.v_min")
         target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
         inj_legs.append(mv(target, v_inj, a_mv, dwell))
-        inj_cruise.append(cruise)
         pos = target
         remaining -= cruise
         if len(inj_legs) > 200:
@@ -551,6 +553,9 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
         cruise = max(p["sine_cycles"] / f, 0.1)
         d_max = s + abs(pos) - v_inj * t_ramp
         cruise = min(cruise, d_max / v_inj)
+        if cruise < 0.1:
+            raise SpecError(f"{spec.source}: limits.travel = {spec.travel:g} {spec.q_unit} is too short for the "
+                            f"stepped sine at {f:g} Hz on a cruise at {v_inj:.4g} {spec.q_unit}/s (0.1 s at least)")
         target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
         moves.append(mv(target, v_inj, a_mv, dwell))
         sine_legs.append((f, cruise))
@@ -560,7 +565,7 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
     moves.append(mv(0.0, 0.5 * speeds[-1], a_mv, dwell))
     seg_moves.append(("return", "back to the start position", {}, 1))
 
-    sched, _peaks = scurve_schedule(moves, start=0.0)
+    sched, _move_peaks = scurve_schedule(moves, start=0.0)
     # Move boundaries: each move's S-curve phases plus its dwell.
     ends = []
     t = 0.0
