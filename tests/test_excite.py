@@ -264,3 +264,36 @@ def test_stepped_sine_segments_carry_their_frequency():
         f = np.fft.rfftfreq(x.size, 1e-3)
         assert f[np.argmax(spec_x)] == pytest.approx(g.info["frequency_hz"], abs=1000.0 / x.size + 1e-9)
         assert np.all(plan.u_inject[(plan.t >= g.t_start) & (plan.t < g.t_end) & ~m] == 0.0)
+
+
+def test_rotary_axis_words_its_units(tmp_path):
+    text = """\
+[limits]
+travel = 6.0
+v_max = 20.0
+a_max = 400.0
+u_max = 2.0
+[drive]
+sample_rate = 1000.0
+kp = 8.0
+kd = 0.05
+[axis]
+mass = 2e-4
+q_unit = "rad"
+u_unit = "Nm"
+[plan]
+n_speeds = 3
+moves = 2
+injection_s = 1.0
+"""
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["units"] == {"t": "s", "q": "rad", "u": "Nm", "v": "rad/s", "a": "rad/s^2"}
+    assert plan["presimulation"]["models"][0]["kp"] == 8.0  # the given gains, on both models
+    assert re.search(r"\|v\| [\d.e+-]+ rad/s <= v_max 20 rad/s", r.output), r.output
+    assert re.search(r"\|u\| [\d.e+-]+ Nm <= u_max 2 Nm", r.output), r.output
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text.replace("kd = 0.05", "kd = -1.0"))),
+                            "--out-dir", str(tmp_path / "p2")])
+    assert r.exit_code == 2 and "drive.kd = -1.0 Nm s/rad must not be negative" in r.stderr, r.output
