@@ -159,38 +159,63 @@ def test_emitted_plan_never_exceeds_a_limit(travel, v_max, a_max, u_max, fs, bw_
     assert w["u"] <= s.u_max and w["q"] <= s.travel / 2 and w["v"] <= s.v_max and w["a"] <= s.a_max, (w, s)
 
 
-def test_known_truth_loop_identify_recovers_axis(tmp_path):
-    """Plan for the reference axis (CONTRACT §5) with a 500 Hz motor-side mode and half a sample of delay,
-    record it on the truth, identify the log with today's identify."""
+# Three known-truth axes: (limits.toml as a mapping, truth, mode expected from today's identify).
+# C's 300 Hz mode is not asserted: its 5 um encoder is coarser than what the a_max-limited injection
+# moves the axis at 300 Hz (a fraction of a um), so today's identify does not see it (reported).
+LOOP_AXES = {
+    "A 2.5 kHz, motor-side 500 Hz mode, 0.5-sample delay": (
+        {"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 20.0, "u_max": 10.0},
+         "drive": {"sample_rate": 2500.0, "bandwidth_hz": 40.0}, "axis": {"mass": 0.03, "friction": 0.1}},
+        dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=2500.0, mode_hz=500.0,
+             mode_damping=0.03, mode_ratio=0.3, delay=0.5 / 2500.0), True),
+    "B 5 kHz, load-side 800 Hz mode, 1.2-sample delay, N": (
+        {"limits": {"travel": 0.5, "v_max": 1.0, "a_max": 30.0, "u_max": 100.0},
+         "drive": {"sample_rate": 5000.0, "bandwidth_hz": 60.0}, "axis": {"mass": 1.0, "u_unit": "N"}},
+        dict(M=1.2, B=8.0, fc=4.0, fs=5.0, vs=0.02, xi=2.0, lsb=1e-7, sample_rate=5000.0, u_unit="N", u_max=100.0,
+             mode_hz=800.0, mode_damping=0.05, mode_ratio=0.4, mode_load_side=True, delay=1.2 / 5000.0), True),
+    "C 1 kHz, 5 um encoder, 0.5 um noise, 300 Hz mode": (
+        {"limits": {"travel": 0.2, "v_max": 0.3, "a_max": 10.0, "u_max": 10.0},
+         "drive": {"sample_rate": 1000.0, "bandwidth_hz": 20.0}, "axis": {"mass": 0.1}},
+        dict(M=0.08, B=0.5, fc=0.3, fs=0.35, vs=0.005, xi=1.5, lsb=5e-6, noise_std=0.5e-6, sample_rate=1000.0,
+             mode_hz=300.0, mode_damping=0.04, mode_ratio=0.3, delay=0.3 / 1000.0), False),
+}
+
+
+@pytest.mark.parametrize("name", list(LOOP_AXES))
+def test_known_truth_loop_identify_recovers_axis(tmp_path, name):
+    """Plan from the limits, record the plan on a known-truth axis, identify the log with today's identify."""
     from commission.identification import identify_log
     from commission.synth import AxisTruth, write_log_h5
 
-    spec = excite_spec_from_mapping({
-        "limits": {"travel": 0.3, "v_max": 0.5, "a_max": 20.0, "u_max": 10.0},
-        "drive": {"sample_rate": 2500.0, "bandwidth_hz": 40.0}, "axis": {"mass": 0.03, "friction": 0.1}})
+    spec_d, truth_d, mode_expected = LOOP_AXES[name]
+    spec = excite_spec_from_mapping(spec_d)
+    truth = AxisTruth(**truth_d)
     plan = plan_run(spec)
     assert 20.0 < plan.duration < 120.0  # minutes, not hours
-    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=2500.0,
-                      mode_hz=500.0, mode_damping=0.03, mode_ratio=0.3, delay=0.5 / 2500.0)
-    log = simulate_plan(plan, truth, np.random.default_rng(0))
-    # the recording keeps within the limits (0 violations)
-    T = 1 / 2500.0
+    log = simulate_plan(plan, truth, np.random.default_rng(1))
+    # the recording keeps within the limits (0 violations of u, travel, speed)
+    T = 1 / truth.sample_rate
     assert np.max(np.abs(log["u"])) <= spec.u_max
     assert np.max(np.abs(log["q"])) <= spec.travel / 2
     assert np.max(np.abs(np.diff(log["q"]))) / T <= spec.v_max
     path = tmp_path / "log.h5"
     write_log_h5(path, log)
-    d = identify_log(str(path)).ident.to_dict()
+    d = identify_log(str(path), u_unit=truth.u_unit).ident.to_dict()
     p = d["parameters"]
-    for name, true in (("M", truth.M), ("B", truth.B), ("fc", truth.fc)):
-        assert p[name]["value"] == pytest.approx(true, rel=0.01), name
+    for k in ("M", "B", "fc"):
+        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=0.01), k
     fr = d["frequency_response"]
     res = [m for m in fr["modes"] if m["kind"] == "resonance"]
-    assert len(res) == 1
-    assert res[0]["frequency_hz"] == pytest.approx(500.0, rel=0.05)
-    assert res[0]["damping"] == pytest.approx(0.03, rel=0.30)
-    assert fr["delay_samples"] == pytest.approx(0.5, abs=0.2)
-    print("loop:", {k: p[k]["value"] for k in ("M", "B", "fc")}, res[0], fr["delay_samples"], fr["band_hz"])
+    print(f"loop {name}: duration {plan.duration:.1f} s;",
+          ", ".join(f"{k} {100 * (p[k]['value'] / getattr(truth, k) - 1):+.2f} %" for k in ("M", "B", "fc")),
+          f"; modes {[(round(m['frequency_hz'], 1), round(m['damping'], 4)) for m in res]} (truth "
+          f"{truth.mode_hz:g} Hz, {truth.mode_damping:g}); delay {fr['delay_samples']} samples (truth "
+          f"{truth.delay * truth.sample_rate:g}); band {fr['band_hz']} Hz")
+    if mode_expected:
+        assert len(res) == 1
+        assert res[0]["frequency_hz"] == pytest.approx(truth.mode_hz, rel=0.05)
+        assert res[0]["damping"] == pytest.approx(truth.mode_damping, rel=0.30)
+        assert fr["delay_samples"] == pytest.approx(truth.delay * truth.sample_rate, abs=0.2)
 
 
 def test_plan_json_loader_names_bad_field(tmp_path):
