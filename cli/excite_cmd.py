@@ -62,3 +62,5 @@ def excite(
                       "to stay within the limits")
     for name in PLAN_NAMES:
         console.print(f"wrote {out_dir / name}")
+    console.print(f"next: play plan.csv on the drive (u_inject added to the holding loop's command), record t, q, u "
+                  f"(CONTRACT §1), then: commission identify LOG --plan {out_dir / 'plan.json'}")
