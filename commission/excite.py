@@ -24,16 +24,17 @@ Pre-simulation
 The plan is played, before anything is written, through the holding loop of
 ``[drive]`` on a *conservative* rigid model: two masses bracket the axis (the given
 ``mass`` divided and multiplied by ``plan.mass_range``; without a mass, the heaviest
-axis that still reaches ``a_max`` with ``u_max`` and a tenth of it), friction and
-viscous damping from ``[axis]`` when given, no quantization.  The loop is the one of
-the synthetic logs (:func:`commission.synth._closed_loop`, a PID with the
+axis that still reaches ``a_max`` with ``u_max`` and that divided by ``5 mass_range``),
+friction and viscous damping from ``[axis]`` when given, no quantization.  The loop is
+the one of the synthetic logs (:func:`commission.synth._closed_loop`, a PID with the
 derivative on the backward-difference velocity).  The command is not clipped in the
 pre-simulation, so that its peak is seen.  Peak ``|u|``, the position range, peak
 ``|v|`` (backward difference) and peak ``|a|`` (second difference) are checked against
-``[limits]``; a broken limit in an injection segment first lowers the injection by 0.9 times the limit over
-the peak, between 5 % and a half (up to :data:`MAX_INJECTION_RETRIES` times, the injection's amplitude being the plan's only
-free scale), and if it still breaks one, the plan is refused naming the limit, the
-segment and the model.
+``[limits]``.  A broken limit in an injection segment (or the bump) lowers the
+injection, one in another segment the moves' top speed and acceleration, by 0.9 times
+the limit over the peak (by 5 % to a half; up to :data:`MAX_INJECTION_RETRIES` retries
+in all); a loop that diverges, or a limit still broken, and the plan is refused naming
+the limit, the segment and the model.
 
 :func:`simulate_plan` plays a plan on a known-truth :class:`commission.synth.AxisTruth`
 through the same loop and returns a log in the CONTRACT §1 format (tests, sample data).
