@@ -25,7 +25,7 @@ class Friction(str, enum.Enum):
 
 
 SCHEDULER_HELP = ("Dask scheduler tcp://HOST:PORT to run the simulations on (default: COMMISSION_SCHEDULER, else "
-                  "the spec's [compute] scheduler, else local threads); needs pip install \"commission[dask]\"; "
+                  "the spec's compute.scheduler, else local threads); needs pip install \"commission[dask]\"; "
                   "an unreachable one is exit 2.")
 Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat, .npy/.npz): m, mm, um, "
                "or rad (a rotary axis); default m. Refused when it contradicts the file's attribute.")

@@ -199,3 +199,26 @@ def test_validate_with_an_unreachable_scheduler_is_exit_2_and_writes_nothing(tmp
     r = runner.invoke(app, ["validate", str(tpath), "--out-dir", str(tmp_path / "a"), "--monte-carlo", "2"])
     assert r.exit_code == 2 and "tcp://127.0.0.1:7" in r.output
     assert not (tmp_path / "a").exists()
+
+
+def test_run_reads_the_compute_section_and_the_flag_overrides_it(tmp_path):
+    pytest.importorskip("distributed")
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from commission.cli.main import app
+
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[tune]\nbudget = 8\n\n[compute]\nscheduler = "tcp://127.0.0.1:9"\n')
+    runner = CliRunner()
+    r = runner.invoke(app, ["run", str(sample), "--out-dir", str(tmp_path / "a"), "--spec", str(spec)])
+    assert r.exit_code == 2 and "tcp://127.0.0.1:9" in r.output
+    r = runner.invoke(app, ["run", str(sample), "--out-dir", str(tmp_path / "a"), "--spec", str(spec),
+                            "--scheduler", "tcp://127.0.0.1:7"])
+    assert r.exit_code == 2 and "tcp://127.0.0.1:7" in r.output
+    spec.write_text('[compute]\nscheduler = "tcp://127.0.0.1:9"\nworkers = 2\n')
+    r = runner.invoke(app, ["run", str(sample), "--out-dir", str(tmp_path / "a"), "--spec", str(spec)])
+    assert r.exit_code == 2 and "compute.workers: unknown key" in r.output
+    assert not (tmp_path / "a").exists()
