@@ -273,7 +273,8 @@ class DaskExecutor(Executor):
             return self.client.submit(fn, ref, items[i], key=f"{tag}-{i}", retries=self.retries, pure=False)
 
         def wait_any(fs: set) -> tuple[set, set]:
-            res = d.wait(list(fs), return_when="FIRST_COMPLETED")
+            with self.client.as_current():  # this client, not a process-wide default (set_as_default=False)
+                res = d.wait(list(fs), return_when="FIRST_COMPLETED")
             return set(res.done), set(res.not_done)
 
         try:

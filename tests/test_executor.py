@@ -222,3 +222,16 @@ def test_run_reads_the_compute_section_and_the_flag_overrides_it(tmp_path):
     r = runner.invoke(app, ["run", str(sample), "--out-dir", str(tmp_path / "a"), "--spec", str(spec)])
     assert r.exit_code == 2 and "compute.workers: unknown key" in r.output
     assert not (tmp_path / "a").exists()
+
+
+def test_dask_executor_by_address_maps_in_order_with_its_own_client():
+    distributed = pytest.importorskip("distributed")
+    from commission.executor import DaskExecutor
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c:
+        with DaskExecutor(c.scheduler_address) as ex:  # a client of its own, not the process default
+            assert ex.describe() == {"kind": "dask", "workers": 2, "scheduler": c.scheduler_address}
+            items = list(range(13))
+            seen = []
+            assert list(ex.map(_slow_square, 0.002, items, progress=seen.append)) == [x * x for x in items]
+            assert sorted(seen) == items
