@@ -149,3 +149,17 @@ def test_fleet_of_12_axes_flags_the_doubled_friction_names_the_corrupt_log_and_r
     assert rows2["x11"]["status"] == "passed" and not rows2["x11"]["resumed"]
     assert r.exit_code == (0 if rows2["x10"]["status"] == "passed" else 1)
     assert doc2["summary"]["outliers"] == ["x10"]
+
+
+def test_inputs_hash_follows_the_files_contents_and_the_options(tmp_path):
+    from commission.fleet import AxisEntry, inputs_sha256
+
+    (tmp_path / "a.h5").write_bytes(b"log")
+    (tmp_path / "s.toml").write_text("[tune]\nbudget = 8\n")
+    e = AxisEntry("x", str(tmp_path / "a.h5"), str(tmp_path / "s.toml"))
+    h = inputs_sha256(e, {"seed": 0, "monte_carlo": 4})
+    assert h == inputs_sha256(e, {"seed": 0, "monte_carlo": 4})
+    assert h != inputs_sha256(e, {"seed": 1, "monte_carlo": 4})
+    (tmp_path / "s.toml").write_text("[tune]\nbudget = 9\n")
+    assert h != inputs_sha256(e, {"seed": 0, "monte_carlo": 4})
+    assert inputs_sha256(AxisEntry("x", str(tmp_path / "missing.h5")), {}) is None  # never resumed
