@@ -72,7 +72,7 @@ def main() -> None:
     rows.append(("local, 1 thread", w1, r1))
     w2, r2 = _time_validate(t, args.n, LocalExecutor(2), args.repeat)
     rows.append(("local, 2 threads", w2, r2))
-    overhead = math.nan
+    overhead = warm = math.nan
     try:
         import distributed
     except ImportError:
@@ -82,7 +82,9 @@ def main() -> None:
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                       dashboard_address=None) as cluster, distributed.Client(cluster) as client:
             ex = DaskExecutor(client=client)
+            t0 = time.perf_counter()
             validate(t, n_monte_carlo=2, executor=ex)  # workers import commission and load the kernels
+            warm = time.perf_counter() - t0
             wd, rd = _time_validate(t, args.n, ex, args.repeat)
             rows.append(("LocalCluster, 2 processes", wd, rd))
             n_noop = 400
@@ -98,6 +100,9 @@ def main() -> None:
     for name, w, _r in rows:
         print(f"{name:<28}{w:>9.2f}{plants / w:>11.1f}{w1 / w:>12.2f}x")
     print(f"validation.json identical on every executor (times and executor aside): {same}")
+    if distributed is not None:
+        print(f"LocalCluster warm-up (first validation: each worker imports commission and loads the numba "
+              f"kernels from the on-disk cache, once): {warm:.1f} s, not in the medians")
     cost = w1 / plants  # one plant (ARC + PID), 1 thread
     print(f"per-plant cost (1 thread): {cost * 1e3:.0f} ms (a Monte-Carlo task: {MC_CHUNK} plants, "
           f"{MC_CHUNK * cost:.2f} s); scheduler overhead per task (no-op map on the LocalCluster): "
