@@ -109,14 +109,14 @@ class AxisTruth:
         Input delay between the command the controller issues and the force, s
         (fractional samples allowed).
     mode2_hz : float
-        Resonance of a second structural mode, Hz (0: none; needs the plant vector's
-        second-mode entries, :mod:`commission.controllers.plant`).
+        Resonance of a second structural mode, Hz (0: none; only beside the first: a second
+        load on the motor side, :mod:`commission.controllers.plant`).
     mode2_damping : float
         Damping ratio of the second mode, in [0, 1).
     mode2_ratio : float
         Load fraction of the second mode, in (0, 1).
     mode2_load_side : bool
-        The encoder reads the second mode's load (True) or the motor side (False).
+        The encoder reads the second mode's load (True: this wins over ``mode_load_side``).
     input_gain : float
         Force per command unit, N/u-unit (1 for ``u_unit='N'``; a drive's amplifier and force
         constant for ``'V'``): the moving mass is ``M * input_gain`` kg.  Information only: the
@@ -180,6 +180,8 @@ class AxisTruth:
             )
             if not ok
         ]
+        if self.mode2_hz > 0 and not (self.mode_hz > 0 and self.mode_ratio + self.mode2_ratio < 1):
+            bad.append(f"mode2_hz={self.mode2_hz!r} (needs mode_hz > 0 and mode_ratio + mode2_ratio < 1)")
         if bad:
             raise ValueError("AxisTruth: " + "; ".join(bad))
         if self.u_unit not in U_UNITS:
@@ -201,26 +203,13 @@ class AxisTruth:
         return self.M * self.input_gain
 
     def plant(self) -> np.ndarray:
-        """Plant vector for :mod:`commission.controllers.plant` (float64[NP]).
-
-        Raises
-        ------
-        ValueError
-            A second mode on a plant vector that has no entries for one.
-        """
-        kw: dict[str, Any] = {}
-        if self.mode2_hz > 0:
-            import inspect
-
-            if "mode2_hz" not in inspect.signature(plant_vector).parameters:
-                raise ValueError("AxisTruth: mode2_hz > 0 needs the plant vector's second mode "
-                                 "(commission.controllers.plant.P_MODE2_HZ)")
-            kw = dict(mode2_hz=self.mode2_hz, mode2_damping=self.mode2_damping, mode2_ratio=self.mode2_ratio,
-                      mode2_load_side=self.mode2_load_side)
+        """Plant vector for :mod:`commission.controllers.plant` (float64[NP]), second mode included."""
         return plant_vector(self.M, self.B, self.fc, self.fs, self.vs, self.xi,
                             self.offset, self.ripple_amp, self.ripple_pitch, mode_hz=self.mode_hz,
                             mode_damping=self.mode_damping, mode_ratio=self.mode_ratio,
-                            mode_load_side=self.mode_load_side, delay=self.delay, **kw)
+                            mode_load_side=self.mode_load_side, delay=self.delay, mode2_hz=self.mode2_hz,
+                            mode2_damping=self.mode2_damping, mode2_ratio=self.mode2_ratio,
+                            mode2_load_side=self.mode2_load_side)
 
     def units(self) -> dict[str, str]:
         """Unit of every numeric field (``u`` stands for :attr:`u_unit`)."""
@@ -330,8 +319,9 @@ def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> A
       0.3 kg and 200 Hz at 300 kg, as a stiffness that grows slower than the mass -- times
       a log-uniform 0.67-1.5 scatter, clipped to 200-2000 Hz; the second is 1.4-3x the
       first (log), at most 2 kHz (dropped when there is no room).  Damping 0.01-0.08 (log);
-      load fraction 0.1-0.5 (first), 0.05-0.3 (second); each reads the load side
-      (non-collocated) or the motor side (collocated) with probability 1/2.
+      load fraction 0.1-0.5 (first), 0.05-0.3 (second).  The encoder reads the motor side
+      (collocated) or a load (non-collocated): with one mode each with probability 1/2;
+      with two, the second load 1/2, the first load 1/4, the motor 1/4.
 
     Parameters
     ----------
@@ -398,7 +388,8 @@ def excitation_plan(truth: AxisTruth) -> ExcitationPlan:
       steps of 0.85 until its loop on the true plant (modes and delay, linearised by
       :func:`commission.controllers.margins.loop_margins`) keeps 6 dB and 30 deg, as an
       engineer lowers the gain of a loop that rings (a loop that excites its own mode would
-      not be logged); at most 40 steps.
+      not be logged); at most 40 steps.  The integral corner stays at most a tenth of the
+      bandwidth.
 
     Parameters
     ----------
@@ -416,8 +407,14 @@ def excitation_plan(truth: AxisTruth) -> ExcitationPlan:
     bw = min(base.bandwidth_hz, truth.sample_rate / 40.0)
     if truth.n_modes or truth.delay > 0:
         bw = _quiet_bandwidth(truth, base, bw)
-    return dataclasses.replace(base, ms_accel=min(base.ms_accel, a_cap), ladder_accel=min(base.ladder_accel, a_cap),
-                               move_accel=min(base.move_accel, a_cap), v_max=v_max, bandwidth_hz=bw)
+    return dataclasses.replace(_with_bandwidth(base, bw), ms_accel=min(base.ms_accel, a_cap),
+                               ladder_accel=min(base.ladder_accel, a_cap), move_accel=min(base.move_accel, a_cap),
+                               v_max=v_max)
+
+
+def _with_bandwidth(plan: ExcitationPlan, bw: float) -> ExcitationPlan:
+    """``plan`` with the PID's bandwidth ``bw`` (Hz) and its integral corner at most a tenth of it."""
+    return dataclasses.replace(plan, bandwidth_hz=bw, integral_hz=min(plan.integral_hz, bw / 10.0))
 
 
 def _quiet_bandwidth(truth: AxisTruth, plan: ExcitationPlan, bw: float) -> float:
@@ -428,7 +425,7 @@ def _quiet_bandwidth(truth: AxisTruth, plan: ExcitationPlan, bw: float) -> float
 
     plant = sampled_plant(truth.plant(), truth.period)
     for _ in range(40):
-        kp, kd, ki = loop_gains(truth, dataclasses.replace(plan, bandwidth_hz=bw))
+        kp, kd, ki = loop_gains(truth, _with_bandwidth(plan, bw))
         g = PidGains(Ts=truth.period, M_hat=0.0, B_hat=0.0, Kp=kp, Ki=ki, Kd=kd)
         m = loop_margins(linearize_pid(pid_pack(g)), plant)
         if m.stable and m.gain_margin_db >= 6.0 and m.phase_margin_deg >= 30.0:
