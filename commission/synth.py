@@ -224,11 +224,21 @@ class AxisTruth:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form: ``{"u_unit": ..., "parameters": {name: {"value", "unit"}}}``."""
+        """JSON-ready form: ``{"u_unit": ..., "parameters": {name: {"value", "unit"}}}``.
+
+        The second mode's fields are written only with a second mode, and ``input_gain`` only
+        when it is not 1, so the truth of a one-mode axis reads as it did before they existed
+        (``sample_data/truth.json``); :meth:`from_dict` defaults what is absent.
+        """
         units = self.units()
+        skip = set()
+        if self.mode2_hz == 0:
+            skip |= {"mode2_hz", "mode2_damping", "mode2_ratio", "mode2_load_side"}
+        if self.input_gain == 1.0:
+            skip.add("input_gain")
         return {
             "u_unit": self.u_unit,
-            "parameters": {k: {"value": float(getattr(self, k)), "unit": units[k]} for k in units},
+            "parameters": {k: {"value": float(getattr(self, k)), "unit": units[k]} for k in units if k not in skip},
         }
 
     @classmethod

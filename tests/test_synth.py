@@ -97,6 +97,18 @@ def test_rigid_random_axis_is_reproducible_and_in_range():
 RANGE_SEEDS = range(400)
 
 
+def test_a_two_mode_truth_round_trips_through_json():
+    two = AxisTruth(**{**AXIS.__dict__, "mode_hz": 300.0, "mode_ratio": 0.3, "mode2_hz": 900.0,
+                       "mode2_damping": 0.04, "mode2_ratio": 0.1, "mode2_load_side": True, "input_gain": 25.0})
+    d = json.loads(json.dumps(two.to_dict()))
+    assert d["parameters"]["mode2_hz"] == {"value": 900.0, "unit": "Hz"}
+    assert d["parameters"]["input_gain"] == {"value": 25.0, "unit": "N/V"}
+    assert AxisTruth.from_dict(d) == two
+    assert "mode2_hz" not in AXIS.to_dict()["parameters"]  # a one-mode truth reads as before
+    with pytest.raises(ValueError, match="mode2_hz"):
+        AxisTruth(**{**AXIS.__dict__, "mode2_hz": 900.0})  # a second mode needs a first
+
+
 def test_random_axis_draws_stay_within_the_stated_ranges():
     """Issue 30's spread of real machines: every draw of seeds 0-399 is within the documented ranges."""
     a = [random_axis(np.random.default_rng(s)) for s in RANGE_SEEDS]
