@@ -13,7 +13,7 @@ plant (docs/robustness.md, "Yield on the true axis").
 One line per axis -- rate, mass (kg, with the command unit and its gain), modes, delay,
 noise, the tool's verdict, the count it falls in (works / FALSE-CERT / FALSE-REFUSAL /
 refused-ok / no-candidate, which says whether a true-plant PID works there), the worst ARC/PID e_rms ratio over the four runs and the seconds
-it took -- then the totals and the median ratio over the emitted axes.
+it took (wall and this process's CPU) -- then the totals and the median ratio over the emitted axes.
 
 Seeds 0-29 are the development set, 100-129 the held-out set (run once, on final code, by the
 lead).  Nothing is asserted: the tests run the judging function on known cases
@@ -79,16 +79,16 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int) -> tuple[int, str, str, 
     """Judge random axis ``seed``; ``(seed, line, category, ratio, emitted)``."""
     d = pathlib.Path(workdir) / f"axis{seed}"
     d.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     truth = write_random_axis_log(seed, d / "log.h5")
     j = judge_axis(truth, d / "log.h5", out_dir=d / "out", seed=tune_seed, workers=1)
-    dt = time.perf_counter() - t0
+    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
     runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{'DIV' if r.diverged else f'{r.e_rms * 1e6:.3g}um/cu{r.c_u:.2f}'}"
                     for r in j.arc_runs)
-    line = (f"axis {seed:3d}: {describe(truth)} | {j.verdict[:90]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
-            f"| {runs} | {dt:.0f} s")
+    line = (f"axis {seed:3d}: {describe(truth)} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
+            f"| {runs} | {dt:.0f} s wall, {cpu:.0f} s CPU")
     return seed, line, cat, j.ratio, j.emitted
 
 
