@@ -12,7 +12,8 @@ plant (docs/robustness.md, "Yield on the true axis").
 
 One line per axis -- rate, mass (kg, with the command unit and its gain), modes, delay,
 noise, the tool's verdict, the count it falls in (works / FALSE-CERT / FALSE-REFUSAL /
-refused-ok / no-candidate, which says whether a true-plant PID works there), the worst ARC/PID e_rms ratio over the four runs and the seconds
+refused-ok / no-candidate, which says whether a true-plant PID works there; CRASH for an
+exception that is not an exit-2 refusal), the worst ARC/PID e_rms ratio over the four runs and the seconds
 it took (wall and this process's CPU) -- then the totals and the median ratio over the emitted axes.
 
 Seeds 0-29 are the development set, 100-129 the held-out set (run once, on final code, by the
@@ -81,7 +82,12 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int) -> tuple[int, str, str, 
     d.mkdir(parents=True, exist_ok=True)
     t0, c0 = time.perf_counter(), time.process_time()
     truth = write_random_axis_log(seed, d / "log.h5")
-    j = judge_axis(truth, d / "log.h5", out_dir=d / "out", seed=tune_seed, workers=1)
+    try:
+        j = judge_axis(truth, d / "log.h5", out_dir=d / "out", seed=tune_seed, workers=1)
+    except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
+        dt = time.perf_counter() - t0
+        return seed, f"axis {seed:3d}: {describe(truth)} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
+            "CRASH", math.nan, False
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
@@ -122,7 +128,7 @@ def main() -> None:
           f"{cats.count('FALSE-REFUSAL')} false refusals; {cats.count('refused-ok')} refused rightly; "
           f"{sum(c.startswith('no-candidate') for c in cats)} refused before tuning (no candidate to judge; "
           f"{sum(c.endswith('works)') for c in cats)} of them on an axis where a true-plant PID works); "
-          f"{len(emitted)} emitted")
+          f"{len(emitted)} emitted" + (f"; {cats.count('CRASH')} CRASHED" if "CRASH" in cats else ""))
     print(f"median ARC/PID e_rms ratio over the {len(ratios)} emitted axes (worst of the four runs each): "
           f"{statistics.median(ratios):.2f}" if ratios else "median ARC/PID e_rms ratio: no axis emitted")
     print(f"{time.perf_counter() - t0:.0f} s wall for {n} axes ({args.workers} worker(s))")
