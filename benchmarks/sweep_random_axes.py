@@ -91,8 +91,13 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int) -> tuple[int, str, str, 
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
-    runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{'DIV' if r.diverged else f'{r.e_rms * 1e6:.3g}um/cu{r.c_u:.2f}'}"
-                    for r in j.arc_runs)
+    def run_text(r) -> str:
+        if r.diverged:
+            return "DIV"
+        stop = "" if math.isnan(r.stopped) else f"/FAULT@{r.stopped:.3g}s"
+        return f"{r.e_rms * 1e6:.3g}um/cu{r.c_u:.2f}{stop}"
+
+    runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{run_text(r)}" for r in j.arc_runs)
     line = (f"axis {seed:3d}: {describe(truth)} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
             f"| {runs} | {dt:.0f} s wall, {cpu:.0f} s CPU")
     return seed, line, cat, j.ratio, j.emitted

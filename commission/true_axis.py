@@ -92,6 +92,10 @@ class TrueRun:
         RMS tracking error, m (NaN when diverged).
     c_u : float
         Chattering index du_rms / u_rms, dimensionless (NaN when diverged).
+    stopped : float
+        When the command went to exactly 0 for good, s, if it did so before the run's last
+        half (the runtime's guards latched a fault: the safe command 0 until a reset; the
+        axis then stands while the reference moves); NaN otherwise.
     """
 
     case: str
@@ -99,11 +103,13 @@ class TrueRun:
     diverged: bool
     e_rms: float
     c_u: float
+    stopped: float = math.nan
 
     @property
     def ok(self) -> bool:
-        """Did not diverge and ``c_u <= 1``."""
-        return (not self.diverged) and math.isfinite(self.c_u) and self.c_u <= 1.0
+        """Did not diverge, did not stop on a fault, and ``c_u <= 1``."""
+        return ((not self.diverged) and math.isnan(self.stopped) and math.isfinite(self.c_u)
+                and self.c_u <= 1.0)
 
 
 @dataclass(frozen=True)
@@ -185,6 +191,13 @@ def _trajectories(spec: Spec, Ts: float):
     return [("case1", case1_trajectory(spec).render(Ts, 0.0)), ("case2", case2_trajectory(spec).render(Ts, 0.0))]
 
 
+def _stopped(u: np.ndarray, Ts: float) -> float:
+    """Time from which ``u`` is exactly 0 to the end, s, when that covers the last half; else NaN."""
+    nz = np.flatnonzero(u != 0.0)
+    last = int(nz[-1]) + 1 if nz.size else 0
+    return last * Ts if last <= u.size // 2 else math.nan
+
+
 def true_runs(truth: AxisTruth, kind: int, ctrl: np.ndarray, spec: Spec, *,
               trajectories=None, noise_seed: int = 0) -> tuple[TrueRun, ...]:
     """Simulate a packed controller on the true plant: Case 1 and Case 2, each as logged and +1 sample.
@@ -225,7 +238,8 @@ def true_runs(truth: AxisTruth, kind: int, ctrl: np.ndarray, spec: Spec, *,
             if r.diverged or r.indexes is None:
                 out.append(TrueRun(name, extra, True, math.nan, math.nan))
             else:
-                out.append(TrueRun(name, extra, False, float(r.indexes.e_rms), float(r.indexes.c_u)))
+                out.append(TrueRun(name, extra, False, float(r.indexes.e_rms), float(r.indexes.c_u),
+                                   _stopped(r.u, Ts)))
     return tuple(out)
 
 

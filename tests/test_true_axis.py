@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from commission.controllers.arc import paper_gains_implementable
@@ -107,3 +108,17 @@ def test_the_ratio_is_the_worst_of_the_four_runs():
     j = Judgement(emitted=True, verdict="emitted", candidate=True, arc_runs=arc, pid=PID)
     assert j.ratio == pytest.approx(0.75)
     assert math.isinf(Judgement(True, "emitted", True, _runs(math.nan, math.nan, True), PID).ratio)
+
+
+def test_a_run_whose_command_stops_for_good_is_a_fault_not_a_success():
+    """The runtime's guards latch the safe command 0; the axis then stands while the reference moves."""
+    from commission.true_axis import _stopped
+
+    u = np.concatenate([np.ones(80), np.zeros(920)])
+    assert _stopped(u, 1e-3) == pytest.approx(0.08)
+    assert math.isnan(_stopped(np.ones(1000), 1e-3))
+    assert math.isnan(_stopped(np.concatenate([np.ones(600), np.zeros(400)]), 1e-3))  # at rest at the end: fine
+    stopped = TrueRun("case1", 0.0, False, 1e-6, 0.5, 0.08)
+    assert not stopped.ok
+    j = Judgement(True, "emitted", True, (stopped,) + _runs(1e-6)[1:], PID)
+    assert j.false_certification
