@@ -46,7 +46,10 @@ parameters (``d``, ``vs``) are chosen inside each fold on its training rows
 only.  Among all term sets the simplest (fewest parameters; ties: lowest CV
 error) whose CV mean squared error is within one standard error of the minimum
 is chosen (the one-standard-error rule of Hastie, Tibshirani & Friedman,
-section 7.10).  Why not BIC: the residuals of decimated inverse-dynamics rows are
+section 7.10), with the standard error of each candidate's excess over the best
+taken fold by fold (paired): the folds' own errors differ far more between
+stretches of the log than two models' errors on one stretch, so the unpaired
+standard error would hide every term.  Why not BIC: the residuals of decimated inverse-dynamics rows are
 correlated (unmodelled dynamics, filtered quantisation noise), so the row count
 overstates the information and BIC's penalty is too weak; blocked CV measures
 prediction on unseen stretches of the log directly.
@@ -272,10 +275,12 @@ class Selection:
         The chosen term set, fitted on all rows.
     table : tuple of dict
         One row per candidate: ``terms``, ``n_parameters`` (beyond the 4 of the
-        base), ``cv_rmse`` (u-unit), ``cv_se`` (standard error of the CV mean
-        squared error, u-unit^2), ``cv_mse`` (u-unit^2).
+        base), ``cv_rmse`` (u-unit), ``cv_mse`` (u-unit^2), ``cv_excess`` (mean over
+        folds of the excess over the best candidate's fold MSE, u-unit^2) and
+        ``cv_se`` (its standard error, u-unit^2); a candidate is within the rule when
+        ``cv_excess <= cv_se``.
     threshold_mse : float
-        Minimum CV mean squared error plus its standard error, u-unit^2.
+        Minimum CV mean squared error plus the chosen candidate's paired standard error, u-unit^2.
     """
 
     fit: RichFit
@@ -289,7 +294,7 @@ class Selection:
         return {"method": "blocked K-fold cross-validation, one-standard-error rule",
                 "data": "identification log(s) only", "folds": self.folds, "gap_rows": self.gap_rows,
                 "chosen": list(self.fit.terms), "threshold_mse": self.threshold_mse,
-                "units": {"cv_rmse": "u", "cv_mse": "u^2", "cv_se": "u^2", "delay_grid": "samples",
+                "units": {"cv_rmse": "u", "cv_mse": "u^2", "cv_se": "u^2", "cv_excess": "u^2", "delay_grid": "samples",
                           "vs_grid": "m/s"},
                 "delay_grid": [float(d) for d in DELAY_GRID],
                 "table": [dict(r) for r in self.table]}
@@ -330,8 +335,8 @@ class RichModel:
                 best, arg = c, (d, vs)
         return arg
 
-    def cross_validate(self, terms: Sequence[str], folds: int = N_FOLDS, gap: int = GAP_ROWS) -> tuple[float, float]:
-        """Blocked K-fold CV mean squared error of a term set and its standard error, u-unit^2."""
+    def cross_validate(self, terms: Sequence[str], folds: int = N_FOLDS, gap: int = GAP_ROWS) -> tuple[float, np.ndarray]:
+        """Blocked K-fold CV mean squared error of a term set (u-unit^2) and every fold's own."""
         n = self.design.y.size
         edges = np.linspace(0, n, folds + 1).astype(int)
         sse, mses = 0.0, []
@@ -346,7 +351,7 @@ class RichModel:
             r = self.design.y[test] - A[test] @ theta
             sse += float(r @ r)
             mses.append(float(r @ r) / max(b - a, 1))
-        return sse / n, float(np.std(mses, ddof=1) / math.sqrt(folds))
+        return sse / n, np.asarray(mses)
 
     def _profile_delay(self, terms: Sequence[str], vs: float | None) -> tuple[float, float]:
         """Delay minimising the RSS on all rows (grid, then bounded search) and its std, samples."""
@@ -430,15 +435,21 @@ def select_model(model: RichModel, allowed: Sequence[str] = TERMS, *, folds: int
 
     Reads only ``model`` (the identification logs): the validation log plays no part.
     """
-    rows = []
+    rows, per_fold = [], []
     for terms in candidate_sets(allowed):
-        mse, se = model.cross_validate(terms, folds, gap)
+        mse, fold_mse = model.cross_validate(terms, folds, gap)
+        per_fold.append(fold_mse)
         rows.append({"terms": list(terms), "n_parameters": n_parameters(terms), "cv_mse": mse,
-                     "cv_rmse": math.sqrt(mse), "cv_se": se})
-    best = min(rows, key=lambda r: r["cv_mse"])  # type: ignore[arg-type, return-value]
-    threshold = float(best["cv_mse"]) + float(best["cv_se"])  # type: ignore[arg-type]
-    ok = [r for r in rows if r["cv_mse"] <= threshold]  # type: ignore[operator]
+                     "cv_rmse": math.sqrt(mse)})
+    ib = min(range(len(rows)), key=lambda i: rows[i]["cv_mse"])  # type: ignore[arg-type, return-value]
+    for r, fm in zip(rows, per_fold):
+        # Paired across folds: the folds differ far more from each other than the models do on one fold.
+        diff = fm - per_fold[ib]
+        r["cv_excess"] = float(np.mean(diff))
+        r["cv_se"] = float(np.std(diff, ddof=1) / math.sqrt(folds))
+    ok = [r for r in rows if r["cv_excess"] <= r["cv_se"]]  # type: ignore[operator]
     chosen = min(ok, key=lambda r: (r["n_parameters"], r["cv_mse"]))  # type: ignore[arg-type, return-value]
+    threshold = float(rows[ib]["cv_mse"]) + float(chosen["cv_se"])  # type: ignore[arg-type]
     for r in rows:
         r["chosen"] = r is chosen
     return Selection(fit=model.fit(chosen["terms"]), table=tuple(rows), threshold_mse=threshold,  # type: ignore[arg-type]
