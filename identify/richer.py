@@ -63,7 +63,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import interpolate, optimize
+from scipy import interpolate, ndimage, optimize
 
 from commission.identify.errors import NotIdentifiableError
 from commission.identify.ls import readonly_copy, ripple_name, ripple_pitches
@@ -85,6 +85,9 @@ TERM_NONLINEAR = {"delay": ("delay_samples", "samples"), "stribeck": ("vs", "m/s
 STRIBECK_XI = 2.0
 #: Delay grid beyond the zero-order hold, samples.
 DELAY_GRID = tuple(np.round(np.arange(-0.5, 3.0001, 0.25), 4))
+#: The delay is profiled on the rows away from reversals: those whose anti-alias window saw no speed
+#: below this fraction of the fastest (where sign(qd) of the filtered velocity and a sticking axis disagree).
+REVERSAL_FRACTION = 0.01
 #: Cross-validation folds and rows left out on each side of a test block.
 N_FOLDS = 5
 GAP_ROWS = 3
@@ -202,9 +205,11 @@ def _shifted(pp: Preprocessed, tau_samples: float) -> tuple[np.ndarray, np.ndarr
 class _Design:
     """Decimated columns of every term at one shift (cached per delay and Stribeck velocity)."""
 
-    def __init__(self, pp: Preprocessed, pitches: tuple[float, ...], q_center: float, q_scale: float):
+    def __init__(self, pp: Preprocessed, pitches: tuple[float, ...], q_center: float, q_scale: float,
+                 keep: np.ndarray | None = None):
         self.pp, self.pitches, self.qc, self.qs = pp, pitches, q_center, q_scale
         self.y = pp.decimate(pp.u)
+        self.keep = np.ones(self.y.size, bool) if keep is None else keep
         self._cache: dict[float, dict[str, np.ndarray]] = {}
         self._stribeck: dict[tuple[float, float], np.ndarray] = {}
 
@@ -235,6 +240,7 @@ class _Design:
         return self._stribeck[key]
 
     def matrix(self, terms: Sequence[str], d: float, vs: float | None) -> np.ndarray:
+        """The regressor on all decimated rows."""
         c = self.columns(d)
         blocks = [c["base"]]
         for t in ("viscous_asym", "stribeck", "position", "drag"):
@@ -304,7 +310,8 @@ class RichModel:
     """Preprocessed identification log(s) and the cached designs of :func:`select_model` / :meth:`fit`."""
 
     def __init__(self, segments: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], *,
-                 ripple_pitch: float | Sequence[float] | None = None, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ):
+                 ripple_pitch: float | Sequence[float] | None = None, bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ,
+                 reversal_fraction: float = REVERSAL_FRACTION):
         checked = segment_rates(list(segments))
         self.pp = preprocess_segments([c[:3] for c in checked], bandwidth_hz=bandwidth_hz)
         self.bandwidth_hz = float(bandwidth_hz)
@@ -312,11 +319,19 @@ class RichModel:
         q = self.pp.q
         self.q_center = float(0.5 * (q.min() + q.max()))
         self.q_scale = max(float(0.5 * (q.max() - q.min())), 1e-12)
-        self.design = _Design(self.pp, self.pitches, self.q_center, self.q_scale)
         speed = np.abs(self.pp.qd)
         vmax = float(speed.max())
         if not vmax > 0:
             raise NotIdentifiableError("q: the axis does not move; no inverse dynamics to fit")
+        keep = None
+        if reversal_fraction > 0:
+            # Rows whose anti-alias window (and the delay's reach) saw a speed below the threshold.
+            low = ndimage.maximum_filter1d((speed < reversal_fraction * vmax).astype(np.uint8),
+                                           size=4 * self.pp.decimation + 1) > 0
+            keep = ~self.pp.decimate_mask(low)
+            if keep.sum() < 20 * (len(TERMS) + 8):
+                keep = None
+        self.design = _Design(self.pp, self.pitches, self.q_center, self.q_scale, keep)
         lo = max(float(np.percentile(speed, 5.0)), 1e-3 * vmax)
         self.vs_grid = tuple(float(v) for v in np.geomspace(lo, 0.3 * vmax, 6))
 
@@ -327,13 +342,20 @@ class RichModel:
         return [(d, v) for d in ds for v in vss]
 
     def _best_on(self, terms: Sequence[str], rows: np.ndarray) -> tuple[float, float | None]:
-        y = self.design.y[rows]
-        best, arg = math.inf, (0.0, None)
-        for d, vs in self._grid(terms):
-            c = _rss(self.design.matrix(terms, d, vs)[rows], y)
-            if c < best:
-                best, arg = c, (d, vs)
-        return arg
+        """Grid choice of the delay (on ``rows`` away from reversals) and then of ``vs`` (on all ``rows``)."""
+        y = self.design.y
+        d_best = 0.0
+        if "delay" in terms:
+            kept = rows & self.design.keep
+            best = math.inf
+            for d, vs in self._grid(terms):
+                c = _rss(self.design.matrix(terms, d, vs)[kept], y[kept])
+                if c < best:
+                    best, d_best = c, d
+        if "stribeck" not in terms:
+            return d_best, None
+        costs = [(_rss(self.design.matrix(terms, d_best, vs)[rows], y[rows]), vs) for vs in self.vs_grid]
+        return d_best, min(costs)[1]
 
     def cross_validate(self, terms: Sequence[str], folds: int = N_FOLDS, gap: int = GAP_ROWS) -> tuple[float, np.ndarray]:
         """Blocked K-fold CV mean squared error of a term set (u-unit^2) and every fold's own."""
@@ -353,29 +375,27 @@ class RichModel:
             mses.append(float(r @ r) / max(b - a, 1))
         return sse / n, np.asarray(mses)
 
-    def _profile_delay(self, terms: Sequence[str], vs: float | None) -> tuple[float, float]:
-        """Delay minimising the RSS on all rows (grid, then bounded search) and its std, samples."""
-        y = self.design.y
-        rows = np.ones(y.size, bool)
-        d0, _ = self._best_on(terms, rows) if vs is None else (self._best_on(["delay"], rows)[0], None)
-        if vs is not None:
-            costs = [(_rss(self.design.matrix(terms, d, vs), y), d) for d in DELAY_GRID]
-            d0 = min(costs)[1]
+    def _profile_delay(self, terms: Sequence[str], vs: float | None, d0: float) -> tuple[float, float]:
+        """Delay minimising the RSS on the rows away from reversals (bounded search about the grid's
+        ``d0``) and its standard deviation from the profile's curvature, samples."""
+        kept = self.design.keep
+        y = self.design.y[kept]
+
+        def cost(d: float) -> float:
+            return _rss(self.design.matrix(terms, d, vs)[kept], y)
+
         lo, hi = max(d0 - 0.25, DELAY_GRID[0]), min(d0 + 0.25, DELAY_GRID[-1])
-        res = optimize.minimize_scalar(lambda d: _rss(self.design.matrix(terms, d, vs), y), bounds=(lo, hi),
-                                       method="bounded", options={"xatol": 1e-3})
-        d = float(res.x)
+        d = float(optimize.minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}).x)
         h = 0.05
-        f0 = _rss(self.design.matrix(terms, d, vs), y)
-        fp = _rss(self.design.matrix(terms, d + h, vs), y)
-        fm = _rss(self.design.matrix(terms, d - h, vs), y)
+        f0, fp, fm = cost(d), cost(d + h), cost(d - h)
         curv = (fp - 2 * f0 + fm) / h**2
         p = self.design.matrix(terms, d, vs).shape[1] + 1
         sigma2 = f0 / (y.size - p)
         return d, (math.sqrt(2.0 * sigma2 / curv) if curv > 0 else math.inf)
 
     def fit(self, terms: Sequence[str]) -> RichFit:
-        """Fit a term set on all rows: ``vs`` and the delay profiled, the rest by least squares."""
+        """Fit a term set: the delay profiled on the rows away from reversals, ``vs`` and the
+        linear coefficients on all rows."""
         terms = tuple(t for t in TERMS if t in terms)
         unknown = set(terms) - set(TERMS)
         if unknown:
@@ -383,18 +403,17 @@ class RichModel:
         y = self.design.y
         rows = np.ones(y.size, bool)
         d, vs = self._best_on(terms, rows)
+        d_std = 0.0
+        if "delay" in terms:
+            d, d_std = self._profile_delay(terms, vs, d)
         vs_std = None
         if vs is not None:
-            # Refine vs on log scale at the grid's delay, std from the profile's curvature.
+            # Refine vs on log scale at the delay, std from the profile's curvature.
             lv = math.log(vs)
             step = math.log(self.vs_grid[1] / self.vs_grid[0])
             res = optimize.minimize_scalar(lambda x: _rss(self.design.matrix(terms, d, math.exp(x)), y),
                                            bounds=(lv - step, lv + step), method="bounded", options={"xatol": 1e-4})
             vs = float(math.exp(res.x))
-        d_std = 0.0
-        if "delay" in terms:
-            d, d_std = self._profile_delay(terms, vs)
-        if vs is not None:
             lv, h = math.log(vs), 0.02
             f = [_rss(self.design.matrix(terms, d, math.exp(lv + k * h)), y) for k in (-1, 0, 1)]
             curv = (f[2] - 2 * f[1] + f[0]) / h**2
@@ -414,12 +433,13 @@ class RichModel:
             if nm in names:
                 scale[names.index(nm)] = self.q_scale ** -k
         theta_p, cov_p = theta * scale, cov * np.outer(scale, scale)
+        y_all, fit_all, r_all = y, A @ theta, r
         return RichFit(terms=terms, names=names, units=units, theta=readonly_copy(theta_p),
                        std=readonly_copy(np.sqrt(np.diag(cov_p))), cov=readonly_copy(cov_p), delay_samples=float(d),
                        delay_std_samples=float(d_std), vs=vs, vs_std=vs_std, q_center=self.q_center,
-                       ripple_pitch=self.pitches, relative_error=float(np.linalg.norm(r) / np.linalg.norm(y)),
-                       condition_number=float(s[0] / s[-1]), residuals=readonly_copy(r),
-                       force_measured=readonly_copy(y), force_fitted=readonly_copy(A @ theta),
+                       ripple_pitch=self.pitches, relative_error=float(np.linalg.norm(r_all) / np.linalg.norm(y_all)),
+                       condition_number=float(s[0] / s[-1]), residuals=readonly_copy(r_all),
+                       force_measured=readonly_copy(y_all), force_fitted=readonly_copy(fit_all),
                        sample_rate=self.pp.sample_rate)
 
 
@@ -459,7 +479,8 @@ def select_model(model: RichModel, allowed: Sequence[str] = TERMS, *, folds: int
 def relative_error_on(fit: RichFit, segments: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], *,
                       bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ) -> float:
     """Relative error ``||y - y_hat|| / ||y||`` of a fitted term set on other log(s) (the EMPS cross-test)."""
-    other = RichModel(segments, ripple_pitch=fit.ripple_pitch or None, bandwidth_hz=bandwidth_hz)
+    other = RichModel(segments, ripple_pitch=fit.ripple_pitch or None, bandwidth_hz=bandwidth_hz,
+                      reversal_fraction=0.0)
     other.design.qc, other.design.qs = fit.q_center, 1.0
     A = other.design.matrix(fit.terms, fit.delay_samples, fit.vs)
     y = other.design.y

@@ -16,7 +16,7 @@ import numpy as np
 
 
 def truth_log(*, M=95.0, B_pos=200.0, B_neg=200.0, fc_pos=20.0, fc_neg=20.0, offset=0.0, delay=0.0,
-              fs=1000.0, duration=12.0, lsb=5e-8, seed=0, substeps=10):
+              fs=1000.0, duration=24.0, lsb=5e-8, seed=0, substeps=10):
     """(t, q, u) of a simulated closed-loop log; SI units (m, N)."""
     rng = np.random.default_rng(seed)
     n = int(duration * fs)

@@ -1,0 +1,94 @@
+"""Delay-aware inverse dynamics and its selection without the test set (issue 35).
+
+Known truth: closed-loop logs of tests/richer_truth.py (direction-dependent friction and
+an input delay, which the plant simulator lacks).  Real data: the EMPS benchmark
+(../shared/data/emps; published IDIM-LS figures from its README).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from richer_truth import truth_log
+from shared_paths import EMPS_DIR
+
+from commission.identification import identify_log
+from commission.identify.richer import TERMS, RichModel, select_model
+
+EMPS_KW = dict(mapping={"q": "qm", "u": "vir"}, input_gain=35.15065188248547, u_unit="N")
+needs_emps = pytest.mark.skipif(not (EMPS_DIR / "DATA_EMPS.mat").exists(), reason="EMPS data not present")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+def test_no_delay_asymmetry_or_position_on_a_symmetric_delay_free_axis(seed):
+    sel = select_model(RichModel([truth_log(seed=seed)]))
+    assert not {"delay", "viscous_asym", "position"} & set(sel.fit.terms)
+    assert sum(r["chosen"] for r in sel.table) == 1 and len(sel.table) == 2 ** len(TERMS)
+    assert sel.fit.value("M") == pytest.approx(95.0, rel=0.02)
+    assert sel.fit.value("B") == pytest.approx(200.0, rel=0.05)
+    assert sel.fit.value("fc") == pytest.approx(20.0, rel=0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay, asym_b, asym_c, seed", [(0.5, 0.10, 0.30, 2), (1.0, 0.15, 0.20, 3),
+                                                         (1.5, 0.30, 0.10, 4)])
+def test_asymmetry_and_delay_are_found(delay, asym_b, asym_c, seed):
+    # Asymmetry r: the levels are (1 +- r/2) times the mean, so they differ by r of the mean.
+    B_pos, B_neg = 200.0 * (1 + asym_b / 2), 200.0 * (1 - asym_b / 2)
+    fc_pos, fc_neg = 20.0 * (1 + asym_c / 2), 20.0 * (1 - asym_c / 2)
+    sel = select_model(RichModel([truth_log(B_pos=B_pos, B_neg=B_neg, fc_pos=fc_pos, fc_neg=fc_neg, delay=delay,
+                                            seed=seed)]))
+    f = sel.fit
+    assert {"delay", "viscous_asym"} <= set(f.terms)
+    assert "position" not in f.terms
+    assert abs(f.delay_samples - delay) <= 0.2
+    der = f.derived()
+    for name, truth in (("B_pos", B_pos), ("B_neg", B_neg), ("fc_pos", fc_pos), ("fc_neg", fc_neg)):
+        assert der[name][0] == pytest.approx(truth, rel=0.05), name
+    assert f.value("M") == pytest.approx(95.0, rel=0.05)
+
+
+@needs_emps
+def test_coulomb_keeps_the_published_digits():
+    out = identify_log(str(EMPS_DIR / "DATA_EMPS.mat"), friction="coulomb",
+                       validate_on=str(EMPS_DIR / "DATA_EMPS_PULSES.mat"), **EMPS_KW)
+    p = out.ident.parameters
+    assert [round(p[n].value, 4) for n in ("M", "B", "fc", "offset")] == [95.1089, 203.5034, 20.3935, -3.1648]
+    assert round(100 * out.ident.relative_error, 4) == 4.0834
+    assert round(100 * out.ident.validation_relative_error, 4) == 5.9824
+    assert "model_selection" not in out.ident.extra
+
+
+@pytest.fixture(scope="module")
+def emps_default():
+    return identify_log(str(EMPS_DIR / "DATA_EMPS.mat"), validate_on=str(EMPS_DIR / "DATA_EMPS_PULSES.mat"),
+                        **EMPS_KW)
+
+
+@needs_emps
+@pytest.mark.slow
+def test_emps_default_beats_the_published_cross_test(emps_default):
+    ident = emps_default.ident
+    sel = ident.extra["model_selection"]
+    inv = ident.extra["model"]["inverse_dynamics"]
+    assert ident.validation_relative_error <= 0.035
+    assert sel["chosen"] == inv["terms"] and inv["terms"]
+    assert all(c["unit"] and math.isfinite(c["std"]) for c in inv["coefficients"].values())
+    assert sum(r["chosen"] for r in sel["table"]) == 1
+    ps = ident.extra["position_simulation"]
+    print(f"EMPS default: terms {inv['terms']}, delay {inv['delay_samples']:.3f} +- {inv['delay_std_samples']:.3f} "
+          f"samples beyond the hold; train {100 * ident.relative_error:.3f} %, cross-test "
+          f"{100 * ident.validation_relative_error:.3f} %; position RMSE {1e3 * ps['rmse']:.3f} mm "
+          f"(IDIM-LS {1e3 * ps['reference_rmse']:.3f} mm)")
+    assert ps["rmse"] > 0 and ps["reference_rmse"] > 0
+
+
+@needs_emps
+@pytest.mark.slow
+def test_the_choice_never_reads_the_validation_file(emps_default):
+    other = identify_log(str(EMPS_DIR / "DATA_EMPS.mat"), validate_on=str(EMPS_DIR / "DATA_EMPS.mat"), **EMPS_KW)
+    assert other.ident.extra["model_selection"] == emps_default.ident.extra["model_selection"]
+    assert other.ident.extra["model"]["inverse_dynamics"] == emps_default.ident.extra["model"]["inverse_dynamics"]
+    assert other.ident.validation_relative_error != emps_default.ident.validation_relative_error
