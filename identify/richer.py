@@ -357,22 +357,88 @@ class RichModel:
         costs = [(_rss(self.design.matrix(terms, d_best, vs)[rows], y[rows]), vs) for vs in self.vs_grid]
         return d_best, min(costs)[1]
 
-    def cross_validate(self, terms: Sequence[str], folds: int = N_FOLDS, gap: int = GAP_ROWS) -> tuple[float, np.ndarray]:
-        """Blocked K-fold CV mean squared error of a term set (u-unit^2) and every fold's own."""
-        n = self.design.y.size
+    # ------------------------------------------------------------------ cross-validation through Gram matrices
+    def _columns_of(self, terms: Sequence[str], with_stribeck: bool) -> np.ndarray:
+        """Indices of ``terms``' columns in the full matrix (every term; Stribeck only ``with_stribeck``)."""
+        full = [t for t in ("viscous_asym", "stribeck", "position", "drag") if t != "stribeck" or with_stribeck]
+        idx, k = list(range(4)), 4
+        for t in full:
+            w = len(TERM_COEFFICIENTS[t])
+            if t in terms:
+                idx += list(range(k, k + w))
+            k += w
+        idx += list(range(k, k + 2 * len(self.pitches)))
+        return np.asarray(idx)
+
+    def _fold_stats(self, folds: int, gap: int, d: float, vs: float | None) -> dict[str, list]:
+        """``(A^T A, A^T y, y^T y)`` of the full matrix at ``(d, vs)`` over each fold's row sets, cached."""
+        key = (folds, gap, round(float(d), 9), vs)
+        cache = self.__dict__.setdefault("_stats_cache", {})
+        if key in cache:
+            return cache[key]
+        full = [t for t in TERMS if t != "stribeck" or vs is not None]
+        A = self.design.matrix(full, d, vs)
+        y, keep = self.design.y, self.design.keep
+        n = y.size
+
+        def st(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+            Am, ym = A[m], y[m]
+            return Am.T @ Am, Am.T @ ym, float(ym @ ym)
+
         edges = np.linspace(0, n, folds + 1).astype(int)
-        sse, mses = 0.0, []
+        out: dict[str, list] = {"all": [st(np.ones(n, bool))], "keep": [st(keep)], "test": [], "excl": [],
+                                "keep_excl": []}
         for a, b in zip(edges[:-1], edges[1:]):
             test = np.zeros(n, bool)
             test[a:b] = True
-            train = np.ones(n, bool)
-            train[max(a - gap, 0):min(b + gap, n)] = False
-            d, vs = self._best_on(terms, train)
-            A = self.design.matrix(terms, d, vs)
-            theta, *_ = np.linalg.lstsq(A[train], self.design.y[train], rcond=None)
-            r = self.design.y[test] - A[test] @ theta
-            sse += float(r @ r)
-            mses.append(float(r @ r) / max(b - a, 1))
+            excl = np.zeros(n, bool)
+            excl[max(a - gap, 0):min(b + gap, n)] = True
+            out["test"].append(st(test))
+            out["excl"].append(st(excl))
+            out["keep_excl"].append(st(excl & keep))
+        cache[key] = out
+        return out
+
+    @staticmethod
+    def _solve(G: np.ndarray, b: np.ndarray, yy: float, idx: np.ndarray) -> tuple[np.ndarray, float]:
+        Gs, bs = G[np.ix_(idx, idx)], b[idx]
+        theta = np.linalg.lstsq(Gs, bs, rcond=None)[0]
+        return theta, yy - float(bs @ theta)
+
+    def cross_validate(self, terms: Sequence[str], folds: int = N_FOLDS, gap: int = GAP_ROWS) -> tuple[float, np.ndarray]:
+        """Blocked K-fold CV mean squared error of a term set (u-unit^2) and every fold's own.
+
+        In each fold the delay is chosen on the training rows away from reversals and
+        ``vs`` on all training rows (grids), then the linear coefficients on all training
+        rows; the held-out block is predicted.  Sums of squares come from Gram matrices
+        (training = all minus the held-out block and its gap), one per grid point.
+        """
+        n = self.design.y.size
+        edges = np.linspace(0, n, folds + 1).astype(int)
+        has_s = "stribeck" in terms
+        sse, mses = 0.0, []
+        for f, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+            d_best = 0.0
+            if "delay" in terms:
+                best = math.inf
+                for d, vs in self._grid(terms):
+                    S = self._fold_stats(folds, gap, d, vs)
+                    (G, bb, yy), (Ge, be, ye) = S["keep"][0], S["keep_excl"][f]
+                    _, rss = self._solve(G - Ge, bb - be, yy - ye, self._columns_of(terms, has_s))
+                    if rss < best:
+                        best, d_best = rss, d
+            choices = []
+            for vs in (self.vs_grid if has_s else (None,)):
+                S = self._fold_stats(folds, gap, d_best, vs)
+                (G, bb, yy), (Ge, be, ye) = S["all"][0], S["excl"][f]
+                idx = self._columns_of(terms, has_s)
+                theta, rss = self._solve(G - Ge, bb - be, yy - ye, idx)
+                choices.append((rss, vs, theta, idx))
+            _, vs, theta, idx = min(choices, key=lambda c: c[0])
+            Gt, bt, yt = self._fold_stats(folds, gap, d_best, vs)["test"][f]
+            e = yt - 2.0 * float(theta @ bt[idx]) + float(theta @ Gt[np.ix_(idx, idx)] @ theta)
+            sse += e
+            mses.append(e / max(b - a, 1))
         return sse / n, np.asarray(mses)
 
     def _profile_delay(self, terms: Sequence[str], vs: float | None, d0: float) -> tuple[float, float]:
