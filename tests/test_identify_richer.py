@@ -13,7 +13,9 @@ import pytest
 from richer_truth import truth_log
 from shared_paths import EMPS_DIR
 
+from commission.controllers.plant import P_DELAY
 from commission.identification import identify_log
+from commission.scenarios import identified_plant
 from commission.identify.richer import TERMS, RichModel, select_model
 
 EMPS_KW = dict(mapping={"q": "qm", "u": "vir"}, input_gain=35.15065188248547, u_unit="N")
@@ -83,6 +85,16 @@ def test_emps_default_beats_the_published_cross_test(emps_default):
           f"{100 * ident.validation_relative_error:.3f} %; position RMSE {1e3 * ps['rmse']:.3f} mm "
           f"(IDIM-LS {1e3 * ps['reference_rmse']:.3f} mm)")
     assert ps["rmse"] > 0 and ps["reference_rmse"] > 0
+
+
+@needs_emps
+@pytest.mark.slow
+def test_the_chosen_delay_reaches_the_plant(emps_default):
+    inv = emps_default.ident.extra["model"]["inverse_dynamics"]
+    assert "delay" in inv["terms"] and inv["delay_s"] > 0
+    # EMPS has no broadband segment: the plant's delay is the least squares'.
+    assert emps_default.ident.extra["frequency_response"]["model"] is None
+    assert identified_plant(emps_default.ident)[P_DELAY] == pytest.approx(inv["delay_s"])
 
 
 @needs_emps
