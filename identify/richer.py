@@ -20,9 +20,13 @@ and evaluates the regressor at ``t + tau`` (cubic interpolation of the filtered
 position, velocity and acceleration, segment by segment), so the relative error
 of every delay is measured against the same ``u``.  ``d`` is profiled: for a
 term set, the residual sum of squares is minimised over ``d`` (grid, then a
-bounded scalar search); its standard deviation comes from the curvature of the
-profile, ``var(d) = 2 sigma^2 / RSS''(d)`` (the Gauss-Newton variance of the one
-nonlinear parameter).  ``d`` may be negative down to -0.5 sample (a log whose
+bounded scalar search) on the rows away from reversals (whose anti-alias window
+saw no speed below :data:`REVERSAL_FRACTION` of the fastest): at a reversal a
+sticking axis and ``sign(qd)`` of the filtered velocity disagree, and on all rows
+the delay absorbs part of that misfit (docs/inverse-dynamics.md).  ``vs`` and the
+linear coefficients are then fitted on all rows.  The delay's standard deviation
+comes from the curvature of the profile, ``var(d) = 2 sigma^2 / RSS''(d)`` (the
+Gauss-Newton variance of the one nonlinear parameter).  ``d`` may be negative down to -0.5 sample (a log whose
 command is stamped after it acts).
 
 Asymmetry
