@@ -412,9 +412,15 @@ def _rich_choice(logs: Sequence[ExcitationLog], fit: AxisFit, *, ripple_pitch: f
         friction = "stribeck"
     params["offset"] = (rf.value("offset"), float(rf.std[rf.names.index("offset")]))
     for k in range(len(rf.ripple_pitch)):
-        a, b = rf.value(ripple_name("ripple_sin", k)), rf.value(ripple_name("ripple_cos", k))
-        params[ripple_name("ripple_amp", k)] = (math.hypot(a, b), 0.0)
-        params[ripple_name("ripple_phase", k)] = (math.atan2(b, a), 0.0)
+        # a sin x + b cos x = amp sin(x + phase); standard deviations by the delta method.
+        i, j = rf.names.index(ripple_name("ripple_sin", k)), rf.names.index(ripple_name("ripple_cos", k))
+        a, b = float(rf.theta[i]), float(rf.theta[j])
+        amp = math.hypot(a, b)
+        C = np.asarray(rf.cov)[np.ix_([i, j], [i, j])]
+        ga = np.array([a, b]) / amp if amp > 0 else np.zeros(2)
+        gp = np.array([-b, a]) / amp**2 if amp > 0 else np.zeros(2)
+        params[ripple_name("ripple_amp", k)] = (amp, float(math.sqrt(max(ga @ C @ ga, 0.0))))
+        params[ripple_name("ripple_phase", k)] = (math.atan2(b, a), float(math.sqrt(max(gp @ C @ gp, 0.0))))
     r = rf.residuals
     new = dataclasses.replace(fit, friction=friction, parameters=params, relative_error=rf.relative_error,
                               condition_number=rf.condition_number, residual_std=float(np.std(r, ddof=1)),

@@ -104,3 +104,50 @@ def test_the_choice_never_reads_the_validation_file(emps_default):
     assert other.ident.extra["model_selection"] == emps_default.ident.extra["model_selection"]
     assert other.ident.extra["model"]["inverse_dynamics"] == emps_default.ident.extra["model"]["inverse_dynamics"]
     assert other.ident.validation_relative_error != emps_default.ident.validation_relative_error
+
+
+@pytest.fixture(scope="module")
+def truth_h5(tmp_path_factory):
+    from commission.synth import write_log_h5
+
+    t, q, u = truth_log(B_pos=215.0, B_neg=185.0, fc_pos=22.0, fc_neg=18.0, delay=1.0, seed=3, duration=12.0)
+    path = tmp_path_factory.mktemp("truth") / "asym.h5"
+    write_log_h5(path, {"t": t, "q": q, "u": u}, u_unit="N")
+    return path
+
+
+def test_cli_terms_restrict_the_choice_and_are_recorded(truth_h5, tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from commission.cli.main import app
+
+    out = tmp_path / "ident.json"
+    r = CliRunner().invoke(app, ["identify", str(truth_h5), "--terms", "delay,viscous_asym", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(out.read_text())
+    sel = doc["model_selection"]
+    assert {tuple(row["terms"]) for row in sel["table"]} == {(), ("delay",), ("viscous_asym",),
+                                                             ("delay", "viscous_asym")}
+    inv = doc["model"]["inverse_dynamics"]
+    assert sel["chosen"] == inv["terms"] == ["delay", "viscous_asym"]
+    assert inv["delay_s"] == pytest.approx(1.0e-3, abs=0.2e-3)
+    assert inv["derived"]["B_pos"]["unit"] == "u s/m" and inv["derived"]["B_pos"]["value"] > inv["derived"]["B_neg"]["value"]
+    assert doc["parameters"]["B"]["value"] == pytest.approx(inv["coefficients"]["B"]["value"])
+    assert "terms chosen by 5-fold blocked cross-validation" in " ".join(r.output.split())
+
+
+def test_cli_refuses_an_unknown_term(truth_h5, tmp_path):
+    from typer.testing import CliRunner
+
+    from commission.cli.main import app
+
+    out = tmp_path / "ident.json"
+    r = CliRunner().invoke(app, ["identify", str(truth_h5), "--terms", "delay,backlash", "--out", str(out)])
+    assert r.exit_code == 2 and "--terms" in r.output and not out.exists()
+
+
+def test_terms_none_keeps_the_earlier_auto_fit(truth_h5):
+    out = identify_log(str(truth_h5), terms="none")
+    assert "model_selection" not in out.ident.extra and "inverse_dynamics" not in out.ident.extra["model"]
