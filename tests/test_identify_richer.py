@@ -151,3 +151,20 @@ def test_cli_refuses_an_unknown_term(truth_h5, tmp_path):
 def test_terms_none_keeps_the_earlier_auto_fit(truth_h5):
     out = identify_log(str(truth_h5), terms="none")
     assert "model_selection" not in out.ident.extra and "inverse_dynamics" not in out.ident.extra["model"]
+
+
+def test_a_disagreeing_frequency_response_delay_is_warned():
+    from types import SimpleNamespace
+
+    from commission.identification import _delay_agreement
+
+    rf = RichModel([truth_log(delay=1.0, seed=3, duration=12.0)]).fit(("delay",))
+    assert abs(rf.delay_samples - 1.0) <= 0.2
+
+    def frf(delay_samples):
+        return SimpleNamespace(to_dict=lambda: {"model": {"delay_s": delay_samples / 1000.0}})
+
+    assert _delay_agreement(rf, frf(rf.delay_samples + 0.1)) == []
+    w = _delay_agreement(rf, frf(rf.delay_samples + 2.0))
+    assert len(w) == 1 and w[0].startswith("delay: the least squares give")
+    assert _delay_agreement(rf, SimpleNamespace(to_dict=lambda: {"model": None})) == []
