@@ -53,7 +53,10 @@ is chosen (the one-standard-error rule of Hastie, Tibshirani & Friedman,
 section 7.10), with the standard error of each candidate's excess over the best
 taken fold by fold (paired): the folds' own errors differ far more between
 stretches of the log than two models' errors on one stretch, so the unpaired
-standard error would hide every term.  Why not BIC: the residuals of decimated inverse-dynamics rows are
+standard error would hide every term.  A candidate also counts as equivalent to
+the best when its excess is below :data:`MIN_RELATIVE_GAIN` of the best's error:
+on long logs the paired rule alone keeps terms worth a few tenths of a percent
+(docs/inverse-dynamics.md).  Why not BIC: the residuals of decimated inverse-dynamics rows are
 correlated (unmodelled dynamics, filtered quantisation noise), so the row count
 overstates the information and BIC's penalty is too weak; blocked CV measures
 prediction on unseen stretches of the log directly.
@@ -95,6 +98,10 @@ REVERSAL_FRACTION = 0.01
 #: Cross-validation folds and rows left out on each side of a test block.
 N_FOLDS = 5
 GAP_ROWS = 3
+#: A term must lower the CV mean squared error by more than this fraction (of the best) to be
+#: worth its parameter, however consistent its gain: on long logs a systematic misfit of a few
+#: tenths of a percent (the whole-log regression's own bias) is "significant" fold by fold.
+MIN_RELATIVE_GAIN = 0.01
 #: Initialisation window of the position simulation, samples (first samples of the log:
 #: the simulation starts from the filtered state at its end and is scored after it).
 SIM_INIT_SAMPLES = 20
@@ -303,6 +310,7 @@ class Selection:
         """JSON-ready record (ident.json ``model_selection``)."""
         return {"method": "blocked K-fold cross-validation, one-standard-error rule",
                 "data": "identification log(s) only", "folds": self.folds, "gap_rows": self.gap_rows,
+                "min_relative_gain": MIN_RELATIVE_GAIN,
                 "chosen": list(self.fit.terms), "threshold_mse": self.threshold_mse,
                 "units": {"cv_rmse": "u", "cv_mse": "u^2", "cv_se": "u^2", "cv_excess": "u^2", "delay_grid": "samples",
                           "vs_grid": "m/s"},
@@ -537,7 +545,8 @@ def select_model(model: RichModel, allowed: Sequence[str] = TERMS, *, folds: int
         diff = fm - per_fold[ib]
         r["cv_excess"] = float(np.mean(diff))
         r["cv_se"] = float(np.std(diff, ddof=1) / math.sqrt(folds))
-    ok = [r for r in rows if r["cv_excess"] <= r["cv_se"]]  # type: ignore[operator]
+    floor = MIN_RELATIVE_GAIN * float(rows[ib]["cv_mse"])  # type: ignore[arg-type]
+    ok = [r for r in rows if r["cv_excess"] <= max(r["cv_se"], floor)]  # type: ignore[operator, call-overload]
     chosen = min(ok, key=lambda r: (r["n_parameters"], r["cv_mse"]))  # type: ignore[arg-type, return-value]
     threshold = float(rows[ib]["cv_mse"]) + float(chosen["cv_se"])  # type: ignore[arg-type]
     for r in rows:

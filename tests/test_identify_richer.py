@@ -34,6 +34,19 @@ def test_no_delay_asymmetry_or_position_on_a_symmetric_delay_free_axis(seed):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+def test_no_delay_asymmetry_or_position_on_synth_random_axes(seed, tmp_path):
+    # commission/synth.py's axes: symmetric Stribeck friction, ripple, no delay (development seeds).
+    from commission.logs import load_log
+    from commission.synth import write_random_axis_log
+
+    write_random_axis_log(seed, tmp_path / "axis.h5")
+    lg = load_log(tmp_path / "axis.h5")
+    sel = select_model(RichModel([(lg.t, lg.q, lg.u)]))
+    assert not {"delay", "viscous_asym", "position"} & set(sel.fit.terms)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("delay, asym_b, asym_c, seed", [(0.5, 0.10, 0.30, 2), (1.0, 0.15, 0.20, 3),
                                                          (1.5, 0.30, 0.10, 4)])
 def test_asymmetry_and_delay_are_found(delay, asym_b, asym_c, seed):
