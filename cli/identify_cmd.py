@@ -90,6 +90,11 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         console.print(f"[yellow]warning:[/] {w}")
 
 
+def _num(x: float | None, spec: str) -> str:
+    """A number for the terms table; null (a flat profile: no finite std) as "-"."""
+    return "-" if x is None else format(x, spec)
+
+
 def _print_terms(ident, console: Console) -> None:
     """The delay-aware inverse dynamics' terms (every coefficient with its unit) and the selection's choice."""
     sel = ident.extra.get("model_selection")
@@ -109,12 +114,12 @@ def _print_terms(ident, console: Console) -> None:
     def un(s: str) -> str:
         return s.replace("u", u, 1).replace("/m", f"/{q}") if s.startswith("u") else s.replace("m", q, 1)
     for nm, c in {**inv["coefficients"], **inv["derived"]}.items():
-        t.add_row(nm, f"{c['value']:.6g}", f"{c['std']:.3g}", un(c["unit"]))
+        t.add_row(nm, f"{c['value']:.6g}", _num(c["std"], ".3g"), un(c["unit"]))
     if "delay" in inv["terms"]:
-        t.add_row("delay", f"{inv['delay_samples']:.3f}", f"{inv['delay_std_samples']:.3f}",
+        t.add_row("delay", f"{inv['delay_samples']:.3f}", _num(inv["delay_std_samples"], ".3f"),
                   "samples beyond the hold")
     if inv.get("vs") is not None:
-        t.add_row("vs (xi = 2)", f"{inv['vs']:.4g}", f"{inv['vs_std']:.2g}", f"{q}/s")
+        t.add_row("vs (xi = 2)", f"{inv['vs']:.4g}", _num(inv["vs_std"], ".2g"), f"{q}/s")
     if any(k in inv["coefficients"] for k in ("kq1", "kq2")):
         t.add_row("q_center", f"{inv['q_center']:.6g}", "", q)
     console.print(t)

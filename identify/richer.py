@@ -181,18 +181,21 @@ class RichFit:
         return out
 
     def to_dict(self) -> dict[str, object]:
-        """JSON-ready record (ident.json ``model.inverse_dynamics``)."""
+        """JSON-ready record (ident.json ``model.inverse_dynamics``); a non-finite std (flat profile) is null."""
+        def fin(x: float | None) -> float | None:
+            return float(x) if x is not None and math.isfinite(x) else None
+
         return {
             "terms": list(self.terms),
-            "coefficients": {n: {"value": float(v), "std": float(s), "unit": u}
+            "coefficients": {n: {"value": float(v), "std": fin(s), "unit": u}
                              for n, v, s, u in zip(self.names, self.theta, self.std, self.units)},
-            "derived": {k: {"value": v, "std": s, "unit": u} for k, (v, s, u) in self.derived().items()},
+            "derived": {k: {"value": v, "std": fin(s), "unit": u} for k, (v, s, u) in self.derived().items()},
             "delay_samples": self.delay_samples,
-            "delay_std_samples": self.delay_std_samples,
+            "delay_std_samples": fin(self.delay_std_samples),
             "delay_s": self.delay_samples / self.sample_rate,
-            "delay_std_s": self.delay_std_samples / self.sample_rate,
+            "delay_std_s": fin(self.delay_std_samples / self.sample_rate),
             "delay_reference": "beyond the zero-order hold (the plant's input delay)",
-            "vs": self.vs, "vs_std": self.vs_std, "stribeck_xi": STRIBECK_XI if self.vs is not None else None,
+            "vs": self.vs, "vs_std": fin(self.vs_std), "stribeck_xi": STRIBECK_XI if self.vs is not None else None,
             "q_center": self.q_center,
             "relative_error": self.relative_error,
             "condition_number": self.condition_number,
