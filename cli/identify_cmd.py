@@ -34,7 +34,9 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     u, q = ident.units["u"], ident.units["q"]
     units = parameter_units(ident.units)
     labels = {"M": parameter_label("M", ident.units)}
-    t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
+    chosen = (ident.extra.get("model_selection") or {}).get("chosen")  # type: ignore[union-attr]
+    t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}"
+                    + (f" + {', '.join(chosen)}" if chosen else "") + f", {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
     missing = ident.not_identified()
