@@ -315,7 +315,9 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
     """The structural mode and input delay of the plant (:func:`plant_vector` keywords).
 
     From ident.json's ``frequency_response.model`` (what ``commission identify``
-    found in the log's broadband content), each entry overridden by the spec's
+    found in the log's broadband content); without a delay there, the input delay of
+    ``model.inverse_dynamics`` when its ``delay`` term was chosen (a negative one counts
+    as none); each entry overridden by the spec's
     ``[plant]`` section when given there; rigid and delay-free when neither says
     otherwise.  Every scenario plant of ``tune`` and ``validate`` carries them (a
     payload moves the mass, not the mode: its frequency and load fraction are kept).
@@ -335,6 +337,14 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
         d = _num(model.get("delay_s"))
         if d is not None and d > 0:
             out["delay"] = d
+    if "delay" not in out:
+        # No delay from a broadband segment: the one the delay-aware least squares chose, if any.
+        m = ident.extra.get("model")
+        inv = m.get("inverse_dynamics") if isinstance(m, dict) else None
+        if isinstance(inv, dict) and "delay" in (inv.get("terms") or []):
+            d = _num(inv.get("delay_s"))
+            if d is not None and d > 0:
+                out["delay"] = d
     if spec is not None:
         if spec.plant_mode_hz is not None:
             out["mode_hz"] = spec.plant_mode_hz
