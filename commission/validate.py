@@ -62,10 +62,11 @@ from commission.controllers.trajectory import Trajectory
 from commission.errors import SchemaError, UsageError
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             margin_checks, resolve_gate)
+                             box_checks, margin_checks, resolve_gate)
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
-from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
+from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
+                                   nominal_loops, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
                                   force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
@@ -192,6 +193,9 @@ class ValidationResult:
         The spec's floors they are held against.
     loops : tuple of ndarray
         ``(f_hz, L_arc, L_pid)`` on the identified plant, for the loop figure (not in JSON).
+    box : BoxRobustness or None
+        The ARC over the whole theta box (:class:`commission.robustness.BoxArcCheck`), gated as
+        criterion ``margins_box``.
     robustness : GateVerdict or None
         The part of ``verdict`` on the robustness scenarios and the stability margins (required
         like every other check; listed apart in the report).
@@ -213,6 +217,7 @@ class ValidationResult:
     margin_floors: MarginFloors = MarginFloors()
     loops: tuple[np.ndarray, ...] = ()
     robustness: GateVerdict | None = None
+    box: BoxRobustness | None = None
 
     @property
     def passed(self) -> bool:
@@ -247,6 +252,7 @@ class ValidationResult:
             "margins": {"floors": self.margin_floors.to_dict(), "loops": [m.to_dict() for m in self.margins],
                         "worst": {c: (w.to_dict() if (w := worst(self.margins, c)) is not None else None)
                                   for c in CONTROLLERS}},
+            **({} if self.box is None else {"box_robustness": self.box.to_dict(self.margin_floors)}),
         }
 
 
@@ -537,16 +543,20 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                           drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
     with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
         gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
-    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors)), limits)
+    # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
+    box = BoxArcCheck(tuning.identification, spec)(arc)
+    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors))
+                          + tuple(box_checks(box, gate_floors)), limits)
     # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
     rob_names = {r.name for r in runs if "robustness" in r.tags}
     robustness = GateVerdict(tuple(c for c in verdict.checks
-                                   if c.scenario in rob_names or c.criterion in ("margins", "floor:margins")), limits)
+                                   if c.scenario in rob_names
+                                   or c.criterion in ("margins", "floor:margins", "margins_box")), limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
-                            margins=margins, margin_floors=margin_floors, robustness=robustness,
+                            margins=margins, margin_floors=margin_floors, robustness=robustness, box=box,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
 
 
@@ -603,7 +613,7 @@ def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: s
     rate = nominal_rate(tuning.spec.sample_rate, rel=NOMINAL_RATE_RTOL)
     return ControllerConfig(gains=result.arc_gains, sample_rate=rate,
                             units=dict(tuning.identification.units), validated=validated_record(result),
-                            provenance=prov)
+                            provenance=prov, validity=None if tuning.validity is None else dict(tuning.validity))
 
 
 # --------------------------------------------------------------------------- file-level pipeline
