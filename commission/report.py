@@ -212,10 +212,11 @@ def box_markdown(result: Any) -> list[str]:
             f"plant's theta: worst {w.plant}, phase margin {m.phase_margin_deg:.3g} deg, delay margin "
             f"{m.delay_margin_samples:.3g} samples, modulus margin {m.modulus_margin:.3g}, spectral radius "
             f"{m.spectral_radius:.4f} ({'every floor met' if not miss else 'misses ' + '; '.join(miss)}). "
-            f"(b) With theta_hat frozen at each corner of the projection box, at theta_hat(0) and at the plant's theta, "
-            f"on every box plant as identified and with one more sample of delay ({a.loops} loops): largest spectral "
-            f"radius {a.spectral_radius:.4f} on {a.plant}, theta_hat at {a.theta_hat_at} "
-            f"({'stable' if a.stable else 'UNSTABLE'}).", ""]
+            f"(b) With theta_hat frozen at each corner of the projection box, at theta_hat(0) and at the plant's theta "
+            f"on every box plant, and at theta_hat(0) and the plant's theta with one more sample of delay ({a.loops} "
+            f"loops): largest spectral radius {a.spectral_radius:.4f} on {a.plant}, theta_hat at {a.theta_hat_at} "
+            f"({'stable; a radius of 1.0000 is the neutral theta_hat1, theta_hat2 modes at rest' if a.stable else 'UNSTABLE'}).",
+            ""]
 
 
 #: Parameter -> description (units: :func:`commission.units.parameter_units`).

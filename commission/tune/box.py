@@ -122,8 +122,8 @@ def box_guarantees(box: BoxRobustness, spec: Spec, validity: dict[str, Any] | No
                       + (f"; misses {'; '.join(miss)}" if miss else "; every [margins] floor met")),
         "stability_over_box_any_estimate": Guarantee(
             a.stable, f"the ARC with theta_hat frozen at each corner of the projection box, at theta_hat(0) and at "
-                      f"the plant's theta, on every plant of the box{where} with the identified delay and one more "
-                      f"sample ({a.loops} loops): largest spectral radius {a.spectral_radius:.4g} on {a.plant} with "
+                      f"the plant's theta, on every plant of the box{where} with the identified delay, and at "
+                      f"theta_hat(0) and the plant's theta with one more sample ({a.loops} loops): largest spectral radius {a.spectral_radius:.4g} on {a.plant} with "
                       f"theta_hat at {a.theta_hat_at} ({'< 1: stable' if a.stable else '>= 1: UNSTABLE'})"),
     }
 
