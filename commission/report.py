@@ -543,7 +543,8 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     if rl:
         L.append("**Robustness.** The gate's criteria on the robustness scenarios (one more sample "
                  "of input delay than identified; with a mode, its frequency x0.8 and x1.2 and half its damping) "
-                 "and the ARC's margins on the identified plant, required like every other check (no divergence "
+                 "and the ARC's margins on the identified plant and over the whole theta box, required like every "
+                 "other check (no divergence "
                  "and the spec's margin floors whatever gate.toml says): " + rl[0])
         L.append("")
     L.append("## Gate")

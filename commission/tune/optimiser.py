@@ -7,7 +7,11 @@ tuning scenarios over its free gains (:data:`commission.tune.gains.FREE_BOUNDS`,
 coordinates, and the observer pole when the spec left it free), subject to
 
 * the stability margins of the ARC on the identified plant, mode and delay included, meeting
-  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`);
+  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`), and
+  over the whole theta box (:class:`commission.robustness.BoxArcCheck`: the floors with
+  theta_hat at each corner plant's theta, stability with theta_hat anywhere the projection
+  allows; :func:`commission.tune.constraints.box_violation`), checked only where the
+  identified plant's margins hold;
 * validate's default gate on the tuning scenarios, robustness scenarios included
   (:func:`commission.tune.objective.gate_excess` at :data:`commission.tune.constraints.GATE_MARGIN`);
 * discrete feasibility over the theta box (:func:`commission.tune.constraints.feasibility_violation`).
