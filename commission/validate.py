@@ -651,6 +651,7 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
     contain the narrowed box is left as it is (and the comparison that follows then fails).
     """
     embedded = json.loads(json.dumps(tuning.identification.to_dict()))
+    _undo_payload_narrowing(embedded)
     narrowed = (embedded.get("bounds") or {}).pop("narrowed_by_tune", None)
     if isinstance(narrowed, dict):
         lo, hi = embedded["theta"]["min"][2], embedded["theta"]["max"][2]
@@ -659,6 +660,35 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
                 and _narrowed_as_recorded(narrowed, lo, hi, embedded["theta"]["max"][0])):
             embedded["theta"]["min"][2], embedded["theta"]["max"][2] = t3min, t3max
     return embedded
+
+
+def _undo_payload_narrowing(embedded: dict[str, Any]) -> None:
+    """Undo tune's narrowing of a defaulted payload range (``bounds.payload_narrowed_by_tune``,
+    :func:`commission.tune.box.narrow_default_payload`) in place.
+
+    Restored only when the record is consistent with a narrowing (the recorded box's lower ends
+    at or below the embedded ones, the embedded theta1_min = 1/M_hi of the embedded mass range,
+    the narrowed payload within the default one); otherwise the record is left, and the
+    comparison that follows fails.
+    """
+    bounds = embedded.get("bounds")
+    rec = bounds.get("payload_narrowed_by_tune") if isinstance(bounds, dict) else None
+    if not isinstance(rec, dict):
+        return
+    try:
+        t1, t2 = float(rec["theta1_min"]), float(rec["theta2_min"])
+        dpay, dmass = [float(x) for x in rec["default_payload_range"]], [float(x) for x in rec["default_mass_range"]]
+        pay, mass = [float(x) for x in bounds["payload_range"]], [float(x) for x in bounds["mass_range"]]
+        tmin = embedded["theta"]["min"]
+        ok = (t1 <= tmin[0] and t2 <= tmin[1] and dpay[0] == pay[0] and pay[1] <= dpay[1]
+              and math.isclose(1.0 / tmin[0], mass[1], rel_tol=1e-9) and dmass[0] == mass[0])
+    except (KeyError, TypeError, ValueError, IndexError, ZeroDivisionError):
+        return
+    if not ok:
+        return
+    bounds.pop("payload_narrowed_by_tune")
+    tmin[0], tmin[1] = t1, t2
+    bounds["payload_range"], bounds["mass_range"] = dpay, dmass
 
 
 def _narrowed_as_recorded(narrowed: Mapping[str, Any], lo: float, hi: float, theta1_max: float) -> bool:

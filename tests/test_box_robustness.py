@@ -128,6 +128,20 @@ def test_a_defaulted_payload_the_start_gains_cannot_hold_is_narrowed_and_recorde
     assert none == () and validity_of(same) is None
 
 
+def test_validate_recognises_tunes_payload_narrowing_and_nothing_else():
+    from commission.validate import _undo_payload_narrowing
+    ident = axis(30 * M, defaulted=True)
+    out, _ = narrow_default_payload(ident, SPEC)
+    doc = json.loads(json.dumps(out.to_dict()))
+    _undo_payload_narrowing(doc)
+    assert doc == json.loads(json.dumps(ident.to_dict()))
+    # a box narrowed further by hand is not taken for tune's: the record stays and the comparison fails
+    doc = json.loads(json.dumps(out.to_dict()))
+    doc["theta"]["min"][0] *= 1.5
+    _undo_payload_narrowing(doc)
+    assert "payload_narrowed_by_tune" in doc["bounds"] and doc != json.loads(json.dumps(ident.to_dict()))
+
+
 def test_a_stated_payload_is_never_narrowed_and_the_gate_refuses_naming_the_corner():
     ident = axis(30 * M, defaulted=False)
     out, notes = narrow_default_payload(ident, SPEC)
@@ -179,6 +193,13 @@ def test_the_samples_passed_report_shows_no_unstable_or_below_floor_gated_row(tm
     assert tuning.box is not None and tuning.box.holds(FLOORS)
     g = tuning.guarantees
     assert g["margins_over_box_at_plant_estimate"].holds and g["stability_over_box_any_estimate"].holds
+    from commission.validate import check_provenance
+    check_provenance(tuning, str(out / "tuning.json"))  # ident.json beside it: the narrowing is tune's
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    (alone / "tuning.json").write_bytes((out / "tuning.json").read_bytes())
+    (out / "ident.json").rename(tmp_path / "ident-away.json")  # provenance.ident_path points there
+    check_provenance(Tuning.load(str(alone / "tuning.json")), str(alone / "tuning.json"))  # and without it
     if "**Gate: PASSED**" in report:
         table = report.split("## Stability margins")[1].split("\n\n")[2].splitlines()[2:]
         assert table
