@@ -428,13 +428,17 @@ class BoxArcCheck:
             (f"box corner {n}", (t1, t2, th0[2])) for n, (t1, t2) in zip(self.corner_names, self.corners)]
         ests.append(("initial", th0))
         lin = {th: linearize_arc(ap, th) for _, th in ests}
+        resp: dict[tuple[float, ...], np.ndarray] = {}  # K(f) once per estimate, for every plant it meets
         at_plant = []
         worst = (-math.inf, "", ests[0][1], "")
         n = 0
-        for (name, p), sp, resp, ss, ssd in zip(self.plants, self.sampled, self.responses, self.ss, self.ss_delay):
+        for (name, p), sp, presp, ss, ssd in zip(self.plants, self.sampled, self.responses, self.ss, self.ss_delay):
             corner = name.split("/")[0] + "/" + name.split("/")[1]
             th_p = ests[self.corner_names.index(corner)][1]
-            at_plant.append(LoopMargins(name, "arc", th_p, "plant", loop_margins(lin[th_p], sp, self.f_hz, resp)))
+            if th_p not in resp:
+                resp[th_p] = lin[th_p].frequency_response(self.f_hz)
+            at_plant.append(LoopMargins(name, "arc", th_p, "plant",
+                                        loop_margins(lin[th_p], sp, self.f_hz, presp, resp[th_p])))
             every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
             # With one more sample of delay: theta_hat(0) and the plant's theta only, unless
             # delay_any_estimate (class docstring).
