@@ -181,7 +181,8 @@ def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
                  f"{'yes' if m.stable else '**no**'} | {_floor_cell(r, miss)} |")
     L.append("")
     L.append("Gated rows: the ARC on the identified plant (both estimates) and, at every box plant, the ARC with "
-             "theta_hat at that plant's theta (where the adaptation goes); the others are shown for comparison "
+             "theta_hat at that plant's theta (where the adaptation goes; the table shows the identified load, "
+             "the box check below gates both ends of the load-force range); the others are shown for comparison "
              "and marked *not gated* (the PID baseline, and the ARC's start-up estimate on a corner plant, whose "
              "stability the box check below covers).")
     L.append("")
@@ -208,8 +209,8 @@ def box_markdown(result: Any) -> list[str]:
     miss = floor_violations(m, fl)
     a = box.any_estimate
     return [f"**The whole theta box.** (a) At each of the {len(box.at_plant)} box plants (the 4 (theta1, theta2) "
-            f"corners x the identified mode and its variants, identified delay), the ARC with theta_hat at that "
-            f"plant's theta: worst {w.plant}, phase margin {m.phase_margin_deg:.3g} deg, delay margin "
+            f"corners x the identified mode and its variants x both ends of the load-force range, identified "
+            f"delay), the ARC with theta_hat at that plant's theta: worst {w.plant}, phase margin {m.phase_margin_deg:.3g} deg, delay margin "
             f"{m.delay_margin_samples:.3g} samples, modulus margin {m.modulus_margin:.3g}, spectral radius "
             f"{m.spectral_radius:.4f} ({'every floor met' if not miss else 'misses ' + '; '.join(miss)}). "
             f"(b) With theta_hat frozen at each corner of the projection box, at theta_hat(0) and at the plant's theta "

@@ -378,12 +378,17 @@ class BoxArcCheck:
 
     What is checked (docs/robustness.md, "The whole box"):
 
-    (a) at every plant of :func:`box_plants` the ARC linearised with theta_hat at that plant's
-        theta (what the adaptation tends to) keeps the margin floors;
+    (a) at every plant of :func:`box_plants`, with its load force ``d_n`` at either end of the range
+        the box admits at every mass (:func:`commission.scenarios.force_range`), the ARC linearised
+        with theta_hat at that plant's theta ``[1/M, B/M, d_n/M]`` (what the adaptation tends to)
+        keeps the margin floors (the load enters the linear plant as a constant only, but the
+        ARC's robust gain at rest grows with the load its model terms carry);
     (b) at every plant of :func:`box_plants` the sampled loop is stable with theta_hat frozen at
-        each of the four (theta1, theta2) corners of the projection box (theta3 at theta_hat(0)'s:
-        at rest it is a constant offset and does not enter the loop gain), at theta_hat(0) and at
-        the plant's theta; and with :data:`BOX_DELAY_EXTRA` more samples of input delay, with
+        each of the four (theta1, theta2) corners of the projection box, at theta_hat(0) and at
+        the plant's theta (theta_hat3 at theta_hat(0)'s: the axis stays at rest whatever
+        theta_hat1 and theta_hat2 are, since their regressors vanish there, but a theta_hat3 other
+        than the plant's is a force error that moves it, so "frozen at rest" is no operating point
+        for it; the plant's own load is (a)'s); and with :data:`BOX_DELAY_EXTRA` more samples of input delay, with
         theta_hat at theta_hat(0) and at the plant's theta (every corner too when
         :data:`BOX_DELAY_ANY_ESTIMATE`).
 
@@ -418,6 +423,8 @@ class BoxArcCheck:
         self.corners = [((self.theta_min, self.theta_max)[i1][0], (self.theta_min, self.theta_max)[i2][1])
                         for i1 in (0, 1) for i2 in (0, 1)]
         self.corner_names = [_corner_name(i1, i2) for i1 in (0, 1) for i2 in (0, 1)]
+        from commission.scenarios import force_range
+        self.loads = force_range(ident)  # the load force d_n every mass of the box admits, u-unit
 
     @_one_thread
     def __call__(self, arc: ArcGains, floors_only_if_stable: bool = False) -> BoxRobustness:
@@ -435,10 +442,16 @@ class BoxArcCheck:
         for (name, p), sp, presp, ss, ssd in zip(self.plants, self.sampled, self.responses, self.ss, self.ss_delay):
             corner = name.split("/")[0] + "/" + name.split("/")[1]
             th_p = ests[self.corner_names.index(corner)][1]
-            if th_p not in resp:
-                resp[th_p] = lin[th_p].frequency_response(self.f_hz)
-            at_plant.append(LoopMargins(name, "arc", th_p, "plant",
-                                        loop_margins(lin[th_p], sp, self.f_hz, presp, resp[th_p])))
+            # (a) at the plant's theta, its load force at both ends of the range (theta3 = d_n M^-1): the
+            # robust gain at rest grows with the load the model terms carry, so both ends are checked.
+            for end, d in zip(("load_min", "load_max"), self.loads):
+                th_l = (th_p[0], th_p[1], float(np.clip(d * th_p[0], self.theta_min[2], self.theta_max[2])))
+                if th_l not in lin:
+                    lin[th_l] = linearize_arc(ap, th_l)
+                if th_l not in resp:
+                    resp[th_l] = lin[th_l].frequency_response(self.f_hz)
+                at_plant.append(LoopMargins(f"{name}/{end}", "arc", th_l, "plant",
+                                            loop_margins(lin[th_l], sp, self.f_hz, presp, resp[th_l])))
             every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
             # With one more sample of delay: theta_hat(0) and the plant's theta only, unless
             # delay_any_estimate (class docstring).

@@ -96,7 +96,7 @@ def test_the_check_covers_every_corner_and_the_modes_variants():
     names = [n for n, _ in box_plants(mode, spec_mode)]
     assert len(names) == 16 and sum(n.endswith("/mode_low") for n in names) == 4
     box = BoxArcCheck(mode, spec_mode)(start_gains(mode, spec_mode)[0])
-    assert len(box.at_plant) == 16
+    assert len(box.at_plant) == 32  # x the two ends of the load-force range
     # (b): 4 corners + theta_hat(0) (+ the plant's theta when it is no corner) per plant, and 2 with +1 sample
     assert box.any_estimate.loops >= 16 * (5 + 2)
 

@@ -116,7 +116,8 @@ def box_guarantees(box: BoxRobustness, spec: Spec, validity: dict[str, Any] | No
         "margins_over_box_at_plant_estimate": Guarantee(
             not miss, f"the ARC linearised with theta_hat at the plant's own theta (where adaptation goes) at each "
                       f"of the {len(box.at_plant)} plants of the box{where} (its 4 (theta1, theta2) corners x the "
-                      f"identified mode and its variants, identified delay): worst {w.plant}, phase margin "
+                      f"identified mode and its variants x both ends of the load-force range, identified delay): "
+                      f"worst {w.plant}, phase margin "
                       f"{w.margins.phase_margin_deg:.3g} deg, delay margin {w.margins.delay_margin_samples:.3g} samples, "
                       f"modulus margin {w.margins.modulus_margin:.3g}, spectral radius {w.margins.spectral_radius:.4g}"
                       + (f"; misses {'; '.join(miss)}" if miss else "; every [margins] floor met")),
