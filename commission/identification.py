@@ -756,7 +756,10 @@ def _bounds_record(bounds: BoundsOptions, tb: ThetaBounds) -> dict[str, object]:
     """ident.json's ``bounds``: the declared settings and the ranges the theta box covers."""
     return {"k_sigma": bounds.k_sigma, "model_margin": bounds.model_margin, "mass_range": list(tb.mass_range),
             "viscous_range": list(tb.viscous_range), "disturbance_range": list(tb.disturbance_range),
-            "disturbance_bound": tb.disturbance_bound, "disturbance_bound_defaulted": tb.disturbance_bound_defaulted}
+            "disturbance_bound": tb.disturbance_bound, "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
+            # The payload range the box covers and whether it was defaulted (tune may then narrow it to what
+            # the controller can certify, commission.robustness.certified_payload).
+            "payload_range": [tb.payload_range[0], tb.payload_range[1]], "payload_defaulted": tb.payload_defaulted}
 
 
 def _units(u_unit: str | None, log: ExcitationLog) -> dict[str, str]:
