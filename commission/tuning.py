@@ -336,6 +336,11 @@ class Tuning:
     margins : tuple of LoopMargins
         Stability margins of both loops per plant (:mod:`commission.robustness`);
         empty in a tuning.json written before they were recorded.
+    pid_yardstick : mapping or None
+        How the PID baseline was chosen and its margins on the identified plant
+        (:meth:`commission.tune.baseline.YardstickChoice.to_dict`: ``method``, ``pole`` rad/s,
+        ``candidates``, ``admissible``, ``simulated``, ``margins``, ``radius_plus_one_sample``,
+        ``violations``, ``is_yardstick``); None in a tuning.json written before it was recorded.
     """
 
     provenance: Provenance
@@ -354,6 +359,7 @@ class Tuning:
     scores: Mapping[str, Mapping[str, Score]]
     search: SearchRecord
     margins: tuple[LoopMargins, ...] = ()
+    pid_yardstick: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -401,6 +407,7 @@ class Tuning:
             "scores": {s: {c: sc.to_dict() for c, sc in row.items()} for s, row in self.scores.items()},
             "search": self.search.to_dict(),
             "margins": [m.to_dict() for m in self.margins],
+            **({} if self.pid_yardstick is None else {"pid_yardstick": dict(self.pid_yardstick)}),
         }
 
     def save(self, path: str) -> None:
@@ -488,12 +495,24 @@ class Tuning:
                    arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search, margins=_margins(r))
+                   scores=scores, search=search, margins=_margins(r), pid_yardstick=_yardstick(r))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
         """Read and strictly validate ``tuning.json``."""
         return cls.from_dict(read_json(path), source=str(path))
+
+
+def _yardstick(r: Reader) -> dict[str, Any] | None:
+    """The optional ``pid_yardstick`` record (absent in older files); a malformed one is named by its path."""
+    if not r.has("pid_yardstick"):
+        return None
+    y = r.child("pid_yardstick")
+    from commission.tune.baseline import YardstickChoice
+    try:
+        return YardstickChoice.from_dict(y.data).to_dict()
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise y.fail(f"bad record ({exc})") from None
 
 
 def _margins(r: Reader) -> tuple[LoopMargins, ...]:

@@ -495,11 +495,18 @@ def test_deployable_pid_takes_the_fastest_grid_pole_within_the_c_u_limit():
 
 
 def test_pid_pole_note_only_when_the_baseline_moved(small):
-    """The tuning of the reference plant keeps the paper's pole (its PID's c_u is about 0.3)."""
+    """The CLI's tuning of the reference plant (pid.pole defaulted) judges the ARC against the
+    yardstick (the fastest PID that keeps the margin floors), recorded in tuning.json and named in
+    the note; without that record, the note appears only when the baseline's pole was lowered."""
     d, output = small
     t = Tuning.from_dict(json.loads((d / "tuning.json").read_text()))
-    assert t.pid_pole == t.spec.pid_pole and pid_pole_note(t) is None and "PID baseline runs at" not in output
-    moved = dataclasses.replace(t, pid_pole=0.8 * t.spec.pid_pole)
+    ys = t.pid_yardstick
+    assert ys is not None and ys["method"] == "margin_search" and ys["is_yardstick"] and ys["pole"] == t.pid_pole
+    note = pid_pole_note(t)
+    assert note is not None and "PID yardstick" in note and "PID yardstick" in output
+    old = dataclasses.replace(t, pid_yardstick=None, pid_pole=t.spec.pid_pole)
+    assert pid_pole_note(old) is None
+    moved = dataclasses.replace(old, pid_pole=0.8 * t.spec.pid_pole)
     note = pid_pole_note(moved)
     assert note is not None and "pid.pole = 240 rad/s instead of the defaulted 300" in note
 

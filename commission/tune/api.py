@@ -49,7 +49,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import deployable_pid
+from commission.tune.baseline import pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 
@@ -86,8 +86,10 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         (:data:`commission.tune.optimiser.OBSERVER_FACTOR_BOUNDS`).  The pole used is the one
         recorded in ``observer``.
     pid_free : bool
-        ``spec.pid_pole`` was defaulted: the PID baseline may run at a lower pole
-        (:func:`deployable_pid`), recorded in ``pid_pole``.
+        ``spec.pid_pole`` was defaulted: the PID baseline is the yardstick of
+        :func:`commission.tune.baseline.pid_yardstick` (the fastest PID of (57) that keeps the
+        margin floors on the identified plant), its pole recorded in ``pid_pole`` and how it was
+        chosen in ``pid_yardstick``.
 
     Returns
     -------
@@ -99,7 +101,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     base = base_arc_gains(ident, spec)
     total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
-    baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
+    baseline, yardstick = pid_yardstick(ident, spec, ev, gate.c_u, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
     named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
     traj_names = [name for name, _ in named]
@@ -150,7 +152,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
                  guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record,
-                 margins=margin_table(chosen, pid, ident, spec))
+                 margins=margin_table(chosen, pid, ident, spec), pid_yardstick=yardstick.to_dict())
     if progress is not None:
         progress(total, total)
     return out
