@@ -40,6 +40,8 @@ _CRITERION_TEXT = {
     "c_u": "c_u (chattering)",
     "u_peak": "peak command below u_max",
     "arc_vs_pid_e_rms": "ARC ‖e‖rms / PID ‖e‖rms",
+    "arc_vs_pid_median": "ARC vs PID ‖e‖rms factor, median per group",
+    "arc_vs_pid_p90": "ARC vs PID ‖e‖rms factor, 90th percentile per group",
     "margins": "ARC stability margins, identified plant (floor / margin)",
 }
 
@@ -100,6 +102,8 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.u_max:.4g}"
     if key == "margins":
         return "1 (every floor met)"
+    if key in ("arc_vs_pid_median", "arc_vs_pid_p90"):
+        return f"{getattr(limits, key):.3g}"
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
     return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} {unit_of('small')}" if slack > 0 else "")
 

@@ -30,6 +30,7 @@ from commission.robustness import margin_table
 from commission.scenarios import (
     check_run_length,
     check_user_length,
+    horizon_notes,
     identified_plant,
     resolve_quantization,
     trajectories,
@@ -255,7 +256,8 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
     pid = spec_data.get("pid")
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes + horizon_notes(spec),
+                        observer_free, pid_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,
