@@ -9,6 +9,8 @@ from typing import Any, Optional
 import typer
 from rich.console import Console
 
+from commission.gate import safe_not_better
+from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
@@ -69,5 +71,8 @@ def validate_command(
         typer.echo(f"wrote {p}")
     print_next_steps(outcome.result, outcome.tuning, out_dir, tuning, signed=key is not None)
     if not outcome.result.passed:
+        if safe_not_better(outcome.result.verdict):
+            for line in not_better_lines(outcome.result, outcome.tuning):
+                typer.echo(line)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

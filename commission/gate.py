@@ -116,6 +116,11 @@ DEFAULT_ARC_VS_PID_MEDIAN = 1.0
 DEFAULT_ARC_VS_PID_P90 = 1.2
 #: The quantiles judged, criterion name -> quantile.
 ARC_VS_PID_QUANTILES = {"arc_vs_pid_median": 0.5, "arc_vs_pid_p90": 0.9}
+#: A default error limit is also at least this many times the spec's ``[targets]`` value (e_rms,
+#: e_f): the paper's targets 5 um and 10 um give the 20 um and 40 um of its 0.4 m envelope, so a user
+#: who states looser targets gets limits that follow them instead of a constant.
+TARGET_FACTOR = 4.0
+_TARGET_OF = {"e_rms": "e_rms", "e_F": "e_f"}
 #: Default slack of the ARC-vs-PID comparison: the rms of uniform quantization noise, 1/sqrt(12) LSB.
 DEFAULT_ARC_VS_PID_SLACK_LSB = 1.0 / math.sqrt(12.0)
 #: Relative tolerance below u_max at which a command counts as having reached the limit.
@@ -361,7 +366,8 @@ _DEFAULT_ERR = {
 }
 
 
-def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float) -> GateLimits:
+def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
+                 targets: Mapping[str, float] | None = None) -> GateLimits:
     """Resolve a gate for one axis.
 
     Parameters
@@ -373,6 +379,9 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float) -> 
         Envelope stroke (the spec's ``trajectory.travel``), m.
     u_max : float
         The tuning spec's input limit, u-unit (used unless the gate sets one).
+    targets : mapping, optional
+        The spec's ``[targets]`` (``e_rms``, ``e_f``, m): a defaulted e_rms or e_F limit is at
+        least :data:`TARGET_FACTOR` times the target (None: not used).
 
     Returns
     -------
@@ -390,6 +399,11 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float) -> 
             k_lsb, k_tr = _DEFAULT_ERR[key]
             limits[key] = max(k_lsb * lsb, k_tr * travel)
             basis[key] = f"default: max({k_lsb:g} LSB, {k_tr * 100:g} % travel)"
+            tgt = (targets or {}).get(_TARGET_OF.get(key, ""))
+            if tgt is not None and math.isfinite(tgt) and tgt > 0:
+                limits[key] = max(limits[key], TARGET_FACTOR * tgt)
+                basis[key] = (f"default: max({k_lsb:g} LSB, {k_tr * 100:g} % travel, {TARGET_FACTOR:g} x "
+                              f"targets.{_TARGET_OF[key]})")
         else:
             if given.unit == "lsb" and lsb <= 0:
                 raise SpecError(f"{gate.source}: gate.{key} = {given.text!r}: the tuning has no encoder "
@@ -564,6 +578,22 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
     if floors is not None:
         checks.extend(check_floors(floors))
     return GateVerdict(tuple(checks), limits)
+
+
+#: The criteria that compare the ARC with the PID yardstick (the others judge the ARC alone).
+COMPARISON_CRITERIA = ("arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90")
+
+
+def safe_not_better(verdict: "GateVerdict") -> bool:
+    """The gate failed only on the comparison with the PID yardstick (:data:`COMPARISON_CRITERIA`).
+
+    Every floor held, every limit on the ARC alone (errors, c_u, peak command, margins) held on
+    every scenario: the ARC is safe and meets the targets, but it does not beat the yardstick.
+    ``validate`` then says so plainly and writes the ARC flagged (``controller_not_better.json``),
+    never ``controller.json`` (docs/robustness.md, "Safe but not better").
+    """
+    fails = verdict.failures
+    return bool(fails) and all(c.criterion in COMPARISON_CRITERIA for c in fails)
 
 
 def scenario_group(name: str) -> str:

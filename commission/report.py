@@ -16,7 +16,7 @@ import numpy as np
 
 from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
-from commission.gate import CRITERIA
+from commission.gate import CRITERIA, safe_not_better
 from commission.robustness import floor_violations
 from commission.scenarios import VARIANTS, case_names, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
@@ -455,6 +455,11 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
+    elif safe_not_better(v):
+        L.extend(not_better_lines(result, tuning, markdown=True))
+        L.append("")
+        for line in failure_lines(v):
+            L.append(f"- {line}")
     else:
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
@@ -647,7 +652,35 @@ def summary_text(result: Any) -> str:
     return "\n".join(lines)
 
 
-def verdict_text(result: Any) -> str:
+def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> list[str]:
+    """What a safe ARC that does not beat the PID yardstick leaves the user (:func:`commission.gate.safe_not_better`).
+
+    Two sentences: the verdict in plain words, and the two deployable choices (the flagged ARC,
+    ``controller_not_better.json``, and the validated PID yardstick through ``commission export
+    --controller pid``).
+    """
+    p = tuning.pid
+    unit = result.units.get("u", "u")
+    q = unit_of("q")
+    b = "**" if markdown else ""
+    code = (lambda x: f"`{x}`") if markdown else (lambda x: x)
+    ys = tuning.pid_yardstick or {}
+    how = ("the fastest PID of (57) that keeps the margin floors on the identified plant and +1 sample"
+           if ys.get("method") == "margin_search" else "the PID of (57) at the spec's pole")
+    return [
+        f"{b}Safe, but not better than the PID yardstick.{b} The ARC held every floor and every limit on "
+        f"every scenario (no divergence, errors, c_u, peak command, stability margins); it failed only the "
+        f"comparison with the PID yardstick ({how}, pole {tuning.pid_pole:.4g} rad/s). No "
+        f"{code('controller.json')} was written (exit code 1).",
+        f"Deployable instead: the ARC, flagged (validated.flag.beats_yardstick = false), in "
+        f"{code('controller_not_better.json')} (loads with {code('commission.runtime.load_controller')}); or the "
+        f"validated PID yardstick, Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), Kd = {p.Kd:.4g} "
+        f"{unit}·s/{q} with M_hat = {p.M_hat:.4g}, B_hat = {p.B_hat:.4g}, exported by "
+        f"{code('commission export controller_not_better.json --controller pid --tuning tuning.json --target c --out-dir DIR')}.",
+    ]
+
+
+def verdict_text(result: Any, tuning: Tuning | None = None) -> str:
     """``gate PASSED`` or ``gate FAILED: N checks`` followed by one line per failure."""
     v = result.verdict
     n = len(result.runs)
@@ -655,6 +688,8 @@ def verdict_text(result: Any) -> str:
         lines = [f"gate PASSED ({len(v.checks)} checks on {n} scenarios)"]
     else:
         lines = [f"gate FAILED: {len(v.failures)} of {len(v.checks)} checks on {n} scenarios"]
+        if safe_not_better(v) and tuning is not None:
+            lines += not_better_lines(result, tuning)
         lines += [f"  {line}" for line in failure_lines(v)]
     lines += robustness_lines(result)
     return "\n".join(lines)

@@ -302,3 +302,19 @@ def test_arc_vs_pid_is_judged_by_quantiles_not_by_the_worst_plant():
     assert required_factor(div, score(e_rms=pid), 0.0) == math.inf
     assert required_factor(score(e_rms=pid), div, 0.0) == 0.0
     assert required_factor(score(e_rms=3e-6), score(e_rms=2e-6), 1e-6) == pytest.approx(1.0)
+
+
+def test_default_error_limits_follow_the_axis_and_the_targets():
+    """max(k LSB, k' travel, 4 x target): the paper's targets (5 um, 10 um) leave its 20 um and 40 um;
+    a looser stated target, a coarser encoder or a longer stroke raise the limit, a gate.toml value wins."""
+    paper = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert paper.e_rms == pytest.approx(20e-6) and paper.e_F == pytest.approx(40e-6)
+    loose = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, targets={"e_rms": 30e-6, "e_f": 10e-6})
+    assert loose.e_rms == pytest.approx(120e-6) and "4 x targets.e_rms" in loose.basis["e_rms"]
+    coarse = resolve_gate(GateSpec(), lsb=5e-6, travel=0.4, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert coarse.e_rms == pytest.approx(75e-6)  # 15 encoder steps
+    long = resolve_gate(GateSpec(), lsb=1e-6, travel=2.0, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert long.e_rms == pytest.approx(100e-6)  # 0.005 % of 2 m
+    given = resolve_gate(gate_from_mapping({"gate": {"e_rms": "7 um"}}), lsb=1e-6, travel=0.4, u_max=10.0,
+                         targets={"e_rms": 30e-6, "e_f": 10e-6})
+    assert given.e_rms == pytest.approx(7e-6)
