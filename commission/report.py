@@ -18,7 +18,7 @@ from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
 from commission.gate import CRITERIA, safe_not_better
 from commission.robustness import floor_violations
-from commission.scenarios import VARIANTS, case_names, plant_dynamics
+from commission.scenarios import VARIANTS, case_names, horizon_notes, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
@@ -505,6 +505,9 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     q = unit_of("q")
     L.append(f"- PID baseline (57): Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), "
              f"Kd = {p.Kd:.4g} {unit}·s/{q}, M_hat = {p.M_hat:.4g} {unit}·s²/{q}, B_hat = {p.B_hat:.4g} {unit}·s/{q}")
+    L.extend(yardstick_lines(tuning))
+    for note in horizon_notes(spec):
+        L.append(f"- horizon: {note}")
     L.append("")
     L.extend(identification_markdown(tuning, figures))
     L.extend(discussion_markdown(result, tuning))
@@ -650,6 +653,31 @@ def summary_text(result: Any) -> str:
         lines.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths))))
     lines.append(verdict_text(result))
     return "\n".join(lines)
+
+
+def yardstick_lines(tuning: Tuning) -> list[str]:
+    """The report's line on how the PID yardstick was chosen (tuning.json ``pid_yardstick``; none in older files)."""
+    ys = tuning.pid_yardstick
+    if not ys:
+        return []
+    m = ys.get("margins", {})
+
+    def g(k: str, fmt: str) -> str:
+        v = m.get(k)
+        return "inf" if v is None else fmt.format(v)
+
+    how = {"margin_search": f"the fastest of {ys.get('candidates')} poles of (57) ({ys.get('admissible')} admissible) "
+                            "that keeps the spec's margin floors on the identified plant, is stable with one more "
+                            "sample of delay and stays within the gate's c_u",
+           "spec_pole": "the spec's [pid] pole (the paper's formula (57))",
+           "none_admissible": "no pole of (57) keeps the margin floors on the identified plant: the paper's "
+                              "default pole"}.get(str(ys.get("method")), str(ys.get("method")))
+    flag = "" if ys.get("is_yardstick") else (" -- **not a fair yardstick**: " + "; ".join(ys.get("violations", [])))
+    return [f"- PID yardstick: {how}; pole {tuning.pid_pole:.4g} rad/s, crossover {g('crossover_hz', '{:.3g}')} Hz, "
+            f"gain margin {g('gain_margin_db', '{:.3g}')} dB, phase margin {g('phase_margin_deg', '{:.3g}')} deg, "
+            f"delay margin {g('delay_margin_samples', '{:.3g}')} samples, modulus margin "
+            f"{g('modulus_margin', '{:.3g}')}, spectral radius with +1 sample "
+            f"{float(ys.get('radius_plus_one_sample', float('nan'))):.4f}{flag}"]
 
 
 def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> list[str]:
