@@ -75,6 +75,10 @@ def emitted(request, tmp_path_factory):
         assert r.exit_code in (0, 1), r.output  # 1: the gate refused it (report.md says why)
         if r.exit_code == 0:
             ctrls.append(load_controller(out / "controller.json"))
+        elif (out / "controller_not_better.json").exists():
+            # safe but not better than the PID yardstick (issue 30): the ARC is left deployable, flagged;
+            # what is left for the machine must hold on it as much as controller.json does
+            ctrls.append(load_controller(out / "controller_not_better.json"))
     assert len(ctrls) >= MIN_EMITTED[axis], f"{axis}: {len(ctrls)} of {len(SEEDS[axis])} seeds emitted"
     return axis, truth, ctrls
 
