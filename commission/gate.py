@@ -16,8 +16,10 @@ first.
     c_u   = 1.0          # chattering: ||du||_rms / ||u||_rms
     u_max = 10.0         # peak |u|, u-unit
     no_divergence = true # no scenario may abort (non-finite, |q - q_d| > travel, |u| > 1e6)
-    arc_vs_pid_e_rms = 1.0  # ARC e_rms <= this factor x PID e_rms + arc_vs_pid_slack, scenario by scenario
+    arc_vs_pid_e_rms = 1.0  # when given: ARC e_rms <= this factor x PID e_rms + arc_vs_pid_slack, scenario by scenario
     arc_vs_pid_slack = "0.2887 lsb"  # a length, as the error limits
+    arc_vs_pid_median = 1.0  # median of the per-scenario factor f (fixed; Monte-Carlo), arc_vs_pid_quantile_checks
+    arc_vs_pid_p90 = 1.2     # its 90th percentile
     gain_margin_db = 6.0        # stability margins of the ARC on the identified plant (mode and delay
     phase_margin_deg = 30.0     # included), both linearisation points; default: the tuning spec's
     delay_margin_samples = 1.0  # [margins], which are also floors: a lower value here does not lower them
@@ -58,8 +60,9 @@ Defaults (LSB = encoder resolution, travel = the spec's envelope stroke)
            the limit counts as a violation: the controller then relied on
            clipping, i.e. its demand exceeded the actuator.
 ``no_divergence``     true.
-``arc_vs_pid_e_rms``  1.0: the ARC must be no worse than the PID baseline, on
-           every scenario ...
+``arc_vs_pid_e_rms``  off by default; when given, the ARC must be no worse than
+           factor x the PID baseline (the yardstick, :func:`commission.tune.baseline.pid_yardstick`)
+           on every scenario ...
 ``arc_vs_pid_slack``  ... up to the rms of the encoder's quantization noise,
            LSB / sqrt(12) (:data:`DEFAULT_ARC_VS_PID_SLACK_LSB` LSB): the check is
            ``ARC e_rms <= factor x PID e_rms + slack``.  Errors are measured on the
