@@ -426,11 +426,16 @@ def _case2_duration(spec: Spec, moves: int) -> float:
     return round(float(sched.t_switch[-1]) + CASE2_TAIL, 6)
 
 
+#: Fewest Case-2 moves a shortened run keeps: a move and its return.
+CASE2_MIN_MOVES = 2
+
+
 def _case2_moves(spec: Spec) -> int:
-    """``spec.moves``, or fewer (down to one) while the run would exceed :func:`max_horizon`."""
+    """``spec.moves``, or fewer (down to :data:`CASE2_MIN_MOVES`) while the run would exceed
+    :func:`max_horizon`; a run that does not fit even then is refused by :func:`check_run_length`."""
     cap = max_horizon(spec.sample_rate)
     n = spec.moves
-    while n > 1 and _case2_duration(spec, n) > cap:
+    while n > CASE2_MIN_MOVES and _case2_duration(spec, n) > cap:
         n -= 1
     return n
 
@@ -439,7 +444,7 @@ def case2_trajectory(spec: Spec) -> TrajectorySpec:
     """Case 2 on the envelope: ``moves`` moves of ``travel``, then :data:`CASE2_TAIL` s at rest.
 
     Where a high rate would take the run past the sample cap, fewer moves are run (as many as fit
-    in :func:`max_horizon`, at least one); :func:`horizon_notes` says so.
+    in :func:`max_horizon`, at least a move and its return); :func:`horizon_notes` says so.
     """
     n = _case2_moves(spec)
     return TrajectorySpec("case2", duration=_case2_duration(spec, n), travel=spec.travel, v_max=spec.case_v_max,
