@@ -541,3 +541,15 @@ def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
         + math.log(1.5))
     # without a reference there is nothing to lose to
     assert cost([score(50e-6, spec.e_rms)], spec) == pytest.approx(0.0)
+
+
+def test_pid_yardstick_record_is_additive_and_strict(small):
+    """An older tuning.json without ``pid_yardstick`` still loads; a malformed record is refused by path."""
+    d, _ = small
+    doc = json.loads((d / "tuning.json").read_text())
+    assert Tuning.from_dict(doc).pid_yardstick == doc["pid_yardstick"]
+    old = {k: v for k, v in doc.items() if k != "pid_yardstick"}
+    assert Tuning.from_dict(old).pid_yardstick is None
+    bad = {**doc, "pid_yardstick": {**doc["pid_yardstick"], "pole": "fast"}}
+    with pytest.raises(SchemaError, match=r"\$\.pid_yardstick"):
+        Tuning.from_dict(bad)
