@@ -6,6 +6,9 @@ Each module registers its command on :data:`commission.cli.main.app` when import
 """
 
 COMMANDS: dict[str, tuple[str, str]] = {
+    "excite": ("commission.cli.excite_cmd",
+               "Plan an excitation run within the machine's limits (friction ladder, moves, broadband "
+               "injection); pre-simulate it; write plan.csv/.h5/.json/.png."),
     "identify": ("commission.cli.identify_cmd",
                  "Identify M, B, friction and offset from a position-only excitation log; write ident.json."),
     "tune": ("commission.cli.tune_cmd",

@@ -15,7 +15,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Mapping, Sequence
+from typing import Any, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -381,6 +381,7 @@ def identify_log(
     lead: float | None = None,
     gear: float | None = None,
     counts_per_rev: float | None = None,
+    plan: Mapping[str, Any] | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -438,6 +439,10 @@ def identify_log(
         ``--counts-per-rev``: q (and q_ref) of every log in encoder counts, N per
         revolution, read as rad (:func:`commission.logs.load_log`); ``gear`` and ``lead``
         apply after it.
+    plan : mapping, optional
+        A parsed plan.json (:func:`commission.excite.load_plan_json`) the one log was recorded
+        from: the frequency response is estimated on its injection windows
+        (:func:`commission.excite.injection_ranges`) instead of the segments the command's level shows.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -508,7 +513,16 @@ def identify_log(
             raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
-    freq = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
+    if plan is not None and has_mass:
+        # The excitation plan says where its injection is (commission excite; identify --plan).
+        from commission.excite import injection_ranges
+
+        if len(logs) != 1:
+            raise UsageError(f"--plan: takes one log recorded from the plan, got {len(logs)}")
+        freq = frequency_response(logs[0].t, logs[0].q, logs[0].u, fit.parameters["M"][0], fit.parameters["B"][0],
+                                  ranges=injection_ranges(plan, logs[0].t))
+    else:
+        freq = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
 
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):

@@ -470,7 +470,8 @@ def _starts(f: np.ndarray, R: np.ndarray, coh: np.ndarray, fs: float) -> tuple[f
     return delay0, res, pairs
 
 
-def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float) -> FrequencyResponse:
+def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float, *,
+                       ranges: list[tuple[int, int]] | None = None) -> FrequencyResponse:
     """Measure the response u -> q of a log and compare it with the rigid model (module docstring).
 
     Parameters
@@ -483,6 +484,10 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         Command, u-unit.
     M, B : float
         Identified rigid model, u-unit s^2/m and u-unit s/m.
+    ranges : list of (int, int), optional
+        Sample ranges ``[i0, i1)`` known to carry the broadband injection (from the
+        excitation plan, ``identify --plan``) instead of those step 1 finds: a plan
+        knows where its injection is, whatever its spectrum's shape over time.
 
     Returns
     -------
@@ -491,7 +496,7 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
     fs = 1.0 / float(np.median(np.diff(t)))
     Ts = 1.0 / fs
     B = max(float(B), 0.0)
-    segs = broadband_segments(u, fs)
+    segs = broadband_segments(u, fs) if ranges is None else [(int(a), int(b)) for a, b in ranges if b > a]
     if segs:
         nperseg = int(round(fs / RESOLUTION_HZ))
         # At least 8 windows in all: coarser resolution on short segments.
