@@ -1,6 +1,6 @@
 """Issue 30's yield: random axes -> ``commission run`` -> what it emits, judged on the TRUE axis.
 
-For each seed, :func:`commission.synth.write_random_axis_log` draws an axis from the spread of
+For each seed, :func:`commission.synth.record_random_axis_log` draws an axis from the spread of
 real machines (:func:`commission.synth.random_axis`: 0.3-300 kg, V or N, 1-20 kHz, 0-2
 samples of delay, encoder noise to 1 count, 0-2 structural modes at 200 Hz-2 kHz) and
 simulates its commissioning log; the product then runs its default pipeline on the log
@@ -20,8 +20,16 @@ Seeds 0-29 are the development set, 100-129 the held-out set (run once, on final
 lead).  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
-Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-5] [--tune-seed 0] [--workers N]
-[--workdir DIR]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
+Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
+:func:`commission.synth.record_random_axis_log` writes the limits.toml an engineer of that axis
+would write, plans the run with ``commission excite`` (:func:`commission.excite.plan_run`) and
+plays the plan on the TRUE axis; when excite refuses the limits, the legacy log is written and
+the line says so.  ``--log legacy`` records the commissioning run of issue 30's generator
+(ladder, moves, a low multisine; no broadband injection).  Each line states which log the axis
+got, its duration and samples.
+
+Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-5] [--log excite|legacy] [--tune-seed 0]
+[--workers N] [--workdir DIR]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
 parallel processes, each validating on one thread -- the machine's cores are shared, mind
 them; ``--workdir`` keeps each axis's log and run outputs under ``DIR/axisN``).
 """
@@ -36,7 +44,7 @@ import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 
-from commission.synth import AxisTruth, write_random_axis_log
+from commission.synth import LOG_KINDS, AxisTruth, record_random_axis_log
 from commission.true_axis import Judgement, judge_axis
 
 
@@ -76,18 +84,22 @@ def category(j: Judgement) -> str:
     return "no-candidate" + (" (a true-plant PID works)" if j.pid.gains is not None else "")
 
 
-def sweep_axis(seed: int, workdir: str, tune_seed: int) -> tuple[int, str, str, float, bool]:
-    """Judge random axis ``seed``; ``(seed, line, category, ratio, emitted)``."""
+def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite") -> tuple[int, str, str, float, bool, str]:
+    """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written)``."""
     d = pathlib.Path(workdir) / f"axis{seed}"
     d.mkdir(parents=True, exist_ok=True)
     t0, c0 = time.perf_counter(), time.process_time()
-    truth = write_random_axis_log(seed, d / "log.h5")
+    rec = record_random_axis_log(seed, d / "log.h5", log=log)
+    truth = rec.truth
+    how = (f"log {rec.log}" + (f" (asked {rec.requested})" if rec.log != rec.requested else "")
+           + f" {rec.duration_s:.1f} s, {rec.samples} samples" + (f" [{rec.note[:160]}]" if rec.note else ""))
+    t_rec = time.perf_counter() - t0
     try:
         j = judge_axis(truth, d / "log.h5", out_dir=d / "out", seed=tune_seed, workers=1)
     except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
         dt = time.perf_counter() - t0
-        return seed, f"axis {seed:3d}: {describe(truth)} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
-            "CRASH", math.nan, False
+        return seed, f"axis {seed:3d}: {describe(truth)} | {how} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
+            "CRASH", math.nan, False, rec.log
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
@@ -98,9 +110,9 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int) -> tuple[int, str, str, 
         return f"{r.e_rms * 1e6:.3g}um/cu{r.c_u:.2f}{stop}"
 
     runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{run_text(r)}" for r in j.arc_runs)
-    line = (f"axis {seed:3d}: {describe(truth)} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
-            f"| {runs} | {dt:.0f} s wall, {cpu:.0f} s CPU")
-    return seed, line, cat, j.ratio, j.emitted
+    line = (f"axis {seed:3d}: {describe(truth)} | {how} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
+            f"| {runs} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
+    return seed, line, cat, j.ratio, j.emitted, rec.log
 
 
 def main() -> None:
@@ -109,6 +121,9 @@ def main() -> None:
     ap.add_argument("--tune-seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="axes in parallel processes (default 1)")
     ap.add_argument("--workdir", type=pathlib.Path, default=None)
+    ap.add_argument("--log", choices=LOG_KINDS, default="excite",
+                    help="how each axis is recorded: excite (the plan of commission excite from the axis's "
+                         "limits, played on the true axis; default) or legacy (ladder, moves, low multisine)")
     args = ap.parse_args()
     seeds = parse_seeds(args.seeds)
     results = []
@@ -117,13 +132,13 @@ def main() -> None:
         workdir = str(args.workdir or tmp)
         if args.workers > 1:
             with ProcessPoolExecutor(max_workers=args.workers) as ex:
-                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed) for s in seeds]
+                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log) for s in seeds]
                 for f in futs:
                     results.append(f.result())
                     print(results[-1][1], flush=True)
         else:
             for s in seeds:
-                results.append(sweep_axis(s, workdir, args.tune_seed))
+                results.append(sweep_axis(s, workdir, args.tune_seed, args.log))
                 print(results[-1][1], flush=True)
     n = len(results)
     cats = [r[2] for r in results]
@@ -136,7 +151,8 @@ def main() -> None:
           f"{len(emitted)} emitted" + (f"; {cats.count('CRASH')} CRASHED" if "CRASH" in cats else ""))
     print(f"median ARC/PID e_rms ratio over the {len(ratios)} emitted axes (worst of the four runs each): "
           f"{statistics.median(ratios):.2f}" if ratios else "median ARC/PID e_rms ratio: no axis emitted")
-    print(f"{time.perf_counter() - t0:.0f} s wall for {n} axes ({args.workers} worker(s))")
+    print(f"{time.perf_counter() - t0:.0f} s wall for {n} axes ({args.workers} worker(s)); logs: --log {args.log}, "
+          f"{sum(r[5] == 'excite' for r in results)} excite-planned, {sum(r[5] == 'legacy' for r in results)} legacy")
 
 
 if __name__ == "__main__":

@@ -522,3 +522,78 @@ def test_sample_data_regenerates(tmp_path):
     assert np.max(np.abs(a["q_ref"] - b["q_ref"])) < 1e-12
     assert np.max(np.abs(a["q"] - b["q"])) <= 4 * gen.TRUTH.lsb
     assert np.sqrt(np.mean((a["u"] - b["u"]) ** 2)) < 5e-3
+
+
+# --------------------------------------------------------------------------- random axes recorded with excite
+
+# Development seeds: 27 (1 kHz, V, one mode), 7 (20 kHz, N, one mode: the plan is shortened),
+# 3 (8 kHz, N, two modes, encoder on the loads), 0 (5 kHz, V, rigid).
+EXCITE_SEEDS = {27: (1000.0, "V", 1), 7: (20000.0, "N", 1), 3: (8000.0, "N", 2), 0: (5000.0, "V", 0)}
+
+
+@pytest.mark.parametrize("seed", list(EXCITE_SEEDS))
+def test_an_excite_planned_random_axis_log_stays_within_rail_and_travel(tmp_path, seed):
+    """The plan of `commission excite` from the axis's limits.toml, played on the TRUE axis (modes,
+    delay, noise, quantization): the command never reaches the rail (the true loop clips there, so a
+    peak below it means no saturation), the axis stays within the stated travel about the start and
+    under the stated speed, and a 20 kHz plan is shortened below the sample budget."""
+    from commission.synth import EXCITE_MAX_SAMPLES, record_random_axis_log
+
+    rec = record_random_axis_log(seed, tmp_path / "log.h5")
+    t = rec.truth
+    assert (t.sample_rate, t.u_unit, t.n_modes) == EXCITE_SEEDS[seed]
+    assert rec.log == "excite" and rec.requested == "excite"
+    lim = rec.limits
+    assert lim["limits"]["u_max"] == t.u_max and lim["drive"]["sample_rate"] == t.sample_rate
+    assert 0.7 <= lim["axis"]["mass"] / t.M <= 1.4 and lim["axis"]["u_unit"] == t.u_unit
+    with h5py.File(tmp_path / "log.h5") as f:
+        q, u, tt = f["q"][:], f["u"][:], f["t"][:]
+        assert f.attrs["u_unit"] == t.u_unit
+    assert q.size == rec.samples <= EXCITE_MAX_SAMPLES
+    assert rec.duration_s == pytest.approx(tt[-1] + 1.0 / t.sample_rate)
+    assert np.max(np.abs(u)) < t.u_max
+    assert np.max(np.abs(q)) <= lim["limits"]["travel"] / 2
+    assert np.max(np.abs(np.diff(q))) * t.sample_rate <= lim["limits"]["v_max"]
+    assert ("shortened" in rec.note) == (seed == 7)
+    if seed == 7:
+        assert lim["plan"]["n_speeds"] < 8
+
+
+@pytest.mark.parametrize("seed", [27, pytest.param(7, marks=pytest.mark.slow)])
+def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_log(tmp_path, seed):
+    """`identify` on the excite-planned log measures a frequency response on its injection: backed well
+    above the legacy run's rigid band (its multisine tops at 20 Hz and its ident.json says 14-22 Hz),
+    with the true axis's mode within 5 % and its delay within 0.2 sample."""
+    from commission.identification import identify_log
+    from commission.synth import record_random_axis_log
+
+    rec = record_random_axis_log(seed, tmp_path / "log.h5")
+    t = rec.truth
+    fr = identify_log(str(tmp_path / "log.h5"), u_unit=t.u_unit).ident.to_dict()["frequency_response"]
+    assert fr["source"] == "broadband"
+    assert fr["band_hz"][1] >= 5 * max(ExcitationPlan().ms_freqs)
+    res = [m["frequency_hz"] for m in fr["modes"] if m["kind"] == "resonance"]
+    assert any(abs(f / t.mode_hz - 1) < 0.05 for f in res), (res, t.mode_hz)
+    assert fr["delay_samples"] == pytest.approx(t.delay * t.sample_rate, abs=0.2)
+
+
+def test_a_refused_excite_plan_falls_back_to_the_legacy_log_and_says_so(tmp_path, monkeypatch):
+    import commission.synth as synth
+
+    real = synth.random_axis_limits
+
+    def too_short(truth, rng):
+        d = real(truth, rng)
+        return {**d, "limits": {**d["limits"], "travel": 0.0005}}
+
+    monkeypatch.setattr(synth, "random_axis_limits", too_short)
+    rec = synth.record_random_axis_log(27, tmp_path / "a.h5")
+    assert rec.log == "legacy" and rec.requested == "excite" and rec.limits is None
+    assert rec.note.startswith("excite refused, legacy log written: ") and "limits.travel" in rec.note
+    legacy = synth.record_random_axis_log(27, tmp_path / "b.h5", log="legacy")
+    assert legacy.note == "" and legacy.samples == rec.samples
+    with h5py.File(tmp_path / "a.h5") as fa, h5py.File(tmp_path / "b.h5") as fb:
+        assert np.array_equal(fa["q"][:], fb["q"][:]) and np.array_equal(fa["u"][:], fb["u"][:])
+    with pytest.raises(UsageError, match="log: 'prbs' is not one of excite, legacy"):
+        synth.record_random_axis_log(27, tmp_path / "c.h5", log="prbs")
+    assert not (tmp_path / "c.h5").exists()
