@@ -208,3 +208,35 @@ def test_the_samples_passed_report_shows_no_unstable_or_below_floor_gated_row(tm
             assert cells[7] == "yes", row  # stable
             assert cells[8].startswith("met") or cells[8].startswith("*not gated*"), row
         assert "UNSTABLE" not in report.split("**The whole theta box.**")[1].split("\n")[0]
+
+
+def test_a_defaulted_payload_the_drive_cannot_move_is_narrowed_to_what_it_can_not_refused():
+    """A +-2.5 V drive cannot move the default box's heaviest plant (30 M of payload) at the least
+    envelope the tool defaults to: the defaulted payload is cut to the largest the drive moves (the
+    bisection's answer checked on both sides), recorded so that validate undoes it, even after the
+    box check narrows it again; a stated payload is left for default_envelope to refuse."""
+    from commission.errors import SpecError
+    from commission.robustness import narrowed_ident
+    from commission.tune.box import fit_payload_to_drive
+    from commission.tune.defaults import default_envelope
+    from commission.validate import _undo_payload_narrowing
+
+    spec = spec_from_mapping({"controller": {"u_max": 2.5}})
+    ident = axis(30 * M, defaulted=True)
+    with pytest.raises(SpecError, match="controller.u_max"):
+        default_envelope(spec, ident, set())
+    out, notes = fit_payload_to_drive(spec, ident, set())
+    lo, hi, _, defaulted = payload_box(out)
+    assert defaulted and 0.0 < hi < 30 * M
+    assert len(notes) == 1 and "the drive" in notes[0] and "--payload-max" in notes[0]
+    default_envelope(spec, out, set())  # the narrowed box is one the drive moves ...
+    with pytest.raises(SpecError):  # ... and a little more payload is not
+        default_envelope(spec, narrowed_ident(ident, hi * 1.01), set())
+    assert validity_of(out)["default_payload_range"] == [0.0, 30 * M]
+    twice, _ = narrow_default_payload(out, spec)
+    doc = json.loads(json.dumps(twice.to_dict()))
+    _undo_payload_narrowing(doc)
+    assert doc == json.loads(json.dumps(ident.to_dict()))
+    stated = axis(30 * M, defaulted=False)
+    same, none = fit_payload_to_drive(spec, stated, set())
+    assert same is stated and none == ()

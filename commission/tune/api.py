@@ -53,7 +53,7 @@ from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
-from commission.tune.box import box_guarantees, narrow_default_payload, validity_of
+from commission.tune.box import box_guarantees, fit_payload_to_drive, narrow_default_payload, validity_of
 
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
@@ -246,6 +246,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
         check_moves_against_drive(spec, ident, spec_name)
     spec, rate_notes = rate_scaled_envelope(spec, given, ident.units)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
+    ident, drive_notes = fit_payload_to_drive(spec, ident, given, spec_name)
     spec, notes = default_envelope(spec, ident, given, spec_name)
     spec, ref_notes = reference_envelope(spec, ident, given, spec_name)
     notes = notes + ref_notes
@@ -264,7 +265,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
     # A defaulted payload range the search's start points cannot certify is narrowed to one they can.
     ident, payload_notes = narrow_default_payload(ident, spec)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes + horizon_notes(spec)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + drive_notes + notes + budget_notes + horizon_notes(spec)
                         + payload_notes, observer_free, pid_free)
 
 

@@ -68,23 +68,82 @@ def narrow_default_payload(ident: Identification, spec: Spec) -> tuple[Identific
     miss = floor_violations(w.margins, floors)
     a = first.any_estimate
     unit = mass_unit(ident)
-    why = (f"over the default payload range {pmin:.4g}..{pmax:.4g} {unit} (3 M) the search's start gains "
+    why = (f"over the payload range {pmin:.4g}..{pmax:.4g} {unit} the search's start gains "
            + (f"miss the floors at corner {w.plant} with theta_hat at the plant's theta ({'; '.join(miss)})"
               if miss else "keep the floors with theta_hat at each plant's theta")
            + (f" and are UNSTABLE with theta_hat at {a.theta_hat_at} on {a.plant} (spectral radius "
               f"{a.spectral_radius:.4g})" if not a.stable else ""))
+    return _narrowed(ident, payload, why)
+
+
+def _narrowed(ident: Identification, payload: float, why: str) -> tuple[Identification, tuple[str, ...]]:
+    """``ident`` with its defaulted payload range cut to ``payload``, the narrowing recorded, and its note.
+
+    The record (``bounds.payload_narrowed_by_tune``) keeps the *default* box, so that ``validate``
+    can undo every narrowing at once: a second narrowing (the drive's, then the box check's) keeps
+    the first record's default and joins the reasons.
+    """
+    pmin, pmax, m0, _ = payload_box(ident)  # type: ignore[misc]
+    unit = mass_unit(ident)
+    old = ident.extra["bounds"].get("payload_narrowed_by_tune")
     out = narrowed_ident(ident, payload)
     bounds = dict(out.extra["bounds"])
-    bounds["payload_narrowed_by_tune"] = {
-        "default_payload_range": [pmin, pmax], "default_mass_range": list(ident.extra["bounds"]["mass_range"]),
-        "theta1_min": ident.theta.min[0], "theta2_min": ident.theta.min[1], "unit": unit, "reason": why}
+    if isinstance(old, dict):
+        rec = {**old, "reason": f"{old['reason']}; then {why}"}
+    else:
+        rec = {"default_payload_range": [pmin, pmax], "default_mass_range": list(ident.extra["bounds"]["mass_range"]),
+               "theta1_min": ident.theta.min[0], "theta2_min": ident.theta.min[1], "unit": unit, "reason": why}
+    bounds["payload_narrowed_by_tune"] = rec
     extra = dict(out.extra)
     extra["bounds"] = bounds
     out = dataclasses.replace(out, extra=extra)
+    d0, d1 = rec["default_payload_range"]
     note = (f"payload range narrowed to {pmin:.4g}..{payload:.4g} {unit} (moving mass up to {m0 + payload:.4g} {unit}) "
-            f"from the default {pmin:.4g}..{pmax:.4g} {unit}: {why}; the controller is certified for that range "
+            f"from the default {d0:.4g}..{d1:.4g} {unit}: {why}; the controller is certified for that range "
             f"only (controller.json's validity); state the real payload with commission identify --payload-max")
     return out, (note,)
+
+
+#: Bisection steps of :func:`fit_payload_to_drive` (the payload range to 2^-20 of the default's).
+DRIVE_BISECTIONS = 20
+
+
+def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
+                         source: str = "spec (defaults)") -> tuple[Identification, tuple[str, ...]]:
+    """Narrow a *defaulted* payload range to what the drive can move, instead of refusing the axis.
+
+    :func:`commission.tune.defaults.default_envelope` refuses a box whose heaviest plant leaves the
+    drive (``u_max``, with its headroom) less than the least envelope it will default to.  When the
+    user stated no payload, the default range (up to 3 M) is the tool's guess, not the machine's
+    requirement: the heavy end is cut, by bisection, to the largest payload the drive can move, and
+    the narrowing is recorded and stated as :func:`narrow_default_payload`'s is.  A stated payload
+    (or a box the drive cannot move even empty) is left for ``default_envelope`` to refuse, naming
+    ``controller.u_max``.
+    """
+    from commission.errors import SpecError
+    from commission.tune.defaults import default_envelope
+
+    pb = payload_box(ident)
+    if pb is None or not pb[3] or ident.theta is None:
+        return ident, ()
+
+    def moves(p: float) -> bool:
+        try:
+            default_envelope(spec, narrowed_ident(ident, p), given, source)
+        except SpecError:
+            return False
+        return True
+
+    pmin, pmax, _, _ = pb
+    if moves(pmax) or not moves(pmin):
+        return ident, ()
+    lo, hi = pmin, pmax
+    for _ in range(DRIVE_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if moves(mid) else (lo, mid)
+    why = (f"the drive (controller.u_max = {spec.u_max:g} {ident.units.get('u', 'u-unit')}) cannot move the heavier "
+           f"plants of the default box within its headroom")
+    return _narrowed(ident, lo, why)
 
 
 def mass_unit(ident: Identification) -> str:
