@@ -51,6 +51,7 @@ cost), so the fit runs under ``threadpoolctl.threadpool_limits(1)``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -60,7 +61,8 @@ from scipy import signal
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from commission.controllers.linear import rigid_frequency_response, sampled_plant
+from commission.controllers.linear import (SampledPlant, _hold, continuous_model, rigid_frequency_response,
+                                          sampled_plant)
 from commission.controllers.plant import plant_vector
 
 #: A block is broadband when its high-passed command RMS is this many times the moving blocks' median.
@@ -93,8 +95,44 @@ MAX_DELAY_SAMPLES = 6.0
 MAX_DAMPING = 0.7
 #: Coherent bins the fit needs.
 MIN_FIT_BINS = 12
+#: Probability that a right model shows a departure somewhere in the measured response (:func:`departures`).
+DEPARTURE_ALPHA = 0.01
+#: Most modes fitted (each further one must lower the information criterion and pass the guards).
+MAX_MODES = 4
 
 STRUCTURES = ("rigid", "load_side_mode", "motor_side_mode")
+
+
+@dataclass(frozen=True)
+class ExtraMode:
+    """A structural mode beyond the first, as an input-side factor of the fitted response.
+
+    ``kind`` ``"load"``: ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` (a resonance only, as a
+    mode seen across the structure); ``"motor"``: ``(w / w_a)^2 (s^2 + 2 zeta_a w_a s + w_a^2) /
+    (s^2 + 2 zeta w s + w^2)`` with ``w_a = w sqrt(1 - r)``, ``zeta_a = zeta sqrt(1 - r)`` (an
+    anti-resonance below the resonance, as a mode seen next to the force).  Both have unit gain at
+    DC, so the rigid body and the first mode keep their meaning.
+
+    Attributes
+    ----------
+    kind : {"load", "motor"}
+    hz : float
+        Resonance, Hz.
+    damping : float
+        Damping ratio, -.
+    ratio : float
+        Load fraction r of the anti-resonance (0.5, not identified, for ``"load"``), -.
+    hz_std, damping_std, ratio_std : float or None
+        One standard deviation from the fit's covariance, Hz, -, -.
+    """
+
+    kind: str
+    hz: float
+    damping: float
+    ratio: float = 0.5
+    hz_std: float | None = None
+    damping_std: float | None = None
+    ratio_std: float | None = None
 
 
 @dataclass(frozen=True)
@@ -104,17 +142,25 @@ class StructureFit:
     Attributes
     ----------
     structure : str
-        ``"rigid"``, ``"load_side_mode"`` or ``"motor_side_mode"``.
+        ``"rigid"``, ``"load_side_mode"`` or ``"motor_side_mode"``: the first mode, as the
+        simulator's two-mass plant.
     mass_scale : float
         Mass of the fitted plant over the rigid fit's M.
     delay_samples : float
         Input delay beyond the zero-order hold, samples.
     mode_hz, mode_damping, mode_ratio : float or None
-        Mode of the fitted plant (Hz, -, -); None for rigid.
+        First mode of the fitted plant (Hz, -, -); None for rigid.
     cost : float
         Sum of squared normalised residuals (about the number of residuals for a right model).
     n_residuals : int
     n_params : int
+    mode_hz_std, mode_damping_std, mode_ratio_std : float or None
+        One standard deviation of the first mode's parameters (Hz, -, -) from the fit's
+        covariance ``(J^T J)^-1``, scaled by the reduced chi-square when that exceeds 1.
+    delay_std : float or None
+        Of the delay, samples.
+    extra : tuple of ExtraMode
+        Further modes, as input-side factors.
     """
 
     structure: str
@@ -126,15 +172,37 @@ class StructureFit:
     cost: float
     n_residuals: int
     n_params: int
+    mode_hz_std: float | None = None
+    mode_damping_std: float | None = None
+    mode_ratio_std: float | None = None
+    delay_std: float | None = None
+    extra: tuple[ExtraMode, ...] = ()
+
+    @property
+    def n_modes(self) -> int:
+        return (0 if self.structure == "rigid" else 1) + len(self.extra)
 
     @property
     def score(self) -> float:
-        return self.cost * (1.0 + STRUCTURE_PENALTY * self.n_params)
+        """Bayesian information criterion with the residuals' scale unknown: ``n ln(cost / n) + k ln n``.
+
+        The residuals are normalised by the coherence's variance, so for a right model
+        ``cost ~ n``; a model the data reject (closed-loop bias, a missed mode) has a larger
+        cost, and the unknown-scale form stays fair between structures then.  Lower is better.
+        """
+        n = max(self.n_residuals, 1)
+        return n * math.log(max(self.cost, 1e-300) / n) + self.n_params * math.log(n)
 
     def plant(self, M: float, B: float, Ts: float) -> np.ndarray:
-        """The fitted plant vector (linear part only: no friction)."""
+        """The fitted plant vector (linear part only: no friction; the first mode only)."""
         return _plant(self.structure, M * self.mass_scale, B, Ts, self.delay_samples,
                       self.mode_hz or 0.0, self.mode_damping or 0.0, self.mode_ratio or 0.5)
+
+    def response(self, M: float, B: float, Ts: float, f: np.ndarray) -> np.ndarray:
+        """Sampled response of the fitted model at ``f`` (Hz), every mode included, m per u-unit."""
+        return _model_response(self.structure, M * self.mass_scale, B, Ts, self.delay_samples,
+                               self.mode_hz or 0.0, self.mode_damping or 0.0, self.mode_ratio or 0.5,
+                               self.extra, f)
 
 
 @dataclass(frozen=True)
@@ -171,6 +239,9 @@ class FrequencyResponse:
         Hz.
     note : str or None
         What the data could not show.
+    departures : tuple of Departure
+        Where the measured response departs from the chosen fit beyond its uncertainty
+        (:func:`departures`).
     """
 
     f: np.ndarray
@@ -188,30 +259,40 @@ class FrequencyResponse:
     H_model: np.ndarray | None = None
     sample_rate: float = 0.0
     note: str | None = None
+    departures: tuple["Departure", ...] = ()
 
     @property
     def modes(self) -> list[dict[str, Any]]:
-        """Resonances and anti-resonances of the fitted structure, lowest first.
+        """Resonances and anti-resonances of the fitted model, lowest first.
 
-        ``frequency_hz`` (Hz), ``damping`` (-), ``kind`` and ``gain``: ``|H / H_rigid|``
-        of the fitted model there (-).
+        ``frequency_hz`` (Hz), ``damping`` (-), ``kind``, ``gain``: ``|H / H_rigid|`` of the
+        fitted model there (-), ``frequency_std_hz`` (Hz) and ``damping_std`` (-): one standard
+        deviation from the fit's covariance (None where the fit gives none), and ``mode``: which
+        fitted mode (1, 2, ...) the entry belongs to.
         """
         fit = self.fit
         if fit is None or fit.mode_hz is None:
             return []
+        first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,
+                          fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5,  # type: ignore[arg-type]
+                          fit.mode_hz_std, fit.mode_damping_std, fit.mode_ratio_std)
         out = []
-        if fit.structure == "motor_side_mode":
-            r = fit.mode_ratio
-            out.append({"frequency_hz": fit.mode_hz * math.sqrt(1.0 - r),
-                        "damping": fit.mode_damping * math.sqrt(1.0 - r), "kind": "anti-resonance"})
-        out.append({"frequency_hz": fit.mode_hz, "damping": fit.mode_damping, "kind": "resonance"})
+        for k, m in enumerate((first,) + tuple(fit.extra), start=1):
+            if m.kind == "motor":
+                c = math.sqrt(1.0 - m.ratio)
+                out.append({"frequency_hz": m.hz * c, "damping": m.damping * c, "kind": "anti-resonance",
+                            "frequency_std_hz": None if m.hz_std is None else m.hz_std * c,
+                            "damping_std": None if m.damping_std is None else m.damping_std * c, "mode": k})
+            out.append({"frequency_hz": m.hz, "damping": m.damping, "kind": "resonance",
+                        "frequency_std_hz": m.hz_std, "damping_std": m.damping_std, "mode": k})
         for m in out:
             m["gain"] = self._model_gain(m["frequency_hz"])
+        out.sort(key=lambda m: m["frequency_hz"])
         return out
 
     def _model_gain(self, f_hz: float) -> float:
         Ts = 1.0 / self.sample_rate
-        Hm = sampled_plant(self.fit.plant(self.M, self.B, Ts), Ts).frequency_response(np.array([f_hz]))[0]  # type: ignore[union-attr]
+        Hm = self.fit.response(self.M, self.B, Ts, np.array([f_hz]))[0]  # type: ignore[union-attr]
         Hr = rigid_frequency_response(self.M, self.B, Ts, np.array([f_hz]))[0]
         return float(abs(Hm / Hr))
 
@@ -227,16 +308,32 @@ class FrequencyResponse:
                 "mode_ratio": None if fit.mode_ratio is None else float(fit.mode_ratio),
                 "mode_ratio_identified": (fit.structure == "motor_side_mode") if has_mode else None,
                 "mode_load_side": (fit.structure == "load_side_mode") if has_mode else None,
+                "mode_hz_std": fit.mode_hz_std,
+                "mode_damping_std": fit.mode_damping_std,
                 "delay_s": fit.delay_samples / self.sample_rate,
+                "delay_std_s": None if fit.delay_std is None else fit.delay_std / self.sample_rate,
                 "mass_scale": fit.mass_scale,
+                "n_modes": fit.n_modes,
             }
+            m2 = fit.extra[0] if fit.extra else None
+            model.update({
+                "mode2_hz": None if m2 is None else m2.hz,
+                "mode2_damping": None if m2 is None else m2.damping,
+                "mode2_ratio": None if m2 is None else float(m2.ratio),
+                "mode2_ratio_identified": None if m2 is None else m2.kind == "motor",
+                "mode2_load_side": None if m2 is None else m2.kind == "load",
+                "mode2_hz_std": None if m2 is None else m2.hz_std,
+                "mode2_damping_std": None if m2 is None else m2.damping_std,
+            })
         quality = None
         if fit is not None:
             quality = {
                 "structure": fit.structure,
+                "n_modes": fit.n_modes,
                 "model_rms_error": _weighted_rms(self.H, self.H_model, self.coherence),
                 "rigid_rms_error": _weighted_rms(self.H, self.H_rigid, self.coherence),
                 "scores": {k: v.score for k, v in self.fits.items()},
+                "criterion": "BIC, unknown scale: n ln(cost/n) + k ln n (lower is better)",
                 "n_residuals": fit.n_residuals,
             }
         coherent = self.coherence >= BAND_COHERENCE
@@ -251,10 +348,58 @@ class FrequencyResponse:
             "delay_samples": fit.delay_samples if fit is not None else None,
             "model": model,
             "fit_quality": quality,
+            "departures": [d.to_dict() for d in self.departures],
             "note": self.note,
             "units": {"frequency": "Hz", "delay_s": "s", "delay_samples": "samples",
+                      "frequency_std_hz": "Hz", "departures.ratio_db": "dB",
                       "rms_error": "coherence-weighted RMS of |ln(H_measured / H_model)|"},
         }
+
+    @property
+    def warnings(self) -> list[str]:
+        """One sentence per departure of the measured response from the fitted model (a missed mode?)."""
+        return [d.sentence() for d in self.departures]
+
+
+@dataclass(frozen=True)
+class Departure:
+    """A run of coherent bins where the measured response departs from the fitted model beyond its uncertainty.
+
+    Attributes
+    ----------
+    frequency_hz : float
+        Bin of the largest departure, Hz.
+    low_hz, high_hz : float
+        The run, Hz.
+    ratio_db : float
+        ``20 log10 |H_measured / H_model|`` there, dB.
+    phase_deg : float
+        Phase of that ratio, degrees.
+    sigma : float
+        The departure in standard deviations of the estimate there (from its coherence), -.
+    coherence : float
+        There, -.
+    """
+
+    frequency_hz: float
+    low_hz: float
+    high_hz: float
+    ratio_db: float
+    phase_deg: float
+    sigma: float
+    coherence: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {"frequency_hz": self.frequency_hz, "low_hz": self.low_hz, "high_hz": self.high_hz,
+                "ratio_db": self.ratio_db, "phase_deg": self.phase_deg, "sigma": self.sigma,
+                "coherence": self.coherence}
+
+    def sentence(self) -> str:
+        return (f"frequency response: the measured response departs from the fitted model at "
+                f"{self.frequency_hz:.4g} Hz by {self.ratio_db:+.1f} dB and {self.phase_deg:+.0f} deg "
+                f"({self.sigma:.0f} standard deviations at coherence {self.coherence:.2f}; "
+                f"{self.low_hz:.4g}-{self.high_hz:.4g} Hz): a mode the model lacks? The simulator does "
+                f"not hold it")
 
 
 def _weighted_rms(H: np.ndarray, Hm: np.ndarray | None, coh: np.ndarray) -> float | None:
@@ -398,50 +543,201 @@ def _plant(structure: str, M: float, B: float, Ts: float, delay_samples: float, 
                         mode_load_side=structure == "load_side_mode", delay=delay_samples * Ts)
 
 
-def _unpack(structure: str, x: np.ndarray) -> tuple[float, float, float, float, float]:
-    """x -> (mass_scale, delay_samples, mode_hz, damping, ratio)."""
+def _factor(m: ExtraMode) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and denominator (descending powers of s) of an extra mode's factor (:class:`ExtraMode`)."""
+    w = 2.0 * math.pi * m.hz
+    den = np.array([1.0, 2.0 * m.damping * w, w * w])
+    if m.kind == "load":
+        return np.array([0.0, 2.0 * m.damping * w, w * w]), den
+    # (w/wa)^2 (s^2 + 2 zeta_a wa s + wa^2) with wa = w sqrt(1 - r), zeta_a = zeta sqrt(1 - r): the
+    # two-mass plant's motor-side numerator (m2 s^2 + c s + k) / k.
+    return np.array([1.0 / (1.0 - m.ratio), 2.0 * m.damping * w, w * w]), den
+
+
+def _sampled_response(A: np.ndarray, Bm: np.ndarray, C: np.ndarray, Ts: float, tau: float,
+                      f: np.ndarray) -> np.ndarray:
+    """Response at ``f`` (Hz) of ``(A, Bm, C)`` behind a zero-order hold and ``tau`` samples of input delay.
+
+    The discretisation of :func:`commission.controllers.linear.sampled_plant` (modified
+    z-transform), for any continuous model.
+    """
+    n = int(math.floor(tau + 1e-9))
+    fr = tau - n
+    if fr < 1e-9:
+        fr = 0.0
+    Phi_a, G_a = _hold(A, Bm, (1.0 - fr) * Ts)
+    if fr > 0:
+        Phi_b, G_b = _hold(A, Bm, fr * Ts)
+        G1 = Phi_a @ G_b
+        Phi = Phi_a @ Phi_b
+    else:
+        G1 = np.zeros_like(G_a)
+        Phi = Phi_a
+    return SampledPlant(Phi=Phi, G0=G_a, G1=G1, C=C, n=n, Ts=float(Ts)).frequency_response(f)
+
+
+def _model_response(structure: str, M: float, B: float, Ts: float, delay_samples: float, mode_hz: float,
+                    damping: float, ratio: float, extra: tuple[ExtraMode, ...], f: np.ndarray) -> np.ndarray:
+    """Sampled response of the two-mass plant (first mode) behind the extra modes' factors, m per u-unit."""
+    A, Bm, C = continuous_model(_plant(structure, M, B, Ts, 0.0, mode_hz, damping, ratio))
+    for m in extra:
+        num, den = _factor(m)
+        Af, Bf, Cf, Df = signal.tf2ss(num, den)
+        nf, nx = Af.shape[0], A.shape[0]
+        A2 = np.zeros((nf + nx, nf + nx))
+        A2[:nf, :nf] = Af
+        A2[nf:, :nf] = Bm @ Cf
+        A2[nf:, nf:] = A
+        B2 = np.vstack([Bf, Bm * float(Df[0, 0])])
+        C2 = np.hstack([np.zeros((1, nf)), C])
+        A, Bm, C = A2, B2, C2
+    return _sampled_response(A, Bm, C, Ts, delay_samples, f)
+
+
+def _layout(structure: str, extra_kinds: tuple[str, ...]) -> list[int]:
+    """Parameters per mode: 0 (rigid), 2 (load side: f, zeta) or 3 (motor side: f, zeta, r)."""
+    first = {"rigid": 0, "load_side_mode": 2, "motor_side_mode": 3}[structure]
+    return [first] + [3 if k == "motor" else 2 for k in extra_kinds]
+
+
+def _unpack(structure: str, x: np.ndarray, extra_kinds: tuple[str, ...] = ()
+            ) -> tuple[float, float, float, float, float, tuple[ExtraMode, ...]]:
+    """x -> (mass_scale, delay_samples, mode_hz, damping, ratio, extra modes)."""
     scale, delay = math.exp(x[0]), x[1]
-    if structure == "rigid":
-        return scale, delay, 0.0, 0.0, 0.5
-    ratio = x[4] if structure == "motor_side_mode" else 0.5
-    return scale, delay, math.exp(x[2]), math.exp(x[3]), ratio
+    lay = _layout(structure, extra_kinds)
+    i = 2
+    fr = z = 0.0
+    r = 0.5
+    if lay[0]:
+        fr, z = math.exp(x[2]), math.exp(x[3])
+        r = x[4] if lay[0] == 3 else 0.5
+    i += lay[0]
+    extra = []
+    for kind, k in zip(extra_kinds, lay[1:]):
+        extra.append(ExtraMode(kind, math.exp(x[i]), math.exp(x[i + 1]), float(x[i + 2]) if k == 3 else 0.5))
+        i += k
+    return scale, delay, fr, z, r, tuple(extra)
+
+
+def _weights(coh: np.ndarray, n_avg: int) -> np.ndarray:
+    """Inverse standard deviation of ln H (each of its real and imaginary parts) per bin, from the coherence."""
+    g2 = np.minimum(coh, COHERENCE_CAP)
+    return np.sqrt(2.0 * n_avg * g2 / (1.0 - g2))
 
 
 def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray, n_avg: int,
-                  M: float, B: float, Ts: float, starts: list[np.ndarray]) -> StructureFit:
-    """Fit one structure from several starts; the best by cost (module docstring, step 4)."""
-    g2 = np.minimum(coh, COHERENCE_CAP)
-    sw = np.sqrt(2.0 * n_avg * g2 / (1.0 - g2))
+                  M: float, B: float, Ts: float, starts: list[np.ndarray],
+                  extra_kinds: tuple[str, ...] = ()) -> StructureFit:
+    """Fit one structure from several starts; the best by cost (module docstring, step 4).
+
+    ``extra_kinds`` adds further modes (:class:`ExtraMode`) after the first.  The
+    parameters' standard deviations come from the Jacobian at the solution,
+    ``cov = (J^T J)^-1 max(1, cost / (n - k))``.
+    """
+    sw = _weights(coh, n_avg)
     logH = np.log(H)
     fmin = float(f[0])
 
     def resid(x: np.ndarray) -> np.ndarray:
-        s, d, fr, z, r = _unpack(structure, x)
-        Hm = sampled_plant(_plant(structure, M * s, B, Ts, d, fr, z, r), Ts).frequency_response(f)
+        s, d, fr, z, r, extra = _unpack(structure, x, extra_kinds)
+        Hm = _model_response(structure, M * s, B, Ts, d, fr, z, r, extra, f)
         e = logH - np.log(Hm)
         ph = np.angle(np.exp(1j * e.imag))  # phase error wrapped to (-pi, pi]
         return np.concatenate([sw * e.real, sw * ph])
 
     lo = [-1.0, 0.0]
     hi = [1.0, MAX_DELAY_SAMPLES]
-    if structure != "rigid":
-        lo += [math.log(fmin), math.log(0.002)]
-        hi += [math.log(0.5 / Ts), math.log(MAX_DAMPING)]
-    if structure == "motor_side_mode":
-        lo.append(0.02)
-        hi.append(0.95)
+    for k in _layout(structure, extra_kinds):
+        if k >= 2:
+            lo += [math.log(fmin), math.log(0.002)]
+            hi += [math.log(0.5 / Ts), math.log(MAX_DAMPING)]
+        if k == 3:
+            lo.append(0.02)
+            hi.append(0.95)
     best = None
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, float), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
         sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
         if best is None or sol.cost < best.cost:
             best = sol
-    s, d, fr, z, r = _unpack(structure, best.x)
+    s, d, fr, z, r, extra = _unpack(structure, best.x, extra_kinds)
+    n_res, n_par = int(2 * f.size), len(lo)
+    cost = float(2.0 * best.cost)
+    std = _parameter_std(best.jac, cost, n_res)
+    lay = _layout(structure, extra_kinds)
     has_mode = structure != "rigid"
+    i = 2 + lay[0]
+    ex = []
+    for m, k in zip(extra, lay[1:]):
+        ex.append(dataclasses.replace(m, hz_std=m.hz * std[i], damping_std=m.damping * std[i + 1],
+                                      ratio_std=float(std[i + 2]) if k == 3 else None))
+        i += k
     return StructureFit(structure=structure, mass_scale=s, delay_samples=float(d),
                         mode_hz=fr if has_mode else None, mode_damping=z if has_mode else None,
-                        mode_ratio=r if has_mode else None, cost=float(2.0 * best.cost),
-                        n_residuals=int(2 * f.size), n_params=len(lo))
+                        mode_ratio=r if has_mode else None, cost=cost, n_residuals=n_res, n_params=n_par,
+                        mode_hz_std=fr * std[2] if has_mode else None,
+                        mode_damping_std=z * std[3] if has_mode else None,
+                        mode_ratio_std=float(std[4]) if lay[0] == 3 else None,
+                        delay_std=float(std[1]), extra=tuple(ex))
+
+
+def _parameter_std(J: np.ndarray, cost: float, n: int) -> np.ndarray:
+    """Standard deviations of the fitted parameters from the Jacobian of the normalised residuals."""
+    k = J.shape[1]
+    scale = max(1.0, cost / max(n - k, 1))
+    cov = np.linalg.pinv(J.T @ J) * scale
+    return np.sqrt(np.maximum(np.diag(cov), 0.0))
+
+
+def departures(f: np.ndarray, H: np.ndarray, Hm: np.ndarray, coh: np.ndarray, n_avg: int,
+               alpha: float = DEPARTURE_ALPHA) -> list[Departure]:
+    """Runs of bins where the measured response departs from a model beyond the estimate's uncertainty.
+
+    A bin departs when both hold:
+
+    * **beyond its uncertainty**: ``z^2 = w^2 |ln(H / H_model)|^2`` (``w`` from the
+      coherence, :func:`_weights`; real and imaginary parts each of unit variance for a right
+      model, so ``z^2`` is chi-square with 2 degrees of freedom) exceeds the level a right
+      model passes with probability ``alpha`` over *all* the bins at once (Bonferroni:
+      ``z^2 > -2 ln(alpha / n_bins)``);
+    * **large enough to matter**: the gain ratio is outside ``BAND_GAIN_TOL`` or its phase
+      outside ``BAND_PHASE_TOL_DEG`` (the tolerance that ends the band the data back).
+
+    Runs of such bins (gaps of one bin bridged) of at least two bins are reported at their
+    largest gain ratio.  Only bins with coherence ``>= FIT_COHERENCE`` are looked at.
+    """
+    ok = (coh >= FIT_COHERENCE) & (np.abs(H) > 0) & (np.abs(Hm) > 0)
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return []
+    e = np.log(H[idx] / Hm[idx])
+    e = e.real + 1j * np.angle(np.exp(1j * e.imag))
+    z2 = (_weights(coh[idx], n_avg) ** 2) * np.abs(e) ** 2
+    level = -2.0 * math.log(alpha / idx.size)
+    big = (np.abs(e.real) > math.log(BAND_GAIN_TOL)) | (np.abs(np.degrees(e.imag)) > BAND_PHASE_TOL_DEG)
+    flag = (z2 > level) & big
+    out: list[Departure] = []
+    j = 0
+    while j < idx.size:
+        if not flag[j]:
+            j += 1
+            continue
+        k = j
+        last = j
+        while k + 1 < idx.size and (flag[k + 1] or (k + 2 < idx.size and flag[k + 2])):
+            k += 1
+            if flag[k]:
+                last = k
+        run = np.arange(j, last + 1)
+        run = run[flag[run]]
+        if run.size >= 2:
+            p = run[int(np.argmax(np.abs(e.real[run])))]
+            out.append(Departure(frequency_hz=float(f[idx[p]]), low_hz=float(f[idx[run[0]]]),
+                                 high_hz=float(f[idx[run[-1]]]), ratio_db=float(20.0 / math.log(10.0) * e.real[p]),
+                                 phase_deg=float(np.degrees(e.imag[p])), sigma=float(math.sqrt(z2[p])),
+                                 coherence=float(coh[idx[p]])))
+        j = last + 1
+    return out
 
 
 def _starts(f: np.ndarray, R: np.ndarray, coh: np.ndarray, fs: float) -> tuple[float, list[float], list[tuple[float, float]]]:
@@ -470,7 +766,59 @@ def _starts(f: np.ndarray, R: np.ndarray, coh: np.ndarray, fs: float) -> tuple[f
     return delay0, res, pairs
 
 
-def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float) -> FrequencyResponse:
+def _pack(fit: StructureFit) -> np.ndarray:
+    """The parameter vector of a fit (the inverse of :func:`_unpack`)."""
+    x = [math.log(fit.mass_scale), fit.delay_samples]
+    if fit.structure != "rigid":
+        x += [math.log(fit.mode_hz), math.log(fit.mode_damping)]  # type: ignore[arg-type]
+        if fit.structure == "motor_side_mode":
+            x.append(fit.mode_ratio)
+    for m in fit.extra:
+        x += [math.log(m.hz), math.log(m.damping)] + ([m.ratio] if m.kind == "motor" else [])
+    return np.array(x, dtype=float)
+
+
+def _on_edge(hz: float, damping: float, fmin: float, fs: float) -> bool:
+    return damping >= 0.99 * MAX_DAMPING or hz <= 1.01 * fmin or hz >= 0.99 * 0.5 * fs
+
+
+def _one_more_mode(current: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int,
+                   M: float, B: float, Ts: float) -> StructureFit | None:
+    """``current`` with one more mode, started where the data depart from it; None when none is supported.
+
+    The larger model is kept when it lowers the information criterion
+    (:attr:`StructureFit.score`), its new mode changes the response by more than
+    ``BAND_GAIN_TOL`` somewhere in the fitted range, and that mode is not on a bound.
+    """
+    deps = departures(ff, Hf, current.response(M, B, Ts, ff), cf, n_avg)
+    if not deps:
+        return None
+    x0 = _pack(current)
+    kinds = tuple(m.kind for m in current.extra)
+    cands = []
+    for kind in ("load", "motor"):
+        starts = []
+        for d in sorted(deps, key=lambda d: -d.sigma)[:3]:
+            for z in (0.03, 0.15):
+                tail = [math.log(d.frequency_hz), math.log(z)] + ([0.3] if kind == "motor" else [])
+                starts.append(np.concatenate([x0, tail]))
+        cands.append(fit_structure(current.structure, ff, Hf, cf, n_avg, M, B, Ts, starts,
+                                   extra_kinds=kinds + (kind,)))
+    cand = min(cands, key=lambda s: s.score)
+    if not cand.score < current.score:
+        return None
+    new = cand.extra[-1]
+    if _on_edge(new.hz, new.damping, float(ff[0]), 1.0 / Ts):
+        return None
+    without = dataclasses.replace(cand, extra=cand.extra[:-1])
+    change = np.abs(np.log(np.abs(cand.response(M, B, Ts, ff) / without.response(M, B, Ts, ff))))
+    if not np.max(change) > math.log(BAND_GAIN_TOL):
+        return None
+    return cand
+
+
+def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float,
+                       max_modes: int = MAX_MODES) -> FrequencyResponse:
     """Measure the response u -> q of a log and compare it with the rigid model (module docstring).
 
     Parameters
@@ -483,6 +831,9 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         Command, u-unit.
     M, B : float
         Identified rigid model, u-unit s^2/m and u-unit s/m.
+    max_modes : int
+        Most structural modes fitted (0: rigid body only).  Fewer than the data hold leaves
+        the rest as :attr:`FrequencyResponse.departures`, each named by its frequency.
 
     Returns
     -------
@@ -541,35 +892,41 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
     delay0, res, pairs = _starts(ff, Rf, cf, fs)
     lM = 0.0
     fits: dict[str, StructureFit] = {}
+    note = None
     with threadpool_limits(1):
         fits["rigid"] = fit_structure("rigid", ff, Hf, cf, n_avg, M, B, Ts,
                                       [np.array([lM, delay0]), np.array([lM, 0.0])])
         d0 = fits["rigid"].delay_samples
-        load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
-                       for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6)})]
-        fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
-        motor_starts = []
-        for fa, fr in pairs:
-            r0 = float(np.clip(1.0 - (fa / fr) ** 2, 0.05, 0.9))
-            for z in (0.03, 0.15):
-                motor_starts.append(np.array([lM, delay0, math.log(fr), math.log(z), r0]))
-        if motor_starts:
-            fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts,
-                                                    motor_starts)
-    best = min(fits.values(), key=lambda s: s.score)
-    note = None
-    if best.structure != "rigid":
-        Hm = sampled_plant(best.plant(M, B, Ts), Ts).frequency_response(ff)
-        rigid_like = sampled_plant(plant_vector(M * best.mass_scale, B, delay=best.delay_samples * Ts),
-                                   Ts).frequency_response(ff)
-        on_edge = (best.mode_damping >= 0.99 * MAX_DAMPING or best.mode_hz <= 1.01 * float(ff[0])  # type: ignore[operator]
-                   or best.mode_hz >= 0.99 * 0.5 * fs)  # type: ignore[operator]
-        if np.max(np.abs(np.log(np.abs(Hm / rigid_like)))) <= math.log(BAND_GAIN_TOL):
-            best = fits["rigid"]
-            note = "the best mode changes the response by less than the band tolerance: reported as rigid"
-        elif on_edge:
-            best = fits["rigid"]
-            note = ("the best mode sits on the edge of what the data can show (damping or frequency at its "
-                    "bound): reported as rigid; see the measured response")
-    H_model = sampled_plant(best.plant(M, B, Ts), Ts).frequency_response(f)
-    return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, **common)
+        if max_modes >= 1:
+            load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
+                           for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6)})]
+            fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
+            motor_starts = []
+            for fa, fr in pairs:
+                r0 = float(np.clip(1.0 - (fa / fr) ** 2, 0.05, 0.9))
+                for z in (0.03, 0.15):
+                    motor_starts.append(np.array([lM, delay0, math.log(fr), math.log(z), r0]))
+            if motor_starts:
+                fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts,
+                                                        motor_starts)
+        best = min(fits.values(), key=lambda s: s.score)
+        if best.structure != "rigid":
+            Hm = best.response(M, B, Ts, ff)
+            rigid_like = sampled_plant(plant_vector(M * best.mass_scale, B, delay=best.delay_samples * Ts),
+                                       Ts).frequency_response(ff)
+            if np.max(np.abs(np.log(np.abs(Hm / rigid_like)))) <= math.log(BAND_GAIN_TOL):
+                best = fits["rigid"]
+                note = "the best mode changes the response by less than the band tolerance: reported as rigid"
+            elif _on_edge(best.mode_hz, best.mode_damping, float(ff[0]), fs):  # type: ignore[arg-type]
+                best = fits["rigid"]
+                note = ("the best mode sits on the edge of what the data can show (damping or frequency at its "
+                        "bound): reported as rigid; see the measured response")
+        while best.structure != "rigid" and best.n_modes < max_modes:
+            more = _one_more_mode(best, ff, Hf, cf, n_avg, M, B, Ts)
+            if more is None:
+                break
+            best = more
+            fits[f"{best.n_modes}_modes"] = best
+    H_model = best.response(M, B, Ts, f)
+    deps = tuple(departures(ff, Hf, best.response(M, B, Ts, ff), cf, n_avg))
+    return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, departures=deps, **common)
