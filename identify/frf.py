@@ -52,6 +52,7 @@ cost), so the fit runs under ``threadpoolctl.threadpool_limits(1)``.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -97,6 +98,9 @@ MAX_DAMPING = 0.7
 MIN_FIT_BINS = 12
 #: Probability that a right model shows a departure somewhere in the measured response (:func:`departures`).
 DEPARTURE_ALPHA = 0.01
+#: Multi-start fits: iterations of the screening stage from every start, and the starts kept to the end.
+SCREEN_NFEV = 30
+SCREEN_KEEP = 2
 #: Most modes fitted (each further one must lower the information criterion and pass the guards).
 MAX_MODES = 4
 
@@ -543,15 +547,22 @@ def _plant(structure: str, M: float, B: float, Ts: float, delay_samples: float, 
                         mode_load_side=structure == "load_side_mode", delay=delay_samples * Ts)
 
 
-def _factor(m: ExtraMode) -> tuple[np.ndarray, np.ndarray]:
-    """Numerator and denominator (descending powers of s) of an extra mode's factor (:class:`ExtraMode`)."""
+def _factor(m: ExtraMode) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """State space ``(A, B, C, D)`` of an extra mode's factor (:class:`ExtraMode`), scaled states.
+
+    States ``x1``, ``x2 = x1' / w`` with ``x1'' + 2 zeta w x1' + w^2 x1 = w^2 u``: then
+    ``load = x1 + 2 zeta x2`` and ``motor = (w/wa)^2 (s^2 + 2 zeta_a wa s + wa^2) / den =
+    (1 - 1/c) (x1 + 2 zeta x2) + u / c`` with ``c = 1 - r`` (the two-mass plant's motor-side
+    numerator ``(m2 s^2 + c s + k) / k``).  Both have unit gain at DC.
+    """
     w = 2.0 * math.pi * m.hz
-    den = np.array([1.0, 2.0 * m.damping * w, w * w])
+    A = np.array([[0.0, w], [-w, -2.0 * m.damping * w]])
+    B = np.array([[0.0], [w]])
+    C = np.array([[1.0, 2.0 * m.damping]])
     if m.kind == "load":
-        return np.array([0.0, 2.0 * m.damping * w, w * w]), den
-    # (w/wa)^2 (s^2 + 2 zeta_a wa s + wa^2) with wa = w sqrt(1 - r), zeta_a = zeta sqrt(1 - r): the
-    # two-mass plant's motor-side numerator (m2 s^2 + c s + k) / k.
-    return np.array([1.0 / (1.0 - m.ratio), 2.0 * m.damping * w, w * w]), den
+        return A, B, C, 0.0
+    c = 1.0 - m.ratio
+    return A, B, C * (1.0 - 1.0 / c), 1.0 / c
 
 
 def _sampled_response(A: np.ndarray, Bm: np.ndarray, C: np.ndarray, Ts: float, tau: float,
@@ -581,14 +592,13 @@ def _model_response(structure: str, M: float, B: float, Ts: float, delay_samples
     """Sampled response of the two-mass plant (first mode) behind the extra modes' factors, m per u-unit."""
     A, Bm, C = continuous_model(_plant(structure, M, B, Ts, 0.0, mode_hz, damping, ratio))
     for m in extra:
-        num, den = _factor(m)
-        Af, Bf, Cf, Df = signal.tf2ss(num, den)
+        Af, Bf, Cf, Df = _factor(m)
         nf, nx = Af.shape[0], A.shape[0]
         A2 = np.zeros((nf + nx, nf + nx))
         A2[:nf, :nf] = Af
         A2[nf:, :nf] = Bm @ Cf
         A2[nf:, nf:] = A
-        B2 = np.vstack([Bf, Bm * float(Df[0, 0])])
+        B2 = np.vstack([Bf, Bm * Df])
         C2 = np.hstack([np.zeros((1, nf)), C])
         A, Bm, C = A2, B2, C2
     return _sampled_response(A, Bm, C, Ts, delay_samples, f)
@@ -654,9 +664,14 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
         if k == 3:
             lo.append(0.02)
             hi.append(0.95)
+    x0s = [np.clip(np.asarray(x0, float), np.array(lo) + 1e-9, np.array(hi) - 1e-9) for x0 in starts]
+    if len(x0s) > SCREEN_KEEP:
+        # Multi-start in two stages: a few iterations from every start, then the best few to the end.
+        screened = [least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=SCREEN_NFEV) for x0 in x0s]
+        screened.sort(key=lambda s: s.cost)
+        x0s = [s.x for s in screened[:SCREEN_KEEP]]
     best = None
-    for x0 in starts:
-        x0 = np.clip(np.asarray(x0, float), np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    for x0 in x0s:
         sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
         if best is None or sol.cost < best.cost:
             best = sol
@@ -782,39 +797,102 @@ def _on_edge(hz: float, damping: float, fmin: float, fs: float) -> bool:
     return damping >= 0.99 * MAX_DAMPING or hz <= 1.01 * fmin or hz >= 0.99 * 0.5 * fs
 
 
-def _one_more_mode(current: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int,
-                   M: float, B: float, Ts: float) -> StructureFit | None:
-    """``current`` with one more mode, started where the data depart from it; None when none is supported.
+def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
+                   n_avg: int, M: float, B: float, Ts: float) -> StructureFit | None:
+    """The fit with one mode more than ``current``; None when the data do not support it.
 
-    The larger model is kept when it lowers the information criterion
-    (:attr:`StructureFit.score`), its new mode changes the response by more than
-    ``BAND_GAIN_TOL`` somewhere in the fitted range, and that mode is not on a bound.
+    Starts come from the data: ``current`` plus a mode where the measured response
+    departs from it (:func:`departures`), and afresh every choice of ``k + 1`` frequencies
+    among the peaks of ``|H / H_rigid|`` (``peaks``), the departures and ``current``'s modes,
+    all seen on the motor side or all on the load side (a fit of one mode too few can be a
+    compromise far from either, so it is not always the best place to start from).  The
+    larger model is kept when it lowers the information criterion
+    (:attr:`StructureFit.score`), each of its modes changes the response by more than
+    ``BAND_GAIN_TOL`` somewhere in the fitted range, and none is on a bound.
     """
     deps = departures(ff, Hf, current.response(M, B, Ts, ff), cf, n_avg)
     if not deps:
         return None
+    dep_f = [d.frequency_hz for d in sorted(deps, key=lambda d: -d.sigma)[:3]]
+    k = current.n_modes + 1
     x0 = _pack(current)
     kinds = tuple(m.kind for m in current.extra)
     cands = []
     for kind in ("load", "motor"):
-        starts = []
-        for d in sorted(deps, key=lambda d: -d.sigma)[:3]:
-            for z in (0.03, 0.15):
-                tail = [math.log(d.frequency_hz), math.log(z)] + ([0.3] if kind == "motor" else [])
-                starts.append(np.concatenate([x0, tail]))
+        starts = [np.concatenate([x0, [math.log(fd), math.log(z)] + ([0.3] if kind == "motor" else [])])
+                  for fd in dep_f for z in (0.03, 0.15)]
         cands.append(fit_structure(current.structure, ff, Hf, cf, n_avg, M, B, Ts, starts,
                                    extra_kinds=kinds + (kind,)))
-    cand = min(cands, key=lambda s: s.score)
-    if not cand.score < current.score:
-        return None
-    new = cand.extra[-1]
-    if _on_edge(new.hz, new.damping, float(ff[0]), 1.0 / Ts):
-        return None
-    without = dataclasses.replace(cand, extra=cand.extra[:-1])
-    change = np.abs(np.log(np.abs(cand.response(M, B, Ts, ff) / without.response(M, B, Ts, ff))))
-    if not np.max(change) > math.log(BAND_GAIN_TOL):
-        return None
-    return cand
+    own = [current.mode_hz] + [m.hz for m in current.extra]  # type: ignore[list-item]
+    pool: list[float] = []
+    for fr in sorted(set(own) | set(peaks[:3]) | set(dep_f)):
+        if all(abs(fr - p) > 0.05 * p for p in pool):
+            pool.append(fr)
+    for first, kind in (("load_side_mode", "load"), ("motor_side_mode", "motor")):
+        per = 3 if kind == "motor" else 2
+        starts = []
+        for combo in itertools.combinations(pool, k):
+            x = [0.0, current.delay_samples]
+            for fr in combo:
+                x += [math.log(fr), math.log(0.05)] + ([0.3] if per == 3 else [])
+            starts.append(np.array(x))
+        if starts:
+            cands.append(fit_structure(first, ff, Hf, cf, n_avg, M, B, Ts, starts, extra_kinds=(kind,) * (k - 1)))
+    for cand in sorted(cands, key=lambda s: s.score):
+        if not cand.score < current.score:
+            return None
+        if _modes_hold(cand, ff, M, B, Ts):
+            return cand
+    return None
+
+
+def _keep_modes(fit: StructureFit, n: int, ff: np.ndarray, M: float, B: float, Ts: float) -> StructureFit:
+    """``fit`` cut to the ``n`` modes that change its response most, as fitted (no refit).
+
+    A refit with fewer modes than the data hold can land on a compromise that is none of
+    them; kept as fitted, the dropped modes show as departures at their own frequencies.
+    """
+    first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,  # type: ignore[arg-type]
+                      fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5,  # type: ignore[arg-type]
+                      fit.mode_hz_std, fit.mode_damping_std, fit.mode_ratio_std)
+    modes = [first, *fit.extra]
+    full = fit.response(M, B, Ts, ff)
+
+    def effect(i: int) -> float:
+        return float(np.max(np.abs(np.log(np.abs(full / _with_modes(fit, modes[:i] + modes[i + 1:]).response(M, B, Ts, ff))))))
+
+    order = sorted(range(len(modes)), key=lambda i: -effect(i))
+    kept = [modes[i] for i in sorted(order[:n], key=lambda i: modes[i].hz)]
+    return _with_modes(fit, kept)
+
+
+def _with_modes(fit: StructureFit, modes: list[ExtraMode]) -> StructureFit:
+    """``fit`` (mass, delay, cost) with its modes replaced: the first as the two-mass plant's, the rest as factors."""
+    if not modes:
+        return dataclasses.replace(fit, structure="rigid", mode_hz=None, mode_damping=None, mode_ratio=None,
+                                   mode_hz_std=None, mode_damping_std=None, mode_ratio_std=None, extra=())
+    m = modes[0]
+    return dataclasses.replace(fit, structure="motor_side_mode" if m.kind == "motor" else "load_side_mode",
+                               mode_hz=m.hz, mode_damping=m.damping, mode_ratio=m.ratio, mode_hz_std=m.hz_std,
+                               mode_damping_std=m.damping_std, mode_ratio_std=m.ratio_std, extra=tuple(modes[1:]))
+
+
+def _modes_hold(fit: StructureFit, ff: np.ndarray, M: float, B: float, Ts: float) -> bool:
+    """Every extra mode of ``fit`` is off its bounds and changes the fitted response by more than ``BAND_GAIN_TOL``."""
+    full = fit.response(M, B, Ts, ff)
+    for i, m in enumerate(fit.extra):
+        if _on_edge(m.hz, m.damping, float(ff[0]), 1.0 / Ts):
+            return False
+        without = dataclasses.replace(fit, extra=fit.extra[:i] + fit.extra[i + 1:])
+        if not np.max(np.abs(np.log(np.abs(full / without.response(M, B, Ts, ff))))) > math.log(BAND_GAIN_TOL):
+            return False
+    if fit.structure != "rigid":
+        if _on_edge(fit.mode_hz, fit.mode_damping, float(ff[0]), 1.0 / Ts):  # type: ignore[arg-type]
+            return False
+        rigid_first = dataclasses.replace(fit, structure="rigid", extra=fit.extra)
+        if not np.max(np.abs(np.log(np.abs(full / rigid_first.response(M, B, Ts, ff))))) > math.log(BAND_GAIN_TOL):
+            return False
+    return True
 
 
 def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float,
@@ -899,13 +977,14 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         d0 = fits["rigid"].delay_samples
         if max_modes >= 1:
             load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
-                           for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6)})]
+                           for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6), 0.0})]
             fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
             motor_starts = []
             for fa, fr in pairs:
                 r0 = float(np.clip(1.0 - (fa / fr) ** 2, 0.05, 0.9))
                 for z in (0.03, 0.15):
-                    motor_starts.append(np.array([lM, delay0, math.log(fr), math.log(z), r0]))
+                    for dd in sorted({round(delay0, 6), 0.0}):
+                        motor_starts.append(np.array([lM, dd, math.log(fr), math.log(z), r0]))
             if motor_starts:
                 fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts,
                                                         motor_starts)
@@ -921,12 +1000,17 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
                 best = fits["rigid"]
                 note = ("the best mode sits on the edge of what the data can show (damping or frequency at its "
                         "bound): reported as rigid; see the measured response")
-        while best.structure != "rigid" and best.n_modes < max_modes:
-            more = _one_more_mode(best, ff, Hf, cf, n_avg, M, B, Ts)
+        while best.structure != "rigid" and best.n_modes < MAX_MODES:
+            more = _one_more_mode(best, res, ff, Hf, cf, n_avg, M, B, Ts)
             if more is None:
                 break
             best = more
             fits[f"{best.n_modes}_modes"] = best
+        if best.n_modes > max_modes:
+            found = best.n_modes
+            best = fits["rigid"] if max_modes <= 0 else _keep_modes(best, max_modes, ff, M, B, Ts)
+            note = (f"the data hold {found} modes; the model keeps the {max_modes} that change the response "
+                    f"most (max_modes = {max_modes}): see the departures")
     H_model = best.response(M, B, Ts, f)
     deps = tuple(departures(ff, Hf, best.response(M, B, Ts, ff), cf, n_avg))
     return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, departures=deps, **common)
