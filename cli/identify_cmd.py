@@ -160,6 +160,9 @@ def identify_command(
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
     counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    max_modes: Optional[int] = typer.Option(None, "--max-modes", min=0, help=(
+        "Most structural modes the frequency response keeps (default: as many as the data hold, up to 4; "
+        "each must lower the information criterion). Modes beyond it are warned about, named by frequency.")),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
@@ -187,6 +190,8 @@ def identify_command(
         with console.status("identifying ...", spinner="dots"):
             kw = o.kwargs()
             del kw["validate_on"]
+            if max_modes is not None:
+                kw["max_modes"] = max_modes
             outcome: IdentifyOutcome | LegsOutcome = (
                 identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
                 else identify_log(files[0], validate_on=val_files or None, **kw))  # type: ignore[arg-type]

@@ -27,7 +27,8 @@ from commission.identify.bounds import ThetaBounds, friction_compensation, theta
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
 from commission.identify.fit import AxisFit, MapFit, evaluate_segments, fit_friction_map, fit_segments
 from commission.identify.friction import friction_compensation_curve, stribeck_friction
-from commission.identify.frf import FrequencyResponse, frequency_response
+from commission.controllers.linear import rigid_frequency_response
+from commission.identify.frf import MAX_MODES, EncoderNoise, FrequencyResponse, encoder_noise, frequency_response
 from commission.identify.ls import ripple_name, ripple_pitches
 from commission.identify.signals import quantization_step
 from commission.identify.steady import FrictionMap, friction_map
@@ -346,21 +347,39 @@ def _same_axis_units(logs: Sequence[ExcitationLog]) -> None:
                         f"{'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
 
 
-def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float) -> FrequencyResponse:
+def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float,
+                  max_modes: int = MAX_MODES) -> tuple[FrequencyResponse, ExcitationLog]:
     """The frequency response of the first log that holds a broadband segment, else of the longest log.
 
     The response is estimated within one recording (windows never span a join);
-    several logs of one axis rarely all carry a broadband injection.
+    several logs of one axis rarely all carry a broadband injection.  Returns the log used too.
     """
     if len(logs) == 1:
-        return frequency_response(logs[0].t, logs[0].q, logs[0].u, M, B)
+        return frequency_response(logs[0].t, logs[0].q, logs[0].u, M, B, max_modes=max_modes), logs[0]
     out = None
     for lg in sorted(logs, key=lambda lg: -lg.n):
-        fr = frequency_response(lg.t, lg.q, lg.u, M, B)
+        fr = frequency_response(lg.t, lg.q, lg.u, M, B, max_modes=max_modes)
         if fr.source == "broadband":
-            return fr
-        out = out or fr
+            return fr, lg
+        out = out or (fr, lg)
     return out  # type: ignore[return-value]
+
+
+def _encoder_noise(fr: FrequencyResponse, lg: ExcitationLog, quantization: float | None) -> EncoderNoise | None:
+    """Encoder noise and quantization's share (:func:`commission.identify.frf.encoder_noise`) of the log ``fr`` used.
+
+    The command's effect is taken out with the fitted model (modes and delay) where the log
+    has a broadband segment, else with the rigid body.
+    """
+    Ts = 1.0 / fr.sample_rate
+    if fr.fit is not None:
+        def response(f: np.ndarray) -> np.ndarray:
+            return fr.fit.response(fr.M, fr.B, Ts, f)  # type: ignore[union-attr]
+    else:
+        def response(f: np.ndarray) -> np.ndarray:
+            return rigid_frequency_response(fr.M, fr.B, Ts, f)
+    segs = [(int(np.searchsorted(lg.t, a)), int(np.searchsorted(lg.t, b)) + 1) for a, b in fr.segments]
+    return encoder_noise(lg.q, lg.u, fr.sample_rate, response, quantization, segs)
 
 
 def identify_log(
@@ -381,6 +400,7 @@ def identify_log(
     lead: float | None = None,
     gear: float | None = None,
     counts_per_rev: float | None = None,
+    max_modes: int | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -438,6 +458,10 @@ def identify_log(
         ``--counts-per-rev``: q (and q_ref) of every log in encoder counts, N per
         revolution, read as rad (:func:`commission.logs.load_log`); ``gear`` and ``lead``
         apply after it.
+    max_modes : int, optional
+        ``--max-modes``: most structural modes the frequency response keeps (default
+        :data:`commission.identify.frf.MAX_MODES`); modes beyond it are warned about, each
+        named by its frequency.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -508,7 +532,11 @@ def identify_log(
             raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
-    freq = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
+    freq, noise = None, None
+    if has_mass:
+        freq, freq_log = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0],
+                                       MAX_MODES if max_modes is None else max_modes)
+        noise = _encoder_noise(freq, freq_log, checks.quantization_step)
 
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
@@ -520,7 +548,8 @@ def identify_log(
                 + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
                                        fit.relative_error, fit.condition_number)
                 + mass_plausibility_warnings(_units(u_unit, logs[0]),
-                                             fit.parameters["M"][0] if has_mass and "M" not in fix else None))
+                                             fit.parameters["M"][0] if has_mass and "M" not in fix else None)
+                + (freq.warnings if freq is not None else []))
     several, val_several = len(logs) > 1, len(val_logs) > 1
     extra: dict[str, object] = {
         "tool": {"name": "commission", "version": __version__},
@@ -561,6 +590,7 @@ def identify_log(
         "encoder": {
             "quantization": checks.quantization_step,
             "apparent_resolution": checks.apparent_resolution,
+            **(noise.to_dict() if noise is not None else {}),
         },
         "bounds": {} if tb is None else _bounds_record(bounds, tb),
         "friction_compensation_rms_error": comp.rms_error,
