@@ -27,7 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm, matrix_balance, schur
 
-from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
+from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE2_DAMPING, P_MODE2_HZ, P_MODE2_LOAD_SIDE,
+                                          P_MODE2_RATIO, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
                                           P_MODE_RATIO, plant_vector)
 
 
@@ -35,24 +36,58 @@ def continuous_model(plant_p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     """Continuous state space ``(A, B, C)`` of the plant's linear part, force in u-unit, position in m.
 
     Rigid: states (x, v).  With a mode: (x1, v1, x2, v2), the motor side
-    first; ``C`` picks the side the encoder reads.
+    first; with a second mode also (x3, v3).  ``C`` picks the position the encoder reads
+    (the same masses, springs and dampers as :func:`commission.controllers.plant.plant_step`).
     """
     M, Bv = float(plant_p[P_M]), float(plant_p[P_B])
     if plant_p[P_MODE_HZ] <= 0:
         return (np.array([[0.0, 1.0], [0.0, -Bv / M]]), np.array([[0.0], [1.0 / M]]), np.array([[1.0, 0.0]]))
+    two = plant_p[P_MODE2_HZ] > 0
     r = float(plant_p[P_MODE_RATIO])
-    m1, m2 = (1.0 - r) * M, r * M
-    mu = m1 * m2 / M
-    w = 2.0 * math.pi * float(plant_p[P_MODE_HZ])
-    k, c = w * w * mu, 2.0 * float(plant_p[P_MODE_DAMPING]) * w * mu
-    A = np.array([[0.0, 1.0, 0.0, 0.0],
-                  [-k / m1, -(Bv + c) / m1, k / m1, c / m1],
-                  [0.0, 0.0, 0.0, 1.0],
-                  [k / m2, c / m2, -k / m2, -c / m2]])
-    Bm = np.array([[0.0], [1.0 / m1], [0.0], [0.0]])
-    C = np.zeros((1, 4))
-    C[0, 2 if plant_p[P_MODE_LOAD_SIDE] > 0.5 else 0] = 1.0
+    r2 = float(plant_p[P_MODE2_RATIO]) if two else 0.0
+    m1 = (1.0 - r - r2) * M
+    loads = [(r * M, (1.0 - r) * M, float(plant_p[P_MODE_HZ]), float(plant_p[P_MODE_DAMPING]))]
+    if two:
+        loads.append((r2 * M, (1.0 - r2) * M, float(plant_p[P_MODE2_HZ]), float(plant_p[P_MODE2_DAMPING])))
+    n = 2 + 2 * len(loads)
+    A = np.zeros((n, n))
+    A[0, 1] = 1.0
+    A[1, 1] = -Bv / m1
+    for i, (m, rest, f, zeta) in enumerate(loads):
+        mu = rest * m / M
+        w = 2.0 * math.pi * f
+        k, c = w * w * mu, 2.0 * zeta * w * mu
+        j = 2 + 2 * i
+        A[1, 0] -= k / m1
+        A[1, 1] -= c / m1
+        A[1, j] += k / m1
+        A[1, j + 1] += c / m1
+        A[j, j + 1] = 1.0
+        A[j + 1, 0], A[j + 1, 1], A[j + 1, j], A[j + 1, j + 1] = k / m, c / m, -k / m, -c / m
+    Bm = np.zeros((n, 1))
+    Bm[1, 0] = 1.0 / m1
+    C = np.zeros((1, n))
+    if two and plant_p[P_MODE2_LOAD_SIDE] > 0.5:
+        C[0, 4] = 1.0
+    else:
+        C[0, 2 if plant_p[P_MODE_LOAD_SIDE] > 0.5 else 0] = 1.0
     return A, Bm, C
+
+
+def structural_modes(plant_p: np.ndarray) -> list[tuple[float, float]]:
+    """The plant's structural modes as coupled: ``[(frequency_hz, damping), ...]``, lowest first.
+
+    The poles of :func:`continuous_model` other than the rigid body's pair: with two modes
+    hanging on the motor side, these differ a little from the appendages' own ``mode_hz`` and
+    ``mode2_hz``, and they are what a measured frequency response shows.
+    """
+    if plant_p[P_MODE_HZ] <= 0:
+        return []
+    A, _, _ = continuous_model(plant_p)
+    poles = np.linalg.eigvals(A)
+    tiny = 1e-6 * float(np.max(np.abs(poles)))  # the rigid body's double pole at 0 (and -B/M) is not a mode
+    osc = sorted((p for p in poles if p.imag > tiny), key=lambda p: abs(p))
+    return [(abs(p) / (2.0 * math.pi), -p.real / abs(p)) for p in osc]
 
 
 def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:

@@ -36,6 +36,15 @@ cap its feedback bandwidth are first-class options of the same vector:
   side: a resonance only).  The coupled equations use the same semi-implicit
   Euler step, sub-divided so that ``2 pi f_r h <= 0.25`` (stable and within
   0.3 % of the mode's frequency).
+* **A second structural mode** (optional, only beside the first): a second load
+  ``m3 = r2 M`` hangs on the motor side through its own spring and damper, set the
+  same way from ``f_2``, ``zeta_2`` with ``mu_2 = (1 - r2) M m3 / M``; the motor side keeps
+  ``m1 = (1 - r - r2) M``.  Each of ``f_r``, ``f_2`` is the mode the appendage would have
+  alone; coupled through the motor the two shift a little, and
+  :func:`commission.controllers.linear.structural_modes` gives the true ones.  The encoder
+  reads the motor side, the first load or (``mode2_load_side``) the second load: a scale on a
+  bracket or a tool tip.  Sub-steps then follow a Gershgorin bound on the highest coupled
+  frequency, so the step stays stable whatever the two modes' coupling.
 * **An input delay** ``P_DELAY`` (s, fractional samples allowed): the command
   reaches the force ``P_DELAY`` after the controller issued it.  The plant
   itself is delay-free; the sampled loop (``controllers.simulate``) applies the
@@ -67,20 +76,28 @@ P_MODE_DAMPING = 10  # damping ratio of the mode, -
 P_MODE_RATIO = 11  # load fraction r = m2 / M of the moving mass, 0 < r < 1
 P_MODE_LOAD_SIDE = 12  # 1: the encoder reads the load x2; 0: the motor side x1
 P_DELAY = 13  # input delay, s (>= 0)
-NP = 14
+P_MODE2_HZ = 14  # second structural mode, Hz (<= 0: none; needs the first mode)
+P_MODE2_DAMPING = 15  # its damping ratio, -
+P_MODE2_RATIO = 16  # its load fraction r2 = m3 / M, with r + r2 < 1
+P_MODE2_LOAD_SIDE = 17  # 1: the encoder reads the second load x3
+NP = 18
 
 #: Names of the plant vector's entries, in order (the keys of ``tuning.json``'s plants).
 PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch",
-               "mode_hz", "mode_damping", "mode_ratio", "mode_load_side", "delay")
+               "mode_hz", "mode_damping", "mode_ratio", "mode_load_side", "delay",
+               "mode2_hz", "mode2_damping", "mode2_ratio", "mode2_load_side")
 #: Their units ("u" stands for the command unit).
-PLANT_UNITS = ("u s^2/m", "u s/m", "u", "u", "m/s", "1", "u", "u", "m", "Hz", "1", "1", "1", "s")
+PLANT_UNITS = ("u s^2/m", "u s/m", "u", "u", "m/s", "1", "u", "u", "m", "Hz", "1", "1", "1", "s",
+               "Hz", "1", "1", "1")
 
 #: Layout of the plant's integration state (float64[NX]).
 X_MOTOR = 0  # motor-side position x1, m
 V_MOTOR = 1  # motor-side velocity, m/s
 X_LOAD = 2  # load position x2, m (= x1 on a rigid plant)
 V_LOAD = 3  # load velocity, m/s
-NX = 4
+X_LOAD2 = 4  # second load's position x3, m (= x1 without a second mode)
+V_LOAD2 = 5  # second load's velocity, m/s
+NX = 6
 #: Largest 2 pi f_r h of one integration step of the mode.
 MODE_STEP = 0.25
 
@@ -89,7 +106,8 @@ def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
                  vs: float = 0.01, xi: float = 2.0, offset: float = 0.0,
                  ripple_amp: float = 0.0, ripple_pitch: float = 0.0, *, mode_hz: float = 0.0,
                  mode_damping: float = 0.02, mode_ratio: float = 0.5, mode_load_side: bool = False,
-                 delay: float = 0.0) -> np.ndarray:
+                 delay: float = 0.0, mode2_hz: float = 0.0, mode2_damping: float = 0.02,
+                 mode2_ratio: float = 0.1, mode2_load_side: bool = False) -> np.ndarray:
     """Pack plant parameters into the float64 vector the kernels take.
 
     Parameters
@@ -120,6 +138,11 @@ def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
         The encoder reads the load (True) or the motor side (False).
     delay : float
         Input delay, s.
+    mode2_hz, mode2_damping, mode2_ratio : float
+        Second structural mode (Hz, 0: none), its damping ratio and load fraction ``m3 / M``;
+        it needs the first mode and ``mode_ratio + mode2_ratio < 1``.
+    mode2_load_side : bool
+        The encoder reads the second load (it takes precedence over ``mode_load_side``).
     """
     if not (M > 0 and B >= 0 and fc >= 0 and vs > 0 and xi > 0):
         raise ValueError(f"plant_vector: need M > 0, B >= 0, fc >= 0, vs > 0, xi > 0; got M={M}, B={B}, fc={fc}, vs={vs}, xi={xi}")
@@ -135,6 +158,15 @@ def plant_vector(M: float, B: float, fc: float = 0.0, fs: float | None = None,
     p[P_MODE_HZ], p[P_MODE_DAMPING], p[P_MODE_RATIO] = mode_hz, mode_damping, mode_ratio
     p[P_MODE_LOAD_SIDE] = 1.0 if mode_load_side else 0.0
     p[P_DELAY] = delay
+    if mode2_hz:
+        if not (math.isfinite(mode2_hz) and mode2_hz > 0 and mode_hz > 0 and 0 <= mode2_damping < 1
+                and 0 < mode2_ratio and mode_ratio + mode2_ratio < 1):
+            raise ValueError(f"plant_vector: a second mode needs mode2_hz > 0 beside a first mode (mode_hz > 0), "
+                             f"0 <= mode2_damping < 1, mode2_ratio > 0 and mode_ratio + mode2_ratio < 1; got "
+                             f"mode_hz={mode_hz}, mode2_hz={mode2_hz}, mode2_damping={mode2_damping}, "
+                             f"mode_ratio={mode_ratio}, mode2_ratio={mode2_ratio}")
+        p[P_MODE2_HZ], p[P_MODE2_DAMPING], p[P_MODE2_RATIO] = mode2_hz, mode2_damping, mode2_ratio
+        p[P_MODE2_LOAD_SIDE] = 1.0 if mode2_load_side else 0.0
     return p
 
 
@@ -236,11 +268,15 @@ def plant_start(p, st, x0):
     st[V_MOTOR] = 0.0
     st[X_LOAD] = x0
     st[V_LOAD] = 0.0
+    st[X_LOAD2] = x0
+    st[V_LOAD2] = 0.0
 
 
 @njit(cache=True, nogil=True)
 def plant_output(p, st):
     """Position the encoder reads, m: the load on a load-side encoder, else the motor side."""
+    if p[P_MODE2_HZ] > 0.0 and p[P_MODE2_LOAD_SIDE] > 0.5:
+        return st[X_LOAD2]
     if p[P_MODE_HZ] > 0.0 and p[P_MODE_LOAD_SIDE] > 0.5:
         return st[X_LOAD]
     return st[X_MOTOR]
@@ -251,9 +287,9 @@ def plant_step(p, st, u, h, n):
     """Advance the plant state ``st`` in place over ``n`` sub-steps of ``h`` s under the held input ``u``.
 
     A rigid plant (``p[P_MODE_HZ] <= 0``) is :func:`plant_advance`, with the load
-    coordinates kept equal to the motor's; a plant with a mode integrates the
-    two coupled masses (module docstring) with the same stiction scheme on the
-    motor side.
+    coordinates kept equal to the motor's; a plant with one or two modes integrates the
+    coupled masses (module docstring) with the same stiction scheme on the
+    motor side.  Without a second mode, the second load's coordinates follow the motor's.
     """
     if p[P_MODE_HZ] <= 0.0:
         x, v = plant_advance(p, st[X_MOTOR], st[V_MOTOR], u, h, n)
@@ -261,16 +297,32 @@ def plant_step(p, st, u, h, n):
         st[V_MOTOR] = v
         st[X_LOAD] = x
         st[V_LOAD] = v
+        st[X_LOAD2] = x
+        st[V_LOAD2] = v
         return
     M = p[P_M]
     r = p[P_MODE_RATIO]
-    m1 = (1.0 - r) * M
+    two = p[P_MODE2_HZ] > 0.0
+    r2 = p[P_MODE2_RATIO] if two else 0.0
+    m1 = (1.0 - r - r2) * M
     m2 = r * M
-    mu = m1 * m2 / M
+    mu = (1.0 - r) * M * m2 / M
     w = 2.0 * math.pi * p[P_MODE_HZ]
     k = w * w * mu
     c = 2.0 * p[P_MODE_DAMPING] * w * mu
-    split = int(math.ceil(w * h / MODE_STEP))
+    k2 = 0.0
+    c2 = 0.0
+    m3 = 1.0
+    w_top = w
+    if two:
+        m3 = r2 * M
+        mu2 = (1.0 - r2) * M * m3 / M
+        w2 = 2.0 * math.pi * p[P_MODE2_HZ]
+        k2 = w2 * w2 * mu2
+        c2 = 2.0 * p[P_MODE2_DAMPING] * w2 * mu2
+        # Gershgorin bound on the coupled stiffness matrix M^-1 K: no coupled frequency exceeds it
+        w_top = math.sqrt(max(2.0 * (k + k2) / m1, 2.0 * k / m2, 2.0 * k2 / m3))
+    split = int(math.ceil(w_top * h / MODE_STEP))
     if split < 1:
         split = 1
     hh = h / split
@@ -279,9 +331,12 @@ def plant_step(p, st, u, h, n):
     v1 = st[V_MOTOR]
     x2 = st[X_LOAD]
     v2 = st[V_LOAD]
+    x3 = st[X_LOAD2]
+    v3 = st[V_LOAD2]
     for _ in range(n * split):
         fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
-        F = u - p[P_OFFSET] - ripple(p, x1) - fk
+        fk2 = k2 * (x1 - x3) + c2 * (v1 - v3) if two else 0.0
+        F = u - p[P_OFFSET] - ripple(p, x1) - fk - fk2
         if v1 == 0.0:
             if abs(F) <= p[P_FS]:
                 v1n = 0.0
@@ -292,10 +347,19 @@ def plant_step(p, st, u, h, n):
             if v1n * v1 < 0.0 and p[P_FS] > 0.0:
                 v1n = 0.0
         v2 = v2 + fk / m2 * hh
+        if two:
+            v3 = v3 + fk2 / m3 * hh
         v1 = v1n
         x1 += v1 * hh
         x2 += v2 * hh
+        if two:
+            x3 += v3 * hh
+    if not two:
+        x3 = x1
+        v3 = v1
     st[X_MOTOR] = x1
     st[V_MOTOR] = v1
     st[X_LOAD] = x2
     st[V_LOAD] = v2
+    st[X_LOAD2] = x3
+    st[V_LOAD2] = v3

@@ -69,3 +69,68 @@ def test_stribeck_cut_is_where_the_curve_drops_below_the_last_bit():
     assert cut == pytest.approx(0.01 * math.sqrt(math.log(0.2) + 60 * math.log(2.0)), rel=1e-9)
     assert stribeck_cut(plant_vector(M=1.0, B=0.0, fc=0.1)) == 0.0  # Coulomb only
     assert stribeck_cut(plant_vector(M=1.0, B=0.0, fc=0.0, fs=0.1)) == math.inf  # no Coulomb level to round to
+
+
+def _zoh_response(p, u, Ts):
+    """Encoder position under the held inputs ``u`` from the exact ZOH discretisation of the linear model."""
+    from scipy.linalg import expm
+
+    from commission.controllers.linear import continuous_model
+    A, B, C = continuous_model(p)
+    n = A.shape[0]
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n], aug[:n, n:] = A * Ts, B * Ts
+    E = expm(aug)
+    Ad, Bd = E[:n, :n], E[:n, n:]
+    x = np.zeros(n)
+    y = np.empty(len(u))
+    for k, uk in enumerate(u):
+        x = Ad @ x + Bd[:, 0] * uk
+        y[k] = (C @ x)[0]
+    return y
+
+
+@pytest.mark.parametrize("encoder", ["motor", "load", "load2"])
+def test_two_mode_plant_matches_its_exact_linear_discretisation(encoder):
+    # Friction-free, the sub-stepped integrator must reproduce the linear model's exact ZOH response
+    # (an independent computation: matrix exponential of the continuous model) to the integrator's error.
+    from commission.controllers.plant import NX, plant_output, plant_start, plant_step
+    p = plant_vector(0.8, 2.0, mode_hz=450.0, mode_damping=0.05, mode_ratio=0.3, mode_load_side=encoder == "load",
+                     mode2_hz=1000.0, mode2_damping=0.03, mode2_ratio=0.08, mode2_load_side=encoder == "load2")
+    Ts = 1.0 / 5000.0
+    rng = np.random.default_rng(3)
+    u = rng.normal(0.0, 1.0, 500)
+    st = np.empty(NX)
+    plant_start(p, st, 0.0)
+    y = np.empty(len(u))
+    for k, uk in enumerate(u):
+        plant_step(p, st, uk, Ts / 10, 10)
+        y[k] = plant_output(p, st)
+    ref = _zoh_response(p, u, Ts)
+    assert np.max(np.abs(y - ref)) < 2e-3 * np.max(np.abs(ref))
+    if encoder == "load2":  # the bracket's own motion differs visibly from the motor side's
+        p_motor = p.copy()
+        p_motor[17] = 0.0
+        steps = np.diff(ref)
+        assert np.max(np.abs(steps - np.diff(_zoh_response(p_motor, u, Ts)))) > 1e-2 * np.max(np.abs(steps))
+
+
+def test_structural_modes_are_the_two_mass_closed_form_and_shift_when_coupled():
+    from commission.controllers.linear import structural_modes
+    # One mode, no viscous loss: the free-free mode is exactly mode_hz with damping zeta.
+    (f1, z1), = structural_modes(plant_vector(1.0, 0.0, mode_hz=500.0, mode_damping=0.04, mode_ratio=0.3))
+    assert f1 == pytest.approx(500.0, rel=1e-9) and z1 == pytest.approx(0.04, rel=1e-9)
+    two = structural_modes(plant_vector(1.0, 0.0, mode_hz=450.0, mode_damping=0.04, mode_ratio=0.3,
+                                        mode2_hz=1000.0, mode2_damping=0.03, mode2_ratio=0.05))
+    assert len(two) == 2
+    assert two[0][0] == pytest.approx(450.0, rel=0.05) and two[1][0] == pytest.approx(1000.0, rel=0.05)
+    assert two[0][0] != pytest.approx(450.0, rel=1e-6)  # coupled through the motor: shifted, not equal
+
+
+@pytest.mark.parametrize("kw", [dict(mode2_hz=800.0),  # a second mode without a first
+                                dict(mode_hz=400.0, mode_ratio=0.6, mode2_hz=800.0, mode2_ratio=0.4),
+                                dict(mode_hz=400.0, mode2_hz=800.0, mode2_damping=1.0),
+                                dict(mode_hz=400.0, mode2_hz=float("inf"))])
+def test_second_mode_is_refused_outside_its_domain(kw):
+    with pytest.raises(ValueError, match="second mode"):
+        plant_vector(1.0, 1.0, **kw)
