@@ -107,6 +107,11 @@ class AxisTruth:
     delay : float
         Input delay between the command the controller issues and the force, s
         (fractional samples allowed).
+    mode2_hz, mode2_damping, mode2_ratio : float
+        A second structural mode (Hz, 0: none; needs the first), its damping ratio and load
+        fraction ``m3 / M`` (:func:`commission.controllers.plant.plant_vector`).
+    mode2_load_side : bool
+        The encoder reads that second load (a scale on a bracket).
     """
 
     M: float
@@ -128,10 +133,15 @@ class AxisTruth:
     mode_ratio: float = 0.5
     mode_load_side: bool = False
     delay: float = 0.0
+    mode2_hz: float = 0.0
+    mode2_damping: float = 0.02
+    mode2_ratio: float = 0.1
+    mode2_load_side: bool = False
 
     def __post_init__(self) -> None:
         # JSON carries the encoder side as 0/1 (to_dict): store a bool either way.
         object.__setattr__(self, "mode_load_side", bool(self.mode_load_side))
+        object.__setattr__(self, "mode2_load_side", bool(self.mode2_load_side))
         nums = {k: v for k, v in asdict(self).items() if k != "u_unit"}
         _check_finite("AxisTruth", **nums)
         bad = [
@@ -153,6 +163,10 @@ class AxisTruth:
                 ("mode_damping", 0 <= self.mode_damping < 1, "in [0, 1)"),
                 ("mode_ratio", 0 < self.mode_ratio < 1, "in (0, 1)"),
                 ("delay", self.delay >= 0, ">= 0"),
+                ("mode2_hz", self.mode2_hz >= 0 and (self.mode2_hz == 0 or self.mode_hz > 0), ">= 0, beside a first mode"),
+                ("mode2_damping", 0 <= self.mode2_damping < 1, "in [0, 1)"),
+                ("mode2_ratio", 0 < self.mode2_ratio and self.mode_ratio + self.mode2_ratio < 1,
+                 "> 0 with mode_ratio + mode2_ratio < 1"),
             )
             if not ok
         ]
@@ -171,7 +185,9 @@ class AxisTruth:
         return plant_vector(self.M, self.B, self.fc, self.fs, self.vs, self.xi,
                             self.offset, self.ripple_amp, self.ripple_pitch, mode_hz=self.mode_hz,
                             mode_damping=self.mode_damping, mode_ratio=self.mode_ratio,
-                            mode_load_side=self.mode_load_side, delay=self.delay)
+                            mode_load_side=self.mode_load_side, delay=self.delay, mode2_hz=self.mode2_hz,
+                            mode2_damping=self.mode2_damping, mode2_ratio=self.mode2_ratio,
+                            mode2_load_side=self.mode2_load_side)
 
     def units(self) -> dict[str, str]:
         """Unit of every numeric field (``u`` stands for :attr:`u_unit`)."""
@@ -181,6 +197,8 @@ class AxisTruth:
             "offset": u, "ripple_amp": u, "ripple_pitch": "m", "lsb": "m",
             "sample_rate": "Hz", "noise_std": "m", "u_max": u,
             "mode_hz": "Hz", "mode_damping": "1", "mode_ratio": "1", "mode_load_side": "1", "delay": "s",
+            **({"mode2_hz": "Hz", "mode2_damping": "1", "mode2_ratio": "1", "mode2_load_side": "1"}
+               if self.mode2_hz > 0 else {}),  # a second mode's keys only where there is one (older files)
         }
 
     def to_dict(self) -> dict[str, Any]:

@@ -246,6 +246,8 @@ class FrequencyResponse:
     departures : tuple of Departure
         Where the measured response departs from the chosen fit beyond its uncertainty
         (:func:`departures`).
+    plant : PlantFit or None
+        Two modes as the simulator's plant (:func:`plant_fit`); None with fewer.
     """
 
     f: np.ndarray
@@ -264,6 +266,7 @@ class FrequencyResponse:
     sample_rate: float = 0.0
     note: str | None = None
     departures: tuple["Departure", ...] = ()
+    plant: "PlantFit | None" = None
 
     @property
     def modes(self) -> list[dict[str, Any]]:
@@ -320,6 +323,8 @@ class FrequencyResponse:
                 "n_modes": fit.n_modes,
             }
             m2 = fit.extra[0] if fit.extra else None
+            if self.plant is not None:
+                m2 = None
             model.update({
                 "mode2_hz": None if m2 is None else m2.hz,
                 "mode2_damping": None if m2 is None else m2.damping,
@@ -329,6 +334,20 @@ class FrequencyResponse:
                 "mode2_hz_std": None if m2 is None else m2.hz_std,
                 "mode2_damping_std": None if m2 is None else m2.damping_std,
             })
+            if self.plant is not None:
+                # The simulator's plant: each appendage's own frequency (coupled: the measured modes).
+                kw, sd = self.plant.kwargs, self.plant.std
+                model.update({
+                    "mode_hz": kw["mode_hz"], "mode_damping": kw["mode_damping"], "mode_ratio": kw["mode_ratio"],
+                    "mode_load_side": kw["mode_load_side"], "mode_ratio_identified": not kw["mode_load_side"],
+                    "mode_hz_std": sd["mode_hz"], "mode_damping_std": sd["mode_damping"],
+                    "mode2_hz": kw["mode2_hz"], "mode2_damping": kw["mode2_damping"],
+                    "mode2_ratio": kw["mode2_ratio"], "mode2_load_side": kw["mode2_load_side"],
+                    "mode2_ratio_identified": True, "mode2_hz_std": sd["mode2_hz"],
+                    "mode2_damping_std": sd["mode2_damping"], "delay_s": kw["delay"],
+                    "mass_scale": self.plant.mass_scale,
+                    "appendages": True,
+                })
         quality = None
         if fit is not None:
             quality = {
@@ -719,7 +738,8 @@ def departures(f: np.ndarray, H: np.ndarray, Hm: np.ndarray, coh: np.ndarray, n_
       outside ``BAND_PHASE_TOL_DEG`` (the tolerance that ends the band the data back).
 
     Runs of such bins (gaps of one bin bridged) of at least two bins are reported at their
-    largest gain ratio.  Only bins with coherence ``>= FIT_COHERENCE`` are looked at.
+    largest rise of the gain ratio beyond the tolerance (the resonance of a missed mode), else
+    at their deepest dip.  Only bins with coherence ``>= FIT_COHERENCE`` are looked at.
     """
     ok = (coh >= FIT_COHERENCE) & (np.abs(H) > 0) & (np.abs(Hm) > 0)
     idx = np.flatnonzero(ok)
@@ -746,7 +766,9 @@ def departures(f: np.ndarray, H: np.ndarray, Hm: np.ndarray, coh: np.ndarray, n_
         run = np.arange(j, last + 1)
         run = run[flag[run]]
         if run.size >= 2:
-            p = run[int(np.argmax(np.abs(e.real[run])))]
+            # At the largest rise (a resonance the model lacks), else at the deepest dip.
+            rise = e.real[run]
+            p = run[int(np.argmax(rise))] if rise.max() > math.log(BAND_GAIN_TOL) else run[int(np.argmax(np.abs(rise)))]
             out.append(Departure(frequency_hz=float(f[idx[p]]), low_hz=float(f[idx[run[0]]]),
                                  high_hz=float(f[idx[run[-1]]]), ratio_db=float(20.0 / math.log(10.0) * e.real[p]),
                                  phase_deg=float(np.degrees(e.imag[p])), sigma=float(math.sqrt(z2[p])),
@@ -895,6 +917,98 @@ def _modes_hold(fit: StructureFit, ff: np.ndarray, M: float, B: float, Ts: float
     return True
 
 
+@dataclass(frozen=True)
+class PlantFit:
+    """Two fitted modes as the simulator's plant: two appendages on the motor (:mod:`commission.controllers.plant`).
+
+    Attributes
+    ----------
+    kwargs : dict
+        :func:`commission.controllers.plant.plant_vector` keywords: ``mode_hz`` (Hz), ``mode_damping``,
+        ``mode_ratio``, ``mode_load_side``, ``mode2_hz`` (Hz), ``mode2_damping``, ``mode2_ratio``,
+        ``mode2_load_side`` and ``delay`` (s).  The frequencies are each appendage's own; coupled,
+        they give the measured modes.
+    std : dict
+        One standard deviation of ``mode_hz``, ``mode_damping``, ``mode2_hz``, ``mode2_damping``.
+    mass_scale : float
+    cost : float
+        As :attr:`StructureFit.cost`.
+    """
+
+    kwargs: dict[str, Any]
+    std: dict[str, float]
+    mass_scale: float
+    cost: float
+
+
+def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int, M: float, B: float,
+              Ts: float) -> PlantFit | None:
+    """Refit a two-mode :class:`StructureFit` as the simulator's two-appendage plant; None when it has no such form.
+
+    The modal fit says what the response shows; the simulator needs masses, springs and
+    an encoder position.  A mode seen without an anti-resonance (``load``) is the appendage
+    the encoder reads (``mode_load_side``); one seen with it (``motor``) hangs on the motor
+    beside it.  Two ``load`` modes have no such plant (the encoder reads one place): None.
+    The appendages' own frequencies, damping ratios and load fractions (``r2 = t (1 - r1)``,
+    so ``r1 + r2 < 1``) are fitted to the measured response with the residuals of
+    :func:`fit_structure`, from the modal fit's values.
+    """
+    if fit.n_modes != 2:
+        return None
+    first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,  # type: ignore[arg-type]
+                      fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5)  # type: ignore[arg-type]
+    modes = [first, fit.extra[0]]
+    kinds = [m.kind for m in modes]
+    if kinds == ["load", "load"]:
+        return None
+    load_side = "load" in kinds
+    a, b = ((modes[kinds.index("load")], modes[1 - kinds.index("load")]) if load_side
+            else sorted(modes, key=lambda m: m.hz))
+    sw = _weights(cf, n_avg)
+    logH = np.log(Hf)
+
+    def build(x: np.ndarray) -> tuple[np.ndarray, float]:
+        r1 = float(x[4])
+        p = plant_vector(M * math.exp(x[0]), B, mode_hz=math.exp(x[2]), mode_damping=math.exp(x[3]),
+                         mode_ratio=r1, mode_load_side=load_side, mode2_hz=math.exp(x[5]),
+                         mode2_damping=math.exp(x[6]), mode2_ratio=float(x[7]) * (1.0 - r1))
+        return p, float(x[1])
+
+    def resid(x: np.ndarray) -> np.ndarray:
+        p, d = build(x)
+        Hm = _sampled_response(*continuous_model(p), Ts, d, ff)
+        e = logH - np.log(Hm)
+        return np.concatenate([sw * e.real, sw * np.angle(np.exp(1j * e.imag))])
+
+    fmin = float(ff[0])
+    lo = [-1.0, 0.0, math.log(fmin), math.log(0.002), 0.02, math.log(fmin), math.log(0.002), 0.02]
+    hi = [1.0, MAX_DELAY_SAMPLES, math.log(0.5 / Ts), math.log(MAX_DAMPING), 0.9, math.log(0.5 / Ts),
+          math.log(MAX_DAMPING), 0.95]
+    starts = []
+    for r1 in ({0.3, a.ratio} if a.kind == "motor" else {0.3, 0.1}):
+        r1 = float(np.clip(r1, 0.05, 0.85))
+        t2 = float(np.clip(b.ratio / (1.0 - r1), 0.05, 0.9))
+        starts.append(np.array([math.log(fit.mass_scale), fit.delay_samples, math.log(a.hz), math.log(a.damping), r1,
+                                math.log(b.hz), math.log(b.damping), t2]))
+    best = None
+    with threadpool_limits(1):
+        for x0 in starts:
+            x0 = np.clip(x0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+            sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
+            if best is None or sol.cost < best.cost:
+                best = sol
+    x = best.x
+    cost = float(2.0 * best.cost)
+    std = _parameter_std(best.jac, cost, int(2 * ff.size))
+    r1 = float(x[4])
+    kwargs = {"mode_hz": math.exp(x[2]), "mode_damping": math.exp(x[3]), "mode_ratio": r1, "mode_load_side": load_side,
+              "mode2_hz": math.exp(x[5]), "mode2_damping": math.exp(x[6]), "mode2_ratio": float(x[7]) * (1.0 - r1),
+              "mode2_load_side": False, "delay": float(x[1]) * Ts}
+    sd = {"mode_hz": kwargs["mode_hz"] * std[2], "mode_damping": kwargs["mode_damping"] * std[3],
+          "mode2_hz": kwargs["mode2_hz"] * std[5], "mode2_damping": kwargs["mode2_damping"] * std[6]}
+    return PlantFit(kwargs=kwargs, std={k: float(v) for k, v in sd.items()}, mass_scale=math.exp(x[0]), cost=cost)
+
+
 def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float,
                        max_modes: int = MAX_MODES) -> FrequencyResponse:
     """Measure the response u -> q of a log and compare it with the rigid model (module docstring).
@@ -1013,7 +1127,13 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
                     f"most (max_modes = {max_modes}): see the departures")
     H_model = best.response(M, B, Ts, f)
     deps = tuple(departures(ff, Hf, best.response(M, B, Ts, ff), cf, n_avg))
-    return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, departures=deps, **common)
+    pf = plant_fit(best, ff, Hf, cf, n_avg, M, B, Ts)
+    if best.n_modes >= 2 and pf is None:
+        note = ("the two modes are both seen without an anti-resonance: no plant of the simulator (one encoder, "
+                "two appendages on the motor) shows that; the simulator holds the first only")
+    elif best.n_modes > 2:
+        note = f"{best.n_modes} modes found; the simulator holds the first two"
+    return FrequencyResponse(fit=best, fits=fits, H_model=H_model, note=note, departures=deps, plant=pf, **common)
 
 
 # --------------------------------------------------------------------------- encoder noise
