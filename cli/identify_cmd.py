@@ -118,12 +118,14 @@ def frequency_summary(fr: dict | None) -> str:
     text = "frequency response: " + (f"rigid model backed {band[0]:.4g}-{band[1]:.4g} Hz" if band
                                      else "no band backs the rigid model")
     for m in fr.get("modes", []):
-        text += f"; {m['kind']} {m['frequency_hz']:.4g} Hz (damping {m['damping']:.3g})"
+        sd = m.get("frequency_std_hz")
+        text += (f"; {m['kind']} {m['frequency_hz']:.4g}" + (f" ± {sd:.2g}" if sd is not None else "")
+                 + f" Hz (damping {m['damping']:.3g})")
     if fr.get("delay_samples") is not None:
         text += f"; input delay {fr['delay_samples']:.2f} samples"
     if fr.get("note"):
-        # The note states the backed band itself.
-        text = "frequency response: " + fr["note"]
+        # Without modes the note states the backed band itself; with them it says what the model leaves out.
+        text = ("frequency response: " + fr["note"]) if not fr.get("modes") else f"{text}; {fr['note']}"
     return text
 
 

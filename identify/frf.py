@@ -322,9 +322,7 @@ class FrequencyResponse:
                 "mass_scale": fit.mass_scale,
                 "n_modes": fit.n_modes,
             }
-            m2 = fit.extra[0] if fit.extra else None
-            if self.plant is not None:
-                m2 = None
+            m2: ExtraMode | None = None  # the simulator's second mode comes from the plant fit only (below)
             model.update({
                 "mode2_hz": None if m2 is None else m2.hz,
                 "mode2_damping": None if m2 is None else m2.damping,
