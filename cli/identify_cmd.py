@@ -78,6 +78,16 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
         console.print(f"[yellow]warning:[/] {w}")
+    ev = ident.extra.get("evidence")
+    if isinstance(ev, dict):
+        console.print(escape(evidence_text(ev)), soft_wrap=True)
+
+
+def evidence_text(ev: dict) -> str:
+    """ident.json's ``evidence`` as the console prints it (:class:`commission.next_steps.ExciteAdvice`)."""
+    from commission.next_steps import ExciteAdvice
+
+    return ExciteAdvice(tuple(ev["missing"]), ev["excite_command"], ev["limits_toml"]).text()
 
 
 def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
@@ -162,6 +172,9 @@ def identify_command(
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
     counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    u_max: Optional[float] = typer.Option(None, "--u-max", min=0.0, help=(
+        "The drive's command limit, in u's unit after --input-gain: for the `commission excite` limits.toml "
+        "sketch that a log without a broadband segment gets.")),
     max_modes: Optional[int] = typer.Option(None, "--max-modes", min=0, help=(
         "Most structural modes the frequency response keeps (default: as many as the data hold, up to 4; "
         "each must lower the information criterion). Modes beyond it are warned about, named by frequency.")),
@@ -194,6 +207,8 @@ def identify_command(
             del kw["validate_on"]
             if max_modes is not None:
                 kw["max_modes"] = max_modes
+            if u_max is not None:
+                kw["u_max"] = u_max
             outcome: IdentifyOutcome | LegsOutcome = (
                 identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
                 else identify_log(files[0], validate_on=val_files or None, **kw))  # type: ignore[arg-type]

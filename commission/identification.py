@@ -382,6 +382,48 @@ def _encoder_noise(fr: FrequencyResponse, lg: ExcitationLog, quantization: float
     return encoder_noise(lg.q, lg.u, fr.sample_rate, response, quantization, segs)
 
 
+def _evidence(logs: Sequence[ExcitationLog], freq: FrequencyResponse | None, fit: AxisFit, u_max: float | None,
+              units: Mapping[str, str]) -> dict[str, object] | None:
+    """ident.json's ``evidence``: what the log lacks and the ``excite`` run that supplies it (None: nothing).
+
+    The machine's limits in the sketch are what the logs show (span, peak speed, peak
+    acceleration from a cubic Savitzky-Golay fit over 20 ms) and the drive's command limit:
+    ``--u-max``, else, for a command in volts scaled by ``--input-gain``, the usual +-10 V
+    analog range times that gain (said as an assumption), else the logs' peak |u|.
+    """
+    from scipy.signal import savgol_filter
+
+    from commission.next_steps import ANALOG_COMMAND_RANGE_V, excite_advice
+
+    if freq is not None and freq.source == "broadband":
+        return None
+    first = logs[0]
+    fs = float(first.sample_rate)
+    travel = max(float(np.max(lg.q) - np.min(lg.q)) for lg in logs)
+    win = max(7, int(round(0.02 * fs)) | 1)
+    a_peak = max(float(np.max(np.abs(savgol_filter(lg.q, win, 3, deriv=2, delta=1.0 / fs)))) if lg.q.size > win else 0.0
+                 for lg in logs)
+    v_peak = max(float(np.max(np.abs(savgol_filter(lg.q, win, 3, deriv=1, delta=1.0 / fs)))) if lg.q.size > win else 0.0
+                 for lg in logs)
+    u_peak = max(float(np.max(np.abs(lg.u))) for lg in logs)
+    u_unit = units["u"]
+    if u_max is not None:
+        source = "the drive's command limit (--u-max)"
+    elif first.u_unit == "V" and first.input_gain != 1.0:
+        u_max = ANALOG_COMMAND_RANGE_V * first.input_gain
+        source = (f"assumed: the drive's +-{ANALOG_COMMAND_RANGE_V:g} V command range x --input-gain "
+                  f"{first.input_gain:.6g} {u_unit}/V (the log peaks at {u_peak:.4g} {u_unit}; --u-max sets it)")
+    else:
+        source = f"the log's peak |u| (the drive may allow more: --u-max sets it)"
+    p = fit.parameters
+    rate = float(round(fs)) if abs(fs - round(fs)) <= 1e-3 * fs else fs  # 1000.016 Hz measured: a 1 kHz drive
+    adv = excite_advice(freq.to_dict() if freq is not None else None, travel=travel, v_peak=v_peak,
+                        a_peak=a_peak, u_peak=u_peak, u_max=u_max, u_max_source=source, sample_rate=rate,
+                        M=p["M"][0] if "M" in p else None, B=p["B"][0] if "B" in p else None,
+                        fc=p["fc"][0] if "fc" in p else None, q_unit=units["q"], u_unit=u_unit)
+    return None if adv is None else adv.to_dict()
+
+
 def identify_log(
     path: str | Sequence[str],
     *,
@@ -401,6 +443,7 @@ def identify_log(
     gear: float | None = None,
     counts_per_rev: float | None = None,
     max_modes: int | None = None,
+    u_max: float | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -462,6 +505,9 @@ def identify_log(
         ``--max-modes``: most structural modes the frequency response keeps (default
         :data:`commission.identify.frf.MAX_MODES`); modes beyond it are warned about, each
         named by its frequency.
+    u_max : float, optional
+        ``--u-max``: the drive's command limit, u-unit, for the ``commission excite`` sketch
+        that a log without a broadband segment gets (``evidence``; :func:`_evidence`).
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -595,6 +641,7 @@ def identify_log(
         "bounds": {} if tb is None else _bounds_record(bounds, tb),
         "friction_compensation_rms_error": comp.rms_error,
         "frequency_response": freq.to_dict() if freq is not None else None,
+        "evidence": _evidence(logs, freq, fit, u_max, _units(u_unit, logs[0])),
         "not_identified": dict(fit.not_identified),
         "warnings": warnings,
     }
@@ -605,6 +652,8 @@ def identify_log(
     if lead is not None or gear is not None or counts_per_rev is not None:
         extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear,  # type: ignore[index]
                                                            counts_per_rev)
+    if extra["evidence"] is None:
+        del extra["evidence"]
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
