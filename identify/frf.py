@@ -1008,7 +1008,8 @@ def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
 
 
 def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B: float,
-                       max_modes: int = MAX_MODES) -> FrequencyResponse:
+                       max_modes: int = MAX_MODES, *,
+                       ranges: list[tuple[int, int]] | None = None) -> FrequencyResponse:
     """Measure the response u -> q of a log and compare it with the rigid model (module docstring).
 
     Parameters
@@ -1024,6 +1025,9 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
     max_modes : int
         Most structural modes fitted (0: rigid body only).  Fewer than the data hold leaves
         the rest as :attr:`FrequencyResponse.departures`, each named by its frequency.
+    ranges : list of (int, int), optional
+        Sample ranges ``[i0, i1)`` known to carry the broadband injection (an excitation
+        plan's) instead of those step 1 finds.
 
     Returns
     -------
@@ -1032,7 +1036,7 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
     fs = 1.0 / float(np.median(np.diff(t)))
     Ts = 1.0 / fs
     B = max(float(B), 0.0)
-    segs = broadband_segments(u, fs)
+    segs = broadband_segments(u, fs) if ranges is None else [(int(a), int(b)) for a, b in ranges if b > a]
     if segs:
         nperseg = int(round(fs / RESOLUTION_HZ))
         # At least 8 windows in all: coarser resolution on short segments.
