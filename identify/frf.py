@@ -37,12 +37,28 @@ Method
    ``2 n_avg gamma^2 / (1 - gamma^2)`` (gamma^2 capped at ``COHERENCE_CAP``).
    Starts come from the data: the delay from the phase slope of R, the
    resonance from the peak of ``|R|``, the anti-resonance from its dip below
-   the peak.  The structure with the least ``cost (1 + STRUCTURE_PENALTY k)``
-   (k free parameters) wins, and a mode only counts when it changes the
+   the peak.  The structure with the least information criterion wins
+   (:attr:`StructureFit.score`: BIC with the residuals' scale unknown,
+   ``n ln(cost / n) + k ln n`` for n residuals and k free parameters: a fair
+   comparison whether or not the model explains the data to their coherence,
+   with no threshold of its own), and a mode only counts when it changes the
    fitted response by more than ``BAND_GAIN_TOL`` somewhere in the fitted
    range and its frequency and damping are not on their bounds.  The load ratio of a load-side mode does not show in u -> q (the
    response is ``(2 zeta w s + w^2) / (M s^2 (s^2 + 2 zeta w s + w^2))`` for
    any ratio): it is reported at 0.5 with ``mode_ratio_identified`` false.
+5. **More modes.**  While the measured response departs from the fit beyond
+   the estimate's uncertainty (:func:`departures`), one more mode is tried
+   (:class:`ExtraMode`: a unit-DC-gain factor, with or without its
+   anti-resonance), from the departures and afresh from the peaks of ``|R|``,
+   and kept when it lowers the criterion and passes the same checks; up to
+   ``MAX_MODES``.  Each parameter gets a standard deviation from the
+   Jacobian at the solution (``(J^T J)^-1``, scaled by the reduced chi-square
+   when above 1): statistical only, it does not hold the bias of a model
+   that is not the plant's.  Two modes are then refitted as the simulator's
+   plant, two appendages on the motor (:func:`plant_fit`); what is still
+   left is reported as departures, each named by its frequency.
+6. **Encoder noise** (:func:`encoder_noise`): the floor of ``q - P u``'s
+   spectrum high in the band, less quantization's ``step^2 / 12``.
 
 scipy.linalg on the 5x5 matrices of the sampled plant spends milliseconds in
 BLAS thread hand-offs on a busy machine (a thousand times its single-thread
@@ -88,8 +104,6 @@ BAND_PHASE_TOL_DEG = 30.0
 FIT_COHERENCE = 0.5
 #: Cap of gamma^2 in the weights (a perfect bin would weigh infinitely).
 COHERENCE_CAP = 0.995
-#: Relative cost per free parameter when choosing the structure.
-STRUCTURE_PENALTY = 0.1
 #: Largest delay fitted, samples.
 MAX_DELAY_SAMPLES = 6.0
 #: Largest damping ratio fitted (a mode damped more than this is no resonance to report).
