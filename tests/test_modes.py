@@ -21,7 +21,7 @@ from commission.controllers.linear import structural_modes
 from commission.controllers.plant import P_MODE2_DAMPING, P_MODE2_HZ, P_MODE_DAMPING, P_MODE_HZ
 from commission.identification import identify_log
 from commission.identify.frf import BAND_GAIN_TOL, ExtraMode, _factor, departures
-from commission.scenarios import identified_plant, robustness_scenarios
+from commission.scenarios import identified_plant, robustness_scenarios, scenario_matrix
 from commission.spec import default_spec, spec_from_mapping
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
 from shared_paths import EMPS_DIR
@@ -100,6 +100,10 @@ def test_the_simulator_gets_both_modes(identified, name, tmp_path):
     assert variants["mode_high"][P_MODE_HZ] == pytest.approx(1.2 * p[P_MODE_HZ])
     assert variants["mode_damping_half"][P_MODE2_DAMPING] == pytest.approx(0.5 * p[P_MODE2_DAMPING])
     assert variants["mode_damping_half"][P_MODE_DAMPING] == pytest.approx(0.5 * p[P_MODE_DAMPING])
+    # Every scenario validate simulates (nominal, Monte Carlo, corners, payloads) carries the second mode.
+    matrix = scenario_matrix(ident, default_spec(), rng=np.random.default_rng(0), n_monte_carlo=4)
+    assert matrix and all(s.plant[P_MODE2_HZ] > 0 for s in matrix)
+    assert all(s.plant[P_MODE2_HZ] == pytest.approx(p[P_MODE2_HZ]) for s in matrix if "/mode_" not in s.name)
     own = identified_plant(ident, spec_from_mapping({"plant": {"mode_hz": 600.0}}))
     assert own[P_MODE_HZ] == 600.0 and own[P_MODE2_HZ] == 0.0
 
