@@ -201,6 +201,16 @@ class StructureFit:
         return (0 if self.structure == "rigid" else 1) + len(self.extra)
 
     @property
+    def all_modes(self) -> list[ExtraMode]:
+        """Every fitted mode, the first (the two-mass plant's) as an :class:`ExtraMode` too."""
+        if self.structure == "rigid" or self.mode_hz is None or self.mode_damping is None:
+            return list(self.extra)
+        first = ExtraMode("motor" if self.structure == "motor_side_mode" else "load", self.mode_hz,
+                          self.mode_damping, self.mode_ratio if self.mode_ratio is not None else 0.5,
+                          self.mode_hz_std, self.mode_damping_std, self.mode_ratio_std)
+        return [first, *self.extra]
+
+    @property
     def score(self) -> float:
         """Bayesian information criterion with the residuals' scale unknown: ``n ln(cost / n) + k ln n``.
 
@@ -294,11 +304,8 @@ class FrequencyResponse:
         fit = self.fit
         if fit is None or fit.mode_hz is None:
             return []
-        first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,
-                          fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5,  # type: ignore[arg-type]
-                          fit.mode_hz_std, fit.mode_damping_std, fit.mode_ratio_std)
         out = []
-        for k, m in enumerate((first,) + tuple(fit.extra), start=1):
+        for k, m in enumerate(fit.all_modes, start=1):
             if m.kind == "motor":
                 c = math.sqrt(1.0 - m.ratio)
                 out.append({"frequency_hz": m.hz * c, "damping": m.damping * c, "kind": "anti-resonance",
@@ -715,14 +722,14 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
     i = 2 + lay[0]
     ex = []
     for m, k in zip(extra, lay[1:]):
-        ex.append(dataclasses.replace(m, hz_std=m.hz * std[i], damping_std=m.damping * std[i + 1],
+        ex.append(dataclasses.replace(m, hz_std=float(m.hz * std[i]), damping_std=float(m.damping * std[i + 1]),
                                       ratio_std=float(std[i + 2]) if k == 3 else None))
         i += k
     return StructureFit(structure=structure, mass_scale=s, delay_samples=float(d),
                         mode_hz=fr if has_mode else None, mode_damping=z if has_mode else None,
                         mode_ratio=r if has_mode else None, cost=cost, n_residuals=n_res, n_params=n_par,
-                        mode_hz_std=fr * std[2] if has_mode else None,
-                        mode_damping_std=z * std[3] if has_mode else None,
+                        mode_hz_std=float(fr * std[2]) if has_mode else None,
+                        mode_damping_std=float(z * std[3]) if has_mode else None,
                         mode_ratio_std=float(std[4]) if lay[0] == 3 else None,
                         delay_std=float(std[1]), extra=tuple(ex))
 
@@ -886,14 +893,12 @@ def _keep_modes(fit: StructureFit, n: int, ff: np.ndarray, M: float, B: float, T
     A refit with fewer modes than the data hold can land on a compromise that is none of
     them; kept as fitted, the dropped modes show as departures at their own frequencies.
     """
-    first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,  # type: ignore[arg-type]
-                      fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5,  # type: ignore[arg-type]
-                      fit.mode_hz_std, fit.mode_damping_std, fit.mode_ratio_std)
-    modes = [first, *fit.extra]
+    modes = fit.all_modes
     full = fit.response(M, B, Ts, ff)
 
     def effect(i: int) -> float:
-        return float(np.max(np.abs(np.log(np.abs(full / _with_modes(fit, modes[:i] + modes[i + 1:]).response(M, B, Ts, ff))))))
+        without = _with_modes(fit, modes[:i] + modes[i + 1:]).response(M, B, Ts, ff)
+        return float(np.max(np.abs(np.log(np.abs(full / without)))))
 
     order = sorted(range(len(modes)), key=lambda i: -effect(i))
     kept = [modes[i] for i in sorted(order[:n], key=lambda i: modes[i].hz)]
@@ -967,9 +972,7 @@ def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
     """
     if fit.n_modes != 2:
         return None
-    first = ExtraMode("motor" if fit.structure == "motor_side_mode" else "load", fit.mode_hz,  # type: ignore[arg-type]
-                      fit.mode_damping, fit.mode_ratio if fit.mode_ratio is not None else 0.5)  # type: ignore[arg-type]
-    modes = [first, fit.extra[0]]
+    modes = fit.all_modes
     kinds = [m.kind for m in modes]
     if kinds == ["load", "load"]:
         return None
