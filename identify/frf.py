@@ -758,9 +758,12 @@ def departures(f: np.ndarray, H: np.ndarray, Hm: np.ndarray, coh: np.ndarray, n_
 
     Runs of such bins (gaps of one bin bridged) of at least two bins are reported at their
     largest rise of the gain ratio beyond the tolerance (the resonance of a missed mode), else
-    at their deepest dip.  Only bins with coherence ``>= FIT_COHERENCE`` are looked at.
+    at their deepest dip.  Only bins with coherence ``>= BAND_COHERENCE`` are judged (the level
+    that bounds the band the data back): in a closed loop, where the coherence is lower the
+    encoder noise's feedback dominates the command and H1 leans towards minus the
+    controller's inverse (module docstring, step 2), a bias no model of the plant explains.
     """
-    ok = (coh >= FIT_COHERENCE) & (np.abs(H) > 0) & (np.abs(Hm) > 0)
+    ok = (coh >= BAND_COHERENCE) & (np.abs(H) > 0) & (np.abs(Hm) > 0)
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return []
