@@ -284,7 +284,7 @@ def excite_advice(frequency_response: dict[str, Any] | None, *, travel: float, v
                "delay and the response above are not measured, and a loop tuned on it crosses over where the data "
                "say nothing"]
     if not fr:
-        missing = ["no frequency response (the mass is not identified): nothing is known of the plant's dynamics"]
+        missing = ["no frequency response (M is not identified): nothing is known of the plant's dynamics"]
     umax = u_max if u_max is not None else u_peak
     qs = "rad" if q_unit == "rad" else "m"
     lines = [
@@ -300,7 +300,11 @@ def excite_advice(frequency_response: dict[str, Any] | None, *, travel: float, v
         "",
         "[axis]",
     ]
-    if M is not None and M > 0:
+    if M is not None and M > 0 and qs == "rad":
+        # Rotary: excite's [axis] key carries the linear axis's name; the inertia goes in a comment, the
+        # plan then starts with its bump test (the key is optional).
+        lines.append(f"# inertia J = {M:.4g} {u_unit} s^2/rad identified (excite's [axis] key for it is optional)")
+    elif M is not None and M > 0:
         lines.append(f"mass = {M:.4g}          # {u_unit} s^2/{qs}: identified")
     if fc is not None and 0 <= fc < umax:
         lines.append(f"friction = {fc:.4g}      # {u_unit}: identified Coulomb level")
