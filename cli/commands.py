@@ -6,6 +6,9 @@ Each module registers its command on :data:`commission.cli.main.app` when import
 """
 
 COMMANDS: dict[str, tuple[str, str]] = {
+    "excite": ("commission.cli.excite_cmd",
+               "Plan an excitation run within the machine's limits (friction ladder, moves, broadband "
+               "injection); pre-simulate it; write plan.csv/.h5/.json/.png."),
     "identify": ("commission.cli.identify_cmd",
                  "Identify M, B, friction and offset from a position-only excitation log; write ident.json."),
     "tune": ("commission.cli.tune_cmd",
@@ -16,6 +19,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("commission.cli.run_cmd",
             "Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate "
             "passes, else 1."),
+    "fleet": ("commission.cli.fleet_cmd",
+              "Commission every axis of a manifest (one run each) and summarise the fleet; exit 0 only if all "
+              "passed."),
     "export": ("commission.cli.export_cmd",
                "Write the validated controller.json's step as C99 (header, source, test vectors, replay program)."),
     "paper-table": ("commission.cli.paper_cmd",

@@ -13,6 +13,7 @@ from rich.table import Table
 from commission.units import mass_wording, parameter_label, parameter_units, unit
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
+from commission.errors import UsageError
 from commission.files import Outputs
 from commission.cli.options import Friction, identify_options, opt
 from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOutcome, LegsOutcome, expand_log_paths,
@@ -172,6 +173,9 @@ def identify_command(
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
     counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
+        "plan.json of `commission excite` that the one LOG was recorded from: the frequency response is "
+        "measured on the plan's injection windows (the log's time starts with the plan's).")),
     u_max: Optional[float] = typer.Option(None, "--u-max", min=0.0, help=(
         "The drive's command limit, in u's unit after --input-gain: for the `commission excite` limits.toml "
         "sketch that a log without a broadband segment gets.")),
@@ -196,7 +200,14 @@ def identify_command(
     # Outputs checked (not an input, not a folder, --force, writable, locked) before any computation.
     # Several logs are a friction test or segments of a fit: which one is known once they are read,
     # so --plot declares the figures of both.
-    outputs = Outputs(force=force, inputs=(*files, *val_files))
+    plan_data = None
+    if plan is not None:
+        from commission.excite import load_plan_json
+
+        if several:
+            raise UsageError(f"--plan: takes one log recorded from the plan, got {len(files)}")
+        plan_data = load_plan_json(plan)
+    outputs = Outputs(force=force, inputs=(*files, *val_files, *((plan,) if plan is not None else ())))
     outputs.add_file(out, "--out")
     if plot is not None:
         outputs.add_dir(plot, PLOT_NAMES + LEGS_PLOT_NAMES if several else PLOT_NAMES, "--plot")
@@ -211,7 +222,8 @@ def identify_command(
                 kw["u_max"] = u_max
             outcome: IdentifyOutcome | LegsOutcome = (
                 identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
-                else identify_log(files[0], validate_on=val_files or None, **kw))  # type: ignore[arg-type]
+                else identify_log(files[0], validate_on=val_files or None, plan=plan_data,
+                                  **kw))  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:

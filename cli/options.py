@@ -24,6 +24,9 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
+SCHEDULER_HELP = ("Dask scheduler tcp://HOST:PORT to run the simulations on (default: COMMISSION_SCHEDULER, else "
+                  "the spec's compute.scheduler, else local threads); needs pip install \"commission[dask]\"; "
+                  "an unreachable one is exit 2.")
 Q_UNIT_HELP = ("Unit of q (and q_ref) in a file without a q_unit attribute (CSV, v5 .mat, .npy/.npz): m, mm, um, "
                "or rad (a rotary axis); default m. Refused when it contradicts the file's attribute.")
 COUNTS_PER_REV_HELP = ("Encoder counts per revolution: q (and q_ref) in the file are counts, read as rad "

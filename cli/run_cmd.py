@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
-from commission.cli.options import Friction, identify_options, opt
+from commission.cli.options import SCHEDULER_HELP, Friction, identify_options, opt
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import SIGN_KEY_HELP, print_next_steps, print_summary
@@ -34,6 +34,7 @@ def run_command(
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="tcp://HOST:PORT", help=SCHEDULER_HELP),
     map_: List[str] = opt("--map"),
     input_gain: float = opt("--input-gain"),
     u_unit: Optional[str] = opt("--u-unit"),
@@ -77,7 +78,7 @@ def run_command(
 
         outcome = run_all(logs, out_dir, identify=o, spec_path=spec, gate_path=gate, force=force, seed=seed,
                           n_monte_carlo=monte_carlo, progress=cb, workers=workers, figures=validation_plots,
-                          sign_key=key, ident_figures=identification_plots)
+                          sign_key=key, ident_figures=identification_plots, scheduler=scheduler)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
         err.print(f"warning: {w}", highlight=False)
     pid_note = pid_pole_note(outcome.validation.tuning)

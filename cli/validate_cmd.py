@@ -11,6 +11,7 @@ from rich.console import Console
 
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
+from commission.cli.options import SCHEDULER_HELP
 from commission.cli.progress import StageProgress
 from commission.controller_config import load_sign_key
 from commission.next_steps import next_steps
@@ -28,8 +29,11 @@ def print_summary(result: ValidationResult) -> None:
     Plain fixed-width text rather than a rich table: it is never truncated or
     wrapped, whatever the terminal width, so every failure line stays whole.
     """
+    ex = result.executor or {}
+    where = (f"Dask scheduler {ex.get('scheduler')}, {result.workers} worker threads" if ex.get("kind") == "dask"
+             else f"{result.workers} threads")
     typer.echo(f"Validation: ARC vs PID baseline on {len(result.runs)} scenarios "
-               f"({result.elapsed:.1f} s on {result.workers} threads)")
+               f"({result.elapsed:.1f} s on {where})")
     typer.echo(summary_text(result))
 
 
@@ -51,6 +55,7 @@ def validate_command(
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box (0-10000)."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="tcp://HOST:PORT", help=SCHEDULER_HELP),
 ) -> None:
     """Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
 
@@ -63,7 +68,7 @@ def validate_command(
     with StageProgress(err) as bar:
         outcome = run_validate(tuning, out_dir, gate_path=gate, force=force, seed=seed, n_monte_carlo=monte_carlo,
                                progress=bar.callback("simulating"), workers=workers, figures=validation_plots,
-                               sign_key=key)
+                               sign_key=key, scheduler=scheduler)
     print_summary(outcome.result)
     for p in outcome.written:
         typer.echo(f"wrote {p}")

@@ -47,7 +47,8 @@ class ChildJob:
     def __init__(self, fn: Callable[..., Any], *args: Any) -> None:
         self._fn, self._args = fn, args
         self._proc: Any = None
-        if sys.platform.startswith("linux"):
+        # A daemonic process (a Dask worker running a fleet's axis) may not start children.
+        if sys.platform.startswith("linux") and not mp.current_process().daemon:
             ctx = mp.get_context("fork")
             self._recv, send = ctx.Pipe(duplex=False)
             self._proc = ctx.Process(target=_child, args=(send, fn, args), daemon=True)

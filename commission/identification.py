@@ -15,7 +15,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Mapping, Sequence
+from typing import Any, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -444,6 +444,7 @@ def identify_log(
     counts_per_rev: float | None = None,
     max_modes: int | None = None,
     u_max: float | None = None,
+    plan: Mapping[str, Any] | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -508,6 +509,10 @@ def identify_log(
     u_max : float, optional
         ``--u-max``: the drive's command limit, u-unit, for the ``commission excite`` sketch
         that a log without a broadband segment gets (``evidence``; :func:`_evidence`).
+    plan : mapping, optional
+        A parsed plan.json (:func:`commission.excite.load_plan_json`) the one log was recorded
+        from: the frequency response is estimated on its injection windows
+        (:func:`commission.excite.injection_ranges`) instead of the segments the command's level shows.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -580,8 +585,18 @@ def identify_log(
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
     freq, noise = None, None
     if has_mass:
-        freq, freq_log = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0],
-                                       MAX_MODES if max_modes is None else max_modes)
+        modes = MAX_MODES if max_modes is None else max_modes
+        if plan is not None:
+            # The excitation plan says where its injection is (commission excite; identify --plan).
+            from commission.excite import injection_ranges
+
+            if len(logs) != 1:
+                raise UsageError(f"--plan: takes one log recorded from the plan, got {len(logs)}")
+            freq, freq_log = frequency_response(logs[0].t, logs[0].q, logs[0].u, fit.parameters["M"][0],
+                                                fit.parameters["B"][0], max_modes=modes,
+                                                ranges=injection_ranges(plan, logs[0].t)), logs[0]
+        else:
+            freq, freq_log = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0], modes)
         noise = _encoder_noise(freq, freq_log, checks.quantization_step)
 
     params: dict[str, Estimate | None] = {}

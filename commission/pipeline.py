@@ -22,6 +22,7 @@ from commission.tuning import Tuning
 from commission.files import Outputs
 from commission.identification import IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome
 from commission.spec import check_flags
+from commission.executor import Executor, compute_scheduler, make_executor, resolve_scheduler
 from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWriter, Progress, ValidateOutcome,
                                  output_names, validate, write_outputs)
 
@@ -56,7 +57,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
             force: bool = False, seed: int = 0, n_monte_carlo: int = DEFAULT_MONTE_CARLO,
             progress: StageProgress | None = None, workers: int | None = None,
             figures: FigureWriter | None = None, sign_key: bytes | None = None,
-            ident_figures: IdentFigureWriter | None = None) -> RunOutcome:
+            ident_figures: IdentFigureWriter | None = None, scheduler: str | None = None,
+            executor: Executor | None = None) -> RunOutcome:
     """``commission run``: identify, tune and validate one log into ``out_dir``.
 
     Every check of the inputs (flags, spec, gate, the output folder, which is
@@ -97,6 +99,11 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
         As in :func:`run_validate`.
     sign_key : bytes, optional
         Signs controller.json (HMAC-SHA256).
+    scheduler : str, optional
+        ``--scheduler`` (else ``COMMISSION_SCHEDULER``, else the spec's ``[compute] scheduler``):
+        validate's simulations run there (:mod:`commission.executor`).
+    executor : commission.executor.Executor, optional
+        An open executor for validate's simulations instead (not closed here).
 
     Raises
     ------
@@ -112,6 +119,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     gate = load_gate(gate_path)
     spec_data, spec_src = read_spec_toml(spec_path)
     spec_from_mapping(spec_data, spec_src)  # every key checked at the documented defaults
+    address = resolve_scheduler(scheduler, compute_scheduler(spec_data, spec_src)) if executor is None else None
     from commission.identification import expand_log_paths
 
     # Several files (or a folder): logs of one axis, each its own segment (identify_log with a list).
@@ -122,18 +130,23 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
         expand_log_paths([os.fspath(opts.validate_on)])  # refused now (missing, one file twice), not after the lock
     outputs = Outputs(force=force, inputs=(*paths, spec_path, gate_path, opts.validate_on))
     out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *IDENT_FIGURE_NAMES, *output_names()), "--out-dir")
-    with outputs:  # locked and proved writable before any stage runs; moved into place at the end
-        written, result, tuning, notes = _stages(
-            log_path, out, outputs.staging(out), opts=opts, spec_data=spec_data, spec_src=spec_src, gate=gate,
-            gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
-            figures=figures, sign_key=sign_key, ident_figures=ident_figures)
+    ex = executor if executor is not None else make_executor(address, workers)  # unreachable: exit 2 now
+    try:
+        with outputs:  # locked and proved writable before any stage runs; moved into place at the end
+            written, result, tuning, notes = _stages(
+                log_path, out, outputs.staging(out), opts=opts, spec_data=spec_data, spec_src=spec_src, gate=gate,
+                gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
+                figures=figures, sign_key=sign_key, ident_figures=ident_figures, executor=ex)
+    finally:
+        if executor is None:
+            ex.close()
     ctrl = out / CONTROLLER_NAME
     vo = ValidateOutcome(result, tuning, tuple(outputs.final(p) for p in written), ctrl if result.passed else None)
     return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
 
 
 def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, gate, gate_path, seed, n_monte_carlo,
-            progress, workers, figures, sign_key, ident_figures):
+            progress, workers, figures, sign_key, ident_figures, executor=None):
     """The three stages of :func:`run_all`, writing into ``staging``; names in the files say ``out``."""
     from commission.identification import expand_log_paths, identify_log
 
@@ -151,7 +164,8 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
     try:
         return _after_identify(ident_out, ident_job, out, staging, spec_data=spec_data, spec_src=spec_src, gate=gate,
                                gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, stage=stage,
-                               workers=workers, figures=figures, sign_key=sign_key, log_path=log_path)
+                               workers=workers, figures=figures, sign_key=sign_key, log_path=log_path,
+                               executor=executor)
     except BaseException:
         if ident_job is not None:
             ident_job.cancel()
@@ -159,7 +173,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
 
 
 def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data, spec_src, gate, gate_path, seed,
-                    n_monte_carlo, stage, workers, figures, sign_key, log_path):
+                    n_monte_carlo, stage, workers, figures, sign_key, log_path, executor=None):
     """Tune and validate the identified axis, then write every file into ``staging``."""
     from commission.artifacts import Identification
     from commission.controllers.design import DesignError
@@ -181,7 +195,7 @@ def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data
     tuning_doc = tuned.to_dict()
     tuning = Tuning.from_dict(json.loads(canonical_json(tuning_doc)), source=str(out / TUNING_NAME))
     result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
-                      workers=workers)
+                      workers=workers, executor=executor)
     write_json_atomic(staging / IDENT_NAME, ident_doc)
     write_json_atomic(staging / TUNING_NAME, tuning_doc)
     ident_figs = list(ident_job.result()) if ident_job is not None else []

@@ -474,6 +474,8 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         raise _fail(source, prefix.rstrip("."), f": expected a table, got {type(data).__name__}")
     values: dict[str, Any] = {}
     for section, table in data.items():
+        if section == "compute":
+            continue  # where the work runs, not what is computed: commission.executor.compute_scheduler
         if section not in _SCHEMA:
             raise _fail(source, f"{prefix}{section}", f": unknown section (known: {', '.join(_SCHEMA)})")
         if not isinstance(table, Mapping):

@@ -43,7 +43,6 @@ import json
 import math
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,9 +59,11 @@ from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
 from commission.errors import SchemaError, UsageError
+from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
                              margin_checks, resolve_gate)
+from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
@@ -195,6 +196,11 @@ class ValidationResult:
     robustness : GateVerdict or None
         The part of ``verdict`` on the robustness scenarios and the stability margins (required
         like every other check; listed apart in the report).
+    executor : dict or None
+        Where the simulations ran (:meth:`commission.executor.Executor.describe`); varies with the
+        machine, so it is not written to validation.json (which is the same on every executor).
+    monte_carlo_summary : dict or None
+        Quantiles and worst plants of the Monte-Carlo sample (:mod:`commission.montecarlo`).
     """
 
     runs: tuple[RunRecord, ...]
@@ -213,6 +219,8 @@ class ValidationResult:
     margin_floors: MarginFloors = MarginFloors()
     loops: tuple[np.ndarray, ...] = ()
     robustness: GateVerdict | None = None
+    executor: Mapping[str, Any] | None = None
+    monte_carlo_summary: Mapping[str, Any] | None = None
 
     @property
     def passed(self) -> bool:
@@ -240,6 +248,7 @@ class ValidationResult:
             "worst": {k: c.to_dict() for k, c in self.verdict.worst().items()},
             "runs": [r.to_dict() for r in self.runs],
             "elapsed_s": self.elapsed,
+            "monte_carlo_summary": None if self.monte_carlo_summary is None else dict(self.monte_carlo_summary),
             "robustness": None if self.robustness is None else {
                 "passed": self.robustness.passed, "required": True,
                 "failures": [c.to_dict() for c in self.robustness.failures],
@@ -440,9 +449,95 @@ def _t_abort(r: SimResult, Ts: float) -> float:
     return r.n_steps * Ts if r.diverged else math.nan
 
 
+#: Monte-Carlo plants per executor task: large enough that a task (2 x 16 simulations) outweighs
+#: a Dask round trip, small enough that a lost worker costs little and the chunks spread evenly.
+MC_CHUNK = 16
+
+
+@dataclass(frozen=True)
+class _SimContext:
+    """What every simulation task reads (sent to a Dask worker once per validation)."""
+
+    ctrl: Mapping[int, np.ndarray]
+    refs: Mapping[tuple, Trajectory]
+    Ts: float
+    u_sat: float
+    e_abort: float
+
+
+def _simulate_one(ctx: _SimContext, s: Any, kind: int, keep: bool) -> _Outcome:
+    ref = ctx.refs[(s.trajectory, s.y0)]
+    d = s.disturbance.samples(ref.t)
+    r = simulate(s.plant, kind, ctx.ctrl[kind], ref, substeps=plant_substeps(1.0 / ctx.Ts), quant=s.quantization,
+                 disturbance=d if np.any(d) else None, noise=s.noise(ref.n), y0=s.y0, u_sat=ctx.u_sat,
+                 e_abort=ctx.e_abort)
+    th = r.theta_hat
+    final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
+    return _Outcome(_score(r), _t_abort(r, ctx.Ts), final, r if keep else None)  # type: ignore[arg-type]
+
+
+def _simulate_chunk(ctx: _SimContext, chunk: Sequence[tuple[Any, bool]]) -> list[tuple[_Outcome, _Outcome]]:
+    """One executor task: ARC and PID on each scenario of ``chunk`` ((scenario, keep traces) pairs).
+
+    A pure function of its arguments (the Monte-Carlo plant is in the scenario, the encoder
+    noise is seeded by the scenario's name), so it gives the same answer on any worker.
+    """
+    return [(_simulate_one(ctx, s, KIND_ARC, keep), _simulate_one(ctx, s, KIND_PID, keep)) for s, keep in chunk]
+
+
+def _simulate_matrix(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], units: Mapping[str, str],
+                     progress: Progress | None) -> tuple[list[RunRecord], dict[str, Trace], dict[str, Any] | None]:
+    """Run every scenario on ``ex``; fold the results in scenario order.
+
+    Tasks: one per fixed scenario (their time histories come back for the figures), and one
+    per :data:`MC_CHUNK` Monte-Carlo plants (only the scores come back, folded into the
+    streaming :class:`commission.montecarlo.MonteCarloSummary` and the compact run records the
+    gate checks).  ``progress(done, total)`` counts simulations (2 per scenario).
+    """
+    chunks: list[list[tuple[Any, bool]]] = []
+    mc = [s for s in scenarios if "monte_carlo" in s.tags]
+    for s in scenarios:
+        if "monte_carlo" not in s.tags:
+            chunks.append([(s, True)])
+    for k in range(0, len(mc), MC_CHUNK):
+        chunks.append([(s, False) for s in mc[k:k + MC_CHUNK]])
+    order = [s for ch in chunks for s, _ in ch]
+    total = 2 * len(order)
+    done = [0]
+
+    def tick(i: int) -> None:  # once per simulation of the finished task
+        for _ in range(2 * len(chunks[i])):
+            done[0] += 1
+            if progress is not None:
+                progress(done[0], total)
+
+    if progress is not None:
+        progress(0, total)
+    summary = MonteCarloSummary(dict(units)) if mc else None
+    by_name: dict[str, RunRecord] = {}
+    traces: dict[str, Trace] = {}
+    it = iter(order)
+    for outs in ex.map(_simulate_chunk, ctx, chunks, progress=tick):
+        for oa, op in outs:
+            s = next(it)
+            truth = _theta_true(s.plant)
+            by_name[s.name] = RunRecord(s.name, s.tags, oa.score, op.score, oa.t_abort, op.t_abort, oa.theta_final,
+                                        truth)
+            if summary is not None and "monte_carlo" in s.tags:
+                summary.add(s.name, oa.score, op.score)
+            if oa.sim is not None and op.sim is not None:
+                ref = ctx.refs[(s.trajectory, s.y0)]
+                th = oa.sim.theta_hat
+                traces[s.name] = Trace(t=ref.t, qd=ref.qd, y_arc=oa.sim.y, u_arc=oa.sim.u, y_pid=op.sim.y,
+                                       u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
+                                       theta_true=truth)
+    runs = [by_name[s.name] for s in scenarios]  # scenario-matrix order
+    return runs, traces, None if summary is None else summary.to_dict()
+
+
 def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
              n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
-             workers: int | None = None) -> ValidationResult:
+             workers: int | None = None, executor: Executor | None = None) -> ValidationResult:
     """Simulate the scenario matrix with the tuned ARC and the PID baseline; check the gate.
 
     Parameters
@@ -455,9 +550,13 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     n_monte_carlo : int
         Monte-Carlo plants from the theta box.
     progress : callable(done, total), optional
-        Called after each simulation (``total`` = 2 x scenarios), on the calling thread.
+        Called once per simulation (``total`` = 2 x scenarios) as each task finishes, on the
+        calling thread.
     workers : int, optional
-        Threads (default: ``os.cpu_count()``).
+        Threads of the local executor (default: ``os.cpu_count()``); ignored with ``executor``.
+    executor : commission.executor.Executor, optional
+        Where the simulations run (default: local threads).  The result does not depend on it
+        (:func:`_simulate_matrix`).
 
     Returns
     -------
@@ -481,52 +580,12 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         key = (s.trajectory, s.y0)
         if key not in refs:
             refs[key] = s.trajectory.render(Ts, s.y0)
-    jobs = [(i, kind) for i in range(len(scenarios)) for kind in (KIND_ARC, KIND_PID)]
-
-    def run(job: tuple[int, int]) -> _Outcome:
-        i, kind = job
-        s = scenarios[i]
-        ref = refs[(s.trajectory, s.y0)]
-        d = s.disturbance.samples(ref.t)
-        r = simulate(s.plant, kind, ctrl[kind], ref, substeps=plant_substeps(1.0 / Ts), quant=s.quantization,
-                     disturbance=d if np.any(d) else None, noise=s.noise(ref.n), y0=s.y0, u_sat=u_sat,
-                     e_abort=e_abort)
-        th = r.theta_hat
-        final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
-        # Monte-Carlo traces are dropped at once (memory); the fixed scenarios keep theirs for the figures.
-        return _Outcome(_score(r), _t_abort(r, Ts), final, None if "monte_carlo" in s.tags else r)  # type: ignore[arg-type]
-
-    nworkers = max(1, (os.cpu_count() or 1) if workers is None else int(workers))
-    results: dict[tuple[int, int], _Outcome] = {}
+    ex = LocalExecutor(workers) if executor is None else executor
+    ctx = _SimContext(ctrl=ctrl, refs=refs, Ts=Ts, u_sat=u_sat, e_abort=e_abort)
     t0 = time.perf_counter()
-    total = len(jobs)
-    if progress is not None:
-        progress(0, total)
-    if nworkers == 1:
-        for k, job in enumerate(jobs):
-            results[job] = run(job)
-            if progress is not None:
-                progress(k + 1, total)
-    else:
-        with ThreadPoolExecutor(max_workers=nworkers) as ex:
-            futs = {ex.submit(run, job): job for job in jobs}
-            for k, f in enumerate(as_completed(futs)):
-                results[futs[f]] = f.result()
-                if progress is not None:
-                    progress(k + 1, total)
+    runs, traces, mc_summary = _simulate_matrix(ex, ctx, scenarios, dict(tuning.identification.units), progress)
     elapsed = time.perf_counter() - t0
-    runs: list[RunRecord] = []
-    traces: dict[str, Trace] = {}
-    for i, s in enumerate(scenarios):
-        oa, op = results[(i, KIND_ARC)], results[(i, KIND_PID)]
-        truth = _theta_true(s.plant)
-        runs.append(RunRecord(s.name, s.tags, oa.score, op.score, oa.t_abort, op.t_abort, oa.theta_final, truth))
-        if oa.sim is not None and op.sim is not None:
-            ref = refs[(s.trajectory, s.y0)]
-            th = oa.sim.theta_hat
-            traces[s.name] = Trace(t=ref.t, qd=ref.qd, y_arc=oa.sim.y, u_arc=oa.sim.u, y_pid=op.sim.y,
-                                   u_pid=op.sim.u, theta_hat=th if th is not None else np.empty((0, 3)),
-                                   theta_true=truth)
+    nworkers = ex.workers
     margins = margin_table(arc, tuning.pid, tuning.identification, spec)
     margin_floors = MarginFloors.from_spec(spec)
     # The gate's margin criteria: gate.toml's values where given, else the spec's floors; the spec's
@@ -547,7 +606,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
                             margins=margins, margin_floors=margin_floors, robustness=robustness,
-                            loops=nominal_loops(arc, tuning.pid, tuning.identification, spec))
+                            loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
+                            executor=ex.describe(), monte_carlo_summary=mc_summary)
 
 
 # --------------------------------------------------------------------------- controller.json
@@ -725,7 +785,8 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
                  gate_path: str | os.PathLike[str] | None = None, force: bool = False, seed: int = 0,
                  n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
                  workers: int | None = None, figures: FigureWriter | None = None,
-                 sign_key: bytes | None = None) -> ValidateOutcome:
+                 sign_key: bytes | None = None, scheduler: str | None = None,
+                 executor: Executor | None = None) -> ValidateOutcome:
     """File-level pipeline of ``commission validate`` (module docstring).
 
     Every input check runs before any simulation (the flags' ranges, the gate,
@@ -749,11 +810,18 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
         Draws the figures (the CLI passes its matplotlib writer); report.md links what it returns.
     sign_key : bytes, optional
         Signs controller.json with HMAC-SHA256 (:mod:`commission.controller_config`).
+    scheduler : str, optional
+        ``--scheduler``: a Dask scheduler address; else ``COMMISSION_SCHEDULER``; else local
+        threads (:func:`commission.executor.resolve_scheduler`).  Connected to after the input
+        checks and before any simulation.
+    executor : commission.executor.Executor, optional
+        An open executor instead (a library caller's; not closed here).
 
     Raises
     ------
     InputFileError, SchemaError, SpecError, UsageError
-        Bad input (exit 2); nothing is written.
+        Bad input (exit 2); nothing is written.  An unreachable scheduler is a
+        :class:`commission.executor.SchedulerError` (a UsageError) naming its address.
     """
     check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     gate = load_gate(gate_path)
@@ -766,11 +834,18 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
     outputs = Outputs(force=force, inputs=(tpath, gate_path))
     out = outputs.add_dir(out_dir, output_names(), "--out-dir")
     tuning_sha = sha256_file(tpath)
-    with outputs:  # locked and proved writable before the simulations; moved into place at the end
-        result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers)
-        staged = write_outputs(result, tuning, tuning_sha, outputs.staging(out), figures=figures,
-                               sources={"tuning": tpath, "gate": os.fspath(gate_path) if gate_path else None},
-                               sign_key=sign_key)
+    own = executor is None
+    ex = make_executor(resolve_scheduler(scheduler), workers) if own else executor
+    try:
+        with outputs:  # locked and proved writable before the simulations; moved into place at the end
+            result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress,
+                              workers=workers, executor=ex)
+            staged = write_outputs(result, tuning, tuning_sha, outputs.staging(out), figures=figures,
+                                   sources={"tuning": tpath, "gate": os.fspath(gate_path) if gate_path else None},
+                                   sign_key=sign_key)
+    finally:
+        if own:
+            ex.close()
     written = [outputs.final(p) for p in staged]
     ctrl = out / CONTROLLER_NAME
     return ValidateOutcome(result, tuning, tuple(written), ctrl if result.passed else None)

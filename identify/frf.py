@@ -1046,8 +1046,9 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
         Most structural modes fitted (0: rigid body only).  Fewer than the data hold leaves
         the rest as :attr:`FrequencyResponse.departures`, each named by its frequency.
     ranges : list of (int, int), optional
-        Sample ranges ``[i0, i1)`` known to carry the broadband injection (an excitation
-        plan's) instead of those step 1 finds.
+        Sample ranges ``[i0, i1)`` known to carry the broadband injection (from the
+        excitation plan, ``identify --plan``) instead of those step 1 finds: a plan
+        knows where its injection is, whatever its spectrum's shape over time.
 
     Returns
     -------

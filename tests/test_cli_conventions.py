@@ -32,7 +32,7 @@ def test_commands_are_listed_in_pipeline_order(capsys):
     text = _help(capsys, "--help")
     where = [text.index(f" {name} ") for name in ("identify", "tune", "validate", "run", "paper-table")]
     assert where == sorted(where)
-    assert list(COMMANDS)[:4] == ["identify", "tune", "validate", "run"]
+    assert list(COMMANDS)[:5] == ["excite", "identify", "tune", "validate", "run"]
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))

@@ -1,0 +1,324 @@
+"""`commission excite`: the plan, its files, its refusals, its pre-simulation and the loop back to identify."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from commission.cli.main import app
+from commission.errors import SpecError
+from commission.excite import (PlanRefused, excite_spec_from_mapping, load_excite_spec, load_plan_json, loop_gains_for, mass_bracket,
+                               plan_run, play, simulate_plan, _model_truth)
+
+runner = CliRunner()
+
+SMALL = """\
+[limits]
+travel = 0.2
+v_max = 0.4
+a_max = 20.0
+u_max = 10.0
+[drive]
+sample_rate = 1000.0
+bandwidth_hz = 30.0
+[axis]
+mass = 0.03
+friction = 0.1
+[plan]
+n_speeds = 4
+moves = 2
+injection_s = 3.0
+"""
+
+
+def _spec_file(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "limits.toml"
+    p.write_text(text)
+    return p
+
+
+def test_cli_writes_plan_files(tmp_path):
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, SMALL)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in out.iterdir()) == ["plan.csv", "plan.h5", "plan.json", "plan.png"]
+    header = (out / "plan.csv").read_text().splitlines()[0]
+    assert header == "t,q_ref,v_ref,u_inject"
+    csv = np.loadtxt(out / "plan.csv", delimiter=",", skiprows=1)
+    t = csv[:, 0]
+    assert np.allclose(np.diff(t), 1e-3, rtol=0, atol=1e-9)  # one row per sample at 1 kHz
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["kind"] == "excitation_plan" and plan["schema_version"] == 1
+    assert plan["samples"] == t.size
+    assert plan["duration_s"] == pytest.approx(t[-1] + 1e-3)
+    with h5py.File(out / "plan.h5") as f:
+        assert set(f) == {"t", "q_ref", "v_ref", "u_inject"}
+        for i, name in enumerate(("t", "q_ref", "v_ref", "u_inject")):
+            assert np.allclose(f[name][:], csv[:, i], rtol=1e-10, atol=1e-12)
+        assert f.attrs["u_unit"] == "V" and f.attrs["q_unit"] == "m"
+    names = [g["name"] for g in plan["segments"]]
+    assert any(n.startswith("ladder") for n in names) and "moves" in names and "injection" in names
+    # segments tile the run
+    for a, b in zip(plan["segments"], plan["segments"][1:]):
+        assert a["t_end"] == pytest.approx(b["t_start"])
+    # the printed duration is the file's, with its unit; the peaks are printed with units
+    assert re.search(rf"plan: {plan['duration_s']:.2f} s", r.output), r.output
+    assert re.search(r"\|u\| [\d.e+-]+ V <= u_max 10 V", r.output), r.output
+    assert re.search(r"\|a\| [\d.e+-]+ m/s\^2 <= a_max 20 m/s\^2", r.output), r.output
+    # the pre-simulation's peaks are within the limits and stated in plan.json
+    for key, chk in plan["presimulation"]["peaks"].items():
+        assert chk["peak"] <= chk["limit"], key
+    assert load_plan_json(out / "plan.json")["segments"] == plan["segments"]
+    # the folder is not overwritten without --force (checked before any work), and is with it
+    before = (out / "plan.json").read_bytes()
+    r = runner.invoke(app, ["excite", "--spec", str(tmp_path / "limits.toml"), "--out-dir", str(out)])
+    assert r.exit_code == 2 and "--force" in r.stderr, r.output
+    assert (out / "plan.json").read_bytes() == before
+    r = runner.invoke(app, ["excite", "--spec", str(tmp_path / "limits.toml"), "--out-dir", str(out), "--force"])
+    assert r.exit_code == 0, r.output
+
+
+@pytest.mark.parametrize("edit, pattern", [
+    (("travel = 0.2", "travel = 0.0005"), r"limits\.travel = 0\.0005 m is too short for the slowest friction-ladder leg"),
+    (("friction = 0.1", "friction = 12.0"), r"axis\.friction = 12 V is not below limits\.u_max = 10 V"),
+    (("friction = 0.1", "friction = 6.0"),  # stick-slip: the breakaway accelerates past a_max
+     r"plan refused: limits\.a_max: the pre-simulation breaks it in segment 'ladder \d' at t = [\d.]+ s "
+     r"\(sample \d+\): \|a\| = [\d.]+ m/s\^2 > 20 m/s\^2, on the light model"),
+    (("bandwidth_hz = 30.0", "kp = 3e5\nkd = 300.0"),
+     r"plan refused: limits\.u_max: the holding loop diverges on the light model .* segment 'approach'"),
+    (("bandwidth_hz = 30.0", "bandwidth_hz = 100.0"), r"drive\.sample_rate = 1000 Hz is too low for drive\.bandwidth_hz"),
+    (("u_max = 10.0", "u_max = 10.0\nspeed = 3"), r"limits\.speed: unknown key"),
+    (("a_max = 20.0", "a_max = \"fast\""), r"limits\.a_max = 'fast': expected a finite number in m/s\^2"),
+    (("u_max = 10.0\n", ""), r"limits\.u_max: missing"),
+])
+def test_refusals_exit_2_nothing_written(tmp_path, edit, pattern):
+    text = SMALL.replace(*edit)
+    assert text != SMALL
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text)), "--out-dir", str(out)])
+    assert r.exit_code == 2, r.output
+    err = r.stderr.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
+    assert re.search(pattern, err), err
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["limits.toml"]
+
+
+def _checked_peaks(plan) -> dict[str, float]:
+    """Peaks of the plan replayed here on its own conservative models (independent of plan.peaks)."""
+    s = plan.spec
+    T = 1.0 / s.sample_rate
+    worst = {"u": 0.0, "q": 0.0, "v": 0.0, "a": 0.0}
+    for M in mass_bracket(s):
+        log = play(plan, _model_truth(s, M), loop_gains_for(s, M))
+        q = log["q"]
+        worst["u"] = max(worst["u"], float(np.max(np.abs(log["u"]))))
+        worst["q"] = max(worst["q"], float(np.max(np.abs(q))))
+        worst["v"] = max(worst["v"], float(np.max(np.abs(np.diff(q)))) / T)
+        worst["a"] = max(worst["a"], float(np.max(np.abs(np.diff(q, 2)))) / T / T)
+    return worst
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(travel=st.floats(0.002, 1.0), v_max=st.floats(0.01, 3.0), a_max=st.floats(0.5, 200.0),
+       u_max=st.floats(0.5, 100.0), fs=st.sampled_from([1000.0, 2500.0, 4000.0]),
+       bw_frac=st.floats(0.005, 0.05), mass=st.one_of(st.none(), st.floats(0.005, 20.0)),
+       friction_frac=st.one_of(st.none(), st.floats(0.0, 0.5)),
+       injection=st.sampled_from(["prbs", "multisine"]))
+def test_emitted_plan_never_exceeds_a_limit(travel, v_max, a_max, u_max, fs, bw_frac, mass, friction_frac,
+                                             injection):
+    axis = {}
+    if mass is not None:
+        axis["mass"] = mass
+    if friction_frac is not None:
+        axis["friction"] = friction_frac * u_max
+    data = {"limits": {"travel": travel, "v_max": v_max, "a_max": a_max, "u_max": u_max},
+            "drive": {"sample_rate": fs, "bandwidth_hz": bw_frac * fs}, "axis": axis,
+            "plan": {"n_speeds": 4, "moves": 2, "injection_s": 2.0, "injection": injection}}
+    try:
+        plan = plan_run(excite_spec_from_mapping(data))
+    except (PlanRefused, SpecError) as exc:
+        assert str(exc).startswith("limits.toml: "), exc  # one line naming the file, then the key
+        return
+    s = plan.spec
+    # the reference itself keeps within the limits
+    assert np.max(np.abs(plan.q_ref)) <= s.travel / 2
+    assert np.max(np.abs(plan.v_ref)) <= s.v_max
+    assert np.max(np.abs(plan.a_ref)) <= s.a_max
+    assert np.max(np.abs(plan.u_inject)) <= s.u_max
+    # and so does its pre-simulation, replayed
+    w = _checked_peaks(plan)
+    assert w["u"] <= s.u_max and w["q"] <= s.travel / 2 and w["v"] <= s.v_max and w["a"] <= s.a_max, (w, s)
+
+
+# Three known-truth axes: (limits.toml as a mapping, truth, mode expected from today's identify).
+# C's 300 Hz mode is not asserted: its 5 um encoder is coarser than what the a_max-limited injection
+# moves the axis at 300 Hz (a fraction of a um), so today's identify does not see it (reported).
+LOOP_AXES = {
+    "A 2.5 kHz, motor-side 500 Hz mode, 0.5-sample delay": (
+        {"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 20.0, "u_max": 10.0},
+         "drive": {"sample_rate": 2500.0, "bandwidth_hz": 40.0}, "axis": {"mass": 0.03, "friction": 0.1}},
+        dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=2500.0, mode_hz=500.0,
+             mode_damping=0.03, mode_ratio=0.3, delay=0.5 / 2500.0), True),
+    "B 5 kHz, load-side 800 Hz mode, 1.2-sample delay, N": (
+        {"limits": {"travel": 0.5, "v_max": 1.0, "a_max": 30.0, "u_max": 100.0},
+         "drive": {"sample_rate": 5000.0, "bandwidth_hz": 60.0}, "axis": {"mass": 1.0, "u_unit": "N"}},
+        dict(M=1.2, B=8.0, fc=4.0, fs=5.0, vs=0.02, xi=2.0, lsb=1e-7, sample_rate=5000.0, u_unit="N", u_max=100.0,
+             mode_hz=800.0, mode_damping=0.05, mode_ratio=0.4, mode_load_side=True, delay=1.2 / 5000.0), True),
+    "C 1 kHz, 5 um encoder, 0.5 um noise, 300 Hz mode": (
+        {"limits": {"travel": 0.2, "v_max": 0.3, "a_max": 10.0, "u_max": 10.0},
+         "drive": {"sample_rate": 1000.0, "bandwidth_hz": 20.0}, "axis": {"mass": 0.1}},
+        dict(M=0.08, B=0.5, fc=0.3, fs=0.35, vs=0.005, xi=1.5, lsb=5e-6, noise_std=0.5e-6, sample_rate=1000.0,
+             mode_hz=300.0, mode_damping=0.04, mode_ratio=0.3, delay=0.3 / 1000.0), False),
+}
+
+
+@pytest.mark.parametrize("name", list(LOOP_AXES))
+def test_known_truth_loop_identify_recovers_axis(tmp_path, name):
+    """Plan from the limits, record the plan on a known-truth axis, identify the log with today's identify."""
+    from commission.identification import identify_log
+    from commission.synth import AxisTruth, write_log_h5
+
+    spec_d, truth_d, mode_expected = LOOP_AXES[name]
+    spec = excite_spec_from_mapping(spec_d)
+    truth = AxisTruth(**truth_d)
+    plan = plan_run(spec)
+    assert 20.0 < plan.duration < 120.0  # minutes, not hours
+    log = simulate_plan(plan, truth, np.random.default_rng(1))
+    # the recording keeps within the limits (0 violations of u, travel, speed)
+    T = 1 / truth.sample_rate
+    assert np.max(np.abs(log["u"])) <= spec.u_max
+    assert np.max(np.abs(log["q"])) <= spec.travel / 2
+    assert np.max(np.abs(np.diff(log["q"]))) / T <= spec.v_max
+    path = tmp_path / "log.h5"
+    write_log_h5(path, log)
+    d = identify_log(str(path), u_unit=truth.u_unit).ident.to_dict()
+    p = d["parameters"]
+    for k in ("M", "B", "fc"):
+        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=0.01), k
+    fr = d["frequency_response"]
+    res = [m for m in fr["modes"] if m["kind"] == "resonance"]
+    print(f"loop {name}: duration {plan.duration:.1f} s;",
+          ", ".join(f"{k} {100 * (p[k]['value'] / getattr(truth, k) - 1):+.2f} %" for k in ("M", "B", "fc")),
+          f"; modes {[(round(m['frequency_hz'], 1), round(m['damping'], 4)) for m in res]} (truth "
+          f"{truth.mode_hz:g} Hz, {truth.mode_damping:g}); delay {fr['delay_samples']} samples (truth "
+          f"{truth.delay * truth.sample_rate:g}); band {fr['band_hz']} Hz")
+    if mode_expected:
+        assert len(res) == 1
+        assert res[0]["frequency_hz"] == pytest.approx(truth.mode_hz, rel=0.05)
+        assert res[0]["damping"] == pytest.approx(truth.mode_damping, rel=0.30)
+        assert fr["delay_samples"] == pytest.approx(truth.delay * truth.sample_rate, abs=0.2)
+
+
+def test_plan_json_loader_names_bad_field(tmp_path):
+    p = tmp_path / "plan.json"
+    p.write_text(json.dumps({"kind": "excitation_plan", "schema_version": 1,
+                             "segments": [{"name": "a", "purpose": "b", "t_start": 0.0, "t_end": "x"}]}))
+    with pytest.raises(Exception, match=r"\$\.segments\[0\]\.t_end"):
+        load_plan_json(p)
+
+
+def test_without_mass_plan_starts_with_bump():
+    spec = excite_spec_from_mapping({
+        "limits": {"travel": 0.2, "v_max": 0.4, "a_max": 20.0, "u_max": 10.0},
+        "drive": {"sample_rate": 1000.0, "bandwidth_hz": 30.0}, "plan": {"n_speeds": 3, "injection_s": 2.0}})
+    plan = plan_run(spec)
+    first = plan.segments[0]
+    assert first.name == "bump"
+    m = (plan.t >= first.t_start) & (plan.t < first.t_end)
+    assert np.max(plan.u_inject[m]) > 0 and np.min(plan.u_inject[m]) < 0
+    assert abs(float(np.sum(plan.u_inject[m]))) < 1e-9 * float(np.sum(np.abs(plan.u_inject[m])))  # zero net impulse
+    assert np.all(plan.q_ref[m] == 0.0)  # at rest
+
+
+def test_identify_plan_uses_the_plans_injection_windows(tmp_path):
+    """`identify --plan plan.json` measures the frequency response on the plan's injection windows."""
+    from commission.synth import AxisTruth, write_log_h5
+
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, SMALL)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan_d = load_plan_json(out / "plan.json")
+    spec = load_excite_spec(tmp_path / "limits.toml")
+    plan = plan_run(spec)
+    assert np.allclose(plan.u_inject, np.loadtxt(out / "plan.csv", delimiter=",", skiprows=1)[:, 3], rtol=1e-11, atol=0)
+    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=1000.0,
+                      mode_hz=250.0, mode_damping=0.03, mode_ratio=0.3)
+    log = tmp_path / "log.h5"
+    write_log_h5(log, simulate_plan(plan, truth, np.random.default_rng(0)))
+    r = runner.invoke(app, ["identify", str(log), "--plan", str(out / "plan.json"), "--out", str(tmp_path / "i.json")])
+    assert r.exit_code == 0, r.output
+    fr = json.loads((tmp_path / "i.json").read_text())["frequency_response"]
+    wins = [w for g in plan_d["segments"] if g["name"] == "injection" for w in g["windows_s"]]
+    assert fr["source"] == "broadband" and len(fr["segments_s"]) == len(wins)
+    for (a, b), (wa, wb) in zip(fr["segments_s"], wins):
+        assert wa < a < b < wb
+    print("identify --plan, 1 kHz axis, 250 Hz mode:", fr["modes"], fr["delay_samples"], fr["band_hz"])
+    # a log that ends before the plan's injection does is not a recording of this plan
+    short = {k: v[: int(plan.segments[2].t_end * 1000)] for k, v in simulate_plan(plan, truth,
+                                                                                  np.random.default_rng(0)).items()}
+    write_log_h5(tmp_path / "short.h5", short)
+    r = runner.invoke(app, ["identify", str(tmp_path / "short.h5"), "--plan", str(out / "plan.json"),
+                            "--out", str(tmp_path / "s.json")])
+    assert r.exit_code == 2 and "--plan: the log ends at" in r.stderr, r.output
+    assert not (tmp_path / "s.json").exists()
+
+
+def test_stepped_sine_segments_carry_their_frequency():
+    spec = excite_spec_from_mapping({
+        "limits": {"travel": 0.2, "v_max": 0.4, "a_max": 20.0, "u_max": 10.0},
+        "drive": {"sample_rate": 1000.0, "bandwidth_hz": 30.0}, "axis": {"mass": 0.03},
+        "plan": {"n_speeds": 3, "moves": 2, "injection_s": 1.0, "stepped_sine_hz": [40.0, 170.0]}})
+    plan = plan_run(spec)
+    sines = [g for g in plan.segments if g.name.startswith("sine ")]
+    assert [g.info["frequency_hz"] for g in sines] == [40.0, 170.0]
+    for g in sines:
+        (a, b), = g.info["windows_s"]
+        m = (plan.t >= a) & (plan.t < b)
+        x = plan.u_inject[m]
+        assert b - a >= 20 / g.info["frequency_hz"] - 2e-3  # sine_cycles = 20 by default
+        spec_x = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+        f = np.fft.rfftfreq(x.size, 1e-3)
+        assert f[np.argmax(spec_x)] == pytest.approx(g.info["frequency_hz"], abs=1000.0 / x.size + 1e-9)
+        assert np.all(plan.u_inject[(plan.t >= g.t_start) & (plan.t < g.t_end) & ~m] == 0.0)
+
+
+def test_rotary_axis_words_its_units(tmp_path):
+    text = """\
+[limits]
+travel = 6.0
+v_max = 20.0
+a_max = 400.0
+u_max = 2.0
+[drive]
+sample_rate = 1000.0
+kp = 8.0
+kd = 0.05
+[axis]
+mass = 2e-4
+q_unit = "rad"
+u_unit = "Nm"
+[plan]
+n_speeds = 3
+moves = 2
+injection_s = 1.0
+"""
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["units"] == {"t": "s", "q": "rad", "u": "Nm", "v": "rad/s", "a": "rad/s^2"}
+    assert plan["presimulation"]["models"][0]["kp"] == 8.0  # the given gains, on both models
+    assert re.search(r"\|v\| [\d.e+-]+ rad/s <= v_max 20 rad/s", r.output), r.output
+    assert re.search(r"\|u\| [\d.e+-]+ Nm <= u_max 2 Nm", r.output), r.output
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text.replace("kd = 0.05", "kd = -1.0"))),
+                            "--out-dir", str(tmp_path / "p2")])
+    assert r.exit_code == 2 and "drive.kd = -1.0 Nm s/rad must not be negative" in r.stderr, r.output
