@@ -862,12 +862,12 @@ def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf
     x0 = _pack(current)
     kinds = tuple(m.kind for m in current.extra)
     cands = []
-    for kind in ("load", "motor"):
+    for kind in ("load", "motor") if current.structure != "rigid" else ():  # from rigid: the fresh starts below
         starts = [np.concatenate([x0, [math.log(fd), math.log(z)] + ([0.3] if kind == "motor" else [])])
                   for fd in dep_f for z in (0.03, 0.15)]
         cands.append(fit_structure(current.structure, ff, Hf, cf, n_avg, M, B, Ts, starts,
                                    extra_kinds=kinds + (kind,)))
-    own = [current.mode_hz] + [m.hz for m in current.extra]  # type: ignore[list-item]
+    own = [m.hz for m in current.all_modes]
     pool: list[float] = []
     for fr in sorted(set(own) | set(peaks[:3]) | set(dep_f)):
         if all(abs(fr - p) > 0.05 * p for p in pool):
@@ -1125,23 +1125,28 @@ def frequency_response(t: np.ndarray, q: np.ndarray, u: np.ndarray, M: float, B:
             if motor_starts:
                 fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts,
                                                         motor_starts)
-        best = min(fits.values(), key=lambda s: s.score)
-        if best.structure != "rigid":
-            Hm = best.response(M, B, Ts, ff)
-            rigid_like = sampled_plant(plant_vector(M * best.mass_scale, B, delay=best.delay_samples * Ts),
+        # The best structure by the criterion whose mode passes the checks (rigid always does): a
+        # compromise of one mode over two (damping on its bound) gives way to the next.
+        best = fits["rigid"]
+        for cand in sorted(fits.values(), key=lambda s: s.score):
+            if cand.structure == "rigid":
+                break
+            Hm = cand.response(M, B, Ts, ff)
+            rigid_like = sampled_plant(plant_vector(M * cand.mass_scale, B, delay=cand.delay_samples * Ts),
                                        Ts).frequency_response(ff)
             if np.max(np.abs(np.log(np.abs(Hm / rigid_like)))) <= math.log(BAND_GAIN_TOL):
-                best = fits["rigid"]
                 note = "the best mode changes the response by less than the band tolerance: reported as rigid"
-            elif _on_edge(best.mode_hz, best.mode_damping, float(ff[0]), fs):  # type: ignore[arg-type]
-                best = fits["rigid"]
+            elif _on_edge(cand.mode_hz, cand.mode_damping, float(ff[0]), fs):  # type: ignore[arg-type]
                 note = ("the best mode sits on the edge of what the data can show (damping or frequency at its "
                         "bound): reported as rigid; see the measured response")
-        while best.structure != "rigid" and best.n_modes < MAX_MODES:
+            else:
+                best, note = cand, None
+                break
+        while best.n_modes < MAX_MODES:  # from rigid too: departures say a mode is missing
             more = _one_more_mode(best, res, ff, Hf, cf, n_avg, M, B, Ts)
             if more is None:
                 break
-            best = more
+            best, note = more, None
             fits[f"{best.n_modes}_modes"] = best
         if best.n_modes > max_modes:
             found = best.n_modes

@@ -213,3 +213,25 @@ def test_emps_names_the_missing_evidence_and_the_excite_command(tmp_path):
 
 def test_a_log_with_an_injection_needs_no_excite_run(identified):
     assert all("evidence" not in ident for ident in identified.values())
+
+
+def test_an_excite_plan_on_the_two_mode_axis_backs_both_modes(tmp_path):
+    # The loop closed on the axis: plan from the limits, record it, identify with --plan.
+    from commission.excite import excite_spec_from_mapping, plan_run, simulate_plan
+
+    truth = TWO_MODE["bracket_5k"]
+    spec = excite_spec_from_mapping({"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 20.0, "u_max": 10.0},
+                                     "drive": {"sample_rate": 5000.0, "bandwidth_hz": 40.0}, "axis": {"mass": 0.1}})
+    plan = plan_run(spec)
+    path = tmp_path / "log.h5"
+    write_log_h5(path, simulate_plan(plan, truth, np.random.default_rng(1)))
+    ident = identify_log(str(path), plan=json.loads(json.dumps(plan.to_dict()))).ident.to_dict()
+    fr = ident["frequency_response"]
+    assert fr["source"] == "broadband" and fr["departures"] == []
+    res = _resonances(fr)
+    assert len(res) == 2
+    for (f_true, z_true), m in zip(structural_modes(truth.plant()), res):
+        assert m["frequency_hz"] == pytest.approx(f_true, rel=0.05)
+        assert m["damping"] == pytest.approx(z_true, rel=0.30)
+    assert abs(fr["delay_samples"] - truth.delay * truth.sample_rate) <= 0.2
+    assert ident["encoder"]["noise_std"] == pytest.approx(truth.noise_std, rel=0.20)
