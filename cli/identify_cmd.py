@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 from typing import List, Optional
 
@@ -33,7 +35,9 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
     u, q = ident.units["u"], ident.units["q"]
     units = parameter_units(ident.units)
     labels = {"M": parameter_label("M", ident.units)}
-    t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}, {fit.method})")
+    chosen = (ident.extra.get("model_selection") or {}).get("chosen")  # type: ignore[union-attr]
+    t = Table(title=f"Identification of {outcome.log.source} ({fit.friction}"
+                    + (f" + {', '.join(chosen)}" if chosen else "") + f", {fit.method})")
     for col in ("parameter", "value", "± std", "rel. std", "unit"):
         t.add_column(col, justify="right" if col != "parameter" else "left")
     missing = ident.not_identified()
@@ -51,6 +55,7 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
             t.add_row(f"ripple P={h['pitch']:.4g} {q}", f"{h['amp']['value']:.4g}", f"{h['amp']['std']:.2g}",
                       f"phase {h['phase']['value']:+.3f} rad", u)
     console.print(t)
+    _print_terms(ident, console)
     step = outcome.checks.quantization_step
     lines = [
         f"samples {outcome.log.t.size} at {outcome.log.sample_rate:.6g} Hz; encoder step "
@@ -72,6 +77,13 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
                  f"(v in {unit('v', ident.units)}, slope in s/{q})")
     if ident.theta is not None:
         lines.append(frequency_summary(ident.extra.get("frequency_response")))  # type: ignore[arg-type]
+    ps = ident.extra.get("position_simulation")
+    if isinstance(ps, dict) and ps.get("rmse") is not None:
+        ref = ps.get("reference_rmse")
+        lines.append(f"position simulation on the validation log: RMSE {ps['rmse'] * 1e3:.4g} m{q}"
+                     + (f" (IDIM-LS model: {ref * 1e3:.4g} m{q})" if ref is not None else "")
+                     + f", beside the force relative error {ident.validation_relative_error:.4f}"
+                     + f" (open loop, {ps['init_samples']}-sample initialisation window)")
     for name, why in missing.items():
         lines.append(f"[yellow]not identified:[/] {name}: {why}; theta, its box and the frequency response need it "
                      f"(identify --fix M=VALUE gives the {mass_wording(ident.units)[0]} in {units['M']})")
@@ -89,6 +101,41 @@ def evidence_text(ev: dict) -> str:
     from commission.next_steps import ExciteAdvice
 
     return ExciteAdvice(tuple(ev["missing"]), ev["excite_command"], ev["limits_toml"]).text()
+
+
+def _num(x: float | None, spec: str) -> str:
+    """A number for the terms table; null (a flat profile: no finite std) as "-"."""
+    return "-" if x is None else format(x, spec)
+
+
+def _print_terms(ident, console: Console) -> None:
+    """The delay-aware inverse dynamics' terms (every coefficient with its unit) and the selection's choice."""
+    sel = ident.extra.get("model_selection")
+    if not isinstance(sel, dict):
+        return
+    u = ident.units["u"]
+    q = ident.units["q"]
+    chosen = sel.get("chosen") or []
+    console.print(f"terms chosen by {sel['folds']}-fold blocked cross-validation on the identification log: "
+                  + (", ".join(chosen) if chosen else "none (the base model)"))
+    inv = ident.extra.get("model", {}).get("inverse_dynamics")  # type: ignore[union-attr]
+    if not isinstance(inv, dict):
+        return
+    t = Table(title="inverse dynamics (u = F(t + (0.5 + delay) Ts))")
+    for col in ("coefficient", "value", "± std", "unit"):
+        t.add_column(col, justify="right" if col != "coefficient" else "left")
+    def un(s: str) -> str:
+        return s.replace("u", u, 1).replace("/m", f"/{q}") if s.startswith("u") else s.replace("m", q, 1)
+    for nm, c in {**inv["coefficients"], **inv["derived"]}.items():
+        t.add_row(nm, f"{c['value']:.6g}", _num(c["std"], ".3g"), un(c["unit"]))
+    if "delay" in inv["terms"]:
+        t.add_row("delay", f"{inv['delay_samples']:.3f}", _num(inv["delay_std_samples"], ".3f"),
+                  "samples beyond the hold")
+    if inv.get("vs") is not None:
+        t.add_row("vs (xi = 2)", f"{inv['vs']:.4g}", _num(inv["vs_std"], ".2g"), f"{q}/s")
+    if any(k in inv["coefficients"] for k in ("kq1", "kq2")):
+        t.add_row("q_center", f"{inv['q_center']:.6g}", "", q)
+    console.print(t)
 
 
 def print_legs_summary(outcome: LegsOutcome, console: Console) -> None:
@@ -182,6 +229,10 @@ def identify_command(
     max_modes: Optional[int] = typer.Option(None, "--max-modes", min=0, help=(
         "Most structural modes the frequency response keeps (default: as many as the data hold, up to 4; "
         "each must lower the information criterion). Modes beyond it are warned about, named by frequency.")),
+    terms: str = typer.Option("auto", "--terms", help="With --friction auto, on a whole-log fit: the delay-aware "
+                              "inverse dynamics' switchable terms (delay, viscous_asym, stribeck, position, drag) "
+                              "that blocked cross-validation on the identification log chooses among: auto (all), "
+                              "none, or a comma-separated subset."),
 ) -> None:
     """Identify M, B, friction and offset from a position-only excitation log; write ident.json.
 
@@ -194,6 +245,7 @@ def identify_command(
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
                          lead=lead, gear=gear, counts_per_rev=counts_per_rev)
+    o = dataclasses.replace(o, terms=terms)
     files = expand_log_paths([str(p) for p in logs])
     val_files = expand_log_paths([o.validate_on]) if o.validate_on else []
     several = len(files) > 1

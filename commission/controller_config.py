@@ -31,6 +31,10 @@ validated against and where it came from::
                        each criterion with its scenario, the ARC's indexes on the
                        identified plant (nominal, per trajectory), scenario count, seed
     provenance         log_sha256, ident_sha256, tuning_sha256, tool_version, created_utc
+    validity           OPTIONAL (absent: the whole box of bounds.theta_min/theta_max, as
+                       identified): present when tune narrowed a defaulted payload range to
+                       what the gains certify; payload_range and mass_range [min, max] in
+                       unit (u-unit s^2/m), default_payload_range, payload_defaulted, reason
     checksum           {"algorithm": "sha256", "value": hex}: sha256 of the canonical JSON
                        (sorted keys, 2-space indent) of every other field
 
@@ -189,6 +193,8 @@ class ControllerConfig:
     validated : dict
         JSON-ready record of the gate and the worst values (see :mod:`commission.validate`).
     provenance : ControllerProvenance
+    validity : dict or None
+        The certified payload range (module docstring; None: the identified box as is).
     """
 
     gains: ArcGains
@@ -196,6 +202,7 @@ class ControllerConfig:
     units: Mapping[str, str]
     validated: Mapping[str, Any]
     provenance: ControllerProvenance
+    validity: Mapping[str, Any] | None = None
 
     def body(self) -> dict[str, Any]:
         """Every field but the checksum, JSON-ready."""
@@ -221,6 +228,8 @@ class ControllerConfig:
                 doc["runtime"].update({n: _out(getattr(g, n)) for n in RUNTIME_ADDED})
         doc["validated"] = dict(self.validated)
         doc["provenance"] = self.provenance.to_dict()
+        if self.validity is not None:  # only when narrowed, so that other files keep their checksum
+            doc["validity"] = dict(self.validity)
         return doc
 
     def to_dict(self, sign_key: bytes | None = None) -> dict[str, Any]:
@@ -269,7 +278,7 @@ class ControllerConfig:
                          "differs from commission.controller_config.CONTROL_LAW)", "$.control_law")
         known = {"kind", "schema_version", "controller", "control_law", "sample_rate", "sample_period", "units",
                  "friction_compensation", "validated", "provenance", "checksum", "signature", "runtime",
-                 *SECTIONS}
+                 "validity", *SECTIONS}
         for k in r.keys():
             if k not in known:
                 raise r.fail("unknown field", f"$.{k}")
@@ -333,14 +342,28 @@ class ControllerConfig:
             tool_version=pr.str_("tool_version"),  # type: ignore[arg-type]
             created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
         )
+        validity = _validity(r) if r.has("validity") else None
         verify_checksum(data, source)
         verify_signature(data, source, key)
-        return cls(gains=gains, sample_rate=rate, units=units, validated=validated, provenance=prov)
+        return cls(gains=gains, sample_rate=rate, units=units, validated=validated, provenance=prov,
+                   validity=validity)
 
     @classmethod
     def load(cls, path: str, key: bytes | None = None) -> "ControllerConfig":
         """Read and strictly validate ``controller.json`` (and its signature under ``key``, if given)."""
         return cls.from_dict(read_json(path), source=str(path), key=key)
+
+
+def _validity(r: Reader) -> dict[str, Any]:
+    """The optional ``validity`` record: ``payload_range`` and ``mass_range`` [min, max] pairs and their ``unit``."""
+    v = r.obj("validity")
+    for k in ("payload_range", "mass_range"):
+        x = v.child(k).data
+        if not (isinstance(x, list) and len(x) == 2 and all(isinstance(e, (int, float)) and not isinstance(e, bool)
+                                                         and math.isfinite(e) for e in x) and 0 <= x[0] <= x[1]):
+            raise v.fail(f"expected a [min, max] pair of finite numbers >= 0, got {x!r}", f"{v.path}.{k}")
+    v.str_("unit")
+    return dict(v.data)
 
 
 _RUNTIME_DEFAULTS = {f.name: f for f in dataclasses.fields(ArcGains) if f.name in RUNTIME_FIELDS}

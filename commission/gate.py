@@ -114,7 +114,7 @@ DEFAULT_ARC_VS_PID_SLACK_LSB = 1.0 / math.sqrt(12.0)
 SATURATION_TOL = 1e-9
 
 #: Criterion names, in report order.
-CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms", "margins")
+CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms", "margins", "margins_box")
 _ERROR_KEYS = ("e_F", "e_M", "e_rms")
 #: The margin keys of gate.toml and their :class:`commission.robustness.MarginFloors` attributes.
 MARGIN_KEYS = {"gain_margin_db": "gain_db", "phase_margin_deg": "phase_deg",
@@ -670,4 +670,35 @@ def margin_checks(rows: Sequence[Any], floors: Any, criterion: str = "margins") 
             ratio = floor / val if val > 0 else math.inf
             out.append(Check(criterion, where, ratio, 1.0, ok,
                              f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+    return out
+
+
+def box_checks(box: Any, floors: Any, criterion: str = "margins_box") -> list[Check]:
+    """Gate checks of the ARC over the whole theta box (:class:`commission.robustness.BoxRobustness`).
+
+    (a) per box plant, the ARC with theta_hat at that plant's theta: stable (value 0, or inf when
+    unstable) and each floor of ``floors`` (value floor / margin, limit 1, as :func:`margin_checks`);
+    (b) one check, the least stable loop with theta_hat anywhere the projection allows (value its
+    spectral radius, limit 1).  The scenario names the corner (``box/<corner>[/<variant>]/...``), so
+    a refusal names it.
+    """
+    out = []
+    for r in box.at_plant:
+        m = r.margins
+        where = f"box/{r.plant}/arc(theta_hat plant)"
+        out.append(Check(criterion, where, 0.0 if m.stable else math.inf, 1.0, m.stable,
+                         f"closed loop {'stable' if m.stable else 'UNSTABLE'} "
+                         f"(spectral radius {m.spectral_radius:.4f})"))
+        for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
+                                       ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
+                                       ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
+                                       ("modulus margin", m.modulus_margin, floors.modulus, "")):
+            ok = bool(val >= floor)
+            ratio = floor / val if val > 0 else math.inf
+            out.append(Check(criterion, where, ratio, 1.0, ok,
+                             f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+    a = box.any_estimate
+    out.append(Check(criterion, f"box/{a.plant}/arc(theta_hat {a.theta_hat_at})", a.spectral_radius, 1.0, a.stable,
+                     f"largest spectral radius {a.spectral_radius:.4f} of {a.loops} loops with theta_hat anywhere "
+                     f"the projection allows ({'stable' if a.stable else 'UNSTABLE'})"))
     return out

@@ -30,6 +30,7 @@ from commission.identify.friction import friction_compensation_curve, stribeck_f
 from commission.controllers.linear import rigid_frequency_response
 from commission.identify.frf import MAX_MODES, EncoderNoise, FrequencyResponse, encoder_noise, frequency_response
 from commission.identify.ls import ripple_name, ripple_pitches
+from commission.identify import richer
 from commission.identify.signals import quantization_step
 from commission.identify.steady import FrictionMap, friction_map
 from commission.logs import ExcitationLog, load_log
@@ -139,6 +140,7 @@ class IdentifyOptions:
     lead: float | None = None
     gear: float | None = None
     counts_per_rev: float | None = None
+    terms: str = "auto"
 
     def kwargs(self) -> dict[str, object]:
         """Keywords of :func:`identify_log`."""
@@ -146,7 +148,7 @@ class IdentifyOptions:
                 "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
                 "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix), "lead": self.lead,
-                "gear": self.gear, "counts_per_rev": self.counts_per_rev}
+                "gear": self.gear, "counts_per_rev": self.counts_per_rev, "terms": self.terms}
 
 
 def convert_axis(logs: Sequence[ExcitationLog], lead: float | None, gear: float | None) -> list[ExcitationLog]:
@@ -424,6 +426,109 @@ def _evidence(logs: Sequence[ExcitationLog], freq: FrequencyResponse | None, fit
     return None if adv is None else adv.to_dict()
 
 
+def parse_terms(terms: str | Sequence[str] | None) -> tuple[str, ...] | None:
+    """``--terms``: ``auto`` (None: every switchable term, chosen by cross-validation), ``none``
+    (the richer model off), or a comma-separated subset of :data:`richer.TERMS` to choose among."""
+    if terms is None:
+        return None
+    items = [t.strip() for t in (terms.split(",") if isinstance(terms, str) else terms) if t.strip()]
+    if items == ["auto"]:
+        return None
+    if items == ["none"]:
+        return ()
+    bad = [t for t in items if t not in richer.TERMS]
+    if bad or not items:
+        raise UsageError(f"--terms: expected auto, none or a comma-separated subset of {', '.join(richer.TERMS)}; "
+                         f"got {terms!r}")
+    return tuple(t for t in richer.TERMS if t in items)
+
+
+def _rich_choice(logs: Sequence[ExcitationLog], fit: AxisFit, *, ripple_pitch: float | tuple[float, ...] | None,
+                 allowed: tuple[str, ...]) -> tuple[richer.Selection, AxisFit | None]:
+    """The delay-aware inverse dynamics chosen on the identification logs alone (:func:`richer.select_model`).
+
+    Returns the selection and, when it chose more than the base model, the AxisFit that
+    carries it into the pipeline: ``M``, the mean viscous ``B``, ``fc``, ``offset`` and,
+    for a Stribeck term with ``fs >= fc``, ``fs, vs, xi`` (the plant simulator's and the
+    controller's friction curve).  What the plant cannot represent (viscous asymmetry,
+    position polynomial, drag, a Stribeck dip below ``fc``) stays in ident.json's
+    ``model.inverse_dynamics`` only.  None when the base model was chosen: the
+    existing fit stands.
+    """
+    model = richer.RichModel([(lg.t, lg.q, lg.u) for lg in logs], ripple_pitch=ripple_pitch,
+                             bandwidth_hz=fit.bandwidth_hz)
+    sel = richer.select_model(model, allowed)
+    rf = sel.fit
+    if not rf.terms:
+        return sel, None
+    params: dict[str, tuple[float, float]] = {}
+    for nm in ("M", "B", "fc"):
+        params[nm] = (rf.value(nm), float(rf.std[rf.names.index(nm)]))
+    der = rf.derived()
+    friction = "coulomb"
+    if "fs" in der and der["fs"][0] >= rf.value("fc") and rf.vs is not None:
+        params["fs"] = (der["fs"][0], der["fs"][1])
+        params["vs"] = (rf.vs, rf.vs_std if rf.vs_std is not None else math.nan)
+        params["xi"] = (richer.STRIBECK_XI, 0.0)
+        friction = "stribeck"
+    params["offset"] = (rf.value("offset"), float(rf.std[rf.names.index("offset")]))
+    for k in range(len(rf.ripple_pitch)):
+        # a sin x + b cos x = amp sin(x + phase); standard deviations by the delta method.
+        i, j = rf.names.index(ripple_name("ripple_sin", k)), rf.names.index(ripple_name("ripple_cos", k))
+        a, b = float(rf.theta[i]), float(rf.theta[j])
+        amp = math.hypot(a, b)
+        C = np.asarray(rf.cov)[np.ix_([i, j], [i, j])]
+        ga = np.array([a, b]) / amp if amp > 0 else np.zeros(2)
+        gp = np.array([-b, a]) / amp**2 if amp > 0 else np.zeros(2)
+        params[ripple_name("ripple_amp", k)] = (amp, float(math.sqrt(max(ga @ C @ ga, 0.0))))
+        params[ripple_name("ripple_phase", k)] = (math.atan2(b, a), float(math.sqrt(max(gp @ C @ gp, 0.0))))
+    r = rf.residuals
+    new = dataclasses.replace(fit, friction=friction, parameters=params, relative_error=rf.relative_error,
+                              condition_number=rf.condition_number, residual_std=float(np.std(r, ddof=1)),
+                              residuals=r, force_measured=rf.force_measured, force_fitted=rf.force_fitted)
+    return sel, new
+
+
+def _position_rmse(val_logs: Sequence[ExcitationLog], models: Mapping[str, richer.RichFit]) -> dict[str, object]:
+    """Open-loop position-simulation RMSE of each model under the validation logs' commands, m."""
+    out: dict[str, object] = {"init_samples": richer.SIM_INIT_SAMPLES, "unit": "m",
+                              "what": "open-loop simulation under the validation log's command, state from the "
+                                      "filtered log at the end of the initialisation window, RMSE after it"}
+    for name, rf in models.items():
+        sq, n = 0.0, 0
+        for lg in val_logs:
+            sim = richer.simulate_position(rf, lg.t, lg.q, lg.u)
+            m = lg.t.size - sim.init_samples - 1
+            sq += sim.rmse**2 * m
+            n += m
+        out[name] = math.sqrt(sq / n) if n else None
+    return out
+
+
+def _coulomb_richfit(fit: AxisFit) -> richer.RichFit:
+    """An IDIM-LS (Coulomb) AxisFit as a :class:`richer.RichFit` with the published alignment (for simulation)."""
+    p = fit.parameters
+    return richer.published_form(p["M"][0], p["B"][0], p["fc"][0], p["offset"][0], None, fit.sample_rate)
+
+
+def _delay_agreement(rf: richer.RichFit, freq: FrequencyResponse | None) -> list[str]:
+    """A warning when the frequency response's input delay and the least-squares one disagree."""
+    if freq is None or "delay" not in rf.terms:
+        return []
+    d = freq.to_dict().get("model")
+    d_s = d.get("delay_s") if isinstance(d, dict) else None
+    if d_s is None:
+        return []
+    d_frf = float(d_s) * rf.sample_rate
+    tol = max(3.0 * rf.delay_std_samples, 0.5)
+    if abs(float(d_frf) - rf.delay_samples) > tol:
+        return [f"delay: the least squares give {rf.delay_samples:.2f} ± {rf.delay_std_samples:.2f} samples beyond "
+                f"the hold, the frequency response {float(d_frf):.2f} samples (they differ by more than "
+                f"{tol:.2f} samples); the plant takes the frequency response's"]
+    return []
+
+
+
 def identify_log(
     path: str | Sequence[str],
     *,
@@ -445,6 +550,7 @@ def identify_log(
     max_modes: int | None = None,
     u_max: float | None = None,
     plan: Mapping[str, Any] | None = None,
+    terms: str | Sequence[str] | None = "auto",
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -513,6 +619,13 @@ def identify_log(
         A parsed plan.json (:func:`commission.excite.load_plan_json`) the one log was recorded
         from: the frequency response is estimated on its injection windows
         (:func:`commission.excite.injection_ranges`) instead of the segments the command's level shows.
+    terms : str or sequence of str
+        ``--terms`` (:func:`parse_terms`), with ``friction="auto"`` only: the switchable
+        terms of the delay-aware inverse dynamics (:mod:`commission.identify.richer`)
+        among which blocked cross-validation on the identification log(s) chooses;
+        ``"auto"`` all of them, ``"none"`` none (the model of ``friction="auto"``
+        before them).  Used on logs fitted by the whole-log (dynamic) method, with M
+        fitted; the validation logs are read only after the choice.
 
     A log without usable acceleration content (slow constant-speed runs) leaves M not
     identified: ``parameters.M`` null with the reason in ``not_identified``, and no
@@ -556,14 +669,31 @@ def identify_log(
     if friction not in ("auto", "coulomb", "stribeck"):
         raise UsageError(f"--friction: expected auto, coulomb or stribeck, got {friction!r}")
     fix = dict(fix or {})
+    allowed = parse_terms(terms)
     with axis_units_context(_units(u_unit, logs[0])["q"]):  # the numerics' messages in the axis's unit
         fit, friction_warnings = _fit_with_context(logs, friction=friction, ripple_pitch=ripple_pitch,
                                                    mass=fix.get("M"))
+        idim_fit = fit
+        selection: richer.Selection | None = None
+        if (friction == "auto" and allowed != () and fit.method == "dynamic" and not fix
+                and not fit.not_identified):
+            # Chosen on the identification logs alone: val_logs are not passed.
+            try:
+                selection, rich_fit = _rich_choice(logs, fit, ripple_pitch=ripple_pitch,
+                                                   allowed=richer.TERMS if allowed is None else allowed)
+            except (NotIdentifiableError, SignalError) as exc:
+                friction_warnings.append(f"terms: the delay-aware model was not fitted ({exc})")
+                rich_fit = None
+            if rich_fit is not None:
+                fit = rich_fit
     has_mass = "M" in fit.parameters
     val_err = None
+    rich_chosen = selection is not None and fit is not idim_fit
     if val_logs:
         try:
-            val_err = evaluate_segments(fit, [(lg.t, lg.q, lg.u) for lg in val_logs])
+            val_err = (richer.relative_error_on(selection.fit, [(lg.t, lg.q, lg.u) for lg in val_logs],  # type: ignore[union-attr]
+                                                bandwidth_hz=fit.bandwidth_hz) if rich_chosen
+                       else evaluate_segments(fit, [(lg.t, lg.q, lg.u) for lg in val_logs]))
         except SignalError as exc:
             raise DataError(f"{_name(val_logs, exc.segment)}: {exc}") from None
         except NotIdentifiableError as exc:
@@ -599,6 +729,8 @@ def identify_log(
             freq, freq_log = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0], modes)
         noise = _encoder_noise(freq, freq_log, checks.quantization_step)
 
+    if rich_chosen:
+        friction_warnings += _delay_agreement(selection.fit, freq)  # type: ignore[union-attr]
     params: dict[str, Estimate | None] = {}
     for name in ("M", "B", "fc", "fs", "vs", "xi", "offset"):
         v = fit.parameters.get(name)
@@ -662,6 +794,19 @@ def identify_log(
     }
     if several:
         extra["model"]["segments"] = [int(lg.t.size) for lg in logs]  # type: ignore[index]
+    if selection is not None:
+        extra["model_selection"] = selection.to_dict()
+        if rich_chosen:
+            extra["model"]["inverse_dynamics"] = selection.fit.to_dict()  # type: ignore[index]
+    if val_logs and has_mass and fit.method == "dynamic" and "M" not in fix:
+        models = {"rmse": selection.fit if rich_chosen else _coulomb_richfit(fit)}  # type: ignore[union-attr]
+        if idim_fit.friction == "coulomb" or rich_chosen:
+            ref = idim_fit if idim_fit.friction == "coulomb" else fit_segments(
+                [(lg.t, lg.q, lg.u) for lg in logs], friction="coulomb", ripple_pitch=ripple_pitch)
+            models["reference_rmse"] = _coulomb_richfit(ref)
+        if fit.friction == "coulomb" or rich_chosen:
+            extra["position_simulation"] = {**_position_rmse(val_logs, models),
+                                            "reference": "IDIM-LS (M, B, fc, offset) fitted to the same log"}
     if fix:
         extra["model"]["fixed"] = dict(fix)  # type: ignore[index]
     if lead is not None or gear is not None or counts_per_rev is not None:
@@ -691,7 +836,10 @@ def _bounds_record(bounds: BoundsOptions, tb: ThetaBounds) -> dict[str, object]:
     """ident.json's ``bounds``: the declared settings and the ranges the theta box covers."""
     return {"k_sigma": bounds.k_sigma, "model_margin": bounds.model_margin, "mass_range": list(tb.mass_range),
             "viscous_range": list(tb.viscous_range), "disturbance_range": list(tb.disturbance_range),
-            "disturbance_bound": tb.disturbance_bound, "disturbance_bound_defaulted": tb.disturbance_bound_defaulted}
+            "disturbance_bound": tb.disturbance_bound, "disturbance_bound_defaulted": tb.disturbance_bound_defaulted,
+            # The payload range the box covers and whether it was defaulted (tune may then narrow it to what
+            # the controller can certify, commission.robustness.certified_payload).
+            "payload_range": [tb.payload_range[0], tb.payload_range[1]], "payload_defaulted": tb.payload_defaulted}
 
 
 def _units(u_unit: str | None, log: ExcitationLog) -> dict[str, str]:

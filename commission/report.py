@@ -41,6 +41,8 @@ _CRITERION_TEXT = {
     "u_peak": "peak command below u_max",
     "arc_vs_pid_e_rms": "ARC ‖e‖rms / PID ‖e‖rms",
     "margins": "ARC stability margins, identified plant (floor / margin)",
+    "margins_box": "ARC over the theta box: floors with theta_hat at each plant's theta (floor / margin), "
+                   "stability with theta_hat anywhere (spectral radius)",
 }
 
 
@@ -98,8 +100,8 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.c_u:.3g}"
     if key == "u_peak":
         return f"{limits.u_max:.4g}"
-    if key == "margins":
-        return "1 (every floor met)"
+    if key in ("margins", "margins_box"):
+        return "1 (every floor met)" if key == "margins" else "1 (every floor met; radius < 1)"
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
     return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} {unit_of('small')}" if slack > 0 else "")
 
@@ -109,7 +111,7 @@ def _basis_key(key: str) -> str:
 
 
 def _basis_text(key: str, limits: Any) -> str:
-    if key == "margins":
+    if key in ("margins", "margins_box"):
         return "spec.toml [margins]"
     return limits.basis.get(_basis_key(key), "")
 
@@ -180,9 +182,46 @@ def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
         miss = floor_violations(m, fl)
         L.append(f"| {r.plant} | {loop} | {m.gain_margin_db:.1f} | {m.phase_margin_deg:.0f} | "
                  f"{m.delay_margin_samples:.2f} | {m.modulus_margin:.2f} | {m.crossover_hz:.0f} | "
-                 f"{'yes' if m.stable else '**no**'} | {'met' if not miss else '**' + '; '.join(miss) + '**'} |")
+                 f"{'yes' if m.stable else '**no**'} | {_floor_cell(r, miss)} |")
     L.append("")
+    L.append("Gated rows: the ARC on the identified plant (both estimates) and, at every box plant, the ARC with "
+             "theta_hat at that plant's theta (where the adaptation goes; the table shows the identified load, "
+             "the box check below gates both ends of the load-force range); the others are shown for comparison "
+             "and marked *not gated* (the PID baseline, and the ARC's start-up estimate on a corner plant, whose "
+             "stability the box check below covers).")
+    L.append("")
+    L.extend(box_markdown(result))
     return L
+
+
+def _floor_cell(r: Any, miss: list[str]) -> str:
+    """The floors column: what is gated says met or missed; the rest is marked *not gated*."""
+    gated = r.controller == "arc" and (r.plant == "nominal" or r.theta_hat_at == "plant")
+    if not miss:
+        return "met" if gated else "met (not gated)"
+    return ("**" + "; ".join(miss) + "**") if gated else "*not gated*: " + "; ".join(miss)
+
+
+def box_markdown(result: Any) -> list[str]:
+    """The box check's worst cases (:class:`commission.robustness.BoxRobustness`), gated as ``margins_box``."""
+    box = getattr(result, "box", None)
+    if box is None:
+        return []
+    fl = result.margin_floors
+    w = box.worst_at_plant(fl)
+    m = w.margins
+    miss = floor_violations(m, fl)
+    a = box.any_estimate
+    return [f"**The whole theta box.** (a) At each of the {len(box.at_plant)} box plants (the 4 (theta1, theta2) "
+            f"corners x the identified mode and its variants x both ends of the load-force range, identified "
+            f"delay), the ARC with theta_hat at that plant's theta: worst {w.plant}, phase margin {m.phase_margin_deg:.3g} deg, delay margin "
+            f"{m.delay_margin_samples:.3g} samples, modulus margin {m.modulus_margin:.3g}, spectral radius "
+            f"{m.spectral_radius:.4f} ({'every floor met' if not miss else 'misses ' + '; '.join(miss)}). "
+            f"(b) With theta_hat frozen at each corner of the projection box, at theta_hat(0) and at the plant's theta "
+            f"on every box plant, and at theta_hat(0) and the plant's theta with one more sample of delay ({a.loops} "
+            f"loops): largest spectral radius {a.spectral_radius:.4f} on {a.plant}, theta_hat at {a.theta_hat_at} "
+            f"({'stable; a radius of 1.0000 is the neutral theta_hat1, theta_hat2 modes at rest' if a.stable else 'UNSTABLE'}).",
+            ""]
 
 
 #: Parameter -> description (units: :func:`commission.units.parameter_units`).
@@ -452,6 +491,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"**Gate: {status}** -- {len(v.checks)} checks on {len(result.runs)} scenarios "
              f"({nfix} fixed + {result.n_monte_carlo} Monte-Carlo plants), ARC and PID baseline.")
     L.append("")
+    L.extend(validity_lines(tuning))
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
@@ -508,7 +548,8 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     if rl:
         L.append("**Robustness.** The gate's criteria on the robustness scenarios (one more sample "
                  "of input delay than identified; with a mode, its frequency x0.8 and x1.2 and half its damping) "
-                 "and the ARC's margins on the identified plant, required like every other check (no divergence "
+                 "and the ARC's margins on the identified plant and over the whole theta box, required like every "
+                 "other check (no divergence "
                  "and the spec's margin floors whatever gate.toml says): " + rl[0])
         L.append("")
     L.append("## Gate")
@@ -660,12 +701,26 @@ def verdict_text(result: Any) -> str:
     return "\n".join(lines)
 
 
+def validity_lines(tuning: Any) -> list[str]:
+    """The report's first lines on a payload range that tune narrowed (``tuning.validity``), else none."""
+    v = getattr(tuning, "validity", None)
+    if not v:
+        return []
+    lo, hi = v["payload_range"]
+    dlo, dhi = v.get("default_payload_range", [lo, hi])
+    return [f"**Certified for payloads {lo:.4g} to {hi:.4g} {v['unit']} only** (moving mass up to "
+            f"{v['mass_range'][1]:.4g} {v['unit']}), not the default {dlo:.4g} to {dhi:.4g} {v['unit']}: "
+            f"{md_text(v.get('reason', ''))}. `controller.json` states this range under `validity`; state the "
+            f"real payload with `commission identify --payload-max` (a range these gains do not hold is then refused).",
+            ""]
+
+
 def robustness_lines(result: Any) -> list[str]:
     """The robustness part of the verdict (robustness scenarios and margins), one summary line."""
     rob = getattr(result, "robustness", None)
     if rob is None:
         return []
-    what = "one more sample of delay, the mode's variants, stability margins"
+    what = "one more sample of delay, the mode's variants, stability margins, the whole theta box"
     if rob.passed:
         return [f"robustness PASSED ({len(rob.checks)} checks: {what})"]
     return [f"robustness FAILED: {len(rob.failures)} of {len(rob.checks)} checks ({what}; listed above)"]

@@ -318,9 +318,11 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
 
     From ident.json's ``frequency_response.model`` (what ``commission identify``
     found in the log's broadband content: one mode, or two as two appendages on the motor,
-    ``mode2_*``), each entry overridden by the spec's ``[plant]`` section when given there
-    (a spec that states the mode's frequency, load fraction or encoder drops the log's second
-    mode: it belonged to the log's first); rigid and delay-free when neither says
+    ``mode2_*``); without a delay there, the input delay of ``model.inverse_dynamics`` when
+    its ``delay`` term was chosen (a negative one counts as none); each entry overridden by
+    the spec's ``[plant]`` section when given there (a spec that states the mode's frequency,
+    load fraction or encoder drops the log's second mode: it belonged to the log's first);
+    rigid and delay-free when neither says
     otherwise.  Every scenario plant of ``tune`` and ``validate`` carries them (a
     payload moves the mass, not the mode: its frequency and load fraction are kept).
     """
@@ -347,6 +349,14 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
         d = _num(model.get("delay_s"))
         if d is not None and d > 0:
             out["delay"] = d
+    if "delay" not in out:
+        # No delay from a broadband segment: the one the delay-aware least squares chose, if any.
+        m = ident.extra.get("model")
+        inv = m.get("inverse_dynamics") if isinstance(m, dict) else None
+        if isinstance(inv, dict) and "delay" in (inv.get("terms") or []):
+            d = _num(inv.get("delay_s"))
+            if d is not None and d > 0:
+                out["delay"] = d
     if spec is not None:
         if any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio, spec.plant_encoder)):
             # The spec states its own mode: the log's second mode belonged to the log's first.

@@ -26,6 +26,7 @@ Everything random comes from the ``numpy.random.Generator`` passed in.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import asdict, dataclass, fields
@@ -107,11 +108,19 @@ class AxisTruth:
     delay : float
         Input delay between the command the controller issues and the force, s
         (fractional samples allowed).
-    mode2_hz, mode2_damping, mode2_ratio : float
-        A second structural mode (Hz, 0: none; needs the first), its damping ratio and load
-        fraction ``m3 / M`` (:func:`commission.controllers.plant.plant_vector`).
+    mode2_hz : float
+        Resonance of a second structural mode, Hz (0: none; only beside the first: a second
+        load on the motor side, :mod:`commission.controllers.plant`).
+    mode2_damping : float
+        Damping ratio of the second mode, in [0, 1).
+    mode2_ratio : float
+        Load fraction of the second mode, in (0, 1).
     mode2_load_side : bool
-        The encoder reads that second load (a scale on a bracket).
+        The encoder reads the second mode's load (True: this wins over ``mode_load_side``).
+    input_gain : float
+        Force per command unit, N/u-unit (1 for ``u_unit='N'``; a drive's amplifier and force
+        constant for ``'V'``): the moving mass is ``M * input_gain`` kg.  Information only: the
+        plant is written in command units.
     """
 
     M: float
@@ -135,8 +144,9 @@ class AxisTruth:
     delay: float = 0.0
     mode2_hz: float = 0.0
     mode2_damping: float = 0.02
-    mode2_ratio: float = 0.1
+    mode2_ratio: float = 0.2
     mode2_load_side: bool = False
+    input_gain: float = 1.0
 
     def __post_init__(self) -> None:
         # JSON carries the encoder side as 0/1 (to_dict): store a bool either way.
@@ -163,14 +173,15 @@ class AxisTruth:
                 ("mode_damping", 0 <= self.mode_damping < 1, "in [0, 1)"),
                 ("mode_ratio", 0 < self.mode_ratio < 1, "in (0, 1)"),
                 ("delay", self.delay >= 0, ">= 0"),
-                ("mode2_hz", self.mode2_hz >= 0 and (self.mode2_hz == 0 or self.mode_hz > 0),
-                 ">= 0, beside a first mode"),
+                ("mode2_hz", self.mode2_hz >= 0, ">= 0"),
                 ("mode2_damping", 0 <= self.mode2_damping < 1, "in [0, 1)"),
-                ("mode2_ratio", 0 < self.mode2_ratio and self.mode_ratio + self.mode2_ratio < 1,
-                 "> 0 with mode_ratio + mode2_ratio < 1"),
+                ("mode2_ratio", 0 < self.mode2_ratio < 1, "in (0, 1)"),
+                ("input_gain", self.input_gain > 0, "> 0"),
             )
             if not ok
         ]
+        if self.mode2_hz > 0 and not (self.mode_hz > 0 and self.mode_ratio + self.mode2_ratio < 1):
+            bad.append(f"mode2_hz={self.mode2_hz!r} (needs mode_hz > 0 and mode_ratio + mode2_ratio < 1)")
         if bad:
             raise ValueError("AxisTruth: " + "; ".join(bad))
         if self.u_unit not in U_UNITS:
@@ -181,8 +192,18 @@ class AxisTruth:
         """Sample period, s."""
         return 1.0 / self.sample_rate
 
+    @property
+    def n_modes(self) -> int:
+        """Number of structural modes (0, 1 or 2)."""
+        return int(self.mode_hz > 0) + int(self.mode2_hz > 0)
+
+    @property
+    def mass_kg(self) -> float:
+        """Moving mass, kg (``M * input_gain``)."""
+        return self.M * self.input_gain
+
     def plant(self) -> np.ndarray:
-        """Plant vector for :mod:`commission.controllers.plant` (float64[NP])."""
+        """Plant vector for :mod:`commission.controllers.plant` (float64[NP]), second mode included."""
         return plant_vector(self.M, self.B, self.fc, self.fs, self.vs, self.xi,
                             self.offset, self.ripple_amp, self.ripple_pitch, mode_hz=self.mode_hz,
                             mode_damping=self.mode_damping, mode_ratio=self.mode_ratio,
@@ -198,16 +219,26 @@ class AxisTruth:
             "offset": u, "ripple_amp": u, "ripple_pitch": "m", "lsb": "m",
             "sample_rate": "Hz", "noise_std": "m", "u_max": u,
             "mode_hz": "Hz", "mode_damping": "1", "mode_ratio": "1", "mode_load_side": "1", "delay": "s",
-            **({"mode2_hz": "Hz", "mode2_damping": "1", "mode2_ratio": "1", "mode2_load_side": "1"}
-               if self.mode2_hz > 0 else {}),  # a second mode's keys only where there is one (older files)
+            "mode2_hz": "Hz", "mode2_damping": "1", "mode2_ratio": "1", "mode2_load_side": "1",
+            "input_gain": f"N/{u}",
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form: ``{"u_unit": ..., "parameters": {name: {"value", "unit"}}}``."""
+        """JSON-ready form: ``{"u_unit": ..., "parameters": {name: {"value", "unit"}}}``.
+
+        The second mode's fields are written only with a second mode, and ``input_gain`` only
+        when it is not 1, so the truth of a one-mode axis reads as it did before they existed
+        (``sample_data/truth.json``); :meth:`from_dict` defaults what is absent.
+        """
         units = self.units()
+        skip = set()
+        if self.mode2_hz == 0:
+            skip |= {"mode2_hz", "mode2_damping", "mode2_ratio", "mode2_load_side"}
+        if self.input_gain == 1.0:
+            skip.add("input_gain")
         return {
             "u_unit": self.u_unit,
-            "parameters": {k: {"value": float(getattr(self, k)), "unit": units[k]} for k in units},
+            "parameters": {k: {"value": float(getattr(self, k)), "unit": units[k]} for k in units if k not in skip},
         }
 
     @classmethod
@@ -217,8 +248,12 @@ class AxisTruth:
         return cls(u_unit=str(d["u_unit"]), **params)
 
 
-def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> AxisTruth:
-    """Draw a plausible linear-motor axis (V units) for known-truth tests.
+def rigid_random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> AxisTruth:
+    """Draw a rigid linear-motor axis (V units): the random axes of issues 4-20.
+
+    Kept because tests pin the behaviour of some of its seeds
+    (``tests/test_tune_random_axes.py``: ``write_random_axis_log(seed, path, rigid=True)``);
+    :func:`random_axis` draws the wider distribution of real machines.
 
     Ranges (log-uniform where marked): M 0.01-0.2 V s^2/m (log), B = M * 3-30 1/s,
     fc = M * 1-6 m/s^2 (log), fs = fc * 1.1-1.6, vs 3-30 mm/s (log), xi 1-2.5,
@@ -261,21 +296,176 @@ def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> A
                      noise_std=noise_std, u_max=10.0)
 
 
-def write_random_axis_log(seed: int, path: str | os.PathLike[str]) -> AxisTruth:
+#: Controller rates :func:`random_axis` draws from, Hz (1-20 kHz, as drives offer them).
+RANDOM_RATES = (1000.0, 2000.0, 2500.0, 4000.0, 5000.0, 8000.0, 10000.0, 16000.0, 20000.0)
+#: Range of the moving mass, kg (three decades: a lens stage to a gantry).
+RANDOM_MASS_KG = (0.3, 300.0)
+#: Range of the structural modes' frequencies, Hz.
+RANDOM_MODE_HZ = (200.0, 2000.0)
+#: Peak acceleration the drive's rail gives the bare axis, m/s^2.
+RANDOM_PEAK_ACCEL = (20.0, 200.0)
+#: Probabilities of 0, 1 and 2 structural modes.
+RANDOM_MODE_COUNT_P = (0.2, 0.45, 0.35)
+
+
+def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> AxisTruth:
+    """Draw a linear-motor axis from the spread of real machines (issue 30).
+
+    Ranges (log-uniform where marked):
+
+    * moving mass 0.3-300 kg (log); the drive's peak acceleration at the rail 20-200 m/s^2
+      (log);
+    * command in V (probability 0.6: a +-10 V amplifier of gain ``input_gain`` = peak force
+      / 10 V, N/V) or in N (a force command, ``input_gain`` 1, rail = peak force); every
+      force-like field is in the command's unit (``M`` = mass / input_gain);
+    * B = M * 3-30 1/s, fc = M * 1-6 m/s^2 (log), fs = fc * 1.1-1.6, vs 3-30 mm/s (log),
+      xi 1-2.5, offset +-0.3 fc, ripple 0-10 % of fc with pitch 20-60 mm (as
+      :func:`rigid_random_axis`);
+    * encoder LSB 0.05-1 um (log), position noise 0-1 LSB rms;
+    * rate one of :data:`RANDOM_RATES` (1-20 kHz); input delay 0-2 samples (uniform,
+      fractional);
+    * 0, 1 or 2 structural modes (probabilities :data:`RANDOM_MODE_COUNT_P`).  The first
+      mode's frequency falls with the mass -- ``2000 Hz (0.3 kg / m)^(1/3)``, so 2 kHz at
+      0.3 kg and 200 Hz at 300 kg, as a stiffness that grows slower than the mass -- times
+      a log-uniform 0.67-1.5 scatter, clipped to 200-2000 Hz; the second is 1.4-3x the
+      first (log), at most 2 kHz (dropped when there is no room).  Damping 0.01-0.08 (log);
+      load fraction 0.1-0.5 (first), 0.05-0.3 (second).  The encoder reads the motor side
+      (collocated) or a load (non-collocated): with one mode each with probability 1/2;
+      with two, the second load 1/2, the first load 1/4, the motor 1/4.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of every random draw (a fixed number of draws per axis).
+    sample_rate : float, optional
+        Fix the sample rate (Hz) instead of drawing it (the delay is then in its samples).
+
+    Returns
+    -------
+    AxisTruth
+    """
+
+    def logu(lo: float, hi: float) -> float:
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    m_kg = logu(*RANDOM_MASS_KG)
+    a_peak = logu(*RANDOM_PEAK_ACCEL)
+    in_volts = bool(rng.uniform() < 0.6)
+    f_peak = m_kg * a_peak
+    gain = f_peak / 10.0 if in_volts else 1.0
+    u_max = 10.0 if in_volts else f_peak
+    M = m_kg / gain
+    B = M * float(rng.uniform(3.0, 30.0))
+    fc = M * logu(1.0, 6.0)
+    fs = fc * float(rng.uniform(1.1, 1.6))
+    vs = logu(0.003, 0.03)
+    xi = float(rng.uniform(1.0, 2.5))
+    offset = fc * float(rng.uniform(-0.3, 0.3))
+    ripple_amp = fc * float(rng.uniform(0.0, 0.1))
+    ripple_pitch = float(rng.uniform(0.02, 0.06))
+    lsb = logu(0.05e-6, 1e-6)
+    noise_std = lsb * float(rng.uniform(0.0, 1.0))
+    rate = float(rng.choice(np.array(RANDOM_RATES)))
+    rate = rate if sample_rate is None else float(sample_rate)
+    delay = float(rng.uniform(0.0, 2.0)) / rate
+    n_modes = int(rng.choice(3, p=np.array(RANDOM_MODE_COUNT_P)))
+    lo, hi = RANDOM_MODE_HZ
+    # Every draw is made whatever n_modes is, so one field's distribution does not shift the others'.
+    f1 = 2000.0 * (RANDOM_MASS_KG[0] / m_kg) ** (1.0 / 3.0) * logu(1.0 / 1.5, 1.5)
+    f1 = min(max(f1, lo), hi)
+    f2 = f1 * logu(1.4, 3.0)
+    f2 = min(f2, hi) if f1 * 1.4 <= hi else 0.0
+    z1, z2 = logu(0.01, 0.08), logu(0.01, 0.08)
+    r1, r2 = float(rng.uniform(0.1, 0.5)), float(rng.uniform(0.05, 0.3))
+    load1, load2 = bool(rng.uniform() < 0.5), bool(rng.uniform() < 0.5)
+    modes = dict(mode_hz=f1 if n_modes >= 1 else 0.0, mode_damping=z1, mode_ratio=r1, mode_load_side=load1,
+                 mode2_hz=f2 if n_modes == 2 else 0.0, mode2_damping=z2, mode2_ratio=r2, mode2_load_side=load2)
+    return AxisTruth(M=M, B=B, fc=fc, fs=fs, vs=vs, xi=xi, offset=offset, ripple_amp=ripple_amp,
+                     ripple_pitch=ripple_pitch, lsb=lsb, sample_rate=rate, u_unit="V" if in_volts else "N",
+                     noise_std=noise_std, u_max=u_max, delay=delay, input_gain=gain, **modes)
+
+
+def excitation_plan(truth: AxisTruth) -> ExcitationPlan:
+    """The commissioning run an engineer would record on ``truth``: within its force and stability.
+
+    :class:`ExcitationPlan`'s defaults, with
+
+    * the accelerations (multisine, ladder, moves) at most 30 % of the rail's peak
+      acceleration ``u_max / M`` and the fastest ladder speed such that viscous friction plus
+      stiction take at most 40 % of the rail, so the feedforward, the friction and the PID's
+      correction stay inside it;
+    * the commissioning PID's bandwidth at most 40 Hz and a fortieth of the rate, lowered by
+      steps of 0.85 until its loop on the true plant (modes and delay, linearised by
+      :func:`commission.controllers.margins.loop_margins`) keeps 6 dB and 30 deg, as an
+      engineer lowers the gain of a loop that rings (a loop that excites its own mode would
+      not be logged); at most 40 steps.  The integral corner stays at most a tenth of the
+      bandwidth.
+
+    Parameters
+    ----------
+    truth : AxisTruth
+
+    Returns
+    -------
+    ExcitationPlan
+    """
+    base = ExcitationPlan()
+    a_rail = truth.u_max / truth.M
+    a_cap = 0.3 * a_rail
+    v_cap = (0.4 * truth.u_max - truth.fs) / max(truth.B, 1e-12)
+    v_max = float(min(base.v_max, max(v_cap, 4.0 * base.v_min)))
+    bw = min(base.bandwidth_hz, truth.sample_rate / 40.0)
+    if truth.n_modes or truth.delay > 0:
+        bw = _quiet_bandwidth(truth, base, bw)
+    return dataclasses.replace(_with_bandwidth(base, bw), ms_accel=min(base.ms_accel, a_cap),
+                               ladder_accel=min(base.ladder_accel, a_cap), move_accel=min(base.move_accel, a_cap),
+                               v_max=v_max)
+
+
+def _with_bandwidth(plan: ExcitationPlan, bw: float) -> ExcitationPlan:
+    """``plan`` with the PID's bandwidth ``bw`` (Hz) and its integral corner at most a tenth of it."""
+    return dataclasses.replace(plan, bandwidth_hz=bw, integral_hz=min(plan.integral_hz, bw / 10.0))
+
+
+def _quiet_bandwidth(truth: AxisTruth, plan: ExcitationPlan, bw: float) -> float:
+    """The largest ``bw * 0.85**k`` (k = 0 .. 40) whose commissioning PID keeps 6 dB and 30 deg, Hz."""
+    from commission.controllers.linear import sampled_plant
+    from commission.controllers.margins import linearize_pid, loop_margins
+    from commission.controllers.pid import PidGains, pid_pack
+
+    plant = sampled_plant(truth.plant(), truth.period)
+    for _ in range(40):
+        kp, kd, ki = loop_gains(truth, _with_bandwidth(plan, bw))
+        g = PidGains(Ts=truth.period, M_hat=0.0, B_hat=0.0, Kp=kp, Ki=ki, Kd=kd)
+        m = loop_margins(linearize_pid(pid_pack(g)), plant)
+        if m.stable and m.gain_margin_db >= 6.0 and m.phase_margin_deg >= 30.0:
+            break
+        bw *= 0.85
+    return bw
+
+
+def write_random_axis_log(seed: int, path: str | os.PathLike[str], *, rigid: bool = False) -> AxisTruth:
     """Draw random axis ``seed`` and write its commissioning log (HDF5) to ``path``.
 
-    The axis is ``random_axis(default_rng(seed))``; its log is :func:`simulate_excitation`
-    with the default :class:`ExcitationPlan` and ``default_rng(seed + 1000)``.  This is the
-    numbering of the random-axes tests and of ``benchmarks/sweep_random_axes.py``
-    ("axis 16" is seed 16).
+    The axis is ``random_axis(default_rng(seed))`` and its log :func:`simulate_excitation`
+    with :func:`excitation_plan` of it and ``default_rng(seed + 1000)``, written in the
+    axis's command unit.  With ``rigid=True`` it is ``rigid_random_axis(default_rng(seed))``
+    with the default :class:`ExcitationPlan`: the axes of issues 4-20 that
+    ``tests/test_tune_random_axes.py`` pins.  This is the numbering of the random-axes tests
+    and of ``benchmarks/sweep_random_axes.py`` ("axis 16" is seed 16).
 
     Returns
     -------
     AxisTruth
         The known truth (not used by the pipeline).
     """
-    truth = random_axis(np.random.default_rng(seed))
-    write_log_h5(path, simulate_excitation(truth, ExcitationPlan(), np.random.default_rng(seed + 1000)))
+    if rigid:
+        truth = rigid_random_axis(np.random.default_rng(seed))
+        plan = ExcitationPlan()
+    else:
+        truth = random_axis(np.random.default_rng(seed))
+        plan = excitation_plan(truth)
+    write_log_h5(path, simulate_excitation(truth, plan, np.random.default_rng(seed + 1000)), u_unit=truth.u_unit)
     return truth
 
 

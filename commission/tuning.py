@@ -54,7 +54,7 @@ from commission.controllers.pid import PidGains
 from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.jsonio import Reader, read_json, write_json_atomic
-from commission.robustness import LoopMargins
+from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 from commission.spec import RANGES, Spec, spec_from_mapping
 
 TUNING_KIND = "tuning"
@@ -336,6 +336,13 @@ class Tuning:
     margins : tuple of LoopMargins
         Stability margins of both loops per plant (:mod:`commission.robustness`);
         empty in a tuning.json written before they were recorded.
+    box : BoxRobustness or None
+        The ARC over the whole theta box (:class:`commission.robustness.BoxArcCheck`), key
+        ``box_robustness``; None in a tuning.json written before it was recorded.
+    validity : mapping or None
+        Key ``validity``: present when tune narrowed a *defaulted* payload range to the one the
+        gains certify (:func:`commission.tune.api.certify_box`): ``payload_range`` [min, max] and
+        ``mass_range`` [min, max] in ``unit`` (u-unit s^2/m), ``default_payload_range`` and a ``reason``.
     """
 
     provenance: Provenance
@@ -354,6 +361,8 @@ class Tuning:
     scores: Mapping[str, Mapping[str, Score]]
     search: SearchRecord
     margins: tuple[LoopMargins, ...] = ()
+    box: BoxRobustness | None = None
+    validity: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -401,6 +410,8 @@ class Tuning:
             "scores": {s: {c: sc.to_dict() for c, sc in row.items()} for s, row in self.scores.items()},
             "search": self.search.to_dict(),
             "margins": [m.to_dict() for m in self.margins],
+            **({} if self.box is None else {"box_robustness": self.box.to_dict(MarginFloors.from_spec(self.spec))}),
+            **({} if self.validity is None else {"validity": dict(self.validity)}),
         }
 
     def save(self, path: str) -> None:
@@ -488,7 +499,8 @@ class Tuning:
                    arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search, margins=_margins(r))
+                   scores=scores, search=search, margins=_margins(r), box=_box(r),
+                   validity=_validity(r))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
@@ -510,6 +522,31 @@ def _margins(r: Reader) -> tuple[LoopMargins, ...]:
         except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
             raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
     return tuple(out)
+
+
+def _box(r: Reader) -> BoxRobustness | None:
+    """The optional ``box_robustness`` record (None: a tuning.json written before it)."""
+    if not r.has("box_robustness"):
+        return None
+    b = r.obj("box_robustness")
+    try:
+        return BoxRobustness.from_dict(b.data)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise b.fail(f"bad entry ({exc})") from None
+
+
+def _validity(r: Reader) -> dict[str, Any] | None:
+    """The optional ``validity`` record: the certified payload and mass ranges, each a [min, max] pair."""
+    if not r.has("validity"):
+        return None
+    v = r.obj("validity")
+    for k in ("payload_range", "mass_range"):
+        x = v.data.get(k)
+        if not (isinstance(x, list) and len(x) == 2 and all(isinstance(e, (int, float)) and math.isfinite(e)
+                                                         for e in x) and x[0] <= x[1]):
+            raise v.fail(f"expected a [min, max] pair of finite numbers, got {x!r}", f"{v.path}.{k}")
+    v.str_("unit")
+    return dict(v.data)
 
 
 def _matrix(r: Reader, key: str, rows: int, cols: int) -> tuple[tuple[float, ...], ...]:

@@ -62,11 +62,12 @@ from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             margin_checks, resolve_gate)
+                             box_checks, margin_checks, resolve_gate)
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
-from commission.robustness import CONTROLLERS, LoopMargins, MarginFloors, margin_table, nominal_loops, worst
+from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
+                                   nominal_loops, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
                                   force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
@@ -193,6 +194,9 @@ class ValidationResult:
         The spec's floors they are held against.
     loops : tuple of ndarray
         ``(f_hz, L_arc, L_pid)`` on the identified plant, for the loop figure (not in JSON).
+    box : BoxRobustness or None
+        The ARC over the whole theta box (:class:`commission.robustness.BoxArcCheck`), gated as
+        criterion ``margins_box``.
     robustness : GateVerdict or None
         The part of ``verdict`` on the robustness scenarios and the stability margins (required
         like every other check; listed apart in the report).
@@ -221,6 +225,7 @@ class ValidationResult:
     robustness: GateVerdict | None = None
     executor: Mapping[str, Any] | None = None
     monte_carlo_summary: Mapping[str, Any] | None = None
+    box: BoxRobustness | None = None
 
     @property
     def passed(self) -> bool:
@@ -256,6 +261,7 @@ class ValidationResult:
             "margins": {"floors": self.margin_floors.to_dict(), "loops": [m.to_dict() for m in self.margins],
                         "worst": {c: (w.to_dict() if (w := worst(self.margins, c)) is not None else None)
                                   for c in CONTROLLERS}},
+            **({} if self.box is None else {"box_robustness": self.box.to_dict(self.margin_floors)}),
         }
 
 
@@ -596,16 +602,20 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                           drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
     with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
         gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
-    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors)), limits)
+    # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
+    box = BoxArcCheck(tuning.identification, spec)(arc)
+    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors))
+                          + tuple(box_checks(box, gate_floors)), limits)
     # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
     rob_names = {r.name for r in runs if "robustness" in r.tags}
     robustness = GateVerdict(tuple(c for c in verdict.checks
-                                   if c.scenario in rob_names or c.criterion in ("margins", "floor:margins")), limits)
+                                   if c.scenario in rob_names
+                                   or c.criterion in ("margins", "floor:margins", "margins_box")), limits)
     return ValidationResult(runs=tuple(runs), traces=traces, verdict=verdict,
                             units=dict(tuning.identification.units), seed=int(seed),
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
-                            margins=margins, margin_floors=margin_floors, robustness=robustness,
+                            margins=margins, margin_floors=margin_floors, robustness=robustness, box=box,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
                             executor=ex.describe(), monte_carlo_summary=mc_summary)
 
@@ -663,7 +673,7 @@ def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: s
     rate = nominal_rate(tuning.spec.sample_rate, rel=NOMINAL_RATE_RTOL)
     return ControllerConfig(gains=result.arc_gains, sample_rate=rate,
                             units=dict(tuning.identification.units), validated=validated_record(result),
-                            provenance=prov)
+                            provenance=prov, validity=None if tuning.validity is None else dict(tuning.validity))
 
 
 # --------------------------------------------------------------------------- file-level pipeline
@@ -701,6 +711,7 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
     contain the narrowed box is left as it is (and the comparison that follows then fails).
     """
     embedded = json.loads(json.dumps(tuning.identification.to_dict()))
+    _undo_payload_narrowing(embedded)
     narrowed = (embedded.get("bounds") or {}).pop("narrowed_by_tune", None)
     if isinstance(narrowed, dict):
         lo, hi = embedded["theta"]["min"][2], embedded["theta"]["max"][2]
@@ -709,6 +720,35 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
                 and _narrowed_as_recorded(narrowed, lo, hi, embedded["theta"]["max"][0])):
             embedded["theta"]["min"][2], embedded["theta"]["max"][2] = t3min, t3max
     return embedded
+
+
+def _undo_payload_narrowing(embedded: dict[str, Any]) -> None:
+    """Undo tune's narrowing of a defaulted payload range (``bounds.payload_narrowed_by_tune``,
+    :func:`commission.tune.box.narrow_default_payload`) in place.
+
+    Restored only when the record is consistent with a narrowing (the recorded box's lower ends
+    at or below the embedded ones, the embedded theta1_min = 1/M_hi of the embedded mass range,
+    the narrowed payload within the default one); otherwise the record is left, and the
+    comparison that follows fails.
+    """
+    bounds = embedded.get("bounds")
+    rec = bounds.get("payload_narrowed_by_tune") if isinstance(bounds, dict) else None
+    if not isinstance(rec, dict):
+        return
+    try:
+        t1, t2 = float(rec["theta1_min"]), float(rec["theta2_min"])
+        dpay, dmass = [float(x) for x in rec["default_payload_range"]], [float(x) for x in rec["default_mass_range"]]
+        pay, mass = [float(x) for x in bounds["payload_range"]], [float(x) for x in bounds["mass_range"]]
+        tmin = embedded["theta"]["min"]
+        ok = (t1 <= tmin[0] and t2 <= tmin[1] and dpay[0] == pay[0] and pay[1] <= dpay[1]
+              and math.isclose(1.0 / tmin[0], mass[1], rel_tol=1e-9) and dmass[0] == mass[0])
+    except (KeyError, TypeError, ValueError, IndexError, ZeroDivisionError):
+        return
+    if not ok:
+        return
+    bounds.pop("payload_narrowed_by_tune")
+    tmin[0], tmin[1] = t1, t2
+    bounds["payload_range"], bounds["mass_range"] = dpay, dmass
 
 
 def _narrowed_as_recorded(narrowed: Mapping[str, Any], lo: float, hi: float, theta1_max: float) -> bool:

@@ -212,14 +212,16 @@ def frequency_grid(Ts: float, n: int = N_FREQ) -> np.ndarray:
 
 
 def loop_response(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray,
-                  plant_response: np.ndarray | None = None) -> np.ndarray:
+                  plant_response: np.ndarray | None = None, ctrl_response: np.ndarray | None = None) -> np.ndarray:
     """``L = -K P`` at the plant input, dimensionless.
 
     ``plant_response`` (optional) is ``plant.frequency_response(f_hz)`` computed once for a
-    plant that many controllers are checked on.
+    plant that many controllers are checked on; ``ctrl_response`` likewise
+    ``ctrl.frequency_response(f_hz)`` for a controller checked on many plants.
     """
     P = plant.frequency_response(f_hz) if plant_response is None else plant_response
-    return -ctrl.frequency_response(f_hz) * P
+    K = ctrl.frequency_response(f_hz) if ctrl_response is None else ctrl_response
+    return -K * P
 
 
 def closed_loop_radius(ctrl: LinearController, plant: SampledPlant, gain: float = 1.0) -> float:
@@ -246,14 +248,15 @@ def _at(a: np.ndarray, fi: float) -> float:
 
 
 def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray | None = None,
-                 plant_response: np.ndarray | None = None) -> Margins:
+                 plant_response: np.ndarray | None = None, ctrl_response: np.ndarray | None = None) -> Margins:
     """Margins of the loop ``ctrl`` x ``plant`` (module docstring).
 
-    ``plant_response``: ``plant.frequency_response(f_hz)``, when already computed.
+    ``plant_response``: ``plant.frequency_response(f_hz)``, ``ctrl_response``:
+    ``ctrl.frequency_response(f_hz)``, when already computed.
     """
     if f_hz is None:
         f_hz = frequency_grid(plant.Ts)
-    L = loop_response(ctrl, plant, f_hz, plant_response)
+    L = loop_response(ctrl, plant, f_hz, plant_response, ctrl_response)
     mag_db = 20 * np.log10(np.maximum(np.abs(L), 1e-300))
     phase = np.unwrap(np.angle(L))
     w = 2 * np.pi * f_hz

@@ -77,6 +77,10 @@ class ThetaBounds:
         The load-force bound ``D`` the box was built with, u-unit.
     disturbance_bound_defaulted : bool
         True when ``D`` is the default ``10 max(fc, fs)`` (not given by the caller).
+    payload_range : tuple of 2 float
+        ``(payload_min, payload_max)`` the mass range includes, u-unit s^2/m.
+    payload_defaulted : bool
+        True when ``payload_max`` is the default ``3 M`` (not given by the caller).
     """
 
     nominal: tuple[float, float, float]
@@ -88,6 +92,8 @@ class ThetaBounds:
     disturbance_range: tuple[float, float]
     disturbance_bound: float
     disturbance_bound_defaulted: bool
+    payload_range: tuple[float, float] = (0.0, 0.0)
+    payload_defaulted: bool = False
 
 
 def theta_bounds(fit: AxisFit, **kwargs: Any) -> ThetaBounds:
@@ -162,7 +168,8 @@ def theta_bounds_from(parameters: Mapping[str, tuple[float, float]], residuals: 
                        theta_max=(1.0 / m_lo, b_hi / m_lo, max(th3)),
                        delta_d=delta_d, mass_range=(m_lo, m_hi), viscous_range=(b_lo, b_hi),
                        disturbance_range=(d_lo, d_hi), disturbance_bound=D,
-                       disturbance_bound_defaulted=disturbance_bound is None)
+                       disturbance_bound_defaulted=disturbance_bound is None,
+                       payload_range=(float(payload_min), pmax), payload_defaulted=payload_max is None)
 
 
 def friction_compensation(fit: AxisFit, *, v_resolution: float | None = None,

@@ -2,7 +2,7 @@
 
 Also the independent closed-loop check of a deployed controller.json: the
 controller is tuned from the log of an axis the repository does not contain
-(:func:`commission.synth.random_axis`), loaded with
+(:func:`commission.synth.rigid_random_axis`), loaded with
 :func:`commission.runtime.load_controller`, and run against the TRUE axis in a
 plain Python loop around the plant kernel -- none of the project's simulator,
 scenario or metrics code is involved in that loop.
@@ -20,7 +20,7 @@ from commission.jsonio import read_json, sha256_file
 from commission.runtime import load_controller
 from commission.scenarios import case1_trajectory, case2_trajectory
 from commission.spec import load_spec
-from commission.synth import ExcitationPlan, random_axis, simulate_excitation, write_log_h5
+from commission.synth import ExcitationPlan, rigid_random_axis, simulate_excitation, write_log_h5
 from commission.pipeline import run_all
 from commission.validate import FIGURE_NAMES
 
@@ -162,7 +162,7 @@ def true_axis_loop(ctrl, truth, traj, rng, substeps=10):
 @pytest.mark.slow
 def test_controller_from_an_unseen_axis_tracks_the_true_axis_within_the_claimed_gate(tmp_path):
     rng = np.random.default_rng(20240611)
-    truth = random_axis(rng, sample_rate=2500.0)
+    truth = rigid_random_axis(rng, sample_rate=2500.0)
     log = tmp_path / "unseen_axis.h5"
     write_log_h5(log, simulate_excitation(truth, ExcitationPlan(), rng), q_unit="m", u_unit="V")
     # Default tuning budget: the controller is the one a user would get (a

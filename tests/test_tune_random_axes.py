@@ -1,6 +1,7 @@
 """MUST SHOW 2: axes not in the repository: simulated log -> identify -> tune -> validate's default gate.
 
-Each axis is drawn by :func:`commission.synth.random_axis` (known truth, not used
+Each axis is drawn by :func:`commission.synth.rigid_random_axis` (the rigid axes of issues 4-20,
+``write_random_axis_log(seed, path, rigid=True)``; known truth, not used
 by the pipeline), its commissioning log simulated and written as HDF5, then the
 product identifies it, tunes it with the default spec (sample rate = the log's;
 the envelope's defaults lowered to what the +-10 V drive can move on the box's most
@@ -56,7 +57,7 @@ pytestmark = pytest.mark.slow
 def _pipeline(seed: int, tmp_path_factory):
     """Simulate axis ``seed``'s log, identify, tune (seed 0), validate (seed 0)."""
     d = tmp_path_factory.mktemp(f"axis{seed}")
-    truth = write_random_axis_log(seed, d / "log.h5")
+    truth = write_random_axis_log(seed, d / "log.h5", rigid=True)
     ident = identify_log(str(d / "log.h5")).ident
     write_json_atomic(d / "ident.json", ident.to_dict())
     tuning = run_tune(d / "ident.json", d / "tuning.json", seed=0)

@@ -26,7 +26,7 @@ from commission.controllers.design import (
 from commission.controllers.pid import pid_pack
 from commission.errors import IdentifiabilityError, SpecError, UsageError
 from commission.jsonio import read_json, sha256_file
-from commission.robustness import margin_table
+from commission.robustness import BoxArcCheck, margin_table
 from commission.scenarios import (
     check_run_length,
     check_user_length,
@@ -52,6 +52,7 @@ from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import deployable_pid
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
+from commission.tune.box import box_guarantees, narrow_default_payload, validity_of
 
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
@@ -146,11 +147,15 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                           levels=tuple(c.level for c in res.candidates),
                           chosen_level=best.level, chosen_violation=best.violation,
                           screened=tuple(c.screened for c in res.candidates))
+    # The whole box (a defaulted payload range was narrowed before the search, resolve_spec).
+    box = BoxArcCheck(ident, spec)(chosen)
+    validity = validity_of(ident)
     out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
-                 guarantees=guarantees(chosen, t1, feas["arc"]), scores=scores, search=record,
-                 margins=margin_table(chosen, pid, ident, spec))
+                 guarantees={**guarantees(chosen, t1, feas["arc"]), **box_guarantees(box, spec, validity)},
+                 scores=scores, search=record,
+                 margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity)
     if progress is not None:
         progress(total, total)
     return out
@@ -253,7 +258,10 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     observer_free = not (isinstance(ctrl, dict) and "observer_pole" in ctrl)
     pid = spec_data.get("pid")
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes, observer_free, pid_free)
+    # A defaulted payload range the search's start points cannot certify is narrowed to one they can.
+    ident, payload_notes = narrow_default_payload(ident, spec)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes + payload_notes, observer_free,
+                        pid_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,

@@ -8,7 +8,9 @@ Three kinds, in the order the optimiser evaluates them (cheapest first, see
    (:class:`commission.robustness.IdentifiedPlantArcMargins`), held to the spec's
    ``[margins]`` floors: the loops the validation gate holds to the same floors.  Each
    shortfall is counted relative to its floor (the delay margin in samples), so that one
-   sample of delay margin weighs as much as the whole phase-margin floor.
+   sample of delay margin weighs as much as the whole phase-margin floor.  The same for the
+   whole theta box (:func:`box_violation`, :class:`commission.robustness.BoxArcCheck`): the
+   floors with theta_hat at each box plant's theta, stability with theta_hat anywhere.
 2. **Gate excess** (:func:`commission.tune.objective.gate_excess`): validate's default gate
    on the tuning scenarios, robustness scenarios and the stand-ins for validate's
    Monte-Carlo sample included, each index measured against :data:`GATE_MARGIN` of its limit.
@@ -22,7 +24,7 @@ import math
 from typing import Sequence
 
 from commission.controllers.design import FeasibilityReport
-from commission.robustness import LoopMargins, MarginFloors
+from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 
 #: Gate indexes are held to this fraction of their limits inside the search: room for the
 #: Monte-Carlo plants validate draws and the search never saw.
@@ -57,6 +59,14 @@ def margin_violation(rows: Sequence[LoopMargins], floors: MarginFloors) -> float
     return total
 
 
+def box_violation(box: BoxRobustness, floors: MarginFloors) -> float:
+    """How far the ARC misses the box check (0: it holds): :func:`margin_violation` of the loops with
+    theta_hat at each box plant's theta, plus :data:`UNSTABLE` and the spectral radius's excess over 1
+    when a loop with theta_hat anywhere the projection allows is unstable."""
+    a = box.any_estimate
+    return margin_violation(box.at_plant, floors) + (0.0 if a.stable else UNSTABLE + a.spectral_radius - 1.0)
+
+
 def feasibility_violation(rep: FeasibilityReport) -> float:
     """How far a discrete-feasibility report misses (0: it holds): the radii's excess over their bounds."""
     if rep.holds:
@@ -64,4 +74,4 @@ def feasibility_violation(rep: FeasibilityReport) -> float:
     return max(0.0, rep.rho_max - (1.0 - rep.margin)) + max(0.0, rep.rho_adaptive_max - 1.0) + 1e-6
 
 
-__all__ = ["GATE_MARGIN", "UNSTABLE", "feasibility_violation", "margin_violation"]
+__all__ = ["GATE_MARGIN", "UNSTABLE", "box_violation", "feasibility_violation", "margin_violation"]

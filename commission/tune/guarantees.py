@@ -51,7 +51,8 @@ def guarantees(arc: ArcGains, t1, feas: FeasibilitySummary) -> dict[str, Guarant
             feas.rho_any_estimate_max < 1.0,
             f"informational: with theta_hat frozen at any of the 8 corners of the box (which the projection "
             f"allows) instead of the values the runs reached, the largest spectral radius is "
-            f"{feas.rho_any_estimate_max:.4g} (< 1: stable whatever the estimate)"),
+            f"{feas.rho_any_estimate_max:.4g} along the trajectories (< 1: stable whatever the estimate there); "
+            f"over every plant of the box see stability_over_box_any_estimate"),
         "input_limit": Guarantee(
             math.isinf(arc.u_max), f"traded: the paper assumes an unbounded input; here |u| <= u_max = "
                                    f"{arc.u_max:g} (the lambda filter is driven by the applied u*)"),

@@ -7,7 +7,11 @@ tuning scenarios over its free gains (:data:`commission.tune.gains.FREE_BOUNDS`,
 coordinates, and the observer pole when the spec left it free), subject to
 
 * the stability margins of the ARC on the identified plant, mode and delay included, meeting
-  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`);
+  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`), and
+  over the whole theta box (:class:`commission.robustness.BoxArcCheck`: the floors with
+  theta_hat at each corner plant's theta, stability with theta_hat anywhere the projection
+  allows; :func:`commission.tune.constraints.box_violation`), checked only where the
+  identified plant's margins hold;
 * validate's default gate on the tuning scenarios, robustness scenarios included
   (:func:`commission.tune.objective.gate_excess` at :data:`commission.tune.constraints.GATE_MARGIN`);
 * discrete feasibility over the theta box (:func:`commission.tune.constraints.feasibility_violation`).
@@ -50,11 +54,11 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, FeasibilityReport, observer_design
 from commission.gate import GateLimits
-from commission.robustness import IdentifiedPlantArcMargins, MarginFloors
+from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, MarginFloors
 from commission.scenarios import plant_substeps, screening_indices, tuning_scenarios
 from commission.spec import Spec
 from commission.tuning import Score
-from commission.tune.constraints import GATE_MARGIN, feasibility_violation, margin_violation
+from commission.tune.constraints import GATE_MARGIN, box_violation, feasibility_violation, margin_violation
 from commission.tune.gains import (
     EXTRA_STARTS,
     FREE_LOG_HI,
@@ -197,6 +201,7 @@ class Problem:
         on_screen = set(self.screen)
         self.rest = [i for i in range(len(ev.scenarios)) if i not in on_screen]
         self.margins = IdentifiedPlantArcMargins(ident, spec)
+        self.box = BoxArcCheck(ident, spec)
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
         start = np.append(np.log(FREE_START), 0.0)
@@ -233,8 +238,9 @@ class Problem:
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
         """Every constraint and the objective of each search vector, cheapest first."""
         parts = [self.gains(np.asarray(z)) for z in Z]
-        mv = [margin_violation(self.margins(g), self.floors)
-              for _, _, g in parts]
+        mv = [margin_violation(self.margins(g), self.floors) for _, _, g in parts]
+        # The whole box only where the identified plant's margins hold (the cheaper check first).
+        mv = [v if v > 0 else box_violation(self.box(g), self.floors) for v, (_, _, g) in zip(mv, parts)]
         sim = [i for i, v in enumerate(mv) if v == 0.0]
         # The gate on the screening scenarios first; the rest only for the candidates not already far off.
         first: dict[int, list[Score]] = {}

@@ -1,0 +1,132 @@
+"""The ARC over the whole Assumption-1 box: certify it, or narrow a defaulted payload range first.
+
+``tune`` holds its search to :class:`commission.robustness.BoxArcCheck` (the margin floors at every
+box plant with theta_hat at that plant's theta; stability with theta_hat anywhere the projection
+allows, with one more sample of delay too: :func:`commission.tune.constraints.box_violation`).  Before
+the search (:func:`narrow_default_payload`, called by :func:`commission.tune.resolve_spec`):
+
+* the payload range was **defaulted** (``bounds.payload_defaulted`` of ident.json: the user did
+  not say what the axis carries) and the search's start points hold the box check on no box
+  that wide: the box's heavy end is narrowed to the largest payload one of them holds
+  (:func:`commission.robustness.certified_payload`, bisection), so that the search starts
+  feasible.  The robust gains scale with the box's heaviest mass (alpha_1s = -(K1/theta1_min) z1),
+  so the box is narrowed before the gains are designed, not after (narrowing the projection of
+  tuned gains changes the controller that was tuned).  tuning.json and controller.json state the
+  range under ``validity``, the report's first lines say so, and ``validate`` tests the narrowed box.
+  A user who stated no payload gets a controller with its stated range of validity, not a refusal;
+* the payload range was **given** (or ident.json predates the record): nothing is narrowed; gains
+  that do not hold the box are refused by ``validate``'s gate, naming the corner
+  (:func:`commission.gate.box_checks`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Sequence
+
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains
+from commission.robustness import (BoxArcCheck, BoxRobustness, MarginFloors, certified_payload, floor_violations,
+                                   narrowed_ident, payload_box)
+from commission.spec import Spec
+from commission.tuning import Guarantee
+
+
+def start_gains(ident: Identification, spec: Spec) -> list[ArcGains]:
+    """The search's start points on ``ident``'s box (:func:`commission.tune.optimiser.search`'s first generation)."""
+    from commission.tune.gains import EXTRA_STARTS, FREE_START, apply_free, base_arc_gains, paper_implementable_start
+    base = base_arc_gains(ident, spec)
+    return [apply_free(base, x) for x in (FREE_START, paper_implementable_start(), *EXTRA_STARTS)]
+
+
+def narrow_default_payload(ident: Identification, spec: Spec) -> tuple[Identification, tuple[str, ...]]:
+    """Narrow a *defaulted* payload range to the largest the search's start points certify (module docstring).
+
+    Returns
+    -------
+    ident : Identification
+        With the narrowed box and ``bounds.payload_narrowed_by_tune`` (the same object when nothing changed).
+    notes : tuple of str
+        One line when the box was narrowed.
+    """
+    pb = payload_box(ident)
+    if pb is None or not pb[3] or ident.theta is None:
+        return ident, ()
+    floors = MarginFloors.from_spec(spec)
+    full = BoxArcCheck(ident, spec, delay_any_estimate=True)
+    starts = start_gains(ident, spec)
+    checks = [full(g) for g in starts]
+    if any(r.holds(floors) for r in checks):
+        return ident, ()
+    got = certified_payload(lambda idn: start_gains(idn, spec), ident, spec, floors, delay_any_estimate=True)
+    if got is None:
+        return ident, ()  # not even the empty axis: the search and the gate decide, naming the corner
+    payload, _ = got
+    pmin, pmax, m0, _ = pb
+    first = checks[0]
+    w = first.worst_at_plant(floors)
+    miss = floor_violations(w.margins, floors)
+    a = first.any_estimate
+    unit = mass_unit(ident)
+    why = (f"over the default payload range {pmin:.4g}..{pmax:.4g} {unit} (3 M) the search's start gains "
+           + (f"miss the floors at corner {w.plant} with theta_hat at the plant's theta ({'; '.join(miss)})"
+              if miss else "keep the floors with theta_hat at each plant's theta")
+           + (f" and are UNSTABLE with theta_hat at {a.theta_hat_at} on {a.plant} (spectral radius "
+              f"{a.spectral_radius:.4g})" if not a.stable else ""))
+    out = narrowed_ident(ident, payload)
+    bounds = dict(out.extra["bounds"])
+    bounds["payload_narrowed_by_tune"] = {
+        "default_payload_range": [pmin, pmax], "default_mass_range": list(ident.extra["bounds"]["mass_range"]),
+        "theta1_min": ident.theta.min[0], "theta2_min": ident.theta.min[1], "unit": unit, "reason": why}
+    extra = dict(out.extra)
+    extra["bounds"] = bounds
+    out = dataclasses.replace(out, extra=extra)
+    note = (f"payload range narrowed to {pmin:.4g}..{payload:.4g} {unit} (moving mass up to {m0 + payload:.4g} {unit}) "
+            f"from the default {pmin:.4g}..{pmax:.4g} {unit}: {why}; the controller is certified for that range "
+            f"only (controller.json's validity); state the real payload with commission identify --payload-max")
+    return out, (note,)
+
+
+def mass_unit(ident: Identification) -> str:
+    """The mass unit of the axis: u-unit·s²/m (or /rad)."""
+    u = ident.units.get("u", "u-unit")
+    return f"{u}·s²/{'rad' if ident.units.get('q', 'm') == 'rad' else 'm'}"
+
+
+def validity_of(ident: Identification) -> dict[str, Any] | None:
+    """tuning.json's and controller.json's ``validity`` when the payload was narrowed (else None)."""
+    b = ident.extra.get("bounds")
+    rec = b.get("payload_narrowed_by_tune") if isinstance(b, dict) else None
+    if not isinstance(rec, dict):
+        return None
+    return {"payload_range": list(b["payload_range"]), "mass_range": list(b["mass_range"]), "unit": rec["unit"],
+            "default_payload_range": list(rec["default_payload_range"]), "payload_defaulted": True,
+            "reason": rec["reason"]}
+
+
+def box_guarantees(box: BoxRobustness, spec: Spec, validity: dict[str, Any] | None) -> dict[str, Guarantee]:
+    """tuning.json's guarantees over the box's plants (additive to :func:`commission.tune.guarantees.guarantees`)."""
+    floors = MarginFloors.from_spec(spec)
+    w = box.worst_at_plant(floors)
+    miss = floor_violations(w.margins, floors)
+    a = box.any_estimate
+    where = "" if validity is None else (f" (the box narrowed to payloads up to {validity['payload_range'][1]:.4g} "
+                                         f"{validity['unit']}, see validity)")
+    return {
+        "margins_over_box_at_plant_estimate": Guarantee(
+            not miss, f"the ARC linearised with theta_hat at the plant's own theta (where adaptation goes) at each "
+                      f"of the {len(box.at_plant)} plants of the box{where} (its 4 (theta1, theta2) corners x the "
+                      f"identified mode and its variants x both ends of the load-force range, identified delay): "
+                      f"worst {w.plant}, phase margin "
+                      f"{w.margins.phase_margin_deg:.3g} deg, delay margin {w.margins.delay_margin_samples:.3g} samples, "
+                      f"modulus margin {w.margins.modulus_margin:.3g}, spectral radius {w.margins.spectral_radius:.4g}"
+                      + (f"; misses {'; '.join(miss)}" if miss else "; every [margins] floor met")),
+        "stability_over_box_any_estimate": Guarantee(
+            a.stable, f"the ARC with theta_hat frozen at each corner of the projection box, at theta_hat(0) and at "
+                      f"the plant's theta, on every plant of the box{where} with the identified delay, and at "
+                      f"theta_hat(0) and the plant's theta with one more sample ({a.loops} loops): largest spectral radius {a.spectral_radius:.4g} on {a.plant} with "
+                      f"theta_hat at {a.theta_hat_at} ({'< 1: stable' if a.stable else '>= 1: UNSTABLE'})"),
+    }
+
+
+__all__ = ["box_guarantees", "mass_unit", "narrow_default_payload", "start_gains", "validity_of"]
