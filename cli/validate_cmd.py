@@ -9,6 +9,8 @@ from typing import Any, Optional
 import typer
 from rich.console import Console
 
+from commission.gate import safe_not_better
+from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
 from commission.cli.options import SCHEDULER_HELP
@@ -59,7 +61,7 @@ def validate_command(
 ) -> None:
     """Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
 
-    Gate TOML (--gate): one table named "gate"; every key optional; checked for the ARC on every scenario. e_F default max(30 LSB, 0.01 %travel); e_M max(200 LSB, 0.2 %travel); e_rms max(15 LSB, 0.005 %travel) -- numbers in m, or strings such as "20 um", "30 lsb", "0.01 %travel"; c_u 1.0; u_max the spec's (reaching it fails); no_divergence true; arc_vs_pid_e_rms 1.0 and arc_vs_pid_slack "0.2887 lsb" (ARC e_rms <= 1.0 x PID e_rms + LSB/sqrt(12): no worse than the PID beyond the quantization noise).
+    Gate TOML (--gate): one table named "gate"; every key optional; checked for the ARC on every scenario. e_F default max(30 LSB, 0.01 %travel); e_M max(200 LSB, 0.2 %travel); e_rms max(15 LSB, 0.005 %travel) -- numbers in m, or strings such as "20 um", "30 lsb", "0.01 %travel"; c_u 1.0; u_max the spec's (reaching it fails); no_divergence true; arc_vs_pid_median 1.0 and arc_vs_pid_p90 1.2 (median and 90th percentile, over the fixed scenarios and over the Monte-Carlo plants, of the factor f with ARC e_rms = f x PID e_rms + arc_vs_pid_slack, default "0.2887 lsb"); arc_vs_pid_e_rms, when given, checks that factor on every scenario. When only the PID comparison fails, the ARC is written flagged as controller_not_better.json (exit 1).
     """
     from commission.cli.plots_validate import validation_plots
 
@@ -74,5 +76,8 @@ def validate_command(
         typer.echo(f"wrote {p}")
     print_next_steps(outcome.result, outcome.tuning, out_dir, tuning, signed=key is not None)
     if not outcome.result.passed:
+        if safe_not_better(outcome.result.verdict):
+            for line in not_better_lines(outcome.result, outcome.tuning):
+                typer.echo(line)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

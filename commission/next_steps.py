@@ -4,7 +4,7 @@ On a pass, the export command for the target and a first, reduced-speed test on 
 machine with the signals to watch.  On a failure, the two or three changes that would
 make the gate pass, with values:
 
-* a criterion that ``gate.toml`` may set (e_F, e_M, e_rms, c_u, the ARC-vs-PID factor)
+* a criterion that ``gate.toml`` may set (e_F, e_M, e_rms, c_u, the ARC-vs-PID factor and quantiles)
   and that failed on runs that did not diverge: the limit this controller meets, the
   worst value measured on the same scenarios rounded up with a 5 % allowance.
   Validation is deterministic for a given ``--seed`` and ``--monte-carlo``, so
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 #: Criteria a gate.toml sets, with how their suggested limit is written.
-ADJUSTABLE = ("e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms")
+ADJUSTABLE = ("e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90")
 #: Allowance over the worst measured value for a suggested limit.
 ALLOWANCE = 1.05
 #: Fraction of the validated envelope's speed and acceleration for the first test on the machine.

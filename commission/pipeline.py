@@ -184,7 +184,8 @@ def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
     rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
     spec, notes = rs.spec, rs.notes
-    resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
+    resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max,
+                 targets=spec.targets)
     # The same inputs and call as ``commission tune`` on the ident.json written below.
     inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=sha256_json(ident_doc),
                          log_sha256=ident_out.log.sha256 if isinstance(log_path, str) else None, seed=seed)

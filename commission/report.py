@@ -16,9 +16,9 @@ import numpy as np
 
 from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
-from commission.gate import CRITERIA
+from commission.gate import CRITERIA, safe_not_better
 from commission.robustness import floor_violations
-from commission.scenarios import VARIANTS, case_names, plant_dynamics
+from commission.scenarios import VARIANTS, case_names, horizon_notes, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
 
 #: Row label, Score field, scale, format (Table 1 of the paper).
@@ -40,6 +40,8 @@ _CRITERION_TEXT = {
     "c_u": "c_u (chattering)",
     "u_peak": "peak command below u_max",
     "arc_vs_pid_e_rms": "ARC ‖e‖rms / PID ‖e‖rms",
+    "arc_vs_pid_median": "ARC vs PID ‖e‖rms factor, median per group",
+    "arc_vs_pid_p90": "ARC vs PID ‖e‖rms factor, 90th percentile per group",
     "margins": "ARC stability margins, identified plant (floor / margin)",
     "margins_box": "ARC over the theta box: floors with theta_hat at each plant's theta (floor / margin), "
                    "stability with theta_hat anywhere (spectral radius)",
@@ -102,6 +104,8 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.u_max:.4g}"
     if key in ("margins", "margins_box"):
         return "1 (every floor met)" if key == "margins" else "1 (every floor met; radius < 1)"
+    if key in ("arc_vs_pid_median", "arc_vs_pid_p90"):
+        return f"{getattr(limits, key):.3g}"
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
     return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} {unit_of('small')}" if slack > 0 else "")
 
@@ -495,6 +499,11 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
+    elif safe_not_better(v):
+        L.extend(not_better_lines(result, tuning, markdown=True))
+        L.append("")
+        for line in failure_lines(v):
+            L.append(f"- {line}")
     else:
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
@@ -540,6 +549,9 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     q = unit_of("q")
     L.append(f"- PID baseline (57): Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), "
              f"Kd = {p.Kd:.4g} {unit}·s/{q}, M_hat = {p.M_hat:.4g} {unit}·s²/{q}, B_hat = {p.B_hat:.4g} {unit}·s/{q}")
+    L.extend(yardstick_lines(tuning))
+    for note in horizon_notes(spec):
+        L.append(f"- horizon: {note}")
     L.append("")
     L.extend(identification_markdown(tuning, figures))
     L.extend(discussion_markdown(result, tuning))
@@ -688,7 +700,60 @@ def summary_text(result: Any) -> str:
     return "\n".join(lines)
 
 
-def verdict_text(result: Any) -> str:
+def yardstick_lines(tuning: Tuning) -> list[str]:
+    """The report's line on how the PID yardstick was chosen (tuning.json ``pid_yardstick``; none in older files)."""
+    ys = tuning.pid_yardstick
+    if not ys:
+        return []
+    m = ys.get("margins", {})
+
+    def g(k: str, fmt: str) -> str:
+        v = m.get(k)
+        return "inf" if v is None else fmt.format(v)
+
+    how = {"margin_search": f"the fastest of {ys.get('candidates')} poles of (57) ({ys.get('admissible')} admissible) "
+                            "that keeps the spec's margin floors on the identified plant, is stable with one more "
+                            "sample of delay and stays within the gate's c_u",
+           "spec_pole": "the spec's [pid] pole (the paper's formula (57))",
+           "none_admissible": "no pole of (57) keeps the margin floors on the identified plant: the paper's "
+                              "default pole"}.get(str(ys.get("method")), str(ys.get("method")))
+    flag = "" if ys.get("is_yardstick") else (" -- **not a fair yardstick**: " + "; ".join(ys.get("violations", [])))
+    return [f"- PID yardstick: {how}; pole {tuning.pid_pole:.4g} rad/s, crossover {g('crossover_hz', '{:.3g}')} Hz, "
+            f"gain margin {g('gain_margin_db', '{:.3g}')} dB, phase margin {g('phase_margin_deg', '{:.3g}')} deg, "
+            f"delay margin {g('delay_margin_samples', '{:.3g}')} samples, modulus margin "
+            f"{g('modulus_margin', '{:.3g}')}, spectral radius with +1 sample "
+            f"{float(ys.get('radius_plus_one_sample', float('nan'))):.4f}{flag}"]
+
+
+def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> list[str]:
+    """What a safe ARC that does not beat the PID yardstick leaves the user (:func:`commission.gate.safe_not_better`).
+
+    Two sentences: the verdict in plain words, and the two deployable choices (the flagged ARC,
+    ``controller_not_better.json``, and the validated PID yardstick through ``commission export
+    --controller pid``).
+    """
+    p = tuning.pid
+    unit = result.units.get("u", "u")
+    q = unit_of("q")
+    b = "**" if markdown else ""
+    code = (lambda x: f"`{x}`") if markdown else (lambda x: x)
+    ys = tuning.pid_yardstick or {}
+    how = ("the fastest PID of (57) that keeps the margin floors on the identified plant and +1 sample"
+           if ys.get("method") == "margin_search" else "the PID of (57) at the spec's pole")
+    return [
+        f"{b}Safe, but not better than the PID yardstick.{b} The ARC held every floor and every limit on "
+        f"every scenario (no divergence, errors, c_u, peak command, stability margins); it failed only the "
+        f"comparison with the PID yardstick ({how}, pole {tuning.pid_pole:.4g} rad/s). No "
+        f"{code('controller.json')} was written (exit code 1).",
+        f"Deployable instead: the ARC, flagged (validated.flag.beats_yardstick = false), in "
+        f"{code('controller_not_better.json')} (loads with {code('commission.runtime.load_controller')}); or the "
+        f"validated PID yardstick, Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), Kd = {p.Kd:.4g} "
+        f"{unit}·s/{q} with M_hat = {p.M_hat:.4g}, B_hat = {p.B_hat:.4g}, exported by "
+        f"{code('commission export controller_not_better.json --controller pid --tuning tuning.json --target c --out-dir DIR')}.",
+    ]
+
+
+def verdict_text(result: Any, tuning: Tuning | None = None) -> str:
     """``gate PASSED`` or ``gate FAILED: N checks`` followed by one line per failure."""
     v = result.verdict
     n = len(result.runs)
@@ -696,6 +761,8 @@ def verdict_text(result: Any) -> str:
         lines = [f"gate PASSED ({len(v.checks)} checks on {n} scenarios)"]
     else:
         lines = [f"gate FAILED: {len(v.failures)} of {len(v.checks)} checks on {n} scenarios"]
+        if safe_not_better(v) and tuning is not None:
+            lines += not_better_lines(result, tuning)
         lines += [f"  {line}" for line in failure_lines(v)]
     lines += robustness_lines(result)
     return "\n".join(lines)

@@ -422,22 +422,81 @@ def resolve_encoder_noise(ident: Identification, spec: Spec) -> float:
     return v if v is not None and v >= 0 else 0.0
 
 
-def case1_trajectory(spec: Spec) -> TrajectorySpec:
-    """Case 1 scaled to the envelope (module docstring); the paper's 0.05 sin(4t), 10 s by default."""
+def max_horizon(sample_rate: float) -> float:
+    """The longest run, s, whose samples at ``sample_rate`` Hz stay within the cap
+    :data:`commission.spec.MAX_TRAJECTORY_SAMPLES` (rounded down to the millisecond)."""
+    return math.floor(MAX_TRAJECTORY_SAMPLES / sample_rate * 1000.0) / 1000.0
+
+
+def _case1_full_duration(spec: Spec) -> tuple[float, float, float]:
     A = spec.travel / 8.0
     omega = min(CASE1_SPEED_FRACTION * spec.case_v_max / A, math.sqrt(spec.case_a_max / (15.0 * A)))
-    duration = max(CASE1_DURATION, 4.0 * 2.0 * math.pi / omega)
+    return A, omega, max(CASE1_DURATION, 4.0 * 2.0 * math.pi / omega)
+
+
+def case1_trajectory(spec: Spec) -> TrajectorySpec:
+    """Case 1 scaled to the envelope (module docstring); the paper's 0.05 sin(4t), 10 s by default.
+
+    Its length is four periods of the sinusoid (at least :data:`CASE1_DURATION`), cut at
+    :func:`max_horizon` where a high rate would take it past the sample cap (a slow envelope at
+    10 kHz: 34.88 s = 348,800 samples); :func:`horizon_notes` says so.
+    """
+    A, omega, duration = _case1_full_duration(spec)
+    duration = min(duration, max_horizon(spec.sample_rate))
     return TrajectorySpec("case1", duration=duration, amplitude=A, omega=omega,
                           beta1=spec.beta1, beta2=spec.beta2)
 
 
+def _case2_duration(spec: Spec, moves: int) -> float:
+    sched = _traj.trapezoid_moves(spec.travel, spec.case_v_max, spec.case_a_max, spec.dwell, moves)
+    return round(float(sched.t_switch[-1]) + CASE2_TAIL, 6)
+
+
+#: Fewest Case-2 moves a shortened run keeps: a move and its return.
+CASE2_MIN_MOVES = 2
+
+
+def _case2_moves(spec: Spec) -> int:
+    """``spec.moves``, or fewer (down to :data:`CASE2_MIN_MOVES`) while the run would exceed
+    :func:`max_horizon`; a run that does not fit even then is refused by :func:`check_run_length`."""
+    cap = max_horizon(spec.sample_rate)
+    n = spec.moves
+    while n > CASE2_MIN_MOVES and _case2_duration(spec, n) > cap:
+        n -= 1
+    return n
+
+
 def case2_trajectory(spec: Spec) -> TrajectorySpec:
-    """Case 2 on the envelope: ``moves`` moves of ``travel``, then :data:`CASE2_TAIL` s at rest."""
-    sched = _traj.trapezoid_moves(spec.travel, spec.case_v_max, spec.case_a_max, spec.dwell, spec.moves)
-    duration = round(float(sched.t_switch[-1]) + CASE2_TAIL, 6)
-    return TrajectorySpec("case2", duration=duration, travel=spec.travel, v_max=spec.case_v_max,
-                          a_max=spec.case_a_max, dwell=spec.dwell, moves=spec.moves,
+    """Case 2 on the envelope: ``moves`` moves of ``travel``, then :data:`CASE2_TAIL` s at rest.
+
+    Where a high rate would take the run past the sample cap, fewer moves are run (as many as fit
+    in :func:`max_horizon`, at least a move and its return); :func:`horizon_notes` says so.
+    """
+    n = _case2_moves(spec)
+    return TrajectorySpec("case2", duration=_case2_duration(spec, n), travel=spec.travel, v_max=spec.case_v_max,
+                          a_max=spec.case_a_max, dwell=spec.dwell, moves=n,
                           beta1=spec.beta1, beta2=spec.beta2)
+
+
+def horizon_notes(spec: Spec) -> tuple[str, ...]:
+    """One line per trajectory whose horizon was shortened to stay within the sample cap (empty: none).
+
+    For the report and the commands' ``note:`` lines: the validation then covers a shorter run
+    than the envelope's full Case 1 or Case 2.
+    """
+    out = []
+    _, omega, full = _case1_full_duration(spec)
+    c1 = case1_trajectory(spec).duration
+    if c1 < full:
+        out.append(f"Case 1 runs {c1:.4g} s ({c1 * omega / (2 * math.pi):.2g} periods) instead of {full:.4g} s: "
+                   f"at {spec.sample_rate:g} Hz the full run would exceed the {MAX_TRAJECTORY_SAMPLES} samples "
+                   f"a simulation accepts")
+    n = _case2_moves(spec)
+    if n < spec.moves:
+        out.append(f"Case 2 runs {n} of the {spec.moves} moves ({_case2_duration(spec, n):.4g} s instead of "
+                   f"{_case2_duration(spec, spec.moves):.4g} s): at {spec.sample_rate:g} Hz the full run would "
+                   f"exceed the {MAX_TRAJECTORY_SAMPLES} samples a simulation accepts")
+    return tuple(out)
 
 
 def user_trajectory(spec: Spec) -> TrajectorySpec | None:

@@ -262,6 +262,11 @@ class Spec:
     profile: UserProfile | None = None
 
     @property
+    def targets(self) -> dict[str, float]:
+        """The ``[targets]`` accuracy values, m: ``{"e_rms": ..., "e_f": ...}`` (the gate's default limits follow them)."""
+        return {"e_rms": self.e_rms, "e_f": self.e_f}
+
+    @property
     def period(self) -> float:
         """Sample period T = 1/sample_rate, s."""
         return 1.0 / self.sample_rate

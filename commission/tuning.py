@@ -343,6 +343,11 @@ class Tuning:
         Key ``validity``: present when tune narrowed a *defaulted* payload range to the one the
         gains certify (:func:`commission.tune.api.certify_box`): ``payload_range`` [min, max] and
         ``mass_range`` [min, max] in ``unit`` (u-unit s^2/m), ``default_payload_range`` and a ``reason``.
+    pid_yardstick : mapping or None
+        How the PID baseline was chosen and its margins on the identified plant
+        (:meth:`commission.tune.baseline.YardstickChoice.to_dict`: ``method``, ``pole`` rad/s,
+        ``candidates``, ``admissible``, ``simulated``, ``margins``, ``radius_plus_one_sample``,
+        ``violations``, ``is_yardstick``); None in a tuning.json written before it was recorded.
     """
 
     provenance: Provenance
@@ -363,6 +368,7 @@ class Tuning:
     margins: tuple[LoopMargins, ...] = ()
     box: BoxRobustness | None = None
     validity: Mapping[str, Any] | None = None
+    pid_yardstick: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         p = np.array(self.plant, dtype=np.float64)
@@ -412,6 +418,7 @@ class Tuning:
             "margins": [m.to_dict() for m in self.margins],
             **({} if self.box is None else {"box_robustness": self.box.to_dict(MarginFloors.from_spec(self.spec))}),
             **({} if self.validity is None else {"validity": dict(self.validity)}),
+            **({} if self.pid_yardstick is None else {"pid_yardstick": dict(self.pid_yardstick)}),
         }
 
     def save(self, path: str) -> None:
@@ -500,12 +507,24 @@ class Tuning:
                    pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
                    scores=scores, search=search, margins=_margins(r), box=_box(r),
-                   validity=_validity(r))
+                   validity=_validity(r), pid_yardstick=_yardstick(r))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
         """Read and strictly validate ``tuning.json``."""
         return cls.from_dict(read_json(path), source=str(path))
+
+
+def _yardstick(r: Reader) -> dict[str, Any] | None:
+    """The optional ``pid_yardstick`` record (absent in older files); a malformed one is named by its path."""
+    if not r.has("pid_yardstick"):
+        return None
+    y = r.child("pid_yardstick")
+    from commission.tune.baseline import YardstickChoice
+    try:
+        return YardstickChoice.from_dict(y.data).to_dict()
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise y.fail(f"bad record ({exc})") from None
 
 
 def _margins(r: Reader) -> tuple[LoopMargins, ...]:

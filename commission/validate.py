@@ -62,7 +62,7 @@ from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             box_checks, margin_checks, resolve_gate)
+                             box_checks, margin_checks, resolve_gate, safe_not_better)
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
@@ -84,6 +84,10 @@ DEFAULT_MONTE_CARLO = 64
 REPORT_NAME = "report.md"
 VALIDATION_NAME = "validation.json"
 CONTROLLER_NAME = "controller.json"
+#: The ARC of a validation that failed only on the comparison with the PID yardstick
+#: (:func:`commission.gate.safe_not_better`): loadable with ``load_controller``, flagged in
+#: ``validated.flag``; never named controller.json (CONTRACT: that file means every gate passed).
+FLAGGED_NAME = "controller_not_better.json"
 #: Figures the CLI draws (cli/plots_validate.py); listed here so that --force checks cover them.
 #: The tracking figure of the machine's own moves, drawn only when the spec gives them.
 USER_FIGURE_NAME = "tracking_user.png"
@@ -571,7 +575,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     gate = GateSpec() if gate is None else gate
     spec = tuning.spec
-    limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max)
+    limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max,
+                                       targets=spec.targets)
     scenarios = scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(seed),
                                 n_monte_carlo=n_monte_carlo)
     arc = deployable_gains(tuning.arc, runtime_guards(tuning, limits))
@@ -651,15 +656,22 @@ NOMINAL_RATE_RTOL = 1e-10
 
 
 def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: str,
-                      created_utc: str | None = None) -> ControllerConfig:
+                      created_utc: str | None = None, *, flagged: bool = False) -> ControllerConfig:
     """The deployable controller of a passed validation.
+
+    With ``flagged``, the ARC of a validation that failed only on the comparison with the PID
+    yardstick (:func:`commission.gate.safe_not_better`): its ``validated`` record holds a ``flag``
+    (``beats_yardstick`` false, the failed comparison checks and the yardstick's pole).
 
     Raises
     ------
     ValueError
-        When the gate did not pass (a controller is never built from a failed validation).
+        When the gate did not pass (a controller is never built from a failed validation), unless
+        ``flagged`` and the validation is safe but not better.
     """
-    if not result.passed:
+    if flagged and not safe_not_better(result.verdict):
+        raise ValueError("controller_config: flagged only when the gate failed on the PID comparison alone")
+    if not result.passed and not flagged:
         raise ValueError("controller_config: the gate failed; no controller is emitted")
     prov = ControllerProvenance(
         log_sha256=log_sha256_of(tuning),
@@ -671,9 +683,22 @@ def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: s
     # The nominal rate the drive is programmed with (2500, not 2500.0000000058 estimated from a log's
     # time stamps); sample_period stays the period validated, within the loader's 1e-9 of 1/sample_rate.
     rate = nominal_rate(tuning.spec.sample_rate, rel=NOMINAL_RATE_RTOL)
+    record = validated_record(result)
+    if flagged:
+        record["flag"] = not_better_flag(result, tuning)
     return ControllerConfig(gains=result.arc_gains, sample_rate=rate,
-                            units=dict(tuning.identification.units), validated=validated_record(result),
+                            units=dict(tuning.identification.units), validated=record,
                             provenance=prov, validity=None if tuning.validity is None else dict(tuning.validity))
+
+
+def not_better_flag(result: ValidationResult, tuning: Tuning) -> dict[str, Any]:
+    """The ``validated.flag`` of a flagged ARC: what it failed and what the PID yardstick is."""
+    ys = tuning.pid_yardstick or {}
+    return {"beats_yardstick": False, "verdict": "safe_not_better",
+            "failed": [c.to_dict() for c in result.verdict.failures],
+            "pid_pole": tuning.pid_pole, "pid_yardstick_method": ys.get("method", "unrecorded"),
+            "pid_gains": {"Kp": tuning.pid.Kp, "Ki": tuning.pid.Ki, "Kd": tuning.pid.Kd,
+                          "M_hat": tuning.pid.M_hat, "B_hat": tuning.pid.B_hat}}
 
 
 # --------------------------------------------------------------------------- file-level pipeline
@@ -818,7 +843,7 @@ def check_provenance(tuning: Tuning, tuning_path: str) -> None:
 
 def output_names() -> tuple[str, ...]:
     """Every file ``validate`` may write into its output folder."""
-    return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, *FIGURE_NAMES, USER_FIGURE_NAME)
+    return (REPORT_NAME, VALIDATION_NAME, CONTROLLER_NAME, FLAGGED_NAME, *FIGURE_NAMES, USER_FIGURE_NAME)
 
 
 def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
@@ -870,7 +895,8 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
     check_run_length(tuning.spec, tpath, "$.spec.")
     check_provenance(tuning, tpath)
     # Resolve now so that a gate that cannot apply to this tuning fails before any simulation.
-    resolve_gate(gate, lsb=tuning.quantization, travel=tuning.spec.travel, u_max=tuning.spec.u_max)
+    resolve_gate(gate, lsb=tuning.quantization, travel=tuning.spec.travel, u_max=tuning.spec.u_max,
+                 targets=tuning.spec.targets)
     outputs = Outputs(force=force, inputs=(tpath, gate_path))
     out = outputs.add_dir(out_dir, output_names(), "--out-dir")
     tuning_sha = sha256_file(tpath)
@@ -916,12 +942,19 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
         written.append(ctrl)
     elif ctrl.exists():
         ctrl.unlink()  # never leave a deployable file next to a failing report
+    flagged = out / FLAGGED_NAME
+    if safe_not_better(result.verdict):
+        write_json_atomic(flagged, controller_config(result, tuning, tuning_sha256, flagged=True)
+                          .to_dict(sign_key=sign_key))
+        written.append(flagged)
+    elif flagged.exists():
+        flagged.unlink()
     return written
 
 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
-    "controller_config", "validated_record", "run_validate", "write_outputs", "output_names", "check_provenance",
+    "controller_config", "validated_record", "not_better_flag", "FLAGGED_NAME", "run_validate", "write_outputs", "output_names", "check_provenance",
     "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration", "holding_force",
     "log_sha256_of",
 ]

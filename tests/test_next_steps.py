@@ -71,7 +71,7 @@ def _follow(tuned_path: Path, tight: dict, tmp_path: Path, mc: int, command: lis
     assert r.exit_code == 1, r.output
     assert "next:" in r.output and "commission export" not in r.output
     suggested = _suggested_gate(r.output)
-    assert suggested and set(suggested) <= {"e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms"}, suggested
+    assert suggested and set(suggested) <= {"e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90"}, suggested
     report = (tmp_path / "a" / "report.md").read_text()
     assert "## Next steps" in report and "[gate]" in report
     gate.write_text("[gate]\n" + "".join(f"{k} = {v!r}\n".replace("'", '"') for k, v in {**tight, **suggested}.items()))

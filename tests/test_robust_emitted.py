@@ -75,6 +75,10 @@ def emitted(request, tmp_path_factory):
         assert r.exit_code in (0, 1), r.output  # 1: the gate refused it (report.md says why)
         if r.exit_code == 0:
             ctrls.append(load_controller(out / "controller.json"))
+        elif (out / "controller_not_better.json").exists():
+            # safe but not better than the PID yardstick (issue 30): the ARC is left deployable, flagged;
+            # what is left for the machine must hold on it as much as controller.json does
+            ctrls.append(load_controller(out / "controller_not_better.json"))
     assert len(ctrls) >= MIN_EMITTED[axis], f"{axis}: {len(ctrls)} of {len(SEEDS[axis])} seeds emitted"
     return axis, truth, ctrls
 
@@ -117,15 +121,14 @@ def test_the_emitted_arc_is_stable_on_the_true_axis_and_beats_the_papers_pid(emi
         assert rms_a <= rms_p, (rms_a, rms_p)
 
 
-@pytest.mark.parametrize("name", ["set1", pytest.param("set2", marks=pytest.mark.xfail(
-    strict=True, reason="Set 2's start-up e_M under the margin constraints (measured 147 against the PID's 120 um)")),
-    "set3", "case2"])
+@pytest.mark.parametrize("name", ["set1", "set2", "set3", "case2"])
 def test_on_the_rigid_plant_it_beats_the_pid_on_every_table1_scenario(emitted, name):
     """Must-show 2, second part: without the delay, e_M, e_F and e_rms below the paper's PID's.
 
-    Set 2 (the 9.1 kg payload) is a known shortfall on e_M: the ARC's start-up against the
-    unlearnt payload, with its feedback held to the margins, overshoots the paper's PID's
-    (e_rms and e_F stay below).  Strict: the day it passes, the marker must go.
+    Set 2 (the 9.1 kg payload) was a known shortfall on e_M (147 against the PID's 120 um) until
+    issue 30: with the search compared to the PID yardstick and its gate constraint the ARC's own
+    limits, the emitted ARC passes it too (the ARC emitted is then the flagged one, "safe but not
+    better" than the yardstick, or controller.json).
     """
     axis, truth, ctrls = emitted
     if axis != "rigid":

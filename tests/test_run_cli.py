@@ -35,19 +35,28 @@ def invoke(*args):
 
 
 @pytest.mark.slow
-def test_run_on_the_sample_log_passes_and_leaves_every_file(tmp_path):
+def test_run_on_the_sample_log_leaves_every_file_and_says_its_verdict(tmp_path):
+    """Since issue 30 the sample's ARC is judged against the PID yardstick (570 rad/s, the fastest PID
+    that keeps the margin floors): safe (every floor and limit on the ARC alone held) but not better on
+    the Monte-Carlo quantiles (measured: median factor 1.38).  Exit 1, said plainly, and the ARC left
+    flagged in controller_not_better.json; controller.json only when the whole gate passes."""
     out = tmp_path / "axis"
     r = invoke("run", SAMPLE, "--out-dir", out)
-    assert r.exit_code == 0, r.output
-    for name in OUTPUTS:
-        assert (out / name).is_file(), name
-    assert "gate PASSED" in r.output
-    ctrl = read_json(out / "controller.json")
+    assert r.exit_code in (0, 1), r.output
+    name = "controller.json" if r.exit_code == 0 else "controller_not_better.json"
+    for f in (*[o for o in OUTPUTS if o != "controller.json"], name):
+        assert (out / f).is_file(), f
+    if r.exit_code == 0:
+        assert "gate PASSED" in r.output and not (out / "controller_not_better.json").exists()
+    else:
+        assert "Safe, but not better than the PID yardstick." in r.output and not (out / "controller.json").exists()
+        assert "robustness PASSED" in r.output
+    ctrl = read_json(out / name)
     assert ctrl["provenance"]["log_sha256"] == sha256_file(SAMPLE)
     assert ctrl["provenance"]["ident_sha256"] == sha256_file(out / "ident.json")
     assert ctrl["provenance"]["tuning_sha256"] == sha256_file(out / "tuning.json")
     assert read_json(out / "tuning.json")["provenance"]["ident_sha256"] == sha256_file(out / "ident.json")
-    load_controller(out / "controller.json")
+    load_controller(out / name)
     # both loops' stability margins, per plant, in validation.json and tuning.json, and in the report
     val = read_json(out / "validation.json")["margins"]
     assert {r["controller"] for r in val["loops"]} == {"arc", "pid"} and len(val["loops"]) == 15

@@ -3,10 +3,12 @@
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from commission.errors import InputFileError, SpecError
 from commission.gate import (
+    required_factor,
     CRITERIA,
     DEFAULT_C_U,
     GateSpec,
@@ -115,12 +117,16 @@ def test_a_good_run_passes_every_criterion():
     lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
     v = evaluate_gate(lim, [("case1/nominal", score(), score(e_rms=3e-6), NAN)])
     assert v.passed and not v.failures
-    # every criterion of a scenario run; the margins are checked per loop (margin_checks), not per run
+    # every criterion of a scenario run; the margins are checked per loop (margin_checks), not per run;
+    # by default the ARC-vs-PID comparison is judged by quantiles per group, scenario by scenario on request
+    assert [c.criterion for c in v.checks] == [c for c in CRITERIA if c not in ("margins", "margins_box", "arc_vs_pid_e_rms")]
+    every = resolve_gate(GateSpec(arc_vs_pid_e_rms=1.0), lsb=1e-6, travel=0.4, u_max=10.0)
+    v = evaluate_gate(every, [("case1/nominal", score(), score(e_rms=3e-6), NAN)])
     assert [c.criterion for c in v.checks] == [c for c in CRITERIA if c not in ("margins", "margins_box")]
 
 
 def test_every_failure_is_listed_with_scenario_and_value():
-    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
+    lim = resolve_gate(GateSpec(arc_vs_pid_e_rms=1.0), lsb=1e-6, travel=0.4, u_max=10.0)
     runs = [
         ("case1/nominal", score(), score(e_rms=3e-6), NAN),  # passes
         ("case1/payload_heavy", score(e_F=41e-6, e_M=801e-6, e_rms=21e-6, c_u=1.2), score(e_rms=30e-6), NAN),
@@ -136,6 +142,7 @@ def test_every_failure_is_listed_with_scenario_and_value():
         ("u_peak", "case2/nominal"), ("arc_vs_pid_e_rms", "case2/nominal"),
         ("divergence", "mc/007"), ("e_F", "mc/007"), ("e_M", "mc/007"), ("e_rms", "mc/007"), ("c_u", "mc/007"),
         ("u_peak", "mc/007"), ("arc_vs_pid_e_rms", "mc/007"),
+        ("arc_vs_pid_p90", "fixed"), ("arc_vs_pid_median", "monte_carlo"), ("arc_vs_pid_p90", "monte_carlo"),
     }
     by = {(c.criterion, c.scenario): c for c in v.failures}
     assert by[("e_F", "case1/payload_heavy")].value == 41e-6
@@ -168,7 +175,8 @@ def test_divergence_check_can_be_switched_off_but_indexes_still_fail():
 
 def test_arc_vs_pid_slack_is_the_quantization_noise_rms_by_default():
     # An error-free loop read through an encoder of LSB q shows e_rms = q / sqrt(12): the default slack.
-    lim = resolve_gate(GateSpec(), lsb=0.8e-6, travel=0.4, u_max=10.0)
+    lim = resolve_gate(GateSpec(arc_vs_pid_e_rms=1.0, arc_vs_pid_median=1e9, arc_vs_pid_p90=1e9), lsb=0.8e-6,
+                       travel=0.4, u_max=10.0)
     assert lim.arc_vs_pid_slack == pytest.approx(0.8e-6 / math.sqrt(12.0))
     assert "sqrt(12)" in lim.basis["arc_vs_pid_slack"]
     pid = score(e_rms=0.31e-6)
@@ -179,7 +187,8 @@ def test_arc_vs_pid_slack_is_the_quantization_noise_rms_by_default():
     assert [(c.criterion, c.scenario) for c in bad.failures] == [("arc_vs_pid_e_rms", "s")]
     assert "+ 0.231 um slack" in bad.failures[0].detail
     # strict comparison on request; lengths as the error limits; negative refused
-    strict = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_slack": 0}}), lsb=0.8e-6, travel=0.4, u_max=10.0)
+    strict = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_slack": 0, "arc_vs_pid_e_rms": 1.0}}), lsb=0.8e-6,
+                          travel=0.4, u_max=10.0)
     assert strict.arc_vs_pid_slack == 0.0
     assert not evaluate_gate(strict, [("s", score(e_rms=0.32e-6), pid, NAN)]).passed
     two = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_slack": "2 lsb"}}), lsb=0.8e-6, travel=0.4,
@@ -255,3 +264,57 @@ def test_a_diverged_robustness_scenario_fails_the_floor_whatever_the_gate_says()
     assert not v.passed
     assert "floor:no_divergence" in {c.criterion for c in v.failures}
     assert "divergence" not in {c.criterion for c in v.checks}
+
+
+def test_arc_vs_pid_is_judged_by_quantiles_not_by_the_worst_plant():
+    """A synthetic distribution: 64 Monte-Carlo plants where the ARC is at 0.5 of the PID on 56, loses
+    by 3-18 % on 7 and by 73 % on one (the issue's sample), and 12 fixed scenarios at 0.6.  The median
+    (0.5) and the 90th percentile (the 58th of 64 sorted factors: 1.03) pass the default limits 1.0 and
+    1.2; the worst plant is named.  Moving 3 more plants above 1.2 fails the 90th percentile."""
+    lim = resolve_gate(GateSpec(), lsb=0.0, travel=0.4, u_max=10.0)
+    assert (lim.arc_vs_pid_median, lim.arc_vs_pid_p90, lim.arc_vs_pid_every) == (1.0, 1.2, False)
+    pid = 2e-6
+    losses = [1.03, 1.05, 1.08, 1.1, 1.12, 1.15, 1.18, 1.73]
+    mc = [0.5] * 56 + losses
+    runs = [(f"case1/s{i}", score(e_rms=0.6 * pid), score(e_rms=pid), NAN) for i in range(12)]
+    runs += [(f"mc/{i:03d}", score(e_rms=f * pid), score(e_rms=pid), NAN) for i, f in enumerate(mc)]
+    v = evaluate_gate(lim, runs)
+    q = {(c.criterion, c.scenario): c for c in v.checks if c.criterion.startswith("arc_vs_pid")}
+    assert set(q) == {("arc_vs_pid_median", "fixed"), ("arc_vs_pid_p90", "fixed"),
+                      ("arc_vs_pid_median", "monte_carlo"), ("arc_vs_pid_p90", "monte_carlo")}
+    assert v.passed, [c.detail for c in v.failures]
+    srt = sorted(mc)
+    assert q[("arc_vs_pid_median", "monte_carlo")].value == pytest.approx(0.5)
+    assert q[("arc_vs_pid_p90", "monte_carlo")].value == pytest.approx(srt[int(np.ceil(0.9 * 63))])
+    assert q[("arc_vs_pid_p90", "fixed")].value == pytest.approx(0.6)
+    assert "worst mc/063: f = 1.73" in q[("arc_vs_pid_p90", "monte_carlo")].detail
+    worse = [0.5] * 50 + [1.3] * 6 + losses
+    runs2 = runs[:12] + [(f"mc/{i:03d}", score(e_rms=f * pid), score(e_rms=pid), NAN) for i, f in enumerate(worse)]
+    v2 = evaluate_gate(lim, runs2)
+    assert [(c.criterion, c.scenario) for c in v2.failures] == [("arc_vs_pid_p90", "monte_carlo")]
+    # a gate.toml sets the limits; a diverged ARC counts as an infinite factor
+    g = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_median": 0.4, "arc_vs_pid_p90": 2.0}}), lsb=0.0,
+                     travel=0.4, u_max=10.0)
+    v3 = evaluate_gate(g, runs)
+    assert {(c.criterion, c.scenario) for c in v3.failures} == {("arc_vs_pid_median", "fixed"),
+                                                                 ("arc_vs_pid_median", "monte_carlo")}
+    div = score(diverged=True, e_M=NAN, e_F=NAN, e_rms=NAN, c_u=NAN)
+    assert required_factor(div, score(e_rms=pid), 0.0) == math.inf
+    assert required_factor(score(e_rms=pid), div, 0.0) == 0.0
+    assert required_factor(score(e_rms=3e-6), score(e_rms=2e-6), 1e-6) == pytest.approx(1.0)
+
+
+def test_default_error_limits_follow_the_axis_and_the_targets():
+    """max(k LSB, k' travel, 4 x target): the paper's targets (5 um, 10 um) leave its 20 um and 40 um;
+    a looser stated target, a coarser encoder or a longer stroke raise the limit, a gate.toml value wins."""
+    paper = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert paper.e_rms == pytest.approx(20e-6) and paper.e_F == pytest.approx(40e-6)
+    loose = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, targets={"e_rms": 30e-6, "e_f": 10e-6})
+    assert loose.e_rms == pytest.approx(120e-6) and "4 x targets.e_rms" in loose.basis["e_rms"]
+    coarse = resolve_gate(GateSpec(), lsb=5e-6, travel=0.4, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert coarse.e_rms == pytest.approx(75e-6)  # 15 encoder steps
+    long = resolve_gate(GateSpec(), lsb=1e-6, travel=2.0, u_max=10.0, targets={"e_rms": 5e-6, "e_f": 10e-6})
+    assert long.e_rms == pytest.approx(100e-6)  # 0.005 % of 2 m
+    given = resolve_gate(gate_from_mapping({"gate": {"e_rms": "7 um"}}), lsb=1e-6, travel=0.4, u_max=10.0,
+                         targets={"e_rms": 30e-6, "e_f": 10e-6})
+    assert given.e_rms == pytest.approx(7e-6)

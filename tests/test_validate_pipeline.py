@@ -48,7 +48,8 @@ def tuned(tmp_path_factory):
     ratio = max(x.arc.e_rms / x.pid.e_rms for x in runs if not x.pid.diverged)
     gate = d / "gate.toml"
     gate.write_text("[gate]\n" + "".join(f"{k} = {MARGIN * v!r}\n" for k, v in worst.items())
-                    + f"arc_vs_pid_e_rms = {max(1.0, MARGIN * ratio)!r}\n")
+                    + f"arc_vs_pid_e_rms = {max(1.0, MARGIN * ratio)!r}\n"
+                    + f"arc_vs_pid_median = {max(1.0, MARGIN * ratio)!r}\narc_vs_pid_p90 = {max(1.2, MARGIN * ratio)!r}\n")
     return path, gate, worst
 
 

@@ -30,6 +30,7 @@ from commission.robustness import BoxArcCheck, margin_table
 from commission.scenarios import (
     check_run_length,
     check_user_length,
+    horizon_notes,
     identified_plant,
     resolve_quantization,
     trajectories,
@@ -49,7 +50,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import deployable_pid
+from commission.tune.baseline import pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, narrow_default_payload, validity_of
@@ -87,8 +88,10 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         (:data:`commission.tune.optimiser.OBSERVER_FACTOR_BOUNDS`).  The pole used is the one
         recorded in ``observer``.
     pid_free : bool
-        ``spec.pid_pole`` was defaulted: the PID baseline may run at a lower pole
-        (:func:`deployable_pid`), recorded in ``pid_pole``.
+        ``spec.pid_pole`` was defaulted: the PID baseline is the yardstick of
+        :func:`commission.tune.baseline.pid_yardstick` (the fastest PID of (57) that keeps the
+        margin floors on the identified plant), its pole recorded in ``pid_pole`` and how it was
+        chosen in ``pid_yardstick``.
 
     Returns
     -------
@@ -100,7 +103,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     base = base_arc_gains(ident, spec)
     total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
-    baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
+    baseline, yardstick = pid_yardstick(ident, spec, ev, gate.c_u, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
     named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
     traj_names = [name for name, _ in named]
@@ -155,7 +158,8 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
                  guarantees={**guarantees(chosen, t1, feas["arc"]), **box_guarantees(box, spec, validity)},
                  scores=scores, search=record,
-                 margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity)
+                 margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity,
+                 pid_yardstick=yardstick.to_dict())
     if progress is not None:
         progress(total, total)
     return out
@@ -260,8 +264,8 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
     # A defaulted payload range the search's start points cannot certify is narrowed to one they can.
     ident, payload_notes = narrow_default_payload(ident, spec)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes + payload_notes, observer_free,
-                        pid_free)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + notes + budget_notes + horizon_notes(spec)
+                        + payload_notes, observer_free, pid_free)
 
 
 def load_tune_inputs(ident_path: str | os.PathLike[str], *, spec_path: str | os.PathLike[str] | None = None,

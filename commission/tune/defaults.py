@@ -465,7 +465,8 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
 
 def default_gate_limits(ident: Identification, spec: Spec) -> GateLimits:
     """validate's default gate (an empty ``gate.toml``) resolved for this axis and spec."""
-    return resolve_gate(GateSpec(), lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max)
+    return resolve_gate(GateSpec(), lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max,
+                        targets=spec.targets)
 
 
 def log_sample_rate(ident: Identification) -> float | None:

@@ -281,12 +281,18 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
     """Summed log-excess of the ARC's indexes over ``margin`` x their gate limits (0: all within).
 
     Per scenario: ``sum ln(index / (margin limit))^+`` over e_F, e_M, e_rms, c_u, the peak
-    |u| (against u_max: a clipped command counts ln(1/margin)) and the ARC-vs-PID e_rms
-    (against ``factor x PID + slack``); a diverged run counts :data:`DIVERGED_EXCESS`.
+    |u| (against u_max: a clipped command counts ln(1/margin)) and, when the gate compares
+    scenario by scenario (``limits.arc_vs_pid_every``), the ARC-vs-PID e_rms (against ``factor x
+    PID + slack``); a diverged run counts :data:`DIVERGED_EXCESS`.  Otherwise (validate's default,
+    which judges the comparison by quantiles) the constraint is the ARC's own limits, what makes
+    it *safe*; beating the PID yardstick is the objective's (:func:`cost`).  Held as a constraint,
+    an unreachable comparison with a strong yardstick left every candidate "gate missed", never
+    checked for discrete feasibility: the search then returned gains unstable over the box.
     A smooth companion of the failure count (0 exactly when every index is within ``margin``
     of its limit): the search's gate constraint (:mod:`commission.tune.constraints`).
     """
     total = 0.0
+    every = getattr(limits, "arc_vs_pid_every", True)
     for a, p in zip(arc, pid):
         if a.diverged or not math.isfinite(a.e_rms):
             total += DIVERGED_EXCESS
@@ -294,7 +300,8 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
         ratios = [a.e_F / limits.e_F, a.e_M / limits.e_M, a.e_rms / limits.e_rms, a.c_u / limits.c_u,
                   a.u_peak / limits.u_max]
         if not p.diverged and math.isfinite(p.e_rms):
-            ratios.append(a.e_rms / (limits.arc_vs_pid_e_rms * p.e_rms + limits.arc_vs_pid_slack))
+            if every:
+                ratios.append(a.e_rms / (limits.arc_vs_pid_e_rms * p.e_rms + limits.arc_vs_pid_slack))
         for r in ratios:
             if not math.isfinite(r):  # an index undefined (NaN) or unbounded counts as a diverged run
                 total += DIVERGED_EXCESS

@@ -1,0 +1,102 @@
+"""The PID yardstick (:func:`commission.tune.baseline.pid_yardstick`): the fastest PID of (57)
+that keeps the ARC's margin floors on the identified plant and stays stable with one more
+sample of delay.  Linear checks are exact; the simulation is stubbed (c_u proportional to Kd)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from commission.controllers.design import KIND_PID
+from commission.controllers.linear import sampled_plant
+from commission.controllers.margins import closed_loop_radius, linearize_pid
+from commission.controllers.pid import G_KD, pid_pack
+from commission.paper import reference_identification
+from commission.robustness import MarginFloors
+from commission.scenarios import identified_plant
+from commission.spec import spec_from_mapping
+from commission.tune.baseline import (YARDSTICK_POLE_FRACTIONS, YardstickChoice, pid_baseline, pid_candidates,
+                                      pid_yardstick)
+from commission.tuning import Score
+
+
+def _evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
+    """A stub Evaluator whose PID c_u is proportional to the packed Kd, on ``n`` scenarios."""
+    calls = []
+
+    def scores(kind, packs):
+        assert kind == KIND_PID
+        calls.append(len(packs))
+        return [[Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD],
+                       c_u=c_u_per_kd * p[G_KD] * (1 + 0.1 * i), u_peak=1.0, diverged=False) for i in range(n)]
+                for p in packs]
+    return SimpleNamespace(scores=scores, weights=[1.0] * n, calls=calls)
+
+
+def _independent_check(ident, spec, pole):
+    """Stability of the PID at ``pole`` on the identified plant and with +1 sample, recomputed here."""
+    g, _ = pid_baseline(ident, spec.__class__(**{**spec.__dict__, "pid_pole": pole}))
+    lin = linearize_pid(pid_pack(g))
+    p = identified_plant(ident, spec)
+    return (closed_loop_radius(lin, sampled_plant(p, spec.period)),
+            closed_loop_radius(lin, sampled_plant(p, spec.period, extra_delay=1.0)))
+
+
+def test_yardstick_keeps_the_floors_and_plus_one_sample_where_eq57_is_unstable():
+    """Four samples of drive delay: the paper's PID at 0.12 f_s = 300 rad/s is unstable on the
+    identified plant; the yardstick is stable there and with a fifth sample, and keeps every floor."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({"plant": {"delay_samples": 4.0}})
+    r0, r1 = _independent_check(ident, spec, spec.pid_pole)
+    assert r0 > 1.0 and r1 > 1.0  # eq. (57) at the default pole is no yardstick here
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert choice.method == "margin_search" and choice.is_yardstick and choice.violations == ()
+    assert base.pole == choice.pole < spec.pid_pole
+    r0, r1 = _independent_check(ident, spec, base.pole)
+    assert r0 < 1.0 and r1 < 1.0
+    floors = MarginFloors.from_spec(spec)
+    m = choice.margins
+    assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
+    assert m.delay_margin_samples >= floors.delay_samples and m.modulus_margin >= floors.modulus
+    # the fastest admissible pole of the grid: the next one up misses a floor
+    grid = [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS]
+    i = min(range(len(grid)), key=lambda k: abs(grid[k] - base.pole))
+    assert not pid_candidates(ident, spec, [grid[i + 1]])[0].admissible
+
+
+def test_yardstick_on_the_rigid_reference_is_the_fastest_admissible_pole_within_c_u():
+    """Every admissible candidate is stable on the plant and with +1 sample (by construction);
+    a c_u limit that the fastest admissible PIDs exceed moves the choice down the list."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({})
+    cands = pid_candidates(ident, spec, [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS])
+    ok = [c for c in cands if c.admissible]
+    assert 0 < len(ok) < len(cands)
+    assert all(c.margins.stable and c.radius_plus_one < 1.0 for c in ok)
+    assert all(c.violations for c in cands if not c.margins.stable or c.radius_plus_one >= 1.0)
+    fastest = max(c.pole for c in ok)
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert base.pole == pytest.approx(fastest) and choice.simulated == 4
+    # c_u = k Kd x 1.2 on the worst scenario: the limit 1 admits Kd <= 1/(1.2 k)
+    _, m_min = pid_baseline(ident, spec)
+    k = 1.0 / (1.2 * 3.0 * m_min * 0.9 * fastest)  # the fastest pole reaches 1/0.9 of the limit
+    base2, choice2 = pid_yardstick(ident, spec, _evaluator(k), 1.0, pole_free=True)
+    assert base2.pole < fastest and max(s.c_u for s in base2.scores) <= 1.0
+    assert 1.2 * k * 3.0 * m_min * sorted(c.pole for c in ok)[-1] > 1.0
+    assert choice2.is_yardstick
+
+
+def test_spec_pole_is_kept_and_flagged_when_it_misses_the_floors():
+    """``[pid] pole`` given: the paper's formula at that pole, today's behaviour; its margins are
+    recorded and it is not called a yardstick when it misses a floor.  The record round-trips."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({"pid": {"pole": 300.0}, "plant": {"delay_samples": 4.0}})
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=False)
+    assert base.pole == 300.0 and choice.method == "spec_pole" and not choice.is_yardstick
+    assert any("unstable" in v for v in choice.violations)
+    again = YardstickChoice.from_dict(choice.to_dict())
+    assert again.to_dict() == choice.to_dict()
+    assert math.isclose(again.radius_plus_one, choice.radius_plus_one)
