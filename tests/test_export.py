@@ -39,6 +39,12 @@ from commission.tune import base_arc_gains, pid_baseline
 from commission.validate import deployable_gains, guard_values
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.csv"
+#: Why the whole run on the sample is an expected failure for now (tests marked with it).
+SAMPLE_REFUSED = (
+    "the gate on main refuses the sample since issue 31 made it a two-mass axis (500 Hz non-collocated "
+    "mode, 0.5-sample delay): the ARC loses to the PID baseline at the heavy payload corner and on most "
+    "Monte-Carlo plants, and e_rms exceeds 20 um there (issue 30); strict: remove this mark when the "
+    "verdict work passes it")
 needs_cc = pytest.mark.skipif(find_cc() is None, reason="no C compiler (cc) on the PATH: the C export cannot be built")
 runner = CliRunner()
 LSB = 1e-6
@@ -260,6 +266,7 @@ def test_translator_keeps_python_order_of_operations(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=SAMPLE_REFUSED)
 @needs_cc
 def test_sample_pipeline_export_matches_validate(tmp_path):
     """The sample log through `commission run`, then export (ARC and PID, with --tuning): bit-exact

@@ -190,15 +190,37 @@ def test_a_rigid_axis_gets_no_invented_mode(tmp_path_factory):
     assert 100.0 < fr["band_hz"][1] < 300.0
 
 
-def test_a_log_without_broadband_content_says_so_and_states_the_backed_band():
-    fr = identify_log(str(SAMPLE / "axis_excitation.h5")).ident.to_dict()["frequency_response"]
+def test_a_log_without_broadband_content_says_so_and_states_the_backed_band(tmp_path):
+    # The former bundled sample: a rigid axis close to the paper's Y stage recorded with the default
+    # ExcitationPlan (friction ladder and a 1-20 Hz multisine, no broadband segment).
+    rigid = AxisTruth(M=0.032, B=0.25, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.01, ripple_amp=0.01,
+                      ripple_pitch=0.03, lsb=0.5e-6, sample_rate=2500.0, noise_std=0.1e-6)
+    write_log_h5(tmp_path / "rigid.h5", simulate_excitation(rigid, ExcitationPlan(), np.random.default_rng(20010601)))
+    fr = identify_log(str(tmp_path / "rigid.h5")).ident.to_dict()["frequency_response"]
     assert fr["source"] == "whole_log" and fr["segments_s"] == []
     assert fr["model"] is None and fr["modes"] == [] and fr["delay_samples"] is None
     low, high = fr["band_hz"]
-    # The sample log's excitation is the multisine (lines up to 20 Hz) and the ladder: the rigid model
+    # The log's excitation is the multisine (lines up to 20 Hz) and the ladder: the rigid model
     # is backed up to about there, and above it the loop's own noise feedback is all the data hold.
     assert low < 10.0 and 18.0 <= high <= 40.0
     assert "no broadband content" in fr["note"] and f"to {high:.3g} Hz" in fr["note"]
+
+
+def test_the_bundled_sample_shows_its_mode_and_delay_from_the_log_alone():
+    """sample_data/ records an `excite` plan (broadband injection): found without --plan, against truth.json."""
+    truth = json.loads((SAMPLE / "truth.json").read_text())
+    par = truth["axis"]["parameters"]
+    fr = identify_log(str(SAMPLE / "axis_excitation.h5")).ident.to_dict()["frequency_response"]
+    assert fr["source"] == "broadband" and fr["segments_s"]
+    inj = [g for g in truth["log"]["segments"] if g["name"] == "injection"]
+    assert len(inj) == 1
+    for a, b in fr["segments_s"]:  # the detected segment lies in the plan's injection
+        assert inj[0]["start_s"] <= a < b <= inj[0]["stop_s"]
+    res = [m for m in fr["modes"] if m["kind"] == "resonance"]
+    assert len(res) == 1, fr["modes"]
+    assert res[0]["frequency_hz"] == pytest.approx(par["mode_hz"]["value"], rel=0.05)
+    assert res[0]["damping"] == pytest.approx(par["mode_damping"]["value"], rel=0.30)
+    assert fr["delay_samples"] == pytest.approx(par["delay"]["value"] * par["sample_rate"]["value"], abs=0.2)
 
 
 def test_identify_cli_plots_the_bode_figure(identified, tmp_path_factory, tmp_path):

@@ -151,7 +151,8 @@ def test_a_rotary_hdf5_log_says_rad_in_console_ident_json_and_figures(tmp_path, 
     assert res.exit_code == 0, res.output
     _no_linear_unit(res, tmp_path / "i.json", figure_texts, tmp_path)
     text = " ".join(res.output.split())
-    assert "encoder step 5e-07 rad" in text and "rad/s²" in text and "M (inertia J)" in text
+    lsb = json.loads((SAMPLE_H5.parent / "truth.json").read_text())["axis"]["parameters"]["lsb"]["value"]
+    assert f"encoder step {lsb:g} rad" in text and "rad/s²" in text and "M (inertia J)" in text
     assert {"velocity [rad/s]", "|q/u| [rad/Nm]"} <= set(figure_texts)
     # the report's identification section, with the figures' captions
     from commission.identification import IDENT_FIGURE_NAMES
@@ -210,10 +211,14 @@ def test_lead_and_gear_convert_a_rotary_log_to_the_carriage_s_metres(tmp_path):
     """q_lin = q lead / gear: M and B scale by gear/lead, vs by lead/gear, the levels stay; recorded in source."""
     log = _rotary_copy(SAMPLE_H5, tmp_path / "rotary.h5")
     lead, gear = 0.005 / (2 * math.pi), 4.0
-    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "rot.json")])
+    # The sample has force ripple (pitch 0.03 m, read here as 0.03 rad): given, the Stribeck curve is
+    # identified (--friction stribeck refuses otherwise); the pitch is in the converted unit with --lead.
+    pitch = 0.03
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "rot.json"), "--friction", "stribeck",
+                              "--ripple-pitch", repr(pitch)])
     assert res.exit_code == 0, res.output
     res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "lin.json"), "--lead", repr(lead),
-                              "--gear", "4"])
+                              "--gear", "4", "--friction", "stribeck", "--ripple-pitch", repr(pitch * lead / gear)])
     assert res.exit_code == 0, res.output
     rot, lin = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("rot", "lin"))
     k = lead / gear
@@ -228,7 +233,8 @@ def test_lead_and_gear_convert_a_rotary_log_to_the_carriage_s_metres(tmp_path):
     assert p["fc"]["value"] == pytest.approx(r["fc"]["value"], rel=1e-3)
     assert "M (mass)" in res.output and "Nm·s²/m" in res.output
     # --gear alone: the load's angle, still rad
-    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "g.json"), "--gear", "4"])
+    res = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "g.json"), "--gear", "4",
+                              "--friction", "stribeck", "--ripple-pitch", repr(pitch / gear)])
     g = json.loads((tmp_path / "g.json").read_text())
     assert res.exit_code == 0 and g["units"]["q"] == "rad" and g["source"]["conversion"]["to"] == "rad"
     assert g["parameters"]["M"]["value"] == pytest.approx(r["M"]["value"] * 4, rel=1e-3)

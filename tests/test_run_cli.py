@@ -25,6 +25,12 @@ from commission.pipeline import run_all
 from commission.validate import FIGURE_NAMES
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.h5"
+#: Why the whole run on the sample is an expected failure for now (tests marked with it).
+SAMPLE_REFUSED = (
+    "the gate on main refuses the sample since issue 31 made it a two-mass axis (500 Hz non-collocated "
+    "mode, 0.5-sample delay): the ARC loses to the PID baseline at the heavy payload corner and on most "
+    "Monte-Carlo plants, and e_rms exceeds 20 um there (issue 30); strict: remove this mark when the "
+    "verdict work passes it")
 OUTPUTS = ("ident.json", "tuning.json", "validation.json", "report.md", "controller.json", *FIGURE_NAMES)
 
 runner = CliRunner()

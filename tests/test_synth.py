@@ -442,29 +442,47 @@ def test_h5_writer_rejects_unknown_units(tmp_path, log):
 
 def test_sample_files_match_their_recorded_checksums():
     truth = json.loads((SAMPLE_DIR / "truth.json").read_text())
-    assert set(truth["files"]) == {"axis_excitation.h5", "axis_excitation.csv"}
+    assert set(truth["files"]) == {"axis_excitation.h5", "axis_excitation.csv", "plan.json"}
     for name, info in truth["files"].items():
         p = SAMPLE_DIR / name
         assert p.stat().st_size == info["bytes"], name
         assert sha256_file(p) == info["sha256"], name
     assert (SAMPLE_DIR / "axis_excitation.h5").stat().st_size < 3_000_000
+    assert (SAMPLE_DIR / "axis_excitation.csv").stat().st_size < 6_000_000  # the CSV is in git
+    assert sha256_file(SAMPLE_DIR / "limits.toml") == truth["spec"]["sha256"]
 
 
 def test_sample_truth_matches_the_generator_and_the_files_agree():
     gen = _load_generator()
     truth = json.loads((SAMPLE_DIR / "truth.json").read_text())
+    from commission.excite import load_excite_spec, load_plan_json, plan_run
+
     assert AxisTruth.from_dict(truth["axis"]) == gen.TRUTH
-    assert truth["plan"] == json.loads(json.dumps(gen.PLAN.to_dict()))
+    # the sample is a recording of the plan that `commission excite` makes from sample_data/limits.toml
+    spec = load_excite_spec(SAMPLE_DIR / "limits.toml")
+    plan = plan_run(spec)
+    plan_d = load_plan_json(SAMPLE_DIR / "plan.json")
+    assert plan_d == json.loads(json.dumps(plan.to_dict()))
+    assert [(s["name"], s["start_s"], s["stop_s"]) for s in truth["log"]["segments"]] == \
+        [(s["name"], s["t_start"], s["t_end"]) for s in plan_d["segments"]]
+    # the simulated axis is the one the sample claims: a structural mode and some delay
+    assert gen.TRUTH.mode_hz > 0 and gen.TRUTH.delay > 0
     with h5py.File(SAMPLE_DIR / "axis_excitation.h5", "r") as f:
         h5 = {k: f[k][()] for k in ("t", "q", "u", "q_ref")}
         assert f.attrs["u_unit"] == truth["axis"]["u_unit"] and f.attrs["q_unit"] == "m"
     cols = np.loadtxt(SAMPLE_DIR / "axis_excitation.csv", delimiter=",", skiprows=1)
     for i, k in enumerate(("t", "q", "u", "q_ref")):
         assert np.array_equal(cols[:, i], h5[k]), k  # the same numbers in both files
-    assert h5["t"].size == truth["log"]["samples"]
-    assert h5["t"][-1] == pytest.approx(truth["log"]["duration_s"])
+    assert h5["t"].size == truth["log"]["samples"] == plan.t.size
+    assert np.allclose(h5["t"], plan.t, rtol=0, atol=1e-9) and np.allclose(h5["q_ref"], plan.q_ref, rtol=1e-10, atol=1e-12)
+    assert h5["t"][-1] + 1 / gen.TRUTH.sample_rate == pytest.approx(truth["log"]["duration_s"])
     lsb = gen.TRUTH.lsb
     assert np.max(np.abs(h5["q"] / lsb - np.round(h5["q"] / lsb))) < 1e-6
+    # the recording keeps within the limits of limits.toml (0 violations of u, travel, speed)
+    T = 1 / gen.TRUTH.sample_rate
+    assert np.max(np.abs(h5["u"])) <= spec.u_max
+    assert np.max(h5["q"]) - np.min(h5["q"]) <= spec.travel
+    assert np.max(np.abs(np.diff(h5["q"]))) / T <= spec.v_max
 
 
 def _assert_close_tree(a, b, path="$"):
@@ -498,6 +516,7 @@ def test_sample_data_regenerates(tmp_path):
             h5py.File(tmp_path / "axis_excitation.h5", "r") as f_new:
         a = {k: f_old[k][()] for k in f_old}
         b = {k: f_new[k][()] for k in f_new}
+    assert (tmp_path / "plan.json").read_bytes() == (SAMPLE_DIR / "plan.json").read_bytes()
     assert sorted(a) == sorted(b) == ["q", "q_ref", "t", "u"]
     assert np.array_equal(a["t"], b["t"])
     assert np.max(np.abs(a["q_ref"] - b["q_ref"])) < 1e-12
