@@ -91,6 +91,16 @@ def print_summary(outcome: IdentifyOutcome, console: Console) -> None:
         console.print(line)
     for w in ident.extra.get("warnings", []):  # type: ignore[union-attr]
         console.print(f"[yellow]warning:[/] {w}")
+    ev = ident.extra.get("evidence")
+    if isinstance(ev, dict):
+        console.print(escape(evidence_text(ev)), soft_wrap=True)
+
+
+def evidence_text(ev: dict) -> str:
+    """ident.json's ``evidence`` as the console prints it (:class:`commission.next_steps.ExciteAdvice`)."""
+    from commission.next_steps import ExciteAdvice
+
+    return ExciteAdvice(tuple(ev["missing"]), ev["excite_command"], ev["limits_toml"]).text()
 
 
 def _num(x: float | None, spec: str) -> str:
@@ -166,12 +176,14 @@ def frequency_summary(fr: dict | None) -> str:
     text = "frequency response: " + (f"rigid model backed {band[0]:.4g}-{band[1]:.4g} Hz" if band
                                      else "no band backs the rigid model")
     for m in fr.get("modes", []):
-        text += f"; {m['kind']} {m['frequency_hz']:.4g} Hz (damping {m['damping']:.3g})"
+        sd = m.get("frequency_std_hz")
+        text += (f"; {m['kind']} {m['frequency_hz']:.4g}" + (f" ± {sd:.2g}" if sd is not None else "")
+                 + f" Hz (damping {m['damping']:.3g})")
     if fr.get("delay_samples") is not None:
         text += f"; input delay {fr['delay_samples']:.2f} samples"
     if fr.get("note"):
-        # The note states the backed band itself.
-        text = "frequency response: " + fr["note"]
+        # Without modes the note states the backed band itself; with them it says what the model leaves out.
+        text = ("frequency response: " + fr["note"]) if not fr.get("modes") else f"{text}; {fr['note']}"
     return text
 
 
@@ -211,6 +223,12 @@ def identify_command(
     plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
         "plan.json of `commission excite` that the one LOG was recorded from: the frequency response is "
         "measured on the plan's injection windows (the log's time starts with the plan's).")),
+    u_max: Optional[float] = typer.Option(None, "--u-max", min=0.0, help=(
+        "The drive's command limit, in u's unit after --input-gain: for the `commission excite` limits.toml "
+        "sketch that a log without a broadband segment gets.")),
+    max_modes: Optional[int] = typer.Option(None, "--max-modes", min=0, help=(
+        "Most structural modes the frequency response keeps (default: as many as the data hold, up to 4; "
+        "each must lower the information criterion). Modes beyond it are warned about, named by frequency.")),
     terms: str = typer.Option("auto", "--terms", help="With --friction auto, on a whole-log fit: the delay-aware "
                               "inverse dynamics' switchable terms (delay, viscous_asym, stribeck, position, drag) "
                               "that blocked cross-validation on the identification log chooses among: auto (all), "
@@ -250,6 +268,10 @@ def identify_command(
         with console.status("identifying ...", spinner="dots"):
             kw = o.kwargs()
             del kw["validate_on"]
+            if max_modes is not None:
+                kw["max_modes"] = max_modes
+            if u_max is not None:
+                kw["u_max"] = u_max
             outcome: IdentifyOutcome | LegsOutcome = (
                 identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
                 else identify_log(files[0], validate_on=val_files or None, plan=plan_data,

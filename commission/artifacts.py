@@ -193,6 +193,9 @@ class StructuralModel:
         The encoder reads the load (True) or the motor side (False).
     delay_s : float
         Input delay beyond the zero-order hold, s.
+    mode2_hz, mode2_damping, mode2_ratio, mode2_load_side : float, float, float, bool or None
+        *Added*: a second mode, the simulator's second appendage on the motor (Hz, -, load
+        fraction m3 / M, the encoder reads it); None without one.
     """
 
     mode_hz: float | None
@@ -200,13 +203,21 @@ class StructuralModel:
     mode_ratio: float | None
     mode_load_side: bool | None
     delay_s: float
+    mode2_hz: float | None = None
+    mode2_damping: float | None = None
+    mode2_ratio: float | None = None
+    mode2_load_side: bool | None = None
 
     def plant_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`commission.controllers.plant.plant_vector` for the mode and delay."""
+        """Keyword arguments of :func:`commission.controllers.plant.plant_vector` for the modes and delay."""
         if self.mode_hz is None:
             return {"delay": self.delay_s}
-        return {"mode_hz": self.mode_hz, "mode_damping": self.mode_damping, "mode_ratio": self.mode_ratio,
-                "mode_load_side": bool(self.mode_load_side), "delay": self.delay_s}
+        kw = {"mode_hz": self.mode_hz, "mode_damping": self.mode_damping, "mode_ratio": self.mode_ratio,
+              "mode_load_side": bool(self.mode_load_side), "delay": self.delay_s}
+        if self.mode2_hz is not None:
+            kw.update(mode2_hz=self.mode2_hz, mode2_damping=self.mode2_damping, mode2_ratio=self.mode2_ratio,
+                      mode2_load_side=bool(self.mode2_load_side))
+        return kw
 
 
 def _structural_model(data: Mapping[str, Any], source: str) -> StructuralModel | None:
@@ -228,7 +239,18 @@ def _structural_model(data: Mapping[str, Any], source: str) -> StructuralModel |
         raise m.fail(f"expected a damping ratio below 1, got {zeta!r}", f"{m.path}.mode_damping")
     if not ratio < 1:  # type: ignore[operator]
         raise m.fail(f"expected a load fraction below 1, got {ratio!r}", f"{m.path}.mode_ratio")
-    return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay)  # type: ignore[arg-type]
+    if not m.has("mode2_hz"):
+        return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay)  # type: ignore[arg-type]
+    # Added: a second mode, the simulator's second appendage (ident.json written by this version).
+    hz2 = m.num("mode2_hz", positive=True)
+    zeta2 = m.num("mode2_damping", nonneg=True)
+    ratio2 = m.num("mode2_ratio", positive=True)
+    if not zeta2 < 1:  # type: ignore[operator]
+        raise m.fail(f"expected a damping ratio below 1, got {zeta2!r}", f"{m.path}.mode2_damping")
+    if not ratio + ratio2 < 1:  # type: ignore[operator]
+        raise m.fail(f"expected mode_ratio + mode2_ratio below 1, got {ratio!r} + {ratio2!r}", f"{m.path}.mode2_ratio")
+    return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay,  # type: ignore[arg-type]
+                           hz2, zeta2, ratio2, m.bool_("mode2_load_side"))
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,8 @@ from commission.identify.bounds import ThetaBounds, friction_compensation, theta
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
 from commission.identify.fit import AxisFit, MapFit, evaluate_segments, fit_friction_map, fit_segments
 from commission.identify.friction import friction_compensation_curve, stribeck_friction
-from commission.identify.frf import FrequencyResponse, frequency_response
+from commission.controllers.linear import rigid_frequency_response
+from commission.identify.frf import MAX_MODES, EncoderNoise, FrequencyResponse, encoder_noise, frequency_response
 from commission.identify.ls import ripple_name, ripple_pitches
 from commission.identify import richer
 from commission.identify.signals import quantization_step
@@ -348,21 +349,81 @@ def _same_axis_units(logs: Sequence[ExcitationLog]) -> None:
                         f"{'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
 
 
-def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float) -> FrequencyResponse:
+def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float,
+                  max_modes: int = MAX_MODES) -> tuple[FrequencyResponse, ExcitationLog]:
     """The frequency response of the first log that holds a broadband segment, else of the longest log.
 
     The response is estimated within one recording (windows never span a join);
-    several logs of one axis rarely all carry a broadband injection.
+    several logs of one axis rarely all carry a broadband injection.  Returns the log used too.
     """
     if len(logs) == 1:
-        return frequency_response(logs[0].t, logs[0].q, logs[0].u, M, B)
+        return frequency_response(logs[0].t, logs[0].q, logs[0].u, M, B, max_modes=max_modes), logs[0]
     out = None
     for lg in sorted(logs, key=lambda lg: -lg.n):
-        fr = frequency_response(lg.t, lg.q, lg.u, M, B)
+        fr = frequency_response(lg.t, lg.q, lg.u, M, B, max_modes=max_modes)
         if fr.source == "broadband":
-            return fr
-        out = out or fr
+            return fr, lg
+        out = out or (fr, lg)
     return out  # type: ignore[return-value]
+
+
+def _encoder_noise(fr: FrequencyResponse, lg: ExcitationLog, quantization: float | None) -> EncoderNoise | None:
+    """Encoder noise and quantization's share (:func:`commission.identify.frf.encoder_noise`) of the log ``fr`` used.
+
+    The command's effect is taken out with the fitted model (modes and delay) where the log
+    has a broadband segment, else with the rigid body.
+    """
+    Ts = 1.0 / fr.sample_rate
+    if fr.fit is not None:
+        def response(f: np.ndarray) -> np.ndarray:
+            return fr.fit.response(fr.M, fr.B, Ts, f)  # type: ignore[union-attr]
+    else:
+        def response(f: np.ndarray) -> np.ndarray:
+            return rigid_frequency_response(fr.M, fr.B, Ts, f)
+    segs = [(int(np.searchsorted(lg.t, a)), int(np.searchsorted(lg.t, b)) + 1) for a, b in fr.segments]
+    return encoder_noise(lg.q, lg.u, fr.sample_rate, response, quantization, segs)
+
+
+def _evidence(logs: Sequence[ExcitationLog], freq: FrequencyResponse | None, fit: AxisFit, u_max: float | None,
+              units: Mapping[str, str]) -> dict[str, object] | None:
+    """ident.json's ``evidence``: what the log lacks and the ``excite`` run that supplies it (None: nothing).
+
+    The machine's limits in the sketch are what the logs show (span, peak speed, peak
+    acceleration from a cubic Savitzky-Golay fit over 20 ms) and the drive's command limit:
+    ``--u-max``, else, for a command in volts scaled by ``--input-gain``, the usual +-10 V
+    analog range times that gain (said as an assumption), else the logs' peak |u|.
+    """
+    from scipy.signal import savgol_filter
+
+    from commission.next_steps import ANALOG_COMMAND_RANGE_V, excite_advice
+
+    if freq is not None and freq.source == "broadband":
+        return None
+    first = logs[0]
+    fs = float(first.sample_rate)
+    travel = max(float(np.max(lg.q) - np.min(lg.q)) for lg in logs)
+    win = max(7, int(round(0.02 * fs)) | 1)
+    a_peak = max(float(np.max(np.abs(savgol_filter(lg.q, win, 3, deriv=2, delta=1.0 / fs)))) if lg.q.size > win else 0.0
+                 for lg in logs)
+    v_peak = max(float(np.max(np.abs(savgol_filter(lg.q, win, 3, deriv=1, delta=1.0 / fs)))) if lg.q.size > win else 0.0
+                 for lg in logs)
+    u_peak = max(float(np.max(np.abs(lg.u))) for lg in logs)
+    u_unit = units["u"]
+    if u_max is not None:
+        source = "the drive's command limit (--u-max)"
+    elif first.u_unit == "V" and first.input_gain != 1.0:
+        u_max = ANALOG_COMMAND_RANGE_V * first.input_gain
+        source = (f"assumed: the drive's +-{ANALOG_COMMAND_RANGE_V:g} V command range x --input-gain "
+                  f"{first.input_gain:.6g} {u_unit}/V (the log peaks at {u_peak:.4g} {u_unit}; --u-max sets it)")
+    else:
+        source = f"the log's peak |u| (the drive may allow more: --u-max sets it)"
+    p = fit.parameters
+    rate = float(round(fs)) if abs(fs - round(fs)) <= 1e-3 * fs else fs  # 1000.016 Hz measured: a 1 kHz drive
+    adv = excite_advice(freq.to_dict() if freq is not None else None, travel=travel, v_peak=v_peak,
+                        a_peak=a_peak, u_peak=u_peak, u_max=u_max, u_max_source=source, sample_rate=rate,
+                        M=p["M"][0] if "M" in p else None, B=p["B"][0] if "B" in p else None,
+                        fc=p["fc"][0] if "fc" in p else None, q_unit=units["q"], u_unit=u_unit)
+    return None if adv is None else adv.to_dict()
 
 
 def parse_terms(terms: str | Sequence[str] | None) -> tuple[str, ...] | None:
@@ -486,6 +547,8 @@ def identify_log(
     lead: float | None = None,
     gear: float | None = None,
     counts_per_rev: float | None = None,
+    max_modes: int | None = None,
+    u_max: float | None = None,
     plan: Mapping[str, Any] | None = None,
     terms: str | Sequence[str] | None = "auto",
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
@@ -545,6 +608,13 @@ def identify_log(
         ``--counts-per-rev``: q (and q_ref) of every log in encoder counts, N per
         revolution, read as rad (:func:`commission.logs.load_log`); ``gear`` and ``lead``
         apply after it.
+    max_modes : int, optional
+        ``--max-modes``: most structural modes the frequency response keeps (default
+        :data:`commission.identify.frf.MAX_MODES`); modes beyond it are warned about, each
+        named by its frequency.
+    u_max : float, optional
+        ``--u-max``: the drive's command limit, u-unit, for the ``commission excite`` sketch
+        that a log without a broadband segment gets (``evidence``; :func:`_evidence`).
     plan : mapping, optional
         A parsed plan.json (:func:`commission.excite.load_plan_json`) the one log was recorded
         from: the frequency response is estimated on its injection windows
@@ -643,16 +713,21 @@ def identify_log(
             raise UsageError(f"bounds: {exc}") from None
     comp = friction_compensation(fit)
     # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
-    if plan is not None and has_mass:
-        # The excitation plan says where its injection is (commission excite; identify --plan).
-        from commission.excite import injection_ranges
+    freq, noise = None, None
+    if has_mass:
+        modes = MAX_MODES if max_modes is None else max_modes
+        if plan is not None:
+            # The excitation plan says where its injection is (commission excite; identify --plan).
+            from commission.excite import injection_ranges
 
-        if len(logs) != 1:
-            raise UsageError(f"--plan: takes one log recorded from the plan, got {len(logs)}")
-        freq = frequency_response(logs[0].t, logs[0].q, logs[0].u, fit.parameters["M"][0], fit.parameters["B"][0],
-                                  ranges=injection_ranges(plan, logs[0].t))
-    else:
-        freq = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0]) if has_mass else None
+            if len(logs) != 1:
+                raise UsageError(f"--plan: takes one log recorded from the plan, got {len(logs)}")
+            freq, freq_log = frequency_response(logs[0].t, logs[0].q, logs[0].u, fit.parameters["M"][0],
+                                                fit.parameters["B"][0], max_modes=modes,
+                                                ranges=injection_ranges(plan, logs[0].t)), logs[0]
+        else:
+            freq, freq_log = _frequency_of(logs, fit.parameters["M"][0], fit.parameters["B"][0], modes)
+        noise = _encoder_noise(freq, freq_log, checks.quantization_step)
 
     if rich_chosen:
         friction_warnings += _delay_agreement(selection.fit, freq)  # type: ignore[union-attr]
@@ -666,7 +741,8 @@ def identify_log(
                 + fit_quality_warnings({k: v for k, v in fit.parameters.items() if k not in fix},
                                        fit.relative_error, fit.condition_number)
                 + mass_plausibility_warnings(_units(u_unit, logs[0]),
-                                             fit.parameters["M"][0] if has_mass and "M" not in fix else None))
+                                             fit.parameters["M"][0] if has_mass and "M" not in fix else None)
+                + (freq.warnings if freq is not None else []))
     several, val_several = len(logs) > 1, len(val_logs) > 1
     extra: dict[str, object] = {
         "tool": {"name": "commission", "version": __version__},
@@ -707,10 +783,12 @@ def identify_log(
         "encoder": {
             "quantization": checks.quantization_step,
             "apparent_resolution": checks.apparent_resolution,
+            **(noise.to_dict() if noise is not None else {}),
         },
         "bounds": {} if tb is None else _bounds_record(bounds, tb),
         "friction_compensation_rms_error": comp.rms_error,
         "frequency_response": freq.to_dict() if freq is not None else None,
+        "evidence": _evidence(logs, freq, fit, u_max, _units(u_unit, logs[0])),
         "not_identified": dict(fit.not_identified),
         "warnings": warnings,
     }
@@ -734,6 +812,8 @@ def identify_log(
     if lead is not None or gear is not None or counts_per_rev is not None:
         extra["source"]["conversion"] = _conversion_record(file_q_unit, lead, gear,  # type: ignore[index]
                                                            counts_per_rev)
+    if extra["evidence"] is None:
+        del extra["evidence"]
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)

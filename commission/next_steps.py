@@ -201,4 +201,118 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
     return NextSteps(tuple(lines[:3]), toml)
 
 
-__all__ = ["NextSteps", "next_steps", "gate_changes", "floor_changes"]
+# --------------------------------------------------------------------------- identify's side: missing evidence
+
+#: A drive's analog command range, V: the assumed ``u_max`` of a log whose u is volts times ``--input-gain``.
+ANALOG_COMMAND_RANGE_V = 10.0
+#: Holding-loop bandwidth written into the limits.toml sketch when nothing better is known, Hz.
+SKETCH_BANDWIDTH_HZ = 10.0
+
+
+@dataclass(frozen=True)
+class ExciteAdvice:
+    """What the log lacks and the ``commission excite`` run that would supply it.
+
+    Attributes
+    ----------
+    missing : tuple of str
+        The missing evidence, one sentence each.
+    command : str
+        ``commission excite --spec limits.toml --out-dir DIR``.
+    limits_toml : str
+        A ``limits.toml`` for the machine, from what the log shows (commented).
+    """
+
+    missing: tuple[str, ...]
+    command: str
+    limits_toml: str
+
+    def text(self) -> str:
+        """The console form."""
+        out = ["missing evidence:"] + [f"  - {m}" for m in self.missing]
+        out += [f"to supply it, plan an excitation run: {self.command}", "  with limits.toml (a sketch from this log; "
+                "check every value against the machine):"]
+        out += [f"    {line}" for line in self.limits_toml.rstrip("\n").splitlines()]
+        return "\n".join(out)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"missing": list(self.missing), "excite_command": self.command, "limits_toml": self.limits_toml}
+
+
+def excite_advice(frequency_response: dict[str, Any] | None, *, travel: float, v_peak: float, a_peak: float,
+                  u_peak: float, u_max: float | None, u_max_source: str, sample_rate: float,
+                  M: float | None, B: float | None, fc: float | None, q_unit: str, u_unit: str,
+                  out_dir: str = "excite_plan") -> ExciteAdvice | None:
+    """The evidence a log lacks for the certificate and the ``excite`` run that supplies it (None: nothing lacks).
+
+    A log without a broadband segment backs the rigid model only up to the band its
+    reference excites (``frequency_response.band_hz``); tuned loops cross over well above
+    it, and modes and delay are not measured at all.  ``commission excite`` plans one run
+    with a broadband injection within the machine's limits: the sketch takes them from
+    the log (its span, peak speed and acceleration: what the machine is known to allow)
+    and the drive's command limit ``u_max`` (given, or assumed, ``u_max_source`` says which),
+    and the identified M, B and fc as ``[axis]`` guesses.
+
+    Parameters
+    ----------
+    frequency_response : dict or None
+        ident.json's ``frequency_response`` section.
+    travel : float
+        Span of the log's position, m (rad).
+    v_peak, a_peak : float
+        Peak speed (m/s) and acceleration (m/s^2) the log reached.
+    u_peak : float
+        Peak |u| of the log, u-unit.
+    u_max : float or None
+        The drive's command limit, u-unit (None: the log's peak is all that is known).
+    u_max_source : str
+        Where ``u_max`` comes from, for the sketch's comment.
+    sample_rate : float
+        Hz.
+    M, B, fc : float or None
+        Identified mass, viscous and Coulomb level (u-unit s^2/m, u-unit s/m, u-unit).
+    q_unit, u_unit : str
+    out_dir : str
+        The ``--out-dir`` of the printed command.
+    """
+    fr = frequency_response or {}
+    if fr and fr.get("source") == "broadband":
+        return None
+    band = fr.get("band_hz") if fr else None
+    top = f"{band[1]:.3g} Hz" if band else "no frequency at all (no band of coherent data)"
+    missing = [f"no broadband segment in the log: the model is backed only to {top}; structural modes, the input "
+               "delay and the response above are not measured, and a loop tuned on it crosses over where the data "
+               "say nothing"]
+    if not fr:
+        missing = ["no frequency response (M is not identified): nothing is known of the plant's dynamics"]
+    umax = u_max if u_max is not None else u_peak
+    qs = "rad" if q_unit == "rad" else "m"
+    lines = [
+        "[limits]",
+        f"travel = {travel:.4g}        # {qs}: the span this log used (more if the machine allows)",
+        f"v_max = {v_peak:.4g}         # {qs}/s: the log's peak speed",
+        f"a_max = {a_peak:.4g}         # {qs}/s^2: the log's peak acceleration",
+        f"u_max = {umax:.4g}         # {u_unit}: {u_max_source}",
+        "",
+        "[drive]",
+        f"sample_rate = {sample_rate:.6g}  # Hz: the log's rate",
+        f"bandwidth_hz = {SKETCH_BANDWIDTH_HZ:g}     # Hz: the holding position loop's (an assumption; or give kp, kd)",
+        "",
+        "[axis]",
+    ]
+    if M is not None and M > 0 and qs == "rad":
+        # Rotary: excite's [axis] key carries the linear axis's name; the inertia goes in a comment, the
+        # plan then starts with its bump test (the key is optional).
+        lines.append(f"# inertia J = {M:.4g} {u_unit} s^2/rad identified (excite's [axis] key for it is optional)")
+    elif M is not None and M > 0:
+        lines.append(f"mass = {M:.4g}          # {u_unit} s^2/{qs}: identified")
+    if fc is not None and 0 <= fc < umax:
+        lines.append(f"friction = {fc:.4g}      # {u_unit}: identified Coulomb level")
+    if B is not None and B >= 0:
+        lines.append(f"viscous = {B:.4g}       # {u_unit} s/{qs}: identified")
+    lines += [f'q_unit = "{qs}"', f'u_unit = "{u_unit}"']
+    return ExciteAdvice(tuple(missing), f"commission excite --spec limits.toml --out-dir {out_dir}",
+                        "\n".join(lines) + "\n")
+
+
+__all__ = ["NextSteps", "next_steps", "gate_changes", "floor_changes", "ExciteAdvice", "excite_advice"]

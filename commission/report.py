@@ -166,6 +166,10 @@ def margins_markdown(result: Any, tuning: Tuning) -> list[str]:
                 f"load fraction {dyn.get('mode_ratio', 0.5):.2f}, encoder on the {side} side")
     else:
         mode = "no structural mode (rigid body)"
+    if dyn.get("mode2_hz"):
+        mode += (f"; a second at {dyn['mode2_hz']:.4g} Hz, damping {dyn.get('mode2_damping', 0.02):.3g}, "
+                 f"load fraction {dyn.get('mode2_ratio', 0.1):.2f}"
+                 + (", the encoder on that load" if dyn.get("mode2_load_side") else ""))
     L = ["## Stability margins", "",
          f"Plant model: {mode}; input delay {dyn.get('delay', 0.0) / Ts:.2f} samples beyond the hold. "
          "Both loops are linearised at rest from the compiled step that runs on the machine "

@@ -29,7 +29,7 @@ back-and-forth moves), both scaled to the spec's envelope:
 ``<case>/mode_low``, ``<case>/mode_high``, ``<case>/mode_damping_half``
     When the plant has a structural mode: its frequency at 0.8 and 1.2 times
     and its damping halved (what the identification's errors and a changed
-    load can do to it).  Without a known mode, the stability margins
+    load can do to it); a second identified mode moves with the first.  Without a known mode, the stability margins
     (:mod:`commission.robustness`) stand in for it.
 ``mc/NNN``
     ``n_monte_carlo`` plants from the theta box, alternating case1 and case2,
@@ -83,6 +83,8 @@ from commission.controllers import trajectory as _traj
 from commission.controllers.plant import (
     NP,
     P_DELAY,
+    P_MODE2_DAMPING,
+    P_MODE2_HZ,
     P_MODE_DAMPING,
     P_MODE_HZ,
     P_B,
@@ -312,13 +314,15 @@ def _ripple(ident: Identification) -> tuple[float, float]:
 
 
 def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]:
-    """The structural mode and input delay of the plant (:func:`plant_vector` keywords).
+    """The structural modes and input delay of the plant (:func:`plant_vector` keywords).
 
     From ident.json's ``frequency_response.model`` (what ``commission identify``
-    found in the log's broadband content); without a delay there, the input delay of
-    ``model.inverse_dynamics`` when its ``delay`` term was chosen (a negative one counts
-    as none); each entry overridden by the spec's
-    ``[plant]`` section when given there; rigid and delay-free when neither says
+    found in the log's broadband content: one mode, or two as two appendages on the motor,
+    ``mode2_*``); without a delay there, the input delay of ``model.inverse_dynamics`` when
+    its ``delay`` term was chosen (a negative one counts as none); each entry overridden by
+    the spec's ``[plant]`` section when given there (a spec that states the mode's frequency,
+    load fraction or encoder drops the log's second mode: it belonged to the log's first);
+    rigid and delay-free when neither says
     otherwise.  Every scenario plant of ``tune`` and ``validate`` carries them (a
     payload moves the mass, not the mode: its frequency and load fraction are kept).
     """
@@ -334,6 +338,14 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
                 if v is not None:
                     out[key] = v
             out["mode_load_side"] = bool(model.get("mode_load_side"))
+            f2 = _num(model.get("mode2_hz"))
+            if f2 is not None and f2 > 0:
+                out["mode2_hz"] = f2
+                for key in ("mode2_damping", "mode2_ratio"):
+                    v = _num(model.get(key))
+                    if v is not None:
+                        out[key] = v
+                out["mode2_load_side"] = bool(model.get("mode2_load_side"))
         d = _num(model.get("delay_s"))
         if d is not None and d > 0:
             out["delay"] = d
@@ -346,6 +358,10 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
             if d is not None and d > 0:
                 out["delay"] = d
     if spec is not None:
+        if any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio, spec.plant_encoder)):
+            # The spec states its own mode: the log's second mode belonged to the log's first.
+            for key in ("mode2_hz", "mode2_damping", "mode2_ratio", "mode2_load_side"):
+                out.pop(key, None)
         if spec.plant_mode_hz is not None:
             out["mode_hz"] = spec.plant_mode_hz
         if spec.plant_mode_damping is not None:
@@ -697,12 +713,15 @@ def robustness_scenarios(ident: Identification, spec: Spec) -> list[Scenario]:
     p[P_DELAY] += spec.period
     variants.append(("delay+1", p))
     if base[P_MODE_HZ] > 0:
+        # Every identified mode moves together (a second one too, P_MODE2_HZ = 0 without it).
         for name, k in zip(("mode_low", "mode_high"), MODE_FREQUENCY_FACTORS):
             p = base.copy()
             p[P_MODE_HZ] *= k
+            p[P_MODE2_HZ] *= k
             variants.append((name, p))
         p = base.copy()
         p[P_MODE_DAMPING] *= MODE_DAMPING_FACTOR
+        p[P_MODE2_DAMPING] *= MODE_DAMPING_FACTOR
         variants.append(("mode_damping_half", p))
     out = []
     for case, tr in trajectories(spec):

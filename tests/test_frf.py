@@ -142,6 +142,27 @@ def test_identify_finds_the_mode_and_the_delay_from_the_log(identified, name):
     assert q["model_rms_error"] < 0.2 < q["rigid_rms_error"]
 
 
+@pytest.mark.parametrize("name", sorted(AXES))
+def test_a_single_mode_axis_keeps_one_mode_and_its_encoder_noise(identified, name):
+    # Issue 31: as many modes as the response holds, and no more; the noise told apart from quantization.
+    truth, ident = identified[name]
+    fr = ident["frequency_response"]
+    assert fr["fit_quality"]["n_modes"] == 1 and fr["model"]["mode2_hz"] is None
+    assert [m["mode"] for m in fr["modes"]] == [1] * len(fr["modes"])
+    assert fr["departures"] == []
+    assert not any("departs from the fitted model" in w for w in ident["warnings"])
+    res = fr["modes"][-1]
+    assert 0 < res["frequency_std_hz"] < 0.01 * res["frequency_hz"]
+    enc = ident["encoder"]
+    q_rms = truth.lsb / math.sqrt(12.0)
+    assert enc["quantization_noise_rms"] == pytest.approx(q_rms, rel=1e-6)
+    if truth.noise_std > 0:
+        assert enc["noise_std"] == pytest.approx(truth.noise_std, rel=0.20)
+    else:
+        assert enc["noise_std"] < 0.2 * q_rms  # quantization alone: the floor is the rounding's
+    assert enc["noise_rms_total"] == pytest.approx(math.hypot(truth.noise_std, q_rms), rel=0.20)
+
+
 def test_the_section_round_trips_and_gives_the_plant_options(identified, tmp_path):
     truth, ident = identified["motor_side_4k"]
     p = tmp_path / "ident.json"
