@@ -1,0 +1,335 @@
+"""Certify only within the evidence: what the log backs, and the loop's robust stability above it.
+
+The log backs the model up to a frequency and no further
+(``ident.json`` ``frequency_response.evidence_band_hz``,
+:attr:`commission.identify.frf.FrequencyResponse.evidence_band_hz`): without a broadband
+segment that is where the reference's content agrees with the rigid body (a few tens of Hz
+on a typical commissioning run); with one, where the measured response agrees with the fitted
+model, its mode and delay included.  Above it the plant is **unknown**, and a loop whose
+bandwidth reaches there rests on nothing but the model's extrapolation: the issue-30 sample's
+ARC crossed over at 240 Hz on a log backed to 22 Hz, and failed on the same stage with a
+500-Hz structural mode its log could not show.
+
+Uncertainty weight
+------------------
+The unknown above the band is a multiplicative uncertainty ``P_true = P (1 + Delta W)``,
+``|Delta| <= 1``, with the weight (magnitude only; a second-order Butterworth high-pass)::
+
+    |W(f)| = W_inf x^2 / sqrt(1 + x^4),   x = f / f_c,   f_c = f_1 (W_inf^2 - 1)^(1/4)
+
+so that ``|W(f_1)| = 1`` exactly, ``|W| ~ (f / f_1)^2`` well below ``f_1`` and ``|W| -> W_inf``
+above.  The ``(f / f_1)^2`` rise is the relative error of a two-mass mode at ``f_1`` below its
+resonance (``Delta = -(s^2 + 2 zeta w s) / (s^2 + 2 zeta w s + w^2)``, of any damping); the
+plateau ``W_inf`` = :data:`W_INF` = 2 covers the error of any non-collocated mode well below
+the frequency considered (its phase reversal: ``|Delta| -> 1``) with room for a
+resonance peak of damping 0.25 and above.  A lightly damped peak exactly at a frequency is
+not covered by any finite plateau; that is what measuring the response removes.
+``f_1 = EVIDENCE_FACTOR x f_top`` with :data:`EVIDENCE_FACTOR` = 10: the unseen mode is
+taken to lie at least a decade above the band the log backs.  Both are assumptions, stated
+in the report and ``validation.json``; the remedy for their cost is a log that backs a
+higher band (``commission excite``).
+
+Robust stability is ``||W T||_inf < 1`` with ``T = L / (1 + L)``, ``L = -K P`` the loop of the
+sampled controller's linearisation (:mod:`commission.controllers.margins`) on the identified
+plant (``P``: mode and delay included; :func:`commission.robustness.margin_plants`' nominal
+plant).  The ARC is checked at both of its linearisation points, the PID once.  ``tune``'s
+search holds the ARC's peak below ``1 - `` :data:`SEARCH_ROOM` (a constraint, like the margin
+floors) and ``validate``'s gate holds it below 1 (criterion ``margins``).  A
+``frequency_response`` section absent from ident.json (an older file, or an identification not
+made from a log) records no evidence: the bound is then not applied, and the report says so.
+
+Measured response
+-----------------
+Where the log holds a broadband segment, ``frequency_response.measured`` carries the measured
+response (at most 200 log-spaced bins with their coherence).  :func:`measured_margins` closes
+each loop on it, on the bins with coherence at least
+:data:`commission.identify.frf.BAND_COHERENCE`: the modulus margin ``min |1 + L|`` and the
+phase margin at a gain crossover that lies among those bins.  The gate holds the measured
+modulus margin of the ARC to the same floor as the model's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from commission.artifacts import Identification
+from commission.controllers.arc import ArcGains, arc_pack
+from commission.controllers.linear import sampled_plant
+from commission.controllers.margins import LinearController, frequency_grid, linearize_arc, linearize_pid
+from commission.controllers.pid import PidGains, pid_pack
+from commission.controllers.plant import P_B, P_M
+from commission.identify.frf import BAND_COHERENCE
+from commission.spec import Spec
+
+#: |W| = 1 at this factor times the top of the band the log backs.
+EVIDENCE_FACTOR = 10.0
+#: High-frequency plateau of |W| (dimensionless, > 1).
+W_INF = 2.0
+#: The search holds the ARC's peak |W T| below 1 minus this (room for validate's own grid).
+SEARCH_ROOM = 0.05
+
+
+@dataclass(frozen=True)
+class MeasuredResponse:
+    """The measured response of ident.json's ``frequency_response.measured``.
+
+    Attributes
+    ----------
+    f_hz : ndarray
+        Hz.
+    H : ndarray, complex
+        q-unit per u-unit.
+    coherence : ndarray
+        0-1.
+    """
+
+    f_hz: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the certificate rests on (module docstring).
+
+    Attributes
+    ----------
+    source : str
+        ``"broadband"`` (a broadband segment; the fitted model is backed), ``"whole_log"`` (no
+        broadband content; the rigid body is backed) or ``"none"`` (ident.json records no
+        frequency response: no bound applied).
+    band_hz : (float, float) or None
+        The band the log backs, Hz.
+    factor : float
+        ``f_1`` over the band's top.
+    w_inf : float
+        The weight's plateau.
+    measured : MeasuredResponse or None
+    """
+
+    source: str
+    band_hz: tuple[float, float] | None
+    factor: float = EVIDENCE_FACTOR
+    w_inf: float = W_INF
+    measured: MeasuredResponse | None = None
+
+    @property
+    def applies(self) -> bool:
+        """The weight bounds the loop (a backed band is known)."""
+        return self.band_hz is not None
+
+    @property
+    def top_hz(self) -> float:
+        """Top of the backed band, Hz (nan: none)."""
+        return float(self.band_hz[1]) if self.band_hz is not None else math.nan
+
+    @property
+    def unity_hz(self) -> float:
+        """``f_1``: where ``|W| = 1``, Hz."""
+        return self.factor * self.top_hz
+
+    def weight(self, f_hz: np.ndarray) -> np.ndarray:
+        """``|W|`` at ``f_hz`` (dimensionless; zeros when no band is known)."""
+        f_hz = np.asarray(f_hz, dtype=float)
+        if not self.applies:
+            return np.zeros_like(f_hz)
+        fc = self.unity_hz * (self.w_inf ** 2 - 1.0) ** 0.25
+        x2 = (f_hz / fc) ** 2
+        return self.w_inf * x2 / np.sqrt(1.0 + x2 * x2)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "band_hz": list(self.band_hz) if self.band_hz is not None else None,
+                "weight": {"factor": self.factor, "w_inf": self.w_inf,
+                           "unity_hz": self.unity_hz if self.applies else None,
+                           "form": "|W| = w_inf x^2 / sqrt(1 + x^4), x = f / (unity_hz (w_inf^2 - 1)^(1/4))"},
+                "measured_bins": int(self.measured.f_hz.size) if self.measured is not None else 0,
+                "units": {"band_hz": "Hz", "unity_hz": "Hz", "factor": "1", "w_inf": "1"}}
+
+
+def evidence_of(ident: Identification) -> Evidence:
+    """The evidence ident.json records (module docstring); ``source "none"`` without a frequency response."""
+    fr = ident.extra.get("frequency_response")
+    if not isinstance(fr, Mapping):
+        return Evidence("none", None)
+    band = fr.get("evidence_band_hz", fr.get("band_hz"))
+    band_t = (float(band[0]), float(band[1])) if isinstance(band, (list, tuple)) and len(band) == 2 else None
+    meas = fr.get("measured")
+    measured = None
+    if isinstance(meas, Mapping) and meas.get("frequency_hz"):
+        mag = np.asarray(meas["magnitude"], dtype=float)
+        ph = np.radians(np.asarray(meas["phase_deg"], dtype=float))
+        measured = MeasuredResponse(np.asarray(meas["frequency_hz"], dtype=float), mag * np.exp(1j * ph),
+                                    np.asarray(meas["coherence"], dtype=float))
+    return Evidence(str(fr.get("source", "whole_log")), band_t, measured=measured)
+
+
+@dataclass(frozen=True)
+class RobustStability:
+    """``||W T||_inf`` of one loop and its margins on the measured response.
+
+    Attributes
+    ----------
+    controller : str
+        ``"arc"`` or ``"pid"``.
+    theta_hat_at : str
+        ``"initial"``, ``"plant"`` (ARC) or ``""`` (PID).
+    peak : float
+        ``max |W T|`` over the grid (dimensionless; < 1 holds).
+    peak_hz : float
+        Where, Hz.
+    crossover_hz : float
+        First gain crossover on the model, Hz (nan: none).
+    measured_modulus : float
+        ``min |1 + L|`` on the coherent measured bins (nan: no measured response).
+    measured_phase_deg : float
+        Phase margin at a gain crossover among the coherent measured bins, deg (nan: none there).
+    measured_up_to_hz : float
+        Highest coherent measured bin, Hz (nan: none).
+    """
+
+    controller: str
+    theta_hat_at: str
+    peak: float
+    peak_hz: float
+    crossover_hz: float
+    measured_modulus: float = math.nan
+    measured_phase_deg: float = math.nan
+    measured_up_to_hz: float = math.nan
+
+    @property
+    def holds(self) -> bool:
+        return bool(self.peak < 1.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {"controller": self.controller, "theta_hat_at": self.theta_hat_at, "peak_wt": num(self.peak),
+                "peak_hz": num(self.peak_hz), "crossover_hz": num(self.crossover_hz), "holds": self.holds,
+                "measured_modulus_margin": num(self.measured_modulus),
+                "measured_phase_margin_deg": num(self.measured_phase_deg),
+                "measured_up_to_hz": num(self.measured_up_to_hz)}
+
+
+def weighted_peak(K: LinearController, P: np.ndarray, W: np.ndarray, f_hz: np.ndarray) -> tuple[float, float, float]:
+    """``(max |W T|, its frequency in Hz, first gain crossover in Hz)`` of ``L = -K P`` on ``f_hz``."""
+    L = -K.frequency_response(f_hz) * P
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wt = np.abs(W * L / (1.0 + L))
+    wt = np.where(np.isfinite(wt), wt, np.inf)
+    i = int(np.argmax(wt))
+    above = np.abs(L) >= 1.0
+    j = np.flatnonzero(above[:-1] & ~above[1:])
+    return float(wt[i]), float(f_hz[i]), float(f_hz[j[0]]) if j.size else math.nan
+
+
+def measured_margins(K: LinearController, m: MeasuredResponse) -> tuple[float, float, float]:
+    """``(modulus margin, phase margin deg, highest coherent bin Hz)`` of ``K`` on the measured bins.
+
+    Only bins with coherence >= BAND_COHERENCE count; the phase margin is nan when no gain
+    crossover lies between two coherent neighbouring bins.
+    """
+    ok = m.coherence >= BAND_COHERENCE
+    if not np.any(ok):
+        return math.nan, math.nan, math.nan
+    f, H = m.f_hz[ok], m.H[ok]
+    L = -K.frequency_response(f) * H
+    mod = float(np.abs(1.0 + L).min())
+    mag = np.abs(L)
+    j = np.flatnonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))
+    pm = math.nan
+    if j.size:
+        k = int(j[0])
+        a = math.log(mag[k]) / (math.log(mag[k]) - math.log(mag[k + 1]))
+        ph = np.unwrap(np.angle(L[k:k + 2]))
+        pm = float(np.degrees(math.remainder(ph[0] + a * (ph[1] - ph[0]) + math.pi, 2 * math.pi)))
+    return mod, pm, float(f.max())
+
+
+class EvidenceBound:
+    """``||W T||_inf`` of many controllers on the identified plant (plant, grid and weight computed once).
+
+    Parameters
+    ----------
+    ident : Identification
+    spec : Spec
+    """
+
+    def __init__(self, ident: Identification, spec: Spec) -> None:
+        from commission.robustness import margin_plants  # the same nominal plant as the margin table
+
+        self.evidence = evidence_of(ident)
+        self.Ts = spec.period
+        self.f_hz = frequency_grid(self.Ts)
+        _, p = margin_plants(ident, spec)[0]
+        self.theta_plant = (1.0 / float(p[P_M]), float(p[P_B]) / float(p[P_M]), float(ident.theta.nominal[2]))
+        with threadpool_limits(1):
+            self.P = sampled_plant(p, self.Ts).frequency_response(self.f_hz)
+        self.W = self.evidence.weight(self.f_hz)
+
+    def row(self, K: LinearController, controller: str, at: str) -> RobustStability:
+        peak, fpk, fc = weighted_peak(K, self.P, self.W, self.f_hz)
+        mod = pm = up = math.nan
+        if self.evidence.measured is not None:
+            mod, pm, up = measured_margins(K, self.evidence.measured)
+        return RobustStability(controller, at, peak, fpk, fc, mod, pm, up)
+
+    def arc_rows(self, arc: ArcGains) -> tuple[RobustStability, ...]:
+        """The ARC at its initial estimate and at the identified theta."""
+        ap = arc_pack(arc)
+        with threadpool_limits(1):
+            return tuple(self.row(linearize_arc(ap, th), "arc", at)
+                         for at, th in (("initial", tuple(arc.theta0)), ("plant", self.theta_plant)))
+
+    def pid_row(self, pid: PidGains) -> RobustStability:
+        with threadpool_limits(1):
+            return self.row(linearize_pid(pid_pack(pid)), "pid", "")
+
+    def violation(self, arc: ArcGains) -> float:
+        """Search constraint: summed excess of the ARC's peaks over ``1 - SEARCH_ROOM`` (0: met or no band)."""
+        if not self.evidence.applies:
+            return 0.0
+        return sum(max(0.0, r.peak - (1.0 - SEARCH_ROOM)) for r in self.arc_rows(arc))
+
+
+def evidence_table(arc: ArcGains, pid: PidGains, ident: Identification,
+                   spec: Spec) -> tuple[Evidence, tuple[RobustStability, ...]]:
+    """The evidence and the robust-stability rows of both loops (ARC twice, PID once)."""
+    b = EvidenceBound(ident, spec)
+    return b.evidence, b.arc_rows(arc) + (b.pid_row(pid),)
+
+
+def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[RobustStability]) -> list[str]:
+    """One-line statements of what the certificate rests on, for the report's first lines and stdout."""
+    if evidence.source == "none":
+        return ["evidence: ident.json records no frequency response; the loop's bandwidth is not bounded by "
+                "what a log backs (identify a log to get one)"]
+    if evidence.band_hz is None:
+        return ["evidence: no band of coherent data agrees with the model; the plant is unknown at every "
+                "frequency the loop acts on"]
+    lo, hi = evidence.band_hz
+    what = ("a broadband segment: the measured response backs the fitted model (mode and delay)"
+            if evidence.source == "broadband" else
+            "no broadband segment: the reference's own content backs the rigid model")
+    out = [f"evidence: {what} from {lo:.3g} to {hi:.3g} Hz; above {hi:.3g} Hz the plant is unknown, "
+           f"bounded as an uncertainty |W| = 1 at {evidence.unity_hz:.4g} Hz ({evidence.factor:g} x the band's top)"]
+    for r in rows:
+        who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
+        s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "
+             f"crossover {r.crossover_hz:.4g} Hz")
+        if math.isfinite(r.measured_modulus):
+            s += (f"; on the measured response (coherent up to {r.measured_up_to_hz:.4g} Hz) modulus margin "
+                  f"{r.measured_modulus:.3g}")
+            if math.isfinite(r.measured_phase_deg):
+                s += f", phase margin {r.measured_phase_deg:.3g} deg"
+        out.append(s)
+    return out
+
+
+__all__ = ["EVIDENCE_FACTOR", "Evidence", "EvidenceBound", "MeasuredResponse", "RobustStability", "SEARCH_ROOM",
+           "W_INF", "evidence_lines", "evidence_of", "evidence_table", "measured_margins", "weighted_peak"]
