@@ -304,6 +304,33 @@ def evidence_table(arc: ArcGains, pid: PidGains, ident: Identification,
     return b.evidence, b.arc_rows(arc) + (b.pid_row(pid),)
 
 
+def evidence_checks(rows: tuple[RobustStability, ...] | list[RobustStability], evidence: Evidence,
+                    modulus_floor: float) -> list[Any]:
+    """Gate checks (criterion ``margins``) of the ARC's rows: ``||W T|| < 1``, and the measured modulus margin.
+
+    ``value`` of the first is the peak (limit 1); of the second floor / margin (limit 1), as
+    :func:`commission.gate.margin_checks` counts a margin.  No check without a backed band, and no
+    measured check without coherent measured bins.
+    """
+    from commission.gate import Check
+
+    out = []
+    for r in rows:
+        if r.controller != "arc" or not evidence.applies:
+            continue
+        where = f"evidence/nominal/arc(theta_hat {r.theta_hat_at})"
+        out.append(Check("margins", where, r.peak, 1.0, r.holds,
+                         f"robust stability above the backed band (to {evidence.top_hz:.3g} Hz): peak |W T| "
+                         f"{r.peak:.3g} at {r.peak_hz:.4g} Hz (limit 1; |W| = 1 at {evidence.unity_hz:.4g} Hz)"))
+        if math.isfinite(r.measured_modulus):
+            ok = bool(r.measured_modulus >= modulus_floor)
+            out.append(Check("margins", where.replace("evidence/", "measured/"),
+                             modulus_floor / r.measured_modulus if r.measured_modulus > 0 else math.inf, 1.0, ok,
+                             f"modulus margin on the measured response {r.measured_modulus:.3g} "
+                             f"(coherent bins up to {r.measured_up_to_hz:.4g} Hz; floor {modulus_floor:g})"))
+    return out
+
+
 def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[RobustStability]) -> list[str]:
     """One-line statements of what the certificate rests on, for the report's first lines and stdout."""
     if evidence.source == "none":
@@ -331,5 +358,47 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
     return out
 
 
+def limits_toml(spec: Spec, ident: Identification) -> str:
+    """A ``limits.toml`` sketch for ``commission excite`` (CONTRACT §6) filled with what the spec and the log know.
+
+    ``[limits]`` travel, v_max, a_max and u_max are the spec's envelope (the ones tune and
+    validate used, q-unit and u-unit); ``[drive] sample_rate`` is the log's rate (Hz); ``[axis]
+    mass`` the identified M (u-unit s^2 per q-unit).  ``bandwidth_hz`` of the holding loop is
+    the user's to fill in: no file of this tool knows it.
+    """
+    M = ident.parameters.get("M")
+    mass = f"mass = {M.value:.4g}" if M is not None and math.isfinite(M.value) and M.value > 0 else "# mass = ..."
+    return "\n".join([
+        "[limits]",
+        f"travel = {spec.travel:g}",
+        f"v_max = {spec.v_max:g}",
+        f"a_max = {spec.a_max:g}",
+        f"u_max = {spec.u_max:g}",
+        "[drive]",
+        f"sample_rate = {spec.sample_rate:g}",
+        "# bandwidth_hz = ...  (the position loop that holds the axis during the run)",
+        "[axis]",
+        mass,
+        ""])
+
+
+def excite_command(out_dir: str = "excite") -> str:
+    """The command that plans the run which raises the evidence (CONTRACT §6, planned face)."""
+    return f"commission excite --spec limits.toml --out-dir {out_dir}"
+
+
+def raise_evidence_line(evidence: Evidence, spec: Spec, ident: Identification) -> str:
+    """One sentence: what to record to raise the evidence, with the limits.toml inline (for stdout)."""
+    toml = "; ".join(line for line in limits_toml(spec, ident).splitlines() if line and not line.startswith("#"))
+    have = (f"the log backs the model only to {evidence.top_hz:.3g} Hz" if evidence.applies
+            else "the log backs no band of the model")
+    if evidence.source == "broadband":
+        have = f"the log's broadband segment backs the model to {evidence.top_hz:.3g} Hz"
+    return (f"to certify a faster loop, raise the evidence ({have}): plan a broadband run with "
+            f"`{excite_command()}` (limits.toml: {toml}; add the holding loop's bandwidth_hz), record it, "
+            "then `commission run` on that log")
+
+
 __all__ = ["EVIDENCE_FACTOR", "Evidence", "EvidenceBound", "MeasuredResponse", "RobustStability", "SEARCH_ROOM",
-           "W_INF", "evidence_lines", "evidence_of", "evidence_table", "measured_margins", "weighted_peak"]
+           "W_INF", "evidence_checks", "evidence_lines", "evidence_of", "evidence_table", "excite_command", "limits_toml",
+           "raise_evidence_line", "measured_margins", "weighted_peak"]

@@ -7,7 +7,9 @@ tuning scenarios over its free gains (:data:`commission.tune.gains.FREE_BOUNDS`,
 coordinates, and the observer pole when the spec left it free), subject to
 
 * the stability margins of the ARC on the identified plant, mode and delay included, meeting
-  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`);
+  the spec's ``[margins]`` floors (:func:`commission.tune.constraints.margin_violation`), and
+  robust stability above the band the log backs (:meth:`commission.evidence.EvidenceBound.violation`:
+  ``||W T|| < 1 - SEARCH_ROOM`` at both linearisations, counted with the margins);
 * validate's default gate on the tuning scenarios, robustness scenarios included
   (:func:`commission.tune.objective.gate_excess` at :data:`commission.tune.constraints.GATE_MARGIN`);
 * discrete feasibility over the theta box (:func:`commission.tune.constraints.feasibility_violation`).
@@ -50,6 +52,7 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, FeasibilityReport, observer_design
 from commission.gate import GateLimits
+from commission.evidence import EvidenceBound
 from commission.robustness import IdentifiedPlantArcMargins, MarginFloors
 from commission.scenarios import plant_substeps, screening_indices, tuning_scenarios
 from commission.spec import Spec
@@ -197,6 +200,7 @@ class Problem:
         on_screen = set(self.screen)
         self.rest = [i for i in range(len(ev.scenarios)) if i not in on_screen]
         self.margins = IdentifiedPlantArcMargins(ident, spec)
+        self.evidence = EvidenceBound(ident, spec)
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
         start = np.append(np.log(FREE_START), 0.0)
@@ -233,7 +237,7 @@ class Problem:
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
         """Every constraint and the objective of each search vector, cheapest first."""
         parts = [self.gains(np.asarray(z)) for z in Z]
-        mv = [margin_violation(self.margins(g), self.floors)
+        mv = [margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
               for _, _, g in parts]
         sim = [i for i, v in enumerate(mv) if v == 0.0]
         # The gate on the screening scenarios first; the rest only for the candidates not already far off.

@@ -1,0 +1,147 @@
+"""Issue 30, build 2: certify only within the evidence (commission/evidence.py).
+
+The weight against its closed forms; the robust-stability bound against the small-gain
+theorem on plants inside and outside the uncertainty set (closed-loop eigenvalues, computed
+independently of the frequency grid); the margins on a measured response against the
+model's; the band and the measured bins ident.json carries; the limits.toml sketch parsed
+back with tomllib.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from commission.controllers.arc import arc_pack
+from commission.controllers.linear import sampled_plant
+from commission.controllers.margins import (closed_loop_radius, frequency_grid, linearize_arc, linearize_pid,
+                                            loop_margins)
+from commission.controllers.pid import pid_pack
+from commission.evidence import (EVIDENCE_FACTOR, W_INF, Evidence, EvidenceBound, MeasuredResponse,
+                                 evidence_checks, evidence_of, excite_command, limits_toml, measured_margins,
+                                 raise_evidence_line)
+from commission.paper import TS, paper_pid_gains, reference_identification, reference_plant
+from commission.spec import spec_from_mapping
+from commission.tuning import Tuning
+
+DATA = Path(__file__).resolve().parent / "data"
+
+#: The sample's whole-log band (ident.json of sample_data/axis_excitation.h5): 8 to 22 Hz.
+WHOLE_LOG = {"source": "whole_log", "band_hz": [8.0, 22.0]}
+SPEC = spec_from_mapping({})
+
+
+def _ident(fr):
+    return reference_identification(frequency_response=fr)
+
+
+def test_the_weight_is_one_at_the_factor_rises_as_f_squared_below_and_levels_at_w_inf():
+    ev = Evidence("whole_log", (8.0, 22.0))
+    f1 = EVIDENCE_FACTOR * 22.0
+    assert ev.unity_hz == pytest.approx(f1)
+    assert ev.weight(np.array([f1]))[0] == pytest.approx(1.0, rel=1e-12)
+    # Well below f1: (f / f1)^2 times W_inf / sqrt(W_inf^2 - 1), the Butterworth's low-frequency asymptote.
+    lo = f1 / 30.0
+    assert ev.weight(np.array([lo]))[0] == pytest.approx((lo / f1) ** 2 * W_INF / math.sqrt(W_INF ** 2 - 1),
+                                                         rel=1e-3)
+    assert ev.weight(np.array([1e3 * f1]))[0] == pytest.approx(W_INF, rel=1e-6)
+    assert np.all(np.diff(ev.weight(np.geomspace(1.0, 1e5, 200))) > 0)
+    assert not Evidence("none", None).applies and np.all(Evidence("none", None).weight(np.ones(3)) == 0)
+
+
+def test_the_evidence_comes_from_ident_json_and_falls_back_to_the_older_band_key():
+    assert evidence_of(reference_identification()).source == "none"
+    assert evidence_of(_ident(WHOLE_LOG)).band_hz == (8.0, 22.0)  # an ident.json before evidence_band_hz
+    ev = evidence_of(_ident({**WHOLE_LOG, "source": "broadband", "evidence_band_hz": [8.0, 600.0],
+                             "measured": {"frequency_hz": [10.0, 20.0], "magnitude": [1e-3, 2e-4],
+                                          "phase_deg": [-180.0, -175.0], "coherence": [0.9, 0.5]}}))
+    assert ev.band_hz == (8.0, 600.0) and ev.source == "broadband"
+    assert ev.measured.H[0] == pytest.approx(-1e-3) and ev.measured.coherence[1] == 0.5
+
+
+def _mode_plant(hz: float, zeta: float) -> np.ndarray:
+    return reference_plant(mode_hz=hz, mode_damping=zeta, mode_ratio=0.3, mode_load_side=True)
+
+
+def test_a_loop_within_the_bound_is_stable_on_every_unseen_mode_inside_the_uncertainty_set():
+    """Small-gain theorem: ||W T|| < 1 and |P_true / P - 1| <= |W| everywhere give a stable loop.
+
+    The paper's PID (57) on the reference plant backed to 22 Hz holds the bound; load-side modes
+    at or above f1 damped enough that their relative error stays below |W| (up to 0.9 x Nyquist)
+    are in the set, and the
+    closed loop's eigenvalues (not the frequency grid) say it is stable on each.
+    """
+    ident = _ident(WHOLE_LOG)
+    b = EvidenceBound(ident, SPEC)
+    K = linearize_pid(pid_pack(paper_pid_gains()))
+    row = b.row(K, "pid", "")
+    assert row.holds and row.peak > 0.3  # the bound is active, not vacuous
+    f = frequency_grid(TS)
+    nominal = sampled_plant(reference_plant(), TS).frequency_response(f)
+    inside = 0
+    for hz in (b.evidence.unity_hz, 300.0, 479.0, 800.0, 1100.0):
+        for zeta in (0.3, 0.5, 0.7):
+            true = sampled_plant(_mode_plant(hz, zeta), TS)
+            rel = np.abs(true.frequency_response(f) / nominal - 1.0)
+            # Up to 0.9 x Nyquist: the hold's zero at z = -1 sends the rigid body's response to 0 at
+            # Nyquist, where every relative error is unbounded (and |T| is too small to matter).
+            below = f <= 0.9 * 0.5 / TS
+            if np.all(rel[below] <= b.W[below]):
+                inside += 1
+                assert closed_loop_radius(K, true) < 1.0, (hz, zeta)
+    assert inside >= 5  # the set is not empty of real modes
+
+
+def test_the_arc_the_old_gate_certified_breaks_the_bound_and_fails_on_the_mode_its_log_never_showed():
+    """The reference ARC (crossover 230 Hz) on a log backed to 22 Hz: peak |W T| > 1, refused.
+
+    On the stage with the paper's 479-Hz load-side mode it is indeed unstable, and the paper's
+    PID, which holds the bound, is not (an independent check through the closed-loop eigenvalues).
+    """
+    tuning = Tuning.load(str(DATA / "tuning_paper_budget8.json"))
+    ident = _ident(WHOLE_LOG)
+    b = EvidenceBound(ident, SPEC)
+    rows = b.arc_rows(tuning.arc)
+    assert max(r.peak for r in rows) > 1.0
+    checks = evidence_checks(rows, b.evidence, 0.5)
+    assert checks and not all(c.passed for c in checks)
+    assert all("peak |W T|" in c.detail and "Hz" in c.detail for c in checks)
+    true = sampled_plant(_mode_plant(479.0, 0.07), TS)
+    K_arc = linearize_arc(arc_pack(tuning.arc), tuning.arc.theta0)
+    assert closed_loop_radius(K_arc, true) > 1.0
+    assert closed_loop_radius(linearize_pid(pid_pack(paper_pid_gains())), true) < 1.0
+    # Without a recorded frequency response no bound (and no check) is applied.
+    none = EvidenceBound(reference_identification(), SPEC)
+    assert none.violation(tuning.arc) == 0.0 and evidence_checks(none.arc_rows(tuning.arc), none.evidence, 0.5) == []
+
+
+def test_margins_on_a_measured_response_equal_the_models_where_the_measurement_is_the_model():
+    plant = sampled_plant(_mode_plant(479.0, 0.07), TS)
+    K = linearize_pid(pid_pack(paper_pid_gains()))
+    f = np.geomspace(5.0, 1200.0, 4000)
+    exact = loop_margins(K, plant, f)
+    m = MeasuredResponse(f, plant.frequency_response(f), np.ones_like(f))
+    mod, pm, up = measured_margins(K, m)
+    assert mod == pytest.approx(exact.modulus_margin, rel=1e-3)
+    assert pm == pytest.approx(exact.phase_margin_deg, abs=0.1)
+    assert up == pytest.approx(1200.0)
+    # Incoherent bins do not count: hide the resonance and the modulus margin is the rigid part's.
+    low = np.where(f < 300.0, 1.0, 0.3)
+    mod_low, _, up_low = measured_margins(K, MeasuredResponse(f, m.H, low))
+    assert up_low < 300.0 and mod_low > mod
+
+
+def test_the_limits_toml_sketch_parses_and_carries_the_spec_and_the_log():
+    spec = spec_from_mapping({"trajectory": {"travel": 0.3, "v_max": 0.5, "a_max": 6.0},
+                              "controller": {"sample_rate": 4000.0, "u_max": 5.0}})
+    ident = _ident(WHOLE_LOG)
+    d = tomllib.loads(limits_toml(spec, ident))
+    assert d == {"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 6.0, "u_max": 5.0},
+                 "drive": {"sample_rate": 4000.0}, "axis": {"mass": 0.027}}
+    line = raise_evidence_line(evidence_of(ident), spec, ident)
+    assert excite_command() == "commission excite --spec limits.toml --out-dir excite"
+    assert f"`{excite_command()}`" in line and "22 Hz" in line and "travel = 0.3" in line
