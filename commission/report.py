@@ -471,6 +471,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"**Gate: {status}** -- {len(v.checks)} checks on {len(result.runs)} scenarios "
              f"({nfix} fixed + {result.n_monte_carlo} Monte-Carlo plants), ARC and PID baseline.")
     L.append("")
+    L.extend(evidence_markdown(result, tuning))
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
@@ -480,7 +481,6 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
         for line in failure_lines(v):
             L.append(f"- {line}")
     L.append("")
-    L.extend(evidence_markdown(result, tuning))
     L.extend(next_steps(result, tuning, tuning_path=sources.get("tuning") or "tuning.json").markdown())
     L.append("## Axis and controller")
     L.append("")
