@@ -259,7 +259,7 @@ class FrequencyResponse:
             "note": self.note,
             "units": {"frequency": "Hz", "delay_s": "s", "delay_samples": "samples",
                       "rms_error": "coherence-weighted RMS of |ln(H_measured / H_model)|",
-                      "measured.magnitude": "m per u-unit (the log's q unit per u unit)",
+                      "measured.magnitude": "q-unit per u-unit",
                       "measured.phase_deg": "deg", "measured.coherence": "1"},
         }
 
