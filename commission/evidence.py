@@ -158,8 +158,12 @@ class Evidence:
                 "units": {"band_hz": "Hz", "unity_hz": "Hz", "factor": "1", "w_inf": "1"}}
 
 
-def evidence_of(ident: Identification) -> Evidence:
-    """The evidence ident.json records (module docstring); ``source "none"`` without a frequency response."""
+def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
+    """The evidence ident.json records (module docstring); ``source "none"`` without a frequency response.
+
+    ``spec``'s ``[evidence]`` sets the weight: ``first_mode_hz`` (f_1 itself, Hz, when the user
+    knows the machine's lowest mode) and ``damping`` (W_inf = 1 / (2 damping)).
+    """
     fr = ident.extra.get("frequency_response")
     if not isinstance(fr, Mapping):
         return Evidence("none", None)
@@ -172,7 +176,12 @@ def evidence_of(ident: Identification) -> Evidence:
         ph = np.radians(np.asarray(meas["phase_deg"], dtype=float))
         measured = MeasuredResponse(np.asarray(meas["frequency_hz"], dtype=float), mag * np.exp(1j * ph),
                                     np.asarray(meas["coherence"], dtype=float))
-    return Evidence(str(fr.get("source", "whole_log")), band_t, measured=measured)
+    factor, w_inf = EVIDENCE_FACTOR, W_INF
+    if spec is not None:
+        w_inf = 1.0 / (2.0 * spec.evidence_damping)
+        if spec.evidence_first_mode_hz is not None and band_t is not None:
+            factor = spec.evidence_first_mode_hz / band_t[1]
+    return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, w_inf=w_inf, measured=measured)
 
 
 @dataclass(frozen=True)
@@ -270,7 +279,7 @@ class EvidenceBound:
     def __init__(self, ident: Identification, spec: Spec) -> None:
         from commission.robustness import margin_plants  # the same nominal plant as the margin table
 
-        self.evidence = evidence_of(ident)
+        self.evidence = evidence_of(ident, spec)
         self.Ts = spec.period
         self.f_hz = frequency_grid(self.Ts)
         _, p = margin_plants(ident, spec)[0]
@@ -352,7 +361,9 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
             if evidence.source == "broadband" else
             "no broadband segment: the reference's own content backs the rigid model")
     out = [f"evidence: {what} from {lo:.3g} to {hi:.3g} Hz; above {hi:.3g} Hz the plant is unknown, "
-           f"bounded as an uncertainty |W| = 1 at {evidence.unity_hz:.4g} Hz ({evidence.factor:g} x the band's top)"]
+           f"bounded as an uncertainty |W| = 1 at {evidence.unity_hz:.4g} Hz ({evidence.factor:.3g} x the band's top; "
+           f"spec [evidence] first_mode_hz) rising to {evidence.w_inf:.3g} (a mode damped "
+           f"{0.5 / evidence.w_inf:.3g}, [evidence] damping)"]
     for r in rows:
         who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
         s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "

@@ -147,3 +147,17 @@ def test_the_limits_toml_sketch_parses_and_carries_the_spec_and_the_log():
     line = raise_evidence_line(evidence_of(ident), spec, ident)
     assert excite_command() == "commission excite --spec limits.toml --out-dir excite"
     assert f"`{excite_command()}`" in line and "22 Hz" in line and "travel = 0.3" in line
+
+
+def test_the_spec_states_the_machines_lowest_mode_and_its_damping():
+    ident = _ident(WHOLE_LOG)
+    ev = evidence_of(ident, spec_from_mapping({"evidence": {"first_mode_hz": 900.0, "damping": 0.02}}))
+    assert ev.unity_hz == pytest.approx(900.0) and ev.w_inf == pytest.approx(25.0)
+    assert ev.weight(np.array([900.0]))[0] == pytest.approx(1.0)
+    assert evidence_of(ident, SPEC).unity_hz == pytest.approx(EVIDENCE_FACTOR * 22.0)
+    # The paper's PID (crossover 114 Hz) exceeds the default bound on a log backed to 22 Hz, and holds
+    # it when the user states that the machine has no mode below 900 Hz.
+    K = linearize_pid(pid_pack(paper_pid_gains()))
+    assert not EvidenceBound(ident, SPEC).row(K, "pid", "").holds
+    stated = spec_from_mapping({"evidence": {"first_mode_hz": 900.0}})
+    assert EvidenceBound(ident, stated).row(K, "pid", "").holds
