@@ -49,7 +49,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import deployable_pid
+from commission.tune.baseline import deployable_pid, pid_within_evidence
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 
@@ -100,6 +100,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
     baseline = deployable_pid(ident, spec, ev, gate.c_u, pid_free)
+    baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
     named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
     traj_names = [name for name, _ in named]
