@@ -13,24 +13,27 @@ ARC crossed over at 240 Hz on a log backed to 22 Hz, and failed on the same stag
 Uncertainty weight
 ------------------
 The unknown above the band is a multiplicative uncertainty ``P_true = P (1 + Delta W)``,
-``|Delta| <= 1``, with the weight (magnitude only; a second-order Butterworth high-pass)::
+``|Delta| <= 1``.  What it must cover is an unseen non-collocated (load-side) two-mass mode at
+some ``f' >= f_m`` with damping ``zeta' >= zeta``, whose relative error is
+``-s^2 / (s^2 + 2 zeta' w' s + w'^2)``: ``x^2 / sqrt((1 - x^2)^2 + (2 zeta' x)^2)``,
+``x = f / f'``, rising as ``(f / f')^2`` below the mode (whatever its damping), peaking at
+``1 / (2 zeta' sqrt(1 - zeta'^2))`` and tending to 1 (the phase reversal) above it.  The weight
+is the envelope of that family (the mode at ``f_m`` below its peak, the peak itself above)::
 
-    |W(f)| = W_inf x^2 / sqrt(1 + x^4),   x = f / f_c,   f_c = f_1 (W_inf^2 - 1)^(1/4)
+    |W(f)| = x^2 / sqrt((1 - x^2)^2 + (2 zeta x)^2),  x = f / f_m,   up to x^2 = 1 / (1 - 2 zeta^2)
+    |W(f)| = W_inf = 1 / (2 zeta sqrt(1 - zeta^2))                     above
 
-so that ``|W(f_1)| = 1`` exactly, ``|W| ~ (f / f_1)^2`` well below ``f_1`` and ``|W| -> W_inf``
-above.  It is the envelope of the relative error of an unseen non-collocated (load-side)
-two-mass mode at any frequency ``f_m >= f_1``: ``Delta = P_true / P - 1 = -s^2 / (s^2 + 2 zeta
-w_m s + w_m^2)``, which rises as ``(f / f_m)^2`` below the mode (for any damping), peaks at
-``1 / (2 zeta)`` on it and tends to 1 (the phase reversal) above it.  The plateau is
-:data:`W_INF` ``= 1 / (2 ZETA_W)`` = 10, the peak of a mode damped :data:`ZETA_W` = 0.05
-(a typical first mode of a stage: 0.02-0.1); a mode damped less than that exactly at a
-frequency where ``|T|`` is not small is not covered, and only a measured response removes that
-doubt.  ``f_1 = EVIDENCE_FACTOR x f_top`` with :data:`EVIDENCE_FACTOR` = 10: the unseen mode is
-taken to lie at least a decade above the band the log backs.  Both are assumptions, stated in
-the report and ``validation.json``; the remedy for their cost is a log that backs a higher band
-(``commission excite``).  The relative error is only meaningful below Nyquist's neighbourhood:
-the hold's zero at ``z = -1`` sends a rigid body's sampled response to 0 there, where ``|T|`` is
-about 0 as well.
+so ``|W|`` rises through 1 at ``f_m / sqrt(2 - 4 zeta^2)`` (about 0.71 ``f_m``) and reaches
+``W_inf`` near ``f_m``.  Defaults: ``f_m = EVIDENCE_FACTOR x f_top`` with
+:data:`EVIDENCE_FACTOR` = 10 (the lowest mode is taken a decade above the band the log backs)
+and ``zeta =`` :data:`ZETA_W` = 0.05 (a stage's first mode is typically damped 0.02-0.1), so
+``W_inf`` is about 10; spec.toml's ``[evidence] first_mode_hz`` and ``damping`` replace them when
+the user knows the machine (a FE model, the vendor's data).  Under the small-gain theorem a loop
+with ``||W T|| < 1`` is stable on every such mode.  Both are assumptions, stated in the report and
+``validation.json``; the remedy for their cost is a log that backs a higher band
+(``commission excite``).  The relative error is only meaningful away from Nyquist: the hold's
+zero at ``z = -1`` sends a rigid body's sampled response to 0 there, where ``|T|`` is about 0 as
+well.
 
 Robust stability is ``||W T||_inf < 1`` with ``T = L / (1 + L)``, ``L = -K P`` the loop of the
 sampled controller's linearisation (:mod:`commission.controllers.margins`) on the identified
@@ -71,12 +74,12 @@ from commission.controllers.plant import P_B, P_M
 from commission.identify.frf import BAND_COHERENCE
 from commission.spec import Spec
 
-#: |W| = 1 at this factor times the top of the band the log backs.
+#: The lowest unseen mode is taken at this factor times the top of the band the log backs.
 EVIDENCE_FACTOR = 10.0
-#: Damping of the unseen mode the weight's plateau covers at its resonance (dimensionless).
+#: Least damping of the unseen mode (dimensionless).
 ZETA_W = 0.05
-#: High-frequency plateau of |W|: the relative error 1 / (2 zeta) of a mode of damping ZETA_W at its peak.
-W_INF = 1.0 / (2.0 * ZETA_W)
+#: Plateau of |W|: the peak relative error of a mode damped ZETA_W.
+W_INF = 1.0 / (2.0 * ZETA_W * math.sqrt(1.0 - ZETA_W ** 2))
 #: The search holds the ARC's peak |W T| below 1 minus this (room for validate's own grid).
 SEARCH_ROOM = 0.05
 
@@ -113,16 +116,16 @@ class Evidence:
     band_hz : (float, float) or None
         The band the log backs, Hz.
     factor : float
-        ``f_1`` over the band's top.
-    w_inf : float
-        The weight's plateau.
+        The lowest unseen mode over the band's top.
+    damping : float
+        The least damping of that mode.
     measured : MeasuredResponse or None
     """
 
     source: str
     band_hz: tuple[float, float] | None
     factor: float = EVIDENCE_FACTOR
-    w_inf: float = W_INF
+    damping: float = ZETA_W
     measured: MeasuredResponse | None = None
 
     @property
@@ -136,26 +139,41 @@ class Evidence:
         return float(self.band_hz[1]) if self.band_hz is not None else math.nan
 
     @property
-    def unity_hz(self) -> float:
-        """``f_1``: where ``|W| = 1``, Hz."""
+    def mode_hz(self) -> float:
+        """``f_m``: the lowest unseen mode, Hz."""
         return self.factor * self.top_hz
 
+    @property
+    def w_inf(self) -> float:
+        """The plateau: the peak relative error ``1 / (2 zeta sqrt(1 - zeta^2))`` of a mode."""
+        z = self.damping
+        return 1.0 / (2.0 * z * math.sqrt(1.0 - z * z))
+
+    @property
+    def unity_hz(self) -> float:
+        """Where ``|W| = 1``: ``f_m / sqrt(2 - 4 zeta^2)``, Hz."""
+        return self.mode_hz / math.sqrt(2.0 - 4.0 * self.damping ** 2)
+
     def weight(self, f_hz: np.ndarray) -> np.ndarray:
-        """``|W|`` at ``f_hz`` (dimensionless; zeros when no band is known)."""
+        """``|W|`` at ``f_hz`` (dimensionless; zeros when no band is known; module docstring)."""
         f_hz = np.asarray(f_hz, dtype=float)
         if not self.applies:
             return np.zeros_like(f_hz)
-        fc = self.unity_hz * (self.w_inf ** 2 - 1.0) ** 0.25
-        x2 = (f_hz / fc) ** 2
-        return self.w_inf * x2 / np.sqrt(1.0 + x2 * x2)
+        z = self.damping
+        x2 = (f_hz / self.mode_hz) ** 2
+        below = x2 * x2 / ((1.0 - x2) ** 2 + 4.0 * z * z * x2)
+        return np.where(x2 < 1.0 / (1.0 - 2.0 * z * z), np.sqrt(below), self.w_inf)
 
     def to_dict(self) -> dict[str, Any]:
         return {"source": self.source, "band_hz": list(self.band_hz) if self.band_hz is not None else None,
-                "weight": {"factor": self.factor, "w_inf": self.w_inf,
+                "weight": {"factor": self.factor, "damping": self.damping, "w_inf": self.w_inf,
+                           "mode_hz": self.mode_hz if self.applies else None,
                            "unity_hz": self.unity_hz if self.applies else None,
-                           "form": "|W| = w_inf x^2 / sqrt(1 + x^4), x = f / (unity_hz (w_inf^2 - 1)^(1/4))"},
+                           "form": "|W| = x^2 / sqrt((1 - x^2)^2 + (2 damping x)^2), x = f / mode_hz, "
+                                   "up to its peak w_inf, then w_inf"},
                 "measured_bins": int(self.measured.f_hz.size) if self.measured is not None else 0,
-                "units": {"band_hz": "Hz", "unity_hz": "Hz", "factor": "1", "w_inf": "1"}}
+                "units": {"band_hz": "Hz", "mode_hz": "Hz", "unity_hz": "Hz", "factor": "1", "damping": "1",
+                          "w_inf": "1"}}
 
 
 def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
@@ -176,12 +194,12 @@ def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
         ph = np.radians(np.asarray(meas["phase_deg"], dtype=float))
         measured = MeasuredResponse(np.asarray(meas["frequency_hz"], dtype=float), mag * np.exp(1j * ph),
                                     np.asarray(meas["coherence"], dtype=float))
-    factor, w_inf = EVIDENCE_FACTOR, W_INF
+    factor, damping = EVIDENCE_FACTOR, ZETA_W
     if spec is not None:
-        w_inf = 1.0 / (2.0 * spec.evidence_damping)
+        damping = spec.evidence_damping
         if spec.evidence_first_mode_hz is not None and band_t is not None:
             factor = spec.evidence_first_mode_hz / band_t[1]
-    return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, w_inf=w_inf, measured=measured)
+    return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, damping=damping, measured=measured)
 
 
 @dataclass(frozen=True)
@@ -361,9 +379,9 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
             if evidence.source == "broadband" else
             "no broadband segment: the reference's own content backs the rigid model")
     out = [f"evidence: {what} from {lo:.3g} to {hi:.3g} Hz; above {hi:.3g} Hz the plant is unknown, "
-           f"bounded as an uncertainty |W| = 1 at {evidence.unity_hz:.4g} Hz ({evidence.factor:.3g} x the band's top; "
-           f"spec [evidence] first_mode_hz) rising to {evidence.w_inf:.3g} (a mode damped "
-           f"{0.5 / evidence.w_inf:.3g}, [evidence] damping)"]
+           f"bounded as an unseen non-collocated mode at {evidence.mode_hz:.4g} Hz or above ({evidence.factor:.3g} x "
+           f"the band's top; spec [evidence] first_mode_hz) damped {evidence.damping:g} or more ([evidence] "
+           f"damping): |W| = 1 at {evidence.unity_hz:.4g} Hz, {evidence.w_inf:.3g} from {evidence.mode_hz:.4g} Hz on"]
     for r in rows:
         who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
         s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "

@@ -269,7 +269,7 @@ def test_sample_pipeline_export_matches_validate(tmp_path):
 
     out = tmp_path / "axis"
     spec = tmp_path / "spec.toml"
-    spec.write_text("[evidence]\nfirst_mode_hz = 1000.0\n")  # the sample's axis is rigid (truth.json)
+    spec.write_text("[evidence]\nfirst_mode_hz = 5000.0\n")  # the sample's axis is rigid (truth.json)
     r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(out), "--spec", str(spec)])
     assert r.exit_code == 0, r.output
     for kind in ("arc", "pid"):

@@ -30,7 +30,7 @@ OUTPUTS = ("ident.json", "tuning.json", "validation.json", "report.md", "control
 runner = CliRunner()
 #: spec.toml stating the machine's lowest structural mode (commission/evidence.py): for the rigid
 #: simulated axes of these tests, whose logs hold no broadband segment.
-STATED_MODE = "[evidence]\nfirst_mode_hz = 1000.0\n"
+STATED_MODE = "[evidence]\nfirst_mode_hz = 5000.0\n"
 
 
 def invoke(*args):
@@ -42,7 +42,8 @@ def test_run_on_the_sample_log_passes_and_leaves_every_file(tmp_path):
     out = tmp_path / "axis"
     # The sample's axis is rigid (sample_data/truth.json), its log backs the model to 22 Hz only: by
     # default the evidence bound shapes both loops (tests/test_evidence*.py). Stating the machine's
-    # lowest mode (none below 1 kHz: true of this simulated axis) leaves this test to the files.
+    # lowest mode (none below 5 kHz, beyond its Nyquist frequency: true of this simulated axis)
+    # leaves this test to the files.
     spec = tmp_path / "spec.toml"
     spec.write_text(STATED_MODE)
     r = invoke("run", SAMPLE, "--out-dir", out, "--spec", spec)
@@ -176,7 +177,7 @@ def test_controller_from_an_unseen_axis_tracks_the_true_axis_within_the_claimed_
     # Default tuning budget: the controller is the one a user would get (a
     # 16-candidate search was too small to pass the gate on this axis).
     spec = tmp_path / "spec.toml"
-    spec.write_text(STATED_MODE)  # the axis is rigid: no mode below 1 kHz is the truth
+    spec.write_text(STATED_MODE)  # the axis is rigid: no mode below 5 kHz is the truth
     out = tmp_path / "axis"
     r = invoke("run", log, "--out-dir", out, "--spec", spec, "--monte-carlo", 16)
     assert r.exit_code == 0, r.output
