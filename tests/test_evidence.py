@@ -138,14 +138,20 @@ def test_margins_on_a_measured_response_equal_the_models_where_the_measurement_i
     f = np.geomspace(5.0, 1200.0, 4000)
     exact = loop_margins(K, plant, f)
     m = MeasuredResponse(f, plant.frequency_response(f), np.ones_like(f))
-    mod, pm, up = measured_margins(K, m)
+    mod, pm, up, high = measured_margins(K, m)
+    assert high == pytest.approx(mod)  # coherence 1: no estimation error
     assert mod == pytest.approx(exact.modulus_margin, rel=1e-3)
     assert pm == pytest.approx(exact.phase_margin_deg, abs=0.1)
     assert up == pytest.approx(1200.0)
     # Incoherent bins do not count: hide the resonance and the modulus margin is the rigid part's.
     low = np.where(f < 300.0, 1.0, 0.3)
-    mod_low, _, up_low = measured_margins(K, MeasuredResponse(f, m.H, low))
+    mod_low, _, up_low, _ = measured_margins(K, MeasuredResponse(f, m.H, low))
     assert up_low < 300.0 and mod_low > mod
+    # The H1 estimate's standard error, sqrt((1 - g2) / (2 n g2)) of |L|, widens the margin the gate tests.
+    g2 = np.full_like(f, 0.9)
+    _, _, _, high = measured_margins(K, MeasuredResponse(f, m.H, g2, 10))
+    L = -K.frequency_response(f) * m.H
+    assert high == pytest.approx(float((np.abs(1 + L) + 2 * np.abs(L) * math.sqrt(0.1 / 18.0)).min()))
 
 
 def test_the_limits_toml_sketch_parses_and_carries_the_spec_and_the_log():
