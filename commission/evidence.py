@@ -39,8 +39,8 @@ Robust stability is ``||W T||_inf < 1`` with ``T = L / (1 + L)``, ``L = -K P`` t
 sampled controller's linearisation (:mod:`commission.controllers.margins`) on the identified
 plant (``P``: mode and delay included; :func:`commission.robustness.margin_plants`' nominal
 plant).  The ARC is checked at both of its linearisation points, the PID once.  ``tune``'s
-search holds the ARC's peak below ``1 - `` :data:`SEARCH_ROOM` (a constraint, like the margin
-floors) and ``validate``'s gate holds both loops' peaks below 1 (criterion ``margins``): the
+search holds the ARC's peak below ``1 - `` :data:`SEARCH_ROOM` and its measured modulus margin
+(below) above ``1 + SEARCH_ROOM`` times the floor (constraints, like the margin floors) and ``validate``'s gate holds both loops' peaks below 1 (criterion ``margins``): the
 PID is the yardstick the ARC is judged against and the fallback a user may deploy, and a
 yardstick beyond the evidence certifies nothing either.  A
 ``frequency_response`` section absent from ident.json (an older file, or an identification not
@@ -319,6 +319,7 @@ class EvidenceBound:
         with threadpool_limits(1):
             self.P = sampled_plant(p, self.Ts).frequency_response(self.f_hz)
         self.W = self.evidence.weight(self.f_hz)
+        self.modulus_floor = float(spec.min_modulus_margin)
 
     def row(self, K: LinearController, controller: str, at: str) -> RobustStability:
         peak, fpk, fc = weighted_peak(K, self.P, self.W, self.f_hz)
@@ -339,10 +340,21 @@ class EvidenceBound:
             return self.row(linearize_pid(pid_pack(pid)), "pid", "")
 
     def violation(self, arc: ArcGains) -> float:
-        """Search constraint: summed excess of the ARC's peaks over ``1 - SEARCH_ROOM`` (0: met or no band)."""
+        """Search constraint (0: met, or no band): what the gate's ``evidence`` and ``measured`` checks need.
+
+        Summed over the ARC's two linearisations: the peak's excess over ``1 - SEARCH_ROOM``, and
+        the measured modulus margin's (+2 sigma) shortfall below ``(1 + SEARCH_ROOM)`` x the floor,
+        relative to the floor.
+        """
         if not self.evidence.applies:
             return 0.0
-        return sum(max(0.0, r.peak - (1.0 - SEARCH_ROOM)) for r in self.arc_rows(arc))
+        total = 0.0
+        for r in self.arc_rows(arc):
+            total += max(0.0, r.peak - (1.0 - SEARCH_ROOM))
+            if math.isfinite(r.measured_modulus_high):
+                need = (1.0 + SEARCH_ROOM) * self.modulus_floor
+                total += max(0.0, need - r.measured_modulus_high) / self.modulus_floor
+        return total
 
 
 def evidence_table(arc: ArcGains, pid: PidGains, ident: Identification,
