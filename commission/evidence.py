@@ -429,12 +429,21 @@ def limits_toml(spec: Spec, ident: Identification) -> str:
     """A ``limits.toml`` sketch for ``commission excite`` (CONTRACT §6) filled with what the spec and the log know.
 
     ``[limits]`` travel, v_max, a_max and u_max are the spec's envelope (the ones tune and
-    validate used, q-unit and u-unit); ``[drive] sample_rate`` is the log's rate (Hz); ``[axis]
-    mass`` the identified M (u-unit s^2 per q-unit).  ``bandwidth_hz`` of the holding loop is
-    the user's to fill in: no file of this tool knows it.
+    validate used, q-unit and u-unit); ``[drive] sample_rate`` is the log's rate (Hz); ``[axis]``
+    ``mass``, ``friction`` and ``viscous`` the identified M (u-unit s^2 per q-unit), fc (u-unit) and
+    B (u-unit s per q-unit), with the units' names.  ``bandwidth_hz`` of the holding loop is the
+    user's to fill in: no file of this tool knows it.
     """
-    M = ident.parameters.get("M")
-    mass = f"mass = {M.value:.4g}" if M is not None and math.isfinite(M.value) and M.value > 0 else "# mass = ..."
+    def known(name: str, positive: bool) -> float | None:
+        e = ident.parameters.get(name)
+        ok = e is not None and math.isfinite(e.value) and (e.value > 0 if positive else e.value >= 0)
+        return float(e.value) if ok else None  # type: ignore[union-attr]
+
+    M, fc, B = known("M", True), known("fc", False), known("B", False)
+    axis = [f"mass = {M:.4g}" if M is not None else "# mass = ..."]
+    axis += [f"friction = {fc:.4g}"] if fc is not None else []
+    axis += [f"viscous = {B:.4g}"] if B is not None else []
+    axis += [f'q_unit = "{ident.units.get("q", "m")}"', f'u_unit = "{ident.units.get("u", "V")}"']
     return "\n".join([
         "[limits]",
         f"travel = {spec.travel:g}",
@@ -445,7 +454,7 @@ def limits_toml(spec: Spec, ident: Identification) -> str:
         f"sample_rate = {spec.sample_rate:g}",
         "# bandwidth_hz = ...  (the position loop that holds the axis during the run)",
         "[axis]",
-        mass,
+        *axis,
         ""])
 
 
