@@ -16,6 +16,7 @@ from commission.cli.main import app
 from commission.cli.options import SCHEDULER_HELP
 from commission.cli.progress import StageProgress
 from commission.controller_config import load_sign_key
+from commission.evidence import evidence_lines
 from commission.next_steps import next_steps
 from commission.report import summary_text
 from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
@@ -37,6 +38,8 @@ def print_summary(result: ValidationResult) -> None:
     typer.echo(f"Validation: ARC vs PID baseline on {len(result.runs)} scenarios "
                f"({result.elapsed:.1f} s on {where})")
     typer.echo(summary_text(result))
+    if result.evidence is not None:  # what the certificate rests on (commission.evidence)
+        typer.echo("\n".join(evidence_lines(result.evidence, result.evidence_rows)))
 
 
 def print_next_steps(result: ValidationResult, tuning: Any, out_dir: Path, tuning_path: Path, *,

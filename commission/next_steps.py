@@ -186,7 +186,8 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
             "to the envelope",
             "keep report.md and controller.json together: the report is the evidence the controller rests on",
         )
-        return NextSteps(lines)
+        ev = evidence_step(result, tuning)
+        return NextSteps(lines + ((ev,) if ev else ()))
     sentences, toml = gate_changes(verdict, q)
     floors = floor_changes(verdict, tuning, q, u)
     lines: list[str] = []
@@ -198,7 +199,12 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
     if toml:
         lines.append("or keep the gate and ask more of the controller: tune again with a larger search or a "
                      "narrower payload box, then validate again")
-    return NextSteps(tuple(lines[:3]), toml)
+    ev = evidence_step(result, tuning)
+    if ev and any(c.scenario.startswith(("evidence/", "measured/")) for c in verdict.failures):
+        lines.insert(0, ev)  # the missing evidence is what refused it
+    elif ev:
+        lines = lines[:3] + [ev]
+    return NextSteps(tuple(lines[:4]), toml)
 
 
 # --------------------------------------------------------------------------- identify's side: missing evidence
@@ -315,4 +321,23 @@ def excite_advice(frequency_response: dict[str, Any] | None, *, travel: float, v
                         "\n".join(lines) + "\n")
 
 
-__all__ = ["NextSteps", "next_steps", "gate_changes", "floor_changes", "ExciteAdvice", "excite_advice"]
+def evidence_step(result: Any, tuning: Any) -> str | None:
+    """What to record to raise the evidence (:func:`commission.evidence.raise_evidence_line`).
+
+    Said unless the log already holds a broadband segment whose backed band reaches past the
+    loop's crossover times the uncertainty weight's factor (nothing more to record then), or the
+    validation recorded no evidence (an older result).
+    """
+    from commission.evidence import raise_evidence_line
+
+    ev = getattr(result, "evidence", None)
+    if ev is None:
+        return None
+    rows = getattr(result, "evidence_rows", ())
+    if ev.source == "broadband" and all(r.holds for r in rows):
+        return None
+    return raise_evidence_line(ev, tuning.spec, tuning.identification)
+
+
+__all__ = ["NextSteps", "evidence_step", "next_steps", "gate_changes", "floor_changes", "ExciteAdvice",
+           "excite_advice"]

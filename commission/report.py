@@ -480,6 +480,29 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
         return _report_markdown(result, tuning, figures=figures, sources=sources, tuning_sha256=tuning_sha256)
 
 
+def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
+    """The report's first lines on what the certificate rests on (:mod:`commission.evidence`).
+
+    The band the log backs, the robust-stability peak of each loop above it, and the
+    ``commission excite`` command with a limits.toml sketch that would raise it.
+    """
+    from commission.evidence import evidence_lines, excite_command, limits_toml
+
+    ev = getattr(result, "evidence", None)
+    if ev is None:
+        return []
+    lines = evidence_lines(ev, getattr(result, "evidence_rows", ()))
+    out = [f"**Evidence.** {md_text(lines[0][len('evidence: '):])}", ""]
+    out += [f"- {md_text(x)}" for x in lines[1:]]
+    if ev.source != "broadband" or not all(r.holds for r in getattr(result, "evidence_rows", ())):
+        out += ["", f"To raise it, record the run that `{excite_command()}` plans (a broadband injection "
+                "while the axis moves slowly), with this `limits.toml` (the spec's envelope and the log's "
+                "rate; add the holding loop's `bandwidth_hz`):", "", "```toml",
+                limits_toml(tuning.spec, tuning.identification).rstrip("\n"), "```"]
+    out.append("")
+    return out
+
+
 def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
                      sources: Mapping[str, str | None] | None, tuning_sha256: str | None) -> str:
     sources = sources or {}
@@ -496,6 +519,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
              f"({nfix} fixed + {result.n_monte_carlo} Monte-Carlo plants), ARC and PID baseline.")
     L.append("")
     L.extend(validity_lines(tuning))
+    L.extend(evidence_markdown(result, tuning))
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")

@@ -100,6 +100,12 @@ Keys and defaults
     identified delay), ``modulus`` = 0.5.  Constraints of tune's search on the ARC
     linearised on the identified plant, and floors of validate's gate
     (:func:`commission.gate.margin_checks`), which no gate.toml can lower.
+``[evidence]`` (the plant above the band the log backs, :mod:`commission.evidence`)
+    ``first_mode_hz``: the lowest structural mode the machine can have above that band, Hz, when
+    the user knows it (a FE model, the vendor's data); default: 10 x the band's top.
+    ``damping`` = 0.05: the least damping assumed of that mode.  They set the uncertainty weight
+    (|W| = 1 at the first mode, plateau 1 / (2 damping)) that tune's search and validate's
+    gate hold both loops to.
 
 Bandwidth rule
 --------------
@@ -176,6 +182,10 @@ _SCHEMA: dict[str, dict[str, tuple[type, Any, bool, str]]] = {
         "delay_samples": (float, 1.0, True, "samples"),
         "modulus": (float, 0.5, True, ""),
     },
+    "evidence": {
+        "first_mode_hz": (float, None, True, "Hz"),
+        "damping": (float, 0.05, True, ""),
+    },
 }
 #: Allowed values of the string keys.
 _CHOICES = {("plant", "encoder"): ("motor", "load")}
@@ -220,6 +230,8 @@ class Spec:
         delay (samples) the user knows; ``None``: what ident.json's ``frequency_response`` found.
     min_gain_margin_db, min_phase_margin_deg, min_delay_margin_samples, min_modulus_margin : float
         ``[margins]``: the stability-margin floors, dB, deg, samples beyond the identified delay, -.
+    evidence_first_mode_hz, evidence_damping : float or None, float
+        ``[evidence]``: the lowest unseen mode, Hz (None: 10 x the backed band's top), and its least damping.
     reference_v_max, reference_a_max : float or None
         Envelope of Case 1 and Case 2, m/s and m/s^2; ``None``: ``v_max``, ``a_max``
         (:attr:`case_v_max`, :attr:`case_a_max`).
@@ -260,6 +272,8 @@ class Spec:
     reference_v_max: float | None = None
     reference_a_max: float | None = None
     profile: UserProfile | None = None
+    evidence_first_mode_hz: float | None = None
+    evidence_damping: float = 0.05
 
     @property
     def targets(self) -> dict[str, float]:
@@ -327,6 +341,8 @@ RANGES: dict[tuple[str, str], tuple[float, float]] = {
     ("tune", "budget"): (1, 10_000),
     ("tune", "monte_carlo"): (0, 1_000),
     ("tune", "margin"): (1e-6, 0.5),
+    ("evidence", "first_mode_hz"): (1e-3, 1e6),
+    ("evidence", "damping"): (1e-3, 0.5),
     ("plant", "mode_hz"): (0.0, 1e5),
     ("plant", "mode_damping"): (0.0, 10.0),
     ("plant", "mode_ratio"): (1e-3, 1e3),
@@ -396,7 +412,8 @@ _ATTR = {("pid", "pole"): "pid_pole",
          **{("plant", k): f"plant_{k}" for k in ("mode_hz", "mode_damping", "mode_ratio", "encoder", "delay_samples",
                                                  "noise_std")},
          ("margins", "gain_db"): "min_gain_margin_db", ("margins", "phase_deg"): "min_phase_margin_deg",
-         ("margins", "delay_samples"): "min_delay_margin_samples", ("margins", "modulus"): "min_modulus_margin"}
+         ("margins", "delay_samples"): "min_delay_margin_samples", ("margins", "modulus"): "min_modulus_margin",
+         ("evidence", "first_mode_hz"): "evidence_first_mode_hz", ("evidence", "damping"): "evidence_damping"}
 
 
 def default_spec() -> Spec:
@@ -605,6 +622,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
         margin=get("tune", "margin"),
         **{_ATTR[("plant", k)]: get("plant", k) for k in _SCHEMA["plant"]},
         **{_ATTR[("margins", k)]: get("margins", k) for k in _SCHEMA["margins"]},
+        **{_ATTR[("evidence", k)]: get("evidence", k) for k in _SCHEMA["evidence"]},
     )
 
 

@@ -29,6 +29,10 @@ Steps (numerics in :mod:`commission.controllers`; this module orchestrates):
    the tuning spec's ``[margins]``); the floors (:data:`commission.gate.FLOORS`:
    no divergence anywhere, the spec's margin floors, ...) hold whatever
    gate.toml says.  The robustness part is also listed apart in the report.
+   Above the band the log backs, the ARC must keep robust stability ``||W T|| < 1``
+   against the uncertainty weight of :mod:`commission.evidence`, and where the log
+   measured the response, its modulus margin floor on the coherent measured bins
+   (criterion ``margins``, scenarios ``evidence/...`` and ``measured/...``).
 5. Outputs: ``validation.json`` (every index of every run, the gate and every
    check), ``report.md`` (+ the PNGs the CLI draws), and ``controller.json``
    only when every check passed.  With ``force`` and a failing gate a
@@ -66,6 +70,7 @@ from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, Ga
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
+from commission.evidence import Evidence, RobustStability, evidence_checks, evidence_table
 from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
                                    nominal_loops, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
@@ -209,6 +214,12 @@ class ValidationResult:
         machine, so it is not written to validation.json (which is the same on every executor).
     monte_carlo_summary : dict or None
         Quantiles and worst plants of the Monte-Carlo sample (:mod:`commission.montecarlo`).
+    evidence : Evidence or None
+        What the certificate rests on: the band the log backs and the uncertainty weight above it
+        (:mod:`commission.evidence`).
+    evidence_rows : tuple of RobustStability
+        Peak ``|W T|`` of the ARC (both linearisations) and the PID, and their margins on the
+        measured response.
     """
 
     runs: tuple[RunRecord, ...]
@@ -230,6 +241,8 @@ class ValidationResult:
     executor: Mapping[str, Any] | None = None
     monte_carlo_summary: Mapping[str, Any] | None = None
     box: BoxRobustness | None = None
+    evidence: Evidence | None = None
+    evidence_rows: tuple[RobustStability, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -266,6 +279,8 @@ class ValidationResult:
                         "worst": {c: (w.to_dict() if (w := worst(self.margins, c)) is not None else None)
                                   for c in CONTROLLERS}},
             **({} if self.box is None else {"box_robustness": self.box.to_dict(self.margin_floors)}),
+            "evidence": None if self.evidence is None else {
+                **self.evidence.to_dict(), "loops": [r.to_dict() for r in self.evidence_rows]},
         }
 
 
@@ -609,8 +624,10 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
     # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
     box = BoxArcCheck(tuning.identification, spec)(arc)
+    evidence, evidence_rows = evidence_table(arc, tuning.pid, tuning.identification, spec)
     verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors))
-                          + tuple(box_checks(box, gate_floors)), limits)
+                          + tuple(box_checks(box, gate_floors))
+                          + tuple(evidence_checks(evidence_rows, evidence, gate_floors.modulus)), limits)
     # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
     rob_names = {r.name for r in runs if "robustness" in r.tags}
     robustness = GateVerdict(tuple(c for c in verdict.checks
@@ -621,6 +638,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             n_monte_carlo=int(n_monte_carlo), arc_gains=arc, quantization=tuning.quantization,
                             e_abort=e_abort, u_sat=u_sat, elapsed=elapsed, workers=nworkers,
                             margins=margins, margin_floors=margin_floors, robustness=robustness, box=box,
+                            evidence=evidence, evidence_rows=evidence_rows,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
                             executor=ex.describe(), monte_carlo_summary=mc_summary)
 

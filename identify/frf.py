@@ -117,6 +117,8 @@ SCREEN_NFEV = 30
 SCREEN_KEEP = 2
 #: Most modes fitted (each further one must lower the information criterion and pass the guards).
 MAX_MODES = 4
+#: Most measured bins carried into ident.json (``frequency_response.measured``).
+MEASURED_POINTS = 200
 
 STRUCTURES = ("rigid", "load_side_mode", "motor_side_mode")
 
@@ -379,7 +381,10 @@ class FrequencyResponse:
                 "n_residuals": fit.n_residuals,
             }
         coherent = self.coherence >= BAND_COHERENCE
+        evidence = self.evidence_band_hz
         return {
+            "evidence_band_hz": list(evidence) if evidence is not None else None,
+            "measured": self.measured_points() if self.source == "broadband" else None,
             "source": self.source,
             "segments_s": [list(s) for s in self.segments],
             "n_averages": int(self.n_averages),
@@ -394,13 +399,59 @@ class FrequencyResponse:
             "note": self.note,
             "units": {"frequency": "Hz", "delay_s": "s", "delay_samples": "samples",
                       "frequency_std_hz": "Hz", "departures.ratio_db": "dB",
-                      "rms_error": "coherence-weighted RMS of |ln(H_measured / H_model)|"},
+                      "rms_error": "coherence-weighted RMS of |ln(H_measured / H_model)|",
+                      "measured.magnitude": "q-unit per u-unit",
+                      "measured.phase_deg": "deg", "measured.coherence": "1"},
         }
 
     @property
     def warnings(self) -> list[str]:
         """One sentence per departure of the measured response from the fitted model (a missed mode?)."""
         return [d.sentence() for d in self.departures]
+
+    @property
+    def evidence_band_hz(self) -> tuple[float, float] | None:
+        """The band the log backs for the model that tune and validate use, Hz (None: none).
+
+        One definition for every log: the rule of :func:`backed_band` (the run of coherent
+        bins, from the lowest that agrees, until two consecutive coherent bins disagree),
+        applied to the measured response over the **model handed downstream**: the fitted
+        structure (mode and delay included) where a broadband segment gave one, else the
+        rigid body, so that without broadband content it is ``band_hz``.  Above its top
+        the plant is unknown (:mod:`commission.evidence`).
+        """
+        if self.fit is None or self.H_model is None:
+            return self.band_hz
+        with np.errstate(divide="ignore", invalid="ignore"):
+            R = np.where(np.abs(self.H) > 0, self.H / self.H_model, 1e-300)
+        band = backed_band(self.f, R, self.coherence)
+        if band is None:
+            return self.band_hz
+        if self.band_hz is not None and self.band_hz[0] < band[0] <= self.band_hz[1]:
+            band = (self.band_hz[0], band[1])  # the whole log's extension below the segments' bins
+        return band
+
+    def measured_points(self, n_max: int = MEASURED_POINTS) -> dict[str, Any]:
+        """The measured response, thinned to at most ``n_max`` log-spaced bins (ident.json's ``measured``).
+
+        ``frequency_hz`` (Hz), ``magnitude`` (q-unit per u-unit), ``phase_deg`` (deg),
+        ``coherence`` (0-1): the bins nearest to ``n_max`` log-spaced frequencies over the
+        estimate's range, each kept once, every value rounded to 6 significant digits.
+        """
+        f = self.f
+        keep = np.flatnonzero(f > 0)
+        if keep.size > n_max:
+            targets = np.geomspace(f[keep[0]], f[keep[-1]], n_max)
+            idx = np.unique(np.clip(np.searchsorted(f, targets), keep[0], keep[-1]))
+        else:
+            idx = keep
+
+        def r6(a: np.ndarray) -> list[float]:
+            return [float(f"{x:.6g}") for x in a]
+
+        H = self.H[idx]
+        return {"frequency_hz": r6(f[idx]), "magnitude": r6(np.abs(H)),
+                "phase_deg": r6(np.degrees(np.angle(H))), "coherence": r6(self.coherence[idx])}
 
 
 @dataclass(frozen=True)

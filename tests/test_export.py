@@ -275,7 +275,9 @@ def test_sample_pipeline_export_matches_validate(tmp_path):
     from commission.jsonio import read_json
 
     out = tmp_path / "axis"
-    r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(out)])
+    spec = tmp_path / "spec.toml"
+    spec.write_text("[evidence]\nfirst_mode_hz = 5000.0\n")  # the sample's axis is rigid (truth.json)
+    r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(out), "--spec", str(spec)])
     assert r.exit_code == 0, r.output
     for kind in ("arc", "pid"):
         r = runner.invoke(app, ["export", str(out / "controller.json"), "--out-dir", str(tmp_path / kind),

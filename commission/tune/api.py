@@ -50,7 +50,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import pid_yardstick
+from commission.tune.baseline import pid_within_evidence, pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, fit_payload_to_drive, narrow_default_payload, validity_of
@@ -104,6 +104,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
     baseline, yardstick = pid_yardstick(ident, spec, ev, gate.c_u, pid_free)
+    baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free)
     pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
     named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
     traj_names = [name for name, _ in named]

@@ -95,6 +95,37 @@ def deployable_pid(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: 
     return PidBaseline(pid, spec.pid_pole, m_min, scores)
 
 
+#: Largest factor the PID's pole is lowered by to hold the evidence bound (:func:`pid_within_evidence`).
+EVIDENCE_POLE_FLOOR = 0.25
+#: Pole step of that lowering.
+EVIDENCE_POLE_STEP = 0.9
+
+
+def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec, ev: Evaluator,
+                        pole_free: bool) -> PidBaseline:
+    """The baseline, or the fastest PID of its family whose loop holds the evidence bound.
+
+    A yardstick beyond the evidence certifies nothing (:mod:`commission.evidence`): when the pole
+    was defaulted (``pole_free``) and the baseline's ``||W T||`` on the identified plant is 1 or
+    more, its pole is lowered along ``pole x EVIDENCE_POLE_STEP**k`` down to
+    ``EVIDENCE_POLE_FLOOR x pole`` to the first that holds it (checked on the linearised loop, no
+    simulation), and that PID is simulated on the tuning scenarios.  When none holds, or the pole
+    was set in the spec, the baseline is kept (validate's gate then names the evidence).
+    """
+    from commission.evidence import EvidenceBound
+
+    bound = EvidenceBound(ident, spec)
+    if not pole_free or not bound.evidence.applies or bound.pid_row(baseline.gains).holds:
+        return baseline
+    w = baseline.pole
+    while w * EVIDENCE_POLE_STEP >= EVIDENCE_POLE_FLOOR * baseline.pole:
+        w *= EVIDENCE_POLE_STEP
+        g = pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0]
+        if bound.pid_row(g).holds:
+            return PidBaseline(g, w, baseline.design_mass, ev.scores(KIND_PID, [pid_pack(g)])[0])
+    return baseline
+
+
 @dataclass(frozen=True)
 class PidChatter:
     """Where the PID baseline exceeds the default gate's c_u on the tuning scenarios.

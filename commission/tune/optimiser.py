@@ -12,6 +12,8 @@ coordinates, and the observer pole when the spec left it free), subject to
   theta_hat at each corner plant's theta, stability with theta_hat anywhere the projection
   allows; :func:`commission.tune.constraints.box_violation`), checked only where the
   identified plant's margins hold;
+  robust stability above the band the log backs (:meth:`commission.evidence.EvidenceBound.violation`:
+  ``||W T|| < 1 - SEARCH_ROOM`` at both linearisations, counted with the margins);
 * validate's default gate on the tuning scenarios, robustness scenarios included
   (:func:`commission.tune.objective.gate_excess` at :data:`commission.tune.constraints.GATE_MARGIN`);
 * discrete feasibility over the theta box (:func:`commission.tune.constraints.feasibility_violation`).
@@ -54,6 +56,7 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, FeasibilityReport, observer_design
 from commission.gate import GateLimits
+from commission.evidence import EvidenceBound
 from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, MarginFloors
 from commission.scenarios import plant_substeps, screening_indices, tuning_scenarios
 from commission.spec import Spec
@@ -202,6 +205,7 @@ class Problem:
         self.rest = [i for i in range(len(ev.scenarios)) if i not in on_screen]
         self.margins = IdentifiedPlantArcMargins(ident, spec)
         self.box = BoxArcCheck(ident, spec)
+        self.evidence = EvidenceBound(ident, spec)
         lo = np.append(FREE_LOG_LO, math.log(OBSERVER_FACTOR_BOUNDS[0]))
         hi = np.append(FREE_LOG_HI, math.log(OBSERVER_FACTOR_BOUNDS[1]))
         start = np.append(np.log(FREE_START), 0.0)
@@ -238,7 +242,8 @@ class Problem:
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
         """Every constraint and the objective of each search vector, cheapest first."""
         parts = [self.gains(np.asarray(z)) for z in Z]
-        mv = [margin_violation(self.margins(g), self.floors) for _, _, g in parts]
+        mv = [margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
+              for _, _, g in parts]
         # The whole box only where the identified plant's margins hold (the cheaper check first).
         mv = [v if v > 0 else box_violation(self.box(g), self.floors) for v, (_, _, g) in zip(mv, parts)]
         sim = [i for i, v in enumerate(mv) if v == 0.0]
