@@ -310,6 +310,7 @@ def test_validate_runs_the_moves_with_the_guard_at_their_speed():
     # No run tripped the guard: no divergence, every floor and the peak command held.  The accuracy limits
     # are the gate's business, not the guard's: the budget-8 gains of tests/data, held to the whole theta
     # box since issue 30, trail the PID and the 20 um e_rms on the heavy payload.
-    others = [c.to_dict() for c in r.verdict.failures if c.criterion not in ("arc_vs_pid_e_rms", "e_rms")]
+    others = [c.to_dict() for c in r.verdict.failures
+              if c.criterion not in ("arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90", "e_rms")]
     assert not others, others
     assert all(not x.arc.diverged for x in r.runs)
