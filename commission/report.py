@@ -799,7 +799,8 @@ def validity_lines(tuning: Any) -> list[str]:
         return []
     lo, hi = v["payload_range"]
     dlo, dhi = v.get("default_payload_range", [lo, hi])
-    return [f"**Certified for payloads {lo:.4g} to {hi:.4g} {v['unit']} only** (moving mass up to "
+    moving = "inertia" if str(v["unit"]).endswith("/rad") else "moving mass"
+    return [f"**Certified for payloads {lo:.4g} to {hi:.4g} {v['unit']} only** ({moving} up to "
             f"{v['mass_range'][1]:.4g} {v['unit']}), not the default {dlo:.4g} to {dhi:.4g} {v['unit']}: "
             f"{md_text(v.get('reason', ''))}. `controller.json` states this range under `validity`; state the "
             f"real payload with `commission identify --payload-max` (a range these gains do not hold is then refused).",

@@ -69,8 +69,7 @@ def test_emps_at_its_own_speed_refusal_names_the_forces_then_its_value_gives_a_c
     out = tmp_path / "b"
     r = runner.invoke(app, ["run", mat, *ARGS, "--disturbance-bound", d.group(1), "--spec", str(spec),
                             "--out-dir", str(out)])
-    assert r.exit_code == 0, r.output
-    ctrl = json.loads((out / "controller.json").read_text())
+    ctrl = json.loads(deployable(r, out).read_text())
     assert ctrl["units"]["u"] == "N"
     tuning = json.loads((out / "tuning.json").read_text())
     traj = tuning["spec"]["trajectory"]
@@ -91,9 +90,20 @@ def test_emps_at_its_own_speed_refusal_names_the_forces_then_its_value_gives_a_c
     # validate alone re-creates the same moves from tuning.json.
     r = runner.invoke(app, ["validate", str(out / "tuning.json"), "--out-dir", str(tmp_path / "v"),
                             "--monte-carlo", "3", "--workers", "1"])
-    assert r.exit_code == 0, r.output
+    deployable(r, tmp_path / "v")
     again = json.loads((tmp_path / "v" / "validation.json").read_text())
     first = {x["name"]: x for x in val["runs"]}
     for x in again["runs"]:
         if x["name"] == "user/nominal":
             assert x["arc"] == first["user/nominal"]["arc"]
+
+
+def deployable(r, out):
+    """The deployable file a run left: controller.json (the whole gate passed) or, since issue 30, the ARC
+    flagged in controller_not_better.json when it is safe and within every limit but does not beat the
+    margin-floored PID yardstick (the only other verdict accepted here)."""
+    assert r.exit_code in (0, 1), r.output
+    if r.exit_code == 1:
+        assert "Safe, but not better than the PID yardstick." in r.output, r.output
+        return out / "controller_not_better.json"
+    return out / "controller.json"

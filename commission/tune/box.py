@@ -98,7 +98,8 @@ def _narrowed(ident: Identification, payload: float, why: str) -> tuple[Identifi
     extra["bounds"] = bounds
     out = dataclasses.replace(out, extra=extra)
     d0, d1 = rec["default_payload_range"]
-    note = (f"payload range narrowed to {pmin:.4g}..{payload:.4g} {unit} (moving mass up to {m0 + payload:.4g} {unit}) "
+    moving = "inertia" if ident.units.get("q") == "rad" else "moving mass"
+    note = (f"payload range narrowed to {pmin:.4g}..{payload:.4g} {unit} ({moving} up to {m0 + payload:.4g} {unit}) "
             f"from the default {d0:.4g}..{d1:.4g} {unit}: {why}; the controller is certified for that range "
             f"only (controller.json's validity); state the real payload with commission identify --payload-max")
     return out, (note,)
