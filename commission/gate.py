@@ -771,6 +771,21 @@ def check_floors(ctx: FloorContext) -> list[Check]:
 GATED_PLANT = "nominal"
 
 
+def _loop_checks(m: Any, floors: Any, criterion: str, where: str) -> list[Check]:
+    """Stability (value 0, or inf when unstable) and each floor of one loop's margins ``m``
+    (value floor / margin, limit 1): the checks :func:`margin_checks` and :func:`box_checks` share."""
+    out = [Check(criterion, where, 0.0 if m.stable else math.inf, 1.0, m.stable,
+                 f"closed loop {'stable' if m.stable else 'UNSTABLE'} (spectral radius {m.spectral_radius:.4f})")]
+    for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
+                                   ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
+                                   ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
+                                   ("modulus margin", m.modulus_margin, floors.modulus, "")):
+        ratio = floor / val if val > 0 else math.inf
+        out.append(Check(criterion, where, ratio, 1.0, bool(val >= floor),
+                         f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+    return out
+
+
 def margin_checks(rows: Sequence[Any], floors: Any, criterion: str = "margins") -> list[Check]:
     """Gate checks (criterion ``criterion``) of the ARC loops on the identified plant.
 
@@ -785,17 +800,7 @@ def margin_checks(rows: Sequence[Any], floors: Any, criterion: str = "margins") 
             continue
         m = r.margins
         where = f"margins/{r.plant}/arc(theta_hat {r.theta_hat_at})"
-        out.append(Check(criterion, where, 0.0 if m.stable else math.inf, 1.0, m.stable,
-                         f"closed loop {'stable' if m.stable else 'UNSTABLE'} "
-                         f"(spectral radius {m.spectral_radius:.4f})"))
-        for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
-                                       ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
-                                       ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
-                                       ("modulus margin", m.modulus_margin, floors.modulus, "")):
-            ok = bool(val >= floor)
-            ratio = floor / val if val > 0 else math.inf
-            out.append(Check(criterion, where, ratio, 1.0, ok,
-                             f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+        out += _loop_checks(m, floors, criterion, where)
     return out
 
 
@@ -812,17 +817,7 @@ def box_checks(box: Any, floors: Any, criterion: str = "margins_box") -> list[Ch
     for r in box.at_plant:
         m = r.margins
         where = f"box/{r.plant}/arc(theta_hat plant)"
-        out.append(Check(criterion, where, 0.0 if m.stable else math.inf, 1.0, m.stable,
-                         f"closed loop {'stable' if m.stable else 'UNSTABLE'} "
-                         f"(spectral radius {m.spectral_radius:.4f})"))
-        for name, val, floor, unit in (("gain margin", m.gain_margin_db, floors.gain_db, "dB"),
-                                       ("phase margin", m.phase_margin_deg, floors.phase_deg, "deg"),
-                                       ("delay margin", m.delay_margin_samples, floors.delay_samples, "samples"),
-                                       ("modulus margin", m.modulus_margin, floors.modulus, "")):
-            ok = bool(val >= floor)
-            ratio = floor / val if val > 0 else math.inf
-            out.append(Check(criterion, where, ratio, 1.0, ok,
-                             f"{name} {val:.3g} {unit} (floor {floor:g} {unit})".replace("  ", " ")))
+        out += _loop_checks(m, floors, criterion, where)
     a = box.any_estimate
     out.append(Check(criterion, f"box/{a.plant}/arc(theta_hat {a.theta_hat_at})", a.spectral_radius, 1.0, a.stable,
                      f"largest spectral radius {a.spectral_radius:.4f} of {a.loops} loops with theta_hat anywhere "

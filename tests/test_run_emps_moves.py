@@ -25,6 +25,7 @@ from shared_paths import EMPS_DIR
 from typer.testing import CliRunner
 
 from commission.cli.main import app
+from verdicts import deployable
 
 pytestmark = [pytest.mark.skipif(not (EMPS_DIR / "DATA_EMPS.mat").exists(), reason="EMPS data not present"),
               pytest.mark.slow]
@@ -96,14 +97,3 @@ def test_emps_at_its_own_speed_refusal_names_the_forces_then_its_value_gives_a_c
     for x in again["runs"]:
         if x["name"] == "user/nominal":
             assert x["arc"] == first["user/nominal"]["arc"]
-
-
-def deployable(r, out):
-    """The deployable file a run left: controller.json (the whole gate passed) or, since issue 30, the ARC
-    flagged in controller_not_better.json when it is safe and within every limit but does not beat the
-    margin-floored PID yardstick (the only other verdict accepted here)."""
-    assert r.exit_code in (0, 1), r.output
-    if r.exit_code == 1:
-        assert "Safe, but not better than the PID yardstick." in r.output, r.output
-        return out / "controller_not_better.json"
-    return out / "controller.json"

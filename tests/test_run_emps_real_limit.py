@@ -15,6 +15,7 @@ from shared_paths import EMPS_DIR
 from typer.testing import CliRunner
 
 from commission.cli.main import app
+from verdicts import deployable
 
 pytestmark = [pytest.mark.skipif(not (EMPS_DIR / "DATA_EMPS.mat").exists(), reason="EMPS data not present"),
               pytest.mark.slow]
@@ -47,14 +48,3 @@ def test_refusal_names_an_envelope_that_passes_when_followed(tmp_path):
                             "--out-dir", str(out)])
     assert json.loads(deployable(r, out).read_text())["units"]["u"] == "N"
     assert "actuator limit 351.5 N" in (out / "report.md").read_text()
-
-
-def deployable(r, out):
-    """The deployable file a run left: controller.json (the whole gate passed) or, since issue 30, the ARC
-    flagged in controller_not_better.json when it is safe and within every limit but does not beat the
-    margin-floored PID yardstick (the only other verdict accepted here)."""
-    assert r.exit_code in (0, 1), r.output
-    if r.exit_code == 1:
-        assert "Safe, but not better than the PID yardstick." in r.output, r.output
-        return out / "controller_not_better.json"
-    return out / "controller.json"
