@@ -187,6 +187,23 @@ def _crash_log(exc: BaseException) -> str:
     return path
 
 
+def _signal_cause(exc: BaseException) -> BaseException | None:
+    """The signal's exception behind ``exc``, if the signal is what raised it (else None).
+
+    A signal that arrives while Python runs a hook of its own (``__set_name__`` while a class is
+    created at import, say) comes out wrapped, as a RuntimeError whose cause is the signal's
+    KeyboardInterrupt or Terminated: that is the signal, not an internal error.
+    """
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, (KeyboardInterrupt, Terminated)):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
 def _internal_error(exc: BaseException) -> int:
     what = "out of memory" if isinstance(exc, MemoryError) else f"internal error ({type(exc).__name__}: {exc})"
     what = " ".join(what.split())[:300]
@@ -259,7 +276,15 @@ def run(argv: list[str] | None = None) -> int:
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except Exception as exc:  # noqa: BLE001 - the one place that catches what escapes
-        code = _internal_error(exc)
+        sig = _signal_cause(exc)
+        if sig is None:
+            code = _internal_error(exc)
+        elif isinstance(sig, Terminated):
+            _say("terminated: no output written or replaced")
+            code = EXIT_TERMINATED
+        else:
+            _say("interrupted: no output written or replaced")
+            code = EXIT_INTERRUPTED
     finally:
         ended = True
         files.abort_unfinished(keep=outer)

@@ -373,3 +373,28 @@ m.main()
     assert p.returncode == 0, (p.returncode, p.stderr)
     assert out.is_file() and "Traceback" not in p.stderr
     assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_cli_a_signal_wrapped_by_python_while_a_class_is_created_is_still_the_signal(tmp_path, monkeypatch, capfd,
+                                                                                    sig):
+    # A signal landing in a dataclass's __set_name__ during an import comes out as a RuntimeError whose
+    # cause is the signal's exception: it is the signal (exit 128 + sig, nothing written), not a crash.
+    import dataclasses
+
+    import commission.cli.identify_cmd as cmd
+
+    def write(path, obj, **kw):
+        class Field:
+            def __set_name__(self, owner, name):
+                signal.raise_signal(sig)
+
+        dataclasses.dataclass(type("Late", (), {"f": Field()}))
+
+    monkeypatch.setattr(cmd, "write_json_atomic", write)
+    code = run(_identify(tmp_path))
+    err = capfd.readouterr().err
+    assert code == 128 + sig, err
+    word = "terminated" if sig == signal.SIGTERM else "interrupted"
+    assert err.strip().splitlines()[-1] == f"{word}: no output written or replaced" and "internal error" not in err
+    assert list(tmp_path.iterdir()) == []
