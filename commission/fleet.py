@@ -379,6 +379,7 @@ def _fmt(x: Any, spec: str = ".4g") -> str:
 
 def fleet_markdown(doc: Mapping[str, Any], figure: str | None) -> str:
     """fleet.md: one row per axis (verdict, parameters with units, margins, e_rms vs PID, time)."""
+    from commission.report import md_code, md_text
     s = doc["summary"]
     lines = [f"# Fleet: {s['axes']} axes", "",
              f"{s['passed']} passed, {s['failed']} failed the gate, {s['errors']} errors; "
@@ -407,7 +408,8 @@ def fleet_markdown(doc: Mapping[str, Any], figure: str | None) -> str:
     errs = [r for r in rows if r["status"] == "error"]
     if errs:
         lines += ["", "## Errors", ""]
-        lines += [f"- **{r['name']}** ({r['log']}): {r['error']}" for r in errs]
+        # The log's path and the error's text come from the manifest and the files: escaped, as report.md does.
+        lines += [f"- **{r['name']}** ({md_code(r['log'])}): {md_text(r['error'])}" for r in errs]
     lines += ["", "## Outliers", "",
               f"An axis is flagged when its identified {', '.join(OUTLIER_PARAMETERS)} sits more than {OUTLIER_Z} "
               f"robust scales from the fleet's median (scale = max(1.4826 MAD, {OUTLIER_REL_FLOOR:.0%} of the "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -165,3 +166,20 @@ def test_inputs_hash_follows_the_files_contents_and_the_options(tmp_path):
     (tmp_path / "s.toml").write_text("[tune]\nbudget = 9\n")
     assert h != inputs_sha256(e, {"seed": 0, "monte_carlo": 4})
     assert inputs_sha256(AxisEntry("x", str(tmp_path / "missing.h5")), {}) is None  # never resumed
+
+
+def test_fleet_md_escapes_what_came_from_the_manifest_and_the_files():
+    """An error row's log path and message come from the manifest and the axis's files: in fleet.md
+    they are a code span and escaped text, so no link, tag or table cell can be injected."""
+    from commission.fleet import fleet_markdown
+
+    hostile = "bad](http://evil.example)<script>x</script>|cell"
+    doc = {"summary": {"axes": 1, "passed": 0, "failed": 0, "errors": 1, "outliers": [], "exit_code": 1},
+           "axes": [{"name": "x1", "status": "error", "log": "/d/`x](http://evil).h5", "error": f"SchemaError: {hostile}",
+                     "elapsed_s": 0.1}],
+           "statistics": {}}
+    md = fleet_markdown(doc, None)
+    errors = md.split("## Errors", 1)[1].split("## Outliers", 1)[0]
+    outside_spans = re.sub(r"`[^`]*`", "", errors)  # inside a code span nothing is a link
+    assert "](http" not in outside_spans.replace("\\](http", "") and "<script>" not in errors
+    assert "`/d/'x](http://evil).h5`" in errors and "\\|cell" in errors
