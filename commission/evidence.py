@@ -440,7 +440,12 @@ def limits_toml(spec: Spec, ident: Identification) -> str:
         return float(e.value) if ok else None  # type: ignore[union-attr]
 
     M, fc, B = known("M", True), known("fc", False), known("B", False)
-    axis = [f"mass = {M:.4g}" if M is not None else "# mass = ..."]
+    if ident.units.get("q") == "rad":
+        # Rotary: excite's [axis] key carries the linear axis's name; the inertia goes in a comment (as
+        # identify's sketch does, commission.next_steps.excite_advice) and the plan starts with its bump test.
+        axis = [f"# inertia J = {M:.4g} (identified; excite's [axis] key for it is optional)"] if M is not None else []
+    else:
+        axis = [f"mass = {M:.4g}" if M is not None else "# mass = ..."]
     axis += [f"friction = {fc:.4g}"] if fc is not None else []
     axis += [f"viscous = {B:.4g}"] if B is not None else []
     axis += [f'q_unit = "{ident.units.get("q", "m")}"', f'u_unit = "{ident.units.get("u", "V")}"']
