@@ -97,9 +97,9 @@ def test_a_light_axis_on_a_coarse_encoder_is_robust_whether_or_not_the_gate_pass
 
     Both controllers track within an encoder step here, so the gate's c_u and ARC-vs-PID checks
     sit at the quantization floor and may fail, on the robustness scenarios too (then no
-    controller.json is written); a divergence or a margin floor never does.  A PID baseline whose
-    defaulted pole was lowered (it chattered beyond the gate's c_u) stays within that limit on
-    every tuning scenario.
+    controller.json is written); a divergence or a margin floor never does.  (The PID is the
+    yardstick since issue 30: the fastest pole that keeps the floors, whose c_u is the gate's
+    business, not this test's.)
     """
     truth, tuning, result, _ = _pipeline(seed, tmp_path_factory)
     assert tuning.spec.sample_rate == pytest.approx(truth.sample_rate, rel=1e-6)
@@ -108,8 +108,6 @@ def test_a_light_axis_on_a_coarse_encoder_is_robust_whether_or_not_the_gate_pass
     assert {f.criterion for f in result.verdict.failures} <= PERFORMANCE, [f.detail for f in result.verdict.failures]
     assert all(c.passed for c in result.robustness.checks if c.criterion in ("margins", "floor:margins"))
     assert not any(r.arc.diverged for r in result.runs)
-    if tuning.pid_pole < tuning.spec.pid_pole:
-        assert max(r["pid"].c_u for r in tuning.scores.values()) <= 1.0
 
 
 def test_the_emitted_arc_keeps_the_margin_floors_and_survives_one_more_sample_of_delay(validated):
