@@ -330,22 +330,16 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
     fr = ident.extra.get("frequency_response")
     model = fr.get("model") if isinstance(fr, dict) else None
     if isinstance(model, dict):
-        f = _num(model.get("mode_hz"))
-        if f is not None and f > 0:
-            out["mode_hz"] = f
-            for key in ("mode_damping", "mode_ratio"):
+        for m in ("mode", "mode2"):  # the second mode only beside the first
+            f = _num(model.get(f"{m}_hz"))
+            if f is None or f <= 0:
+                break
+            out[f"{m}_hz"] = f
+            for key in (f"{m}_damping", f"{m}_ratio"):
                 v = _num(model.get(key))
                 if v is not None:
                     out[key] = v
-            out["mode_load_side"] = bool(model.get("mode_load_side"))
-            f2 = _num(model.get("mode2_hz"))
-            if f2 is not None and f2 > 0:
-                out["mode2_hz"] = f2
-                for key in ("mode2_damping", "mode2_ratio"):
-                    v = _num(model.get(key))
-                    if v is not None:
-                        out[key] = v
-                out["mode2_load_side"] = bool(model.get("mode2_load_side"))
+            out[f"{m}_load_side"] = bool(model.get(f"{m}_load_side"))
         d = _num(model.get("delay_s"))
         if d is not None and d > 0:
             out["delay"] = d
