@@ -22,7 +22,7 @@ import numpy as np
 from commission import __version__
 from commission.artifacts import Estimate, Identification, ThetaBox, mass_wording
 from commission.checks import CheckReport, check_log, mass_plausibility_warnings
-from commission.errors import DataError, IdentifiabilityError, UsageError
+from commission.errors import DataError, IdentifiabilityError, SchemaError, UsageError
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds, theta_bounds_from
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
 from commission.identify.fit import AxisFit, MapFit, evaluate_segments, fit_friction_map, fit_segments
@@ -347,6 +347,51 @@ def _same_axis_units(logs: Sequence[ExcitationLog]) -> None:
         raise DataError(f"{logs[0].source}: the logs of one axis must share their units; found u in "
                         f"{sorted({u for u, _ in units})} and "
                         f"{'rotary and linear' if len({r for _, r in units}) > 1 else 'one'} axes")
+
+
+#: Name of the plan file ``identify`` looks for beside a log (``commission excite`` writes it).
+PLAN_BESIDE_NAME = "plan.json"
+#: A log matches the plan beside it when its sample count is within this fraction of the plan's.
+PLAN_BESIDE_SAMPLES_TOL = 0.01
+
+
+def plan_beside(path: str | os.PathLike[str], lg: ExcitationLog) -> tuple[dict[str, Any] | None, str | None, str | None]:
+    """The ``plan.json`` of ``commission excite`` beside a log, when the log is a recording of it.
+
+    ``identify LOG`` without ``--plan`` still measures the frequency response on the plan's
+    injection windows when the log's folder holds a plan.json whose sample rate is the log's
+    (within 1e-6) and whose sample count is the log's within ``PLAN_BESIDE_SAMPLES_TOL``
+    (the log starts with the plan, as ``--plan`` assumes): the command's level does not
+    always show the injection (on a noisy encoder the holding loop's answer to the noise is
+    of the injection's size), the plan does.  A plan.json that does not load or does not
+    match is left alone, with a note saying why.
+
+    Returns
+    -------
+    (plan, path, note)
+        The parsed plan and its path (None, None when none is used) and a sentence for the
+        warnings (None when there is nothing to say).
+    """
+    from commission.excite import load_plan_json
+
+    cand = os.path.join(os.path.dirname(os.path.abspath(os.fspath(path))), PLAN_BESIDE_NAME)
+    if not os.path.isfile(cand):
+        return None, None, None
+    try:
+        plan = load_plan_json(cand)
+    except SchemaError as exc:
+        return None, None, f"{cand} beside the log is not used: {exc}"
+    fs_plan, n_plan = plan.get("sample_rate"), plan.get("samples")
+    if (not isinstance(fs_plan, (int, float)) or not isinstance(n_plan, int)
+            or abs(fs_plan - lg.sample_rate) > 1e-6 * fs_plan
+            or abs(lg.t.size - n_plan) > PLAN_BESIDE_SAMPLES_TOL * n_plan):
+        return None, None, (f"{cand} beside the log is not used: the log ({lg.t.size} samples at "
+                            f"{lg.sample_rate:.6g} Hz) is not a recording of it ({n_plan} samples at {fs_plan} Hz); "
+                            f"give --plan to use it anyway")
+    wins = [w for g in plan["segments"] if g.get("name") == "injection" for w in g.get("windows_s", [])]
+    if not wins:
+        return None, None, None
+    return plan, cand, None
 
 
 def _frequency_of(logs: Sequence[ExcitationLog], M: float, B: float,
@@ -716,6 +761,13 @@ def identify_log(
     freq, noise = None, None
     if has_mass:
         modes = MAX_MODES if max_modes is None else max_modes
+        plan_path = None
+        if plan is None and len(logs) == 1:
+            # A log recorded from an excite plan, kept beside its plan.json: the plan says where the
+            # injection is even where the command's level does not show it (a noisy encoder's feedback).
+            plan, plan_path, note = plan_beside(paths[0], logs[0])
+            if note:
+                friction_warnings.append(note)
         if plan is not None:
             # The excitation plan says where its injection is (commission excite; identify --plan).
             from commission.excite import injection_ranges
@@ -787,7 +839,8 @@ def identify_log(
         },
         "bounds": {} if tb is None else _bounds_record(bounds, tb),
         "friction_compensation_rms_error": comp.rms_error,
-        "frequency_response": freq.to_dict() if freq is not None else None,
+        "frequency_response": ({**freq.to_dict(), "plan": plan_path} if plan_path is not None
+                               else freq.to_dict()) if freq is not None else None,
         "evidence": _evidence(logs, freq, fit, u_max, _units(u_unit, logs[0])),
         "not_identified": dict(fit.not_identified),
         "warnings": warnings,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -159,63 +160,126 @@ def test_emitted_plan_never_exceeds_a_limit(travel, v_max, a_max, u_max, fs, bw_
     assert w["u"] <= s.u_max and w["q"] <= s.travel / 2 and w["v"] <= s.v_max and w["a"] <= s.a_max, (w, s)
 
 
-# Three known-truth axes: (limits.toml as a mapping, truth, mode expected from today's identify).
-# C's 300 Hz mode is not asserted: its 5 um encoder is coarser than what the a_max-limited injection
-# moves the axis at 300 Hz (a fraction of a um), so today's identify does not see it (reported).
+# Must show 1 (issue 31): three known-truth axes with different modes, rates and encoders, one with two
+# modes.  The truth is the simulator's plant (commission.synth.AxisTruth), generated independently of the
+# fit; a mode's true frequency and damping are those of the true plant's poles (two appendages on one
+# motor couple: the 450 Hz and 1 kHz appendages of B resonate at 445.8 Hz and 1049.8 Hz).
+# What the data can back is set by physics: the injection's acceleration is bounded by a_max, so the
+# motion it makes at f falls as a_max / (2 pi f)^2 against the encoder's noise floor.  Measured with
+# these plans: a 500 Hz mode on a 1 um scale with 0.5 um noise and a_max = 20 m/s^2 is backed to
+# ~595 Hz (1.2x); with 0.1 um / 0.2 um (A below) past 750 Hz.  C's 5 um scale at 1 kHz and a_max = 10 m/s^2
+# backs ~210 Hz (a 300 Hz mode there is found, 299 Hz, but not backed to 450 Hz), so its mode is 130 Hz.
+# The figures are in docs/interface.md (section 10).
 LOOP_AXES = {
-    "A 2.5 kHz, motor-side 500 Hz mode, 0.5-sample delay": (
+    "A 2.5 kHz, motor-side 500 Hz mode, 0.1 um scale, 0.2 um noise, 0.5-sample delay": (
         {"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 20.0, "u_max": 10.0},
          "drive": {"sample_rate": 2500.0, "bandwidth_hz": 40.0}, "axis": {"mass": 0.03, "friction": 0.1}},
-        dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=2500.0, mode_hz=500.0,
-             mode_damping=0.03, mode_ratio=0.3, delay=0.5 / 2500.0), True),
-    "B 5 kHz, load-side 800 Hz mode, 1.2-sample delay, N": (
+        dict(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=0.1e-6, noise_std=0.2e-6, sample_rate=2500.0,
+             mode_hz=500.0, mode_damping=0.03, mode_ratio=0.3, delay=0.5 / 2500.0)),
+    "B 8 kHz, N, 450 Hz motor-side and 1 kHz bracket modes, 10 nm scale, 20 nm noise, 1.2-sample delay": (
         {"limits": {"travel": 0.5, "v_max": 1.0, "a_max": 30.0, "u_max": 100.0},
-         "drive": {"sample_rate": 5000.0, "bandwidth_hz": 60.0}, "axis": {"mass": 1.0, "u_unit": "N"}},
-        dict(M=1.2, B=8.0, fc=4.0, fs=5.0, vs=0.02, xi=2.0, lsb=1e-7, sample_rate=5000.0, u_unit="N", u_max=100.0,
-             mode_hz=800.0, mode_damping=0.05, mode_ratio=0.4, mode_load_side=True, delay=1.2 / 5000.0), True),
-    "C 1 kHz, 5 um encoder, 0.5 um noise, 300 Hz mode": (
+         "drive": {"sample_rate": 8000.0, "bandwidth_hz": 60.0}, "axis": {"mass": 1.0, "u_unit": "N"}},
+        dict(M=1.2, B=8.0, fc=4.0, fs=5.0, vs=0.02, xi=2.0, lsb=1e-8, noise_std=2e-8, sample_rate=8000.0, u_unit="N",
+             u_max=100.0, mode_hz=450.0, mode_damping=0.03, mode_ratio=0.3, delay=1.2 / 8000.0,
+             mode2_hz=1000.0, mode2_damping=0.04, mode2_ratio=0.15, mode2_load_side=True)),
+    "C 1 kHz, 5 um scale, 1 um noise, motor-side 130 Hz mode, 0.3-sample delay": (
         {"limits": {"travel": 0.2, "v_max": 0.3, "a_max": 10.0, "u_max": 10.0},
          "drive": {"sample_rate": 1000.0, "bandwidth_hz": 20.0}, "axis": {"mass": 0.1}},
-        dict(M=0.08, B=0.5, fc=0.3, fs=0.35, vs=0.005, xi=1.5, lsb=5e-6, noise_std=0.5e-6, sample_rate=1000.0,
-             mode_hz=300.0, mode_damping=0.04, mode_ratio=0.3, delay=0.3 / 1000.0), False),
+        dict(M=0.08, B=0.5, fc=0.3, fs=0.35, vs=0.005, xi=1.5, lsb=5e-6, noise_std=1e-6, sample_rate=1000.0,
+             mode_hz=130.0, mode_damping=0.06, mode_ratio=0.3, delay=0.3 / 1000.0)),
 }
+
+
+def _true_modes(truth) -> list[tuple[float, float]]:
+    """(Hz, damping ratio) of the true plant's lightly damped poles, ascending."""
+    from commission.controllers.linear import continuous_model
+
+    ev = np.linalg.eigvals(continuous_model(truth.plant())[0])
+    ev = ev[ev.imag > 1.0]
+    return sorted((float(abs(e) / (2 * np.pi)), float(-e.real / abs(e))) for e in ev)
 
 
 @pytest.mark.parametrize("name", list(LOOP_AXES))
 def test_known_truth_loop_identify_recovers_axis(tmp_path, name):
-    """Plan from the limits, record the plan on a known-truth axis, identify the log with today's identify."""
-    from commission.identification import identify_log
+    """Must show 1: plan from the limits, record the plan on a known-truth axis, identify the log as a user does
+    (`commission identify LOG` with the plan.json that `excite` wrote beside it)."""
     from commission.synth import AxisTruth, write_log_h5
 
-    spec_d, truth_d, mode_expected = LOOP_AXES[name]
-    spec = excite_spec_from_mapping(spec_d)
+    spec_d, truth_d = LOOP_AXES[name]
     truth = AxisTruth(**truth_d)
+    spec = excite_spec_from_mapping(spec_d)
+    plan_dir = tmp_path / "run"
+    toml = "".join(f"[{sec}]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in kv.items()) for sec, kv in spec_d.items())
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, toml)), "--out-dir", str(plan_dir)])
+    assert r.exit_code == 0, r.output
     plan = plan_run(spec)
+    assert plan.t.size == json.loads((plan_dir / "plan.json").read_text())["samples"]
     assert 20.0 < plan.duration < 120.0  # minutes, not hours
     log = simulate_plan(plan, truth, np.random.default_rng(1))
-    # the recording keeps within the limits (0 violations of u, travel, speed)
+    # 0 limit violations in the recording: the command and the encoder's reading ...
     T = 1 / truth.sample_rate
     assert np.max(np.abs(log["u"])) <= spec.u_max
     assert np.max(np.abs(log["q"])) <= spec.travel / 2
     assert np.max(np.abs(np.diff(log["q"]))) / T <= spec.v_max
-    path = tmp_path / "log.h5"
-    write_log_h5(path, log)
-    d = identify_log(str(path), u_unit=truth.u_unit).ident.to_dict()
-    p = d["parameters"]
-    for k in ("M", "B", "fc"):
-        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=0.01), k
-    fr = d["frequency_response"]
-    res = [m for m in fr["modes"] if m["kind"] == "resonance"]
+    # ... and the axis's rigid-body motion: the same run without noise, on a fine scale and without the
+    # structural modes (the reading's second difference is the encoder noise's; a_max bounds the body's
+    # acceleration, not the vibration of a lightly damped mode, which the injection rings at its
+    # resonance: the motor side then reads 1.4-2.8 a_max, microns at hundreds of Hz; docs/interface.md §10)
+    rigid = dataclasses.replace(truth, noise_std=0.0, lsb=1e-12, mode_hz=0.0, mode2_hz=0.0)
+    clean = simulate_plan(plan, rigid, np.random.default_rng(1))
+    assert np.max(np.abs(np.diff(clean["q"], 2))) / T**2 <= spec.a_max
+    assert np.max(np.abs(np.diff(clean["q"]))) / T <= spec.v_max
+    assert np.max(np.abs(clean["q"])) <= spec.travel / 2 and np.max(np.abs(clean["u"])) <= spec.u_max
+    write_log_h5(plan_dir / "log.h5", log, u_unit=truth.u_unit)
+    out = tmp_path / "ident.json"
+    r = runner.invoke(app, ["identify", str(plan_dir / "log.h5"), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    p, fr, enc = d["parameters"], d["frequency_response"], d["encoder"]
+    assert fr["plan"] == str((plan_dir / "plan.json").resolve()) and fr["source"] == "broadband"
+    res = sorted((m["frequency_hz"], m["damping"]) for m in fr["modes"] if m["kind"] == "resonance")
+    true = _true_modes(truth)
+    band = fr["evidence_band_hz"]
     print(f"loop {name}: duration {plan.duration:.1f} s;",
           ", ".join(f"{k} {100 * (p[k]['value'] / getattr(truth, k) - 1):+.2f} %" for k in ("M", "B", "fc")),
-          f"; modes {[(round(m['frequency_hz'], 1), round(m['damping'], 4)) for m in res]} (truth "
-          f"{truth.mode_hz:g} Hz, {truth.mode_damping:g}); delay {fr['delay_samples']} samples (truth "
-          f"{truth.delay * truth.sample_rate:g}); band {fr['band_hz']} Hz")
-    if mode_expected:
-        assert len(res) == 1
-        assert res[0]["frequency_hz"] == pytest.approx(truth.mode_hz, rel=0.05)
-        assert res[0]["damping"] == pytest.approx(truth.mode_damping, rel=0.30)
-        assert fr["delay_samples"] == pytest.approx(truth.delay * truth.sample_rate, abs=0.2)
+          f"; modes {[(round(f, 1), round(z, 4)) for f, z in res]} (truth {[(round(f, 1), round(z, 4)) for f, z in true]});"
+          f" delay {fr['delay_samples']:.3f} samples (truth {truth.delay * truth.sample_rate:g}); band {band} Hz;"
+          f" noise {enc['noise_std']:.3g} m (truth {truth.noise_std:g})")
+    for k in ("M", "B", "fc"):
+        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=0.01), k
+    assert len(res) == len(true), (res, true)
+    for (f, z), (ft, zt) in zip(res, true):
+        assert f == pytest.approx(ft, rel=0.05) and z == pytest.approx(zt, rel=0.30), (res, true)
+    assert fr["delay_samples"] == pytest.approx(truth.delay * truth.sample_rate, abs=0.2)
+    assert enc["noise_std"] == pytest.approx(truth.noise_std, rel=0.20)
+    assert band is not None and band[1] >= 1.5 * true[-1][0], (band, true)
+    assert not fr["departures"]
+
+
+def test_plan_beside_the_log_only_when_it_is_its_recording(tmp_path):
+    """identify uses a plan.json beside the log only when the log has its sample rate and length."""
+    from commission.identification import identify_log
+    from commission.synth import AxisTruth, write_log_h5
+
+    out = tmp_path / "run"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, SMALL)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan = plan_run(load_excite_spec(tmp_path / "limits.toml"))
+    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=1000.0,
+                      mode_hz=250.0, mode_damping=0.03, mode_ratio=0.3)
+    log = simulate_plan(plan, truth, np.random.default_rng(0))
+    write_log_h5(out / "log.h5", log)
+    fr = identify_log(str(out / "log.h5")).ident.to_dict()["frequency_response"]
+    wins = [w for g in plan.segments if g.name == "injection" for w in g.info["windows_s"]]
+    assert fr["plan"] == str(out / "plan.json") and len(fr["segments_s"]) == len(wins)
+    for (a, b), (wa, wb) in zip(fr["segments_s"], wins):
+        assert wa < a < b < wb
+    # a log of another length beside it: not its recording, the plan is left alone and said so
+    half = {k: v[: v.size // 2] for k, v in log.items()}
+    write_log_h5(out / "log.h5", half)
+    d = identify_log(str(out / "log.h5")).ident.to_dict()
+    assert "plan" not in d["frequency_response"]
+    assert any("beside the log is not used" in w and "give --plan" in w for w in d["warnings"])
 
 
 def test_plan_json_loader_names_bad_field(tmp_path):
