@@ -275,7 +275,7 @@ def identify_command(
             outcome: IdentifyOutcome | LegsOutcome = (
                 identify_files(files, validate_on=val_files, **kw) if several  # type: ignore[arg-type]
                 else identify_log(files[0], validate_on=val_files or None, plan=plan_data,
-                                  **kw))  # type: ignore[arg-type]
+                                  plan_path=str(plan) if plan is not None else None, **kw))  # type: ignore[arg-type]
         write_json_atomic(outputs.path(out), outcome.ident.to_dict())
         figures = []
         if plot is not None:

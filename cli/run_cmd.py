@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 from typing import List, Optional
@@ -59,6 +60,10 @@ def run_command(
     lead: Optional[float] = opt("--lead"),
     gear: Optional[float] = opt("--gear"),
     counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
+        "plan.json of `commission excite` that the one LOG was recorded from, passed to identify: the frequency "
+        "response is measured on the plan's injection windows (default: a plan.json beside the LOG, if it is "
+        "the LOG's plan).")),
 ) -> None:
     """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
     from commission.cli.plots import identification_plots
@@ -71,6 +76,14 @@ def run_command(
                          payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
                          disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
                          lead=lead, gear=gear, counts_per_rev=counts_per_rev)
+    if plan is not None:
+        from commission.errors import UsageError
+        from commission.excite import load_plan_json
+        from commission.identification import expand_log_paths
+
+        if len(expand_log_paths([str(p) for p in logs])) != 1:
+            raise UsageError(f"--plan: takes one log recorded from the plan, got {len(logs)} paths")
+        o = dataclasses.replace(o, plan=load_plan_json(plan), plan_path=str(plan))
     key = load_sign_key(sign_key)
     stages = {"identify": "identifying", "tune": "tuning", "validate": "validating"}
     with StageProgress(err) as bar:

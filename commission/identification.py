@@ -123,6 +123,11 @@ class IdentifyOptions:
     counts_per_rev : float or None
         ``--counts-per-rev``: the log's q is in encoder counts, read as rad on loading
         (:func:`commission.logs.load_log`), before ``gear`` and ``lead``.
+    plan : mapping or None
+        ``--plan``: the parsed plan.json of ``commission excite`` the one log was recorded from
+        (:func:`commission.excite.load_plan_json`); None: a plan.json beside the log, if it matches.
+    plan_path : str or None
+        Where ``plan`` was read (recorded in ``frequency_response.plan``).
     """
 
     mapping: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -141,10 +146,13 @@ class IdentifyOptions:
     gear: float | None = None
     counts_per_rev: float | None = None
     terms: str = "auto"
+    plan: Mapping[str, Any] | None = None
+    plan_path: str | None = None
 
     def kwargs(self) -> dict[str, object]:
-        """Keywords of :func:`identify_log`."""
-        return {"mapping": dict(self.mapping), "input_gain": self.input_gain, "sample_rate": self.sample_rate,
+        """Keywords of :func:`identify_log` (``plan`` and ``plan_path`` only when a plan is given)."""
+        extra: dict[str, object] = {} if self.plan is None else {"plan": self.plan, "plan_path": self.plan_path}
+        return {**extra, "mapping": dict(self.mapping), "input_gain": self.input_gain, "sample_rate": self.sample_rate,
                 "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
                 "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix), "lead": self.lead,
@@ -596,6 +604,7 @@ def identify_log(
     u_max: float | None = None,
     plan: Mapping[str, Any] | None = None,
     terms: str | Sequence[str] | None = "auto",
+    plan_path: str | None = None,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -664,6 +673,10 @@ def identify_log(
         A parsed plan.json (:func:`commission.excite.load_plan_json`) the one log was recorded
         from: the frequency response is estimated on its injection windows
         (:func:`commission.excite.injection_ranges`) instead of the segments the command's level shows.
+        Without it, a plan.json beside the one log is used when the log is a recording of it
+        (:func:`plan_beside`).
+    plan_path : str, optional
+        Where ``plan`` was read: recorded as ``frequency_response.plan``.
     terms : str or sequence of str
         ``--terms`` (:func:`parse_terms`), with ``friction="auto"`` only: the switchable
         terms of the delay-aware inverse dynamics (:mod:`commission.identify.richer`)
@@ -761,7 +774,6 @@ def identify_log(
     freq, noise = None, None
     if has_mass:
         modes = MAX_MODES if max_modes is None else max_modes
-        plan_path = None
         if plan is None and len(logs) == 1:
             # A log recorded from an excite plan, kept beside its plan.json: the plan says where the
             # injection is even where the command's level does not show it (a noisy encoder's feedback).

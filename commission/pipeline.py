@@ -128,7 +128,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     log_path = paths[0] if len(paths) == 1 else paths
     if opts.validate_on is not None:
         expand_log_paths([os.fspath(opts.validate_on)])  # refused now (missing, one file twice), not after the lock
-    outputs = Outputs(force=force, inputs=(*paths, spec_path, gate_path, opts.validate_on))
+    outputs = Outputs(force=force, inputs=(*paths, spec_path, gate_path, opts.validate_on, opts.plan_path))
     out = outputs.add_dir(out_dir, (IDENT_NAME, TUNING_NAME, *IDENT_FIGURE_NAMES, *output_names()), "--out-dir")
     ex = executor if executor is not None else make_executor(address, workers)  # unreachable: exit 2 now
     try:

@@ -386,3 +386,28 @@ injection_s = 1.0
     r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, text.replace("kd = 0.05", "kd = -1.0"))),
                             "--out-dir", str(tmp_path / "p2")])
     assert r.exit_code == 2 and "drive.kd = -1.0 Nm s/rad must not be negative" in r.stderr, r.output
+
+
+def test_run_passes_plan_to_identify(tmp_path):
+    """`commission run --plan plan.json` hands the plan to identify: a log that ends before the plan's injection
+    is refused by identify's --plan check (exit 2, nothing written), and several logs with --plan are refused."""
+    from commission.synth import AxisTruth, write_log_h5
+
+    out = tmp_path / "plan"
+    r = runner.invoke(app, ["excite", "--spec", str(_spec_file(tmp_path, SMALL)), "--out-dir", str(out)])
+    assert r.exit_code == 0, r.output
+    plan = plan_run(load_excite_spec(tmp_path / "limits.toml"))
+    truth = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, lsb=1e-6, sample_rate=1000.0)
+    log = simulate_plan(plan, truth, np.random.default_rng(0))
+    inj = next(g for g in plan.segments if g.name == "injection")
+    short = {k: v[: int(inj.t_start * 1000)] for k, v in log.items()}
+    write_log_h5(tmp_path / "short.h5", short)
+    r = runner.invoke(app, ["run", str(tmp_path / "short.h5"), "--plan", str(out / "plan.json"),
+                            "--out-dir", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "--plan: the log ends at" in r.stderr, r.output
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+    write_log_h5(tmp_path / "b.h5", short)
+    r = runner.invoke(app, ["run", str(tmp_path / "short.h5"), str(tmp_path / "b.h5"), "--plan",
+                            str(out / "plan.json"), "--out-dir", str(tmp_path / "o2")])
+    assert r.exit_code == 2 and "--plan: takes one log" in r.stderr, r.output
+    assert not (tmp_path / "o2").exists()
