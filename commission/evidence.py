@@ -430,37 +430,21 @@ def limits_toml(spec: Spec, ident: Identification) -> str:
 
     ``[limits]`` travel, v_max, a_max and u_max are the spec's envelope (the ones tune and
     validate used, q-unit and u-unit); ``[drive] sample_rate`` is the log's rate (Hz); ``[axis]``
-    ``mass``, ``friction`` and ``viscous`` the identified M (u-unit s^2 per q-unit), fc (u-unit) and
-    B (u-unit s per q-unit), with the units' names.  ``bandwidth_hz`` of the holding loop is the
-    user's to fill in: no file of this tool knows it.
+    ``mass``, ``friction`` and ``viscous`` the identified M, fc and B.  Written by the one builder
+    of the sketch, :func:`commission.excite.limits_toml_sketch` (identify's is the same).
     """
-    def known(name: str, positive: bool) -> float | None:
-        e = ident.parameters.get(name)
-        ok = e is not None and math.isfinite(e.value) and (e.value > 0 if positive else e.value >= 0)
-        return float(e.value) if ok else None  # type: ignore[union-attr]
+    from commission.excite import limits_toml_sketch
 
-    M, fc, B = known("M", True), known("fc", False), known("B", False)
-    if ident.units.get("q") == "rad":
-        # Rotary: excite's [axis] key carries the linear axis's name; the inertia goes in a comment (as
-        # identify's sketch does, commission.next_steps.excite_advice) and the plan starts with its bump test.
-        axis = [f"# inertia J = {M:.4g} (identified; excite's [axis] key for it is optional)"] if M is not None else []
-    else:
-        axis = [f"mass = {M:.4g}" if M is not None else "# mass = ..."]
-    axis += [f"friction = {fc:.4g}"] if fc is not None else []
-    axis += [f"viscous = {B:.4g}"] if B is not None else []
-    axis += [f'q_unit = "{ident.units.get("q", "m")}"', f'u_unit = "{ident.units.get("u", "V")}"']
-    return "\n".join([
-        "[limits]",
-        f"travel = {spec.travel:g}",
-        f"v_max = {spec.v_max:g}",
-        f"a_max = {spec.a_max:g}",
-        f"u_max = {spec.u_max:g}",
-        "[drive]",
-        f"sample_rate = {spec.sample_rate:g}",
-        "# bandwidth_hz = ...  (the position loop that holds the axis during the run)",
-        "[axis]",
-        *axis,
-        ""])
+    def known(name: str) -> float | None:
+        e = ident.parameters.get(name)
+        return float(e.value) if e is not None else None
+
+    return limits_toml_sketch(
+        travel=spec.travel, v_max=spec.v_max, a_max=spec.a_max, u_max=spec.u_max, sample_rate=spec.sample_rate,
+        M=known("M"), B=known("B"), fc=known("fc"), q_unit=ident.units.get("q", "m"), u_unit=ident.units.get("u", "V"),
+        notes={"travel": "the spec's", "v_max": "the spec's", "a_max": "the spec's", "u_max": "the spec's",
+               "sample_rate": "the log's rate", "mass": "identified", "friction": "identified Coulomb level",
+               "viscous": "identified"})
 
 
 def excite_command(out_dir: str = "excite") -> str:
@@ -470,13 +454,14 @@ def excite_command(out_dir: str = "excite") -> str:
 
 def raise_evidence_line(evidence: Evidence, spec: Spec, ident: Identification) -> str:
     """One sentence: what to record to raise the evidence, with the limits.toml inline (for stdout)."""
-    toml = "; ".join(line for line in limits_toml(spec, ident).splitlines() if line and not line.startswith("#"))
+    toml = "; ".join(line.split("#")[0].strip() for line in limits_toml(spec, ident).splitlines()
+                     if line and not line.startswith("#"))
     have = (f"the log backs the model only to {evidence.top_hz:.3g} Hz" if evidence.applies
             else "the log backs no band of the model")
     if evidence.source == "broadband":
         have = f"the log's broadband segment backs the model to {evidence.top_hz:.3g} Hz"
     return (f"to certify a faster loop, raise the evidence ({have}): plan a broadband run with "
-            f"`{excite_command()}` (limits.toml: {toml}; add the holding loop's bandwidth_hz), record it, "
+            f"`{excite_command()}` (limits.toml: {toml}; check the holding loop's bandwidth_hz), record it, "
             "then `commission run` on that log")
 
 

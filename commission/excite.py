@@ -786,6 +786,69 @@ def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
     raise PlanRefused(f"{spec.source}: plan refused: {violation}")
 
 
+# --------------------------------------------------------------------------- the limits.toml sketch
+
+
+#: Holding-loop bandwidth written into a limits.toml sketch when nothing better is known, Hz.
+SKETCH_BANDWIDTH_HZ = 10.0
+
+
+def limits_toml_sketch(*, travel: float, v_max: float, a_max: float, u_max: float, sample_rate: float,
+                       M: float | None = None, B: float | None = None, fc: float | None = None,
+                       q_unit: str = "m", u_unit: str = "V", notes: Mapping[str, str] | None = None,
+                       bandwidth_hz: float = SKETCH_BANDWIDTH_HZ) -> str:
+    """The one builder of a ``limits.toml`` sketch for ``commission excite`` (what a log or a spec knows).
+
+    ``identify`` (a log without a broadband segment: :func:`commission.next_steps.excite_advice`)
+    and ``validate``'s evidence lines (:func:`commission.evidence.limits_toml`) both write it, so the
+    file a user copies is the same whoever prints it, and :func:`excite_spec_from_mapping` accepts
+    it as it is: ``[drive] bandwidth_hz`` is written (an assumption, commented: no file of this tool
+    knows the holding loop), ``friction`` only below ``u_max`` (excite refuses it otherwise).  On a
+    rotary axis (``q_unit = "rad"``) the identified inertia is a comment: excite's ``[axis]`` key
+    carries the linear axis's name, and without it the plan starts with its bump test.
+
+    Parameters
+    ----------
+    travel, v_max, a_max : float
+        q, q/s, q/s^2 (q: m, or rad on a rotary axis).
+    u_max : float
+        u-unit.
+    sample_rate : float
+        Hz.
+    M, B, fc : float or None
+        Identified mass (u s^2/q), viscous (u s/q) and Coulomb level (u); None or out of range: left out.
+    q_unit, u_unit : str
+    notes : mapping of str to str, optional
+        Where a value comes from, per key (``travel``, ``v_max``, ``a_max``, ``u_max``, ``sample_rate``,
+        ``mass``, ``friction``, ``viscous``): written as the line's comment after its unit.
+    bandwidth_hz : float
+        The holding loop's bandwidth written, Hz.
+    """
+    qs = "rad" if q_unit == "rad" else "m"
+    why = dict(notes or {})
+
+    def line(key: str, value: float, unit: str, fmt: str = ".4g") -> str:
+        note = f": {why[key]}" if key in why else ""
+        return f"{key} = {value:{fmt}}  # {unit}{note}"
+
+    lines = ["[limits]", line("travel", travel, qs), line("v_max", v_max, f"{qs}/s"),
+             line("a_max", a_max, f"{qs}/s^2"), line("u_max", u_max, u_unit), "",
+             "[drive]", line("sample_rate", sample_rate, "Hz", ".6g"),
+             f"bandwidth_hz = {bandwidth_hz:g}  # Hz: the holding position loop's (an assumption; or give kp, kd)",
+             "", "[axis]"]
+    if M is not None and math.isfinite(M) and M > 0:
+        if qs == "rad":
+            lines.append(f"# inertia J = {M:.4g} {u_unit} s^2/rad identified (excite's [axis] key for it is optional)")
+        else:
+            lines.append(line("mass", M, f"{u_unit} s^2/{qs}"))
+    if fc is not None and math.isfinite(fc) and 0 <= fc < u_max:
+        lines.append(line("friction", fc, u_unit))
+    if B is not None and math.isfinite(B) and B >= 0:
+        lines.append(line("viscous", B, f"{u_unit} s/{qs}"))
+    lines += [f'q_unit = "{qs}"', f'u_unit = "{u_unit}"']
+    return "\n".join(lines) + "\n"
+
+
 # --------------------------------------------------------------------------- files
 
 

@@ -211,8 +211,7 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
 
 #: A drive's analog command range, V: the assumed ``u_max`` of a log whose u is volts times ``--input-gain``.
 ANALOG_COMMAND_RANGE_V = 10.0
-#: Holding-loop bandwidth written into the limits.toml sketch when nothing better is known, Hz.
-SKETCH_BANDWIDTH_HZ = 10.0
+from commission.excite import SKETCH_BANDWIDTH_HZ  # noqa: E402  (the sketch's builder owns it)
 
 
 @dataclass(frozen=True)
@@ -291,34 +290,16 @@ def excite_advice(frequency_response: dict[str, Any] | None, *, travel: float, v
                "say nothing"]
     if not fr:
         missing = ["no frequency response (M is not identified): nothing is known of the plant's dynamics"]
+    from commission.excite import limits_toml_sketch
+
     umax = u_max if u_max is not None else u_peak
-    qs = "rad" if q_unit == "rad" else "m"
-    lines = [
-        "[limits]",
-        f"travel = {travel:.4g}        # {qs}: the span this log used (more if the machine allows)",
-        f"v_max = {v_peak:.4g}         # {qs}/s: the log's peak speed",
-        f"a_max = {a_peak:.4g}         # {qs}/s^2: the log's peak acceleration",
-        f"u_max = {umax:.4g}         # {u_unit}: {u_max_source}",
-        "",
-        "[drive]",
-        f"sample_rate = {sample_rate:.6g}  # Hz: the log's rate",
-        f"bandwidth_hz = {SKETCH_BANDWIDTH_HZ:g}     # Hz: the holding position loop's (an assumption; or give kp, kd)",
-        "",
-        "[axis]",
-    ]
-    if M is not None and M > 0 and qs == "rad":
-        # Rotary: excite's [axis] key carries the linear axis's name; the inertia goes in a comment, the
-        # plan then starts with its bump test (the key is optional).
-        lines.append(f"# inertia J = {M:.4g} {u_unit} s^2/rad identified (excite's [axis] key for it is optional)")
-    elif M is not None and M > 0:
-        lines.append(f"mass = {M:.4g}          # {u_unit} s^2/{qs}: identified")
-    if fc is not None and 0 <= fc < umax:
-        lines.append(f"friction = {fc:.4g}      # {u_unit}: identified Coulomb level")
-    if B is not None and B >= 0:
-        lines.append(f"viscous = {B:.4g}       # {u_unit} s/{qs}: identified")
-    lines += [f'q_unit = "{qs}"', f'u_unit = "{u_unit}"']
-    return ExciteAdvice(tuple(missing), f"commission excite --spec limits.toml --out-dir {out_dir}",
-                        "\n".join(lines) + "\n")
+    toml = limits_toml_sketch(
+        travel=travel, v_max=v_peak, a_max=a_peak, u_max=umax, sample_rate=sample_rate, M=M, B=B, fc=fc,
+        q_unit=q_unit, u_unit=u_unit,
+        notes={"travel": "the span this log used (more if the machine allows)", "v_max": "the log's peak speed",
+               "a_max": "the log's peak acceleration", "u_max": u_max_source, "sample_rate": "the log's rate",
+               "mass": "identified", "friction": "identified Coulomb level", "viscous": "identified"})
+    return ExciteAdvice(tuple(missing), f"commission excite --spec limits.toml --out-dir {out_dir}", toml)
 
 
 def evidence_step(result: Any, tuning: Any) -> str | None:

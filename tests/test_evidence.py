@@ -160,7 +160,7 @@ def test_the_limits_toml_sketch_parses_and_carries_the_spec_and_the_log():
     ident = _ident(WHOLE_LOG)
     d = tomllib.loads(limits_toml(spec, ident))
     assert d == {"limits": {"travel": 0.3, "v_max": 0.5, "a_max": 6.0, "u_max": 5.0},
-                 "drive": {"sample_rate": 4000.0},
+                 "drive": {"sample_rate": 4000.0, "bandwidth_hz": 10.0},
                  "axis": {"mass": 0.027, "friction": 0.1, "viscous": 0.273, "q_unit": "m", "u_unit": "V"}}
     line = raise_evidence_line(evidence_of(ident), spec, ident)
     assert excite_command() == "commission excite --spec limits.toml --out-dir excite"

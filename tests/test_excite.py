@@ -411,3 +411,32 @@ def test_run_passes_plan_to_identify(tmp_path):
                             str(out / "plan.json"), "--out-dir", str(tmp_path / "o2")])
     assert r.exit_code == 2 and "--plan: takes one log" in r.stderr, r.output
     assert not (tmp_path / "o2").exists()
+
+
+def test_one_limits_toml_sketch_for_identify_and_the_evidence_lines():
+    """Item 4 of issue 31: identify's sketch (next_steps.excite_advice) and the evidence lines' (evidence.limits_toml)
+    are one builder's: the same values give the same file, and excite accepts it as it is."""
+    import tomllib
+
+    from commission.evidence import limits_toml
+    from commission.next_steps import excite_advice
+    from commission.spec import spec_from_mapping
+
+    spec = spec_from_mapping({"trajectory": {"travel": 0.3, "v_max": 0.5, "a_max": 6.0},
+                              "controller": {"sample_rate": 4000.0, "u_max": 5.0}})
+
+    class _E:
+        def __init__(self, v):
+            self.value = v
+
+    class _Ident:
+        parameters = {"M": _E(0.027), "B": _E(0.273), "fc": _E(0.1)}
+        units = {"q": "m", "u": "V"}
+
+    a = tomllib.loads(limits_toml(spec, _Ident()))
+    b = tomllib.loads(excite_advice({"source": "whole_log", "band_hz": [2.0, 22.0]}, travel=0.3, v_peak=0.5,
+                                    a_peak=6.0, u_peak=4.0, u_max=5.0, u_max_source="given", sample_rate=4000.0,
+                                    M=0.027, B=0.273, fc=0.1, q_unit="m", u_unit="V").limits_toml)
+    assert a == b
+    s = excite_spec_from_mapping(a)
+    assert (s.travel, s.u_max, s.mass, s.friction, s.bandwidth_hz) == (0.3, 5.0, 0.027, 0.1, 10.0)
