@@ -440,3 +440,24 @@ def test_one_limits_toml_sketch_for_identify_and_the_evidence_lines():
     assert a == b
     s = excite_spec_from_mapping(a)
     assert (s.travel, s.u_max, s.mass, s.friction, s.bandwidth_hz) == (0.3, 5.0, 0.027, 0.1, 10.0)
+
+
+@pytest.mark.parametrize("name,noise", [("A", 1e-6), ("C", 1e-6)])
+def test_level_detector_finds_an_excite_injection_on_a_noisy_encoder(tmp_path, name, noise):
+    """Item 2 of issue 31: without a plan (none given, none beside the log) the command's level still shows the
+    injection of an excite plan where the holding loop's answer to encoder noise is large (the detector's
+    factor of 10 over that background missed it: 4-6 times here)."""
+    from commission.identification import identify_log
+    from commission.synth import AxisTruth, write_log_h5
+
+    spec_d, truth_d = next(v for k, v in LOOP_AXES.items() if k.startswith(name))
+    truth = AxisTruth(**{**truth_d, "noise_std": noise})
+    plan = plan_run(excite_spec_from_mapping(spec_d))
+    write_log_h5(tmp_path / "log.h5", simulate_plan(plan, truth, np.random.default_rng(2)), u_unit=truth.u_unit)
+    fr = identify_log(str(tmp_path / "log.h5"), u_unit=truth.u_unit).ident.to_dict()["frequency_response"]
+    wins = [w for g in plan.segments if g.name == "injection" for w in g.info["windows_s"]]
+    assert "plan" not in fr and fr["source"] == "broadband" and len(fr["segments_s"]) == len(wins), fr["segments_s"]
+    for (a, b), (wa, wb) in zip(fr["segments_s"], wins):
+        assert wa <= a < b <= wb and b - a > 0.9 * (wb - wa) - 0.3
+    res = [m["frequency_hz"] for m in fr["modes"] if m["kind"] == "resonance"]
+    assert len(res) == 1 and res[0] == pytest.approx(_true_modes(truth)[0][0], rel=0.05)
