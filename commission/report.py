@@ -497,7 +497,7 @@ def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
     if ev.source != "broadband" or not all(r.holds for r in getattr(result, "evidence_rows", ())):
         out += ["", f"To raise it, record the run that `{excite_command()}` plans (a broadband injection "
                 "while the axis moves slowly), with this `limits.toml` (the spec's envelope and the log's "
-                "rate; add the holding loop's `bandwidth_hz`):", "", "```toml",
+                "rate; check the holding loop's `bandwidth_hz`, an assumption):", "", "```toml",
                 limits_toml(tuning.spec, tuning.identification).rstrip("\n"), "```"]
     out.append("")
     return out
