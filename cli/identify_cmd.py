@@ -184,6 +184,11 @@ def frequency_summary(fr: dict | None) -> str:
     if fr.get("note"):
         # Without modes the note states the backed band itself; with them it says what the model leaves out.
         text = ("frequency response: " + fr["note"]) if not fr.get("modes") else f"{text}; {fr['note']}"
+    ev = fr.get("evidence_band_hz")
+    if fr.get("source") == "broadband" and ev:
+        text += f"; the data back the fitted model {ev[0]:.4g}-{ev[1]:.4g} Hz"
+    if fr.get("plan"):
+        text += f"; measured on the injection windows of {fr['plan']}"
     return text
 
 
