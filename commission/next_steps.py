@@ -321,4 +321,4 @@ def evidence_step(result: Any, tuning: Any) -> str | None:
 
 
 __all__ = ["NextSteps", "evidence_step", "next_steps", "gate_changes", "floor_changes", "ExciteAdvice",
-           "excite_advice"]
+           "excite_advice", "SKETCH_BANDWIDTH_HZ"]
