@@ -192,12 +192,10 @@ LOOP_AXES = {
 
 
 def _true_modes(truth) -> list[tuple[float, float]]:
-    """(Hz, damping ratio) of the true plant's lightly damped poles, ascending."""
-    from commission.controllers.linear import continuous_model
+    """(Hz, damping ratio) of the true plant's structural modes, as coupled, lowest first."""
+    from commission.controllers.linear import structural_modes
 
-    ev = np.linalg.eigvals(continuous_model(truth.plant())[0])
-    ev = ev[ev.imag > 1.0]
-    return sorted((float(abs(e) / (2 * np.pi)), float(-e.real / abs(e))) for e in ev)
+    return structural_modes(truth.plant())
 
 
 @pytest.mark.parametrize("name", list(LOOP_AXES))
