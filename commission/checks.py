@@ -37,20 +37,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from commission.errors import DataError, UsageError
+from commission.identify.signals import encoder_grid
 from commission.logs import ExcitationLog
 
-__all__ = ["CheckReport", "check_log", "encoder_resolution"]
+__all__ = ["CheckReport", "check_log"]
 
 #: A command with at most this many distinct values is a designed
 #: piecewise-constant excitation, exempt from the saturation check.
 FEW_LEVELS = 16
-
-#: Relative tolerance, in LSB, for q to count as lying on a grid.
-GRID_TOLERANCE = 0.01
-
-#: Candidate grid steps tried: the smallest |dq| divided by 1 .. this.
-GRID_MAX_DIVISOR = 10
-
 
 @dataclass(frozen=True)
 class CheckReport:
@@ -244,7 +238,7 @@ def check_log(
                 f"u near saturation: {100 * rail_fraction:.3g} % of samples at the rails ({'; '.join(rails)})"
             )
 
-    step, resolution = encoder_resolution(q)
+    step, resolution = encoder_grid(q)
     if step is None:
         warns.append(
             f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} {q_unit}): the record may be "
@@ -260,47 +254,6 @@ def check_log(
         q_range=(q_min, q_max), u_range=(u_min, u_max), u_rail_fraction=rail_fraction,
         warnings=tuple(warns),
     )
-
-
-def encoder_resolution(q: np.ndarray) -> tuple[float | None, float]:
-    """Estimate the position quantization step an encoder left in ``q``.
-
-    The candidate step is the smallest nonzero ``|dq|`` divided by 1, 2, ...
-    10 (the smallest step may be missing from the data when the axis never
-    moves by one count).  The first candidate on which every ``q - q[0]`` is
-    within 1 % of an integer multiple is refined by least squares over all
-    samples.
-
-    Parameters
-    ----------
-    q : numpy.ndarray, shape (n,)
-        Finite positions [m].
-
-    Returns
-    -------
-    step : float or None
-        The grid step [m], or None if ``q`` lies on no such grid (or its
-        smallest step is at floating-point resolution, i.e. rounding noise).
-    apparent_resolution : float
-        Smallest nonzero ``|dq|`` [m]; NaN when ``q`` is constant.
-    """
-    q = np.asarray(q, dtype=np.float64)
-    dq = np.abs(np.diff(q))
-    nonzero = dq[dq > 0]
-    if nonzero.size == 0:
-        return None, math.nan
-    resolution = float(nonzero.min())
-    # Below ~1e3 ulp of the largest |q| a "step" is rounding noise, and any data would fit a grid.
-    if resolution < 1e3 * np.finfo(np.float64).eps * float(np.abs(q).max()):
-        return None, resolution
-    x = q - q[0]
-    for divisor in range(1, GRID_MAX_DIVISOR + 1):
-        step = resolution / divisor
-        counts = x / step
-        k = np.rint(counts)
-        if float(np.abs(counts - k).max()) <= GRID_TOLERANCE:
-            return float(np.dot(k, x) / np.dot(k, k)), resolution
-    return None, resolution
 
 
 def _rail_runs(u: np.ndarray, rail: float, min_run: int) -> tuple[int, int | None]:

@@ -386,38 +386,61 @@ def preprocess_segments(segments: Sequence[tuple[np.ndarray, np.ndarray, np.ndar
                         u=np.concatenate([pp.u for pp in parts]), t_dec=np.concatenate(t_dec), bounds=tuple(bounds))
 
 
-def quantization_step(q: np.ndarray, *, rtol: float = 0.01) -> float | None:
-    """Encoder resolution the data show: the grid step of the position increments, m.
+#: An increment is a multiple of the step when within this fraction of a step of one.
+GRID_TOLERANCE = 0.01
+#: Divisors of the smallest increment tried as the step: an axis that never moves by a single count
+#: (it moves by 2 or 3) still shows its grid.
+GRID_MAX_DIVISOR = 10
+#: Share of the non-zero increments that must sit on the grid: a few glitches (a stitched segment
+#: boundary, one corrupted sample) do not hide an encoder.
+GRID_MIN_SHARE = 0.999
 
-    The smallest non-zero increment is taken as the candidate step; the data are
-    on a grid if at least 99.9 % of the non-zero increments are integer multiples
-    of it within ``rtol`` of a step.  The step is then refined by least squares
-    over all increments.
+
+def encoder_grid(q: np.ndarray) -> tuple[float | None, float]:
+    """The encoder's grid step in ``q`` and the smallest increment the data show: the one estimator.
+
+    The candidate steps are the smallest non-zero increment divided by 1, 2, ...
+    :data:`GRID_MAX_DIVISOR` (the count itself may never occur alone).  The first
+    candidate of which at least :data:`GRID_MIN_SHARE` of the non-zero increments
+    are integer multiples, within :data:`GRID_TOLERANCE` of a step, is refined by
+    least squares over those increments.  Increments are used rather than the
+    positions so that stitched segments with arbitrary offsets keep their grid.
 
     Parameters
     ----------
     q : array_like, shape (N,)
-        Position samples, m.
-    rtol : float
-        Tolerance on an increment's distance to a multiple of the step, in steps.
+        Position samples, m (or rad).
 
     Returns
     -------
-    float or None
-        The step, m; None if ``q`` never moves or is not on a grid (e.g. resampled data).
+    step : float or None
+        The grid step, in q's unit; None if ``q`` never moves, is on no grid
+        (resampled or filtered data), or moves only at floating-point resolution.
+    apparent_resolution : float
+        Smallest non-zero ``|dq|``, in q's unit; NaN when ``q`` is constant.
     """
     q = np.asarray(q, dtype=np.float64)
     if q.ndim != 1:
         raise SignalError(f"q: expected a 1-D array, got shape {q.shape}")
     d = np.abs(np.diff(q))
-    # Increments below a few ulps of the position are float noise, not encoder counts.
-    floor = 64.0 * np.finfo(float).eps * max(float(np.max(np.abs(q))) if q.size else 0.0, 1e-300)
-    nz = d[d > floor]
+    nz = d[d > 0]
     if nz.size == 0:
-        return None
-    step = float(nz.min())
-    k = nz / step
-    kr = np.rint(k)
-    if np.mean(np.abs(k - kr) <= rtol) < 0.999:
-        return None
-    return float(nz.sum() / kr.sum())
+        return None, math.nan
+    resolution = float(nz.min())
+    # Below ~1e3 ulp of the largest |q| an increment is rounding noise, and any data would fit a grid.
+    if resolution < 1e3 * np.finfo(np.float64).eps * float(np.max(np.abs(q))):
+        return None, resolution
+    for divisor in range(1, GRID_MAX_DIVISOR + 1):
+        step = resolution / divisor
+        k = nz / step
+        kr = np.rint(k)
+        on = np.abs(k - kr) <= GRID_TOLERANCE
+        if np.mean(on) >= GRID_MIN_SHARE:
+            return float(nz[on].sum() / kr[on].sum()), resolution
+    return None, resolution
+
+
+def quantization_step(q: np.ndarray) -> float | None:
+    """The encoder's grid step in ``q`` (m), or None: :func:`encoder_grid`'s step."""
+    return encoder_grid(q)[0]
+

@@ -14,7 +14,8 @@ from shared_paths import EMPS_DIR
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from commission.checks import check_log, encoder_resolution
+from commission.checks import check_log
+from commission.identify.signals import encoder_grid
 from commission.errors import DataError, UsageError
 from commission.logs import ExcitationLog, load_log
 
@@ -280,7 +281,7 @@ def test_resolution_finds_a_step_that_never_occurs_alone():
     rng = np.random.default_rng(3)
     counts = np.cumsum(rng.choice([2, 3, -2, -3, 0], size=1000))
     q = 0.123456 + counts * 2.5e-7
-    step, apparent = encoder_resolution(q)
+    step, apparent = encoder_grid(q)
     assert step == pytest.approx(2.5e-7, rel=1e-9)
     assert apparent == pytest.approx(5e-7, rel=1e-9)
 
@@ -288,17 +289,17 @@ def test_resolution_finds_a_step_that_never_occurs_alone():
 def test_resolution_of_continuous_and_constant_data():
     rng = np.random.default_rng(4)
     q = np.cumsum(rng.standard_normal(1000)) * 1e-6
-    step, apparent = encoder_resolution(q)
+    step, apparent = encoder_grid(q)
     assert step is None and apparent == np.abs(np.diff(q)).min()
-    step, apparent = encoder_resolution(np.full(10, 0.1))
+    step, apparent = encoder_grid(np.full(10, 0.1))
     assert step is None and math.isnan(apparent)
     # Steps at floating-point resolution are rounding noise, not an encoder.
     q = 0.1 + np.array([0, 1, 0, 2, 1]) * np.spacing(0.1)
-    assert encoder_resolution(q)[0] is None
+    assert encoder_grid(q)[0] is None
 
 
 def test_resolution_survives_unit_conversion():
     counts = np.round(50 * np.sin(np.linspace(0, 6, 3000)) * 1e3)  # +-50 mm in 1 um counts
     q = (counts * 1e-3) / 1e3  # written in mm, loaded as metres
-    step, _ = encoder_resolution(q)
+    step, _ = encoder_grid(q)
     assert step == pytest.approx(1e-6, rel=1e-9)
