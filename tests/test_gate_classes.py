@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 
+import numpy as np
 import pytest
 
 from commission.errors import SpecError
@@ -123,3 +124,32 @@ def test_a_stated_load_bound_or_a_set_envelope_is_never_narrowed():
     # a drive that holds the default box is left alone
     big = spec_from_mapping({"controller": {"u_max": 10.0}})
     assert fit_force_to_drive(big, ident, set()) == (ident, ())
+
+
+def test_a_latched_runtime_fault_is_a_safety_failure_on_every_scenario():
+    """A tracking watchdog set below the loop's own error latches FAULT_TRACKING: the step then returns
+    the safe command 0 to the end, which validate reads as a stopped machine (an abort), so a fault on a
+    safety scenario (no error limit there) still refuses; the same loop with the validated guards runs on."""
+    from commission.controllers import arc as A
+    from commission.controllers.simulate import KIND_ARC, simulate
+    from commission.scenarios import case1_trajectory, plant_substeps
+    from commission.spec import default_spec
+    from commission.tune import base_arc_gains
+    from commission.validate import deployable_gains, latched_fault_start
+
+    spec = default_spec()
+    ident = reference_identification(delta_d=0.5)
+    plant = identified_plant(ident)
+    raw = base_arc_gains(ident, spec)
+    traj = case1_trajectory(spec).render(raw.Ts, 0.0)
+    traj = dataclasses.replace(traj, t=traj.t[:2500], qd=traj.qd[:2500], dqd=traj.dqd[:2500], ddqd=traj.ddqd[:2500])
+
+    def sim(g):
+        return simulate(plant, KIND_ARC, A.arc_pack(g), traj, substeps=plant_substeps(1.0 / g.Ts), quant=1e-6,
+                        u_sat=spec.u_max, e_abort=spec.travel)
+
+    ok = sim(deployable_gains(raw, {"e_max": spec.travel}))
+    assert not ok.diverged and latched_fault_start(ok) is None
+    tripped = sim(deployable_gains(raw, {"e_max": 1e-9}))
+    k = latched_fault_start(tripped)
+    assert k is not None and k < 100 and np.all(tripped.u[k:tripped.n_steps] == 0.0)
