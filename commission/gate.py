@@ -666,8 +666,8 @@ COMPARISON_CRITERIA = ("arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90"
 def safe_not_better(verdict: "GateVerdict") -> bool:
     """The gate failed only on the comparison with the PID yardstick (:data:`COMPARISON_CRITERIA`).
 
-    Every floor held, every limit on the ARC alone (errors, c_u, peak command, margins) held on
-    every scenario: the ARC is safe and meets the targets, but it does not beat the yardstick.
+    Every floor held, every limit on the ARC alone (c_u, peak command, margins on every scenario; the
+    error limits on the performance scenarios, :func:`performance_scenarios`) held: the ARC is safe and meets the targets, but it does not beat the yardstick.
     ``validate`` then says so plainly and writes the ARC flagged (``controller_not_better.json``),
     never ``controller.json`` (docs/robustness.md, "Safe but not better").
     """
