@@ -177,3 +177,30 @@ def test_a_negative_viscous_estimate_with_an_interval_reaching_zero_gives_the_ph
     # The known truth: B = 2.97 u-unit s/m, above the box -- the rigid fit is poor on this axis (a
     # 31 % residual); the box is the log's evidence, not the truth, and the gate decides on it.
     assert rec.truth.B > hi
+
+
+def test_monte_carlo_draws_a_defaulted_range_only_where_the_log_supports_it():
+    """The reference box with a payload of 2 M and the load bound of +-1 V: stated, the sample spreads over
+    the whole box; defaulted, masses stay up to the unloaded heavy end and load forces within d_n +- delta_d M."""
+    from commission.scenarios import monte_carlo_plants, monte_carlo_support
+
+    ref = reference_identification(delta_d=0.5)
+    m0, pay = 0.0395, 0.054
+    box = dataclasses.replace(ref.theta, min=(1.0 / (m0 + pay), 0.0948 / (m0 + pay), ref.theta.min[2]))
+
+    def ident(defaulted):
+        b = {"mass_range": [1 / 50.0, m0 + pay], "viscous_range": [0.0948, 0.35], "payload_range": [0.0, pay],
+             "payload_defaulted": defaulted, "disturbance_bound": 1.0, "disturbance_bound_defaulted": defaulted}
+        return dataclasses.replace(ref, theta=box, extra={"bounds": b})
+
+    stated, dflt = ident(False), ident(True)
+    assert monte_carlo_support(stated) == (box.min[0], box.max[0], *force_range(stated))
+    t_lo, t_hi, d_lo, d_hi = monte_carlo_support(dflt)
+    assert t_lo == pytest.approx(1.0 / m0) and t_hi == box.max[0]
+    p = identified_plant(dflt)
+    step = 0.5 * p[P_M]
+    assert (d_lo, d_hi) == (pytest.approx(-p[P_OFFSET] - step), pytest.approx(-p[P_OFFSET] + step))
+    rng = np.random.default_rng
+    full, narrow = monte_carlo_plants(stated, 64, rng(0)), monte_carlo_plants(dflt, 64, rng(0))
+    assert full[:, P_M].max() > 1.5 * m0 and narrow[:, P_M].max() <= m0 * (1 + 1e-12)
+    assert np.abs(full[:, P_OFFSET]).max() > 0.5 and np.abs(narrow[:, P_OFFSET]).max() <= step * (1 + 1e-12)
