@@ -29,9 +29,11 @@ the line says so.  ``--log legacy`` records the commissioning run of issue 30's 
 got, its duration and samples.
 
 Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-5] [--log excite|legacy] [--tune-seed 0]
-[--workers N] [--workdir DIR]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
+[--workers N] [--workdir DIR] [--reuse-logs DIR]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
 parallel processes, each validating on one thread -- the machine's cores are shared, mind
-them; ``--workdir`` keeps each axis's log and run outputs under ``DIR/axisN``).
+them; ``--workdir`` keeps each axis's log and run outputs under ``DIR/axisN``; ``--reuse-logs DIR``
+judges the logs a previous ``--workdir`` kept instead of recording new ones, so that a subset re-runs
+on the same logs after a change of the tool).
 """
 
 from __future__ import annotations
@@ -42,9 +44,11 @@ import pathlib
 import statistics
 import tempfile
 import time
+
+import numpy as np
 from concurrent.futures import ProcessPoolExecutor
 
-from commission.synth import LOG_KINDS, AxisTruth, record_random_axis_log
+from commission.synth import LOG_KINDS, AxisTruth, random_axis, record_random_axis_log
 from commission.true_axis import Judgement, judge_axis
 
 
@@ -84,22 +88,33 @@ def category(j: Judgement) -> str:
     return "no-candidate" + (" (a true-plant PID works)" if j.pid.gains is not None else "")
 
 
-def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite") -> tuple[int, str, str, float, bool, str]:
-    """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written)``."""
+def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
+               logs_from: str | None = None) -> tuple[int, str, str, float, bool, str]:
+    """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written)``.
+
+    ``logs_from``: a previous sweep's ``--workdir``; its ``axisN/log.h5`` is judged again (the truth
+    re-drawn with :func:`commission.synth.random_axis`) instead of recording a new log.
+    """
     d = pathlib.Path(workdir) / f"axis{seed}"
     d.mkdir(parents=True, exist_ok=True)
     t0, c0 = time.perf_counter(), time.process_time()
-    rec = record_random_axis_log(seed, d / "log.h5", log=log)
-    truth = rec.truth
-    how = (f"log {rec.log}" + (f" (asked {rec.requested})" if rec.log != rec.requested else "")
-           + f" {rec.duration_s:.1f} s, {rec.samples} samples" + (f" [{rec.note[:160]}]" if rec.note else ""))
+    if logs_from is not None:
+        log_path = pathlib.Path(logs_from) / f"axis{seed}" / "log.h5"
+        truth = random_axis(np.random.default_rng(seed))  # as record_random_axis_log draws it
+        how = f"log reused from {log_path}"
+    else:
+        log_path = d / "log.h5"
+        rec = record_random_axis_log(seed, log_path, log=log)
+        truth = rec.truth
+        how = (f"log {rec.log}" + (f" (asked {rec.requested})" if rec.log != rec.requested else "")
+               + f" {rec.duration_s:.1f} s, {rec.samples} samples" + (f" [{rec.note[:160]}]" if rec.note else ""))
     t_rec = time.perf_counter() - t0
     try:
-        j = judge_axis(truth, d / "log.h5", out_dir=d / "out", seed=tune_seed, workers=1)
+        j = judge_axis(truth, log_path, out_dir=d / "out", seed=tune_seed, workers=1)
     except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
         dt = time.perf_counter() - t0
         return seed, f"axis {seed:3d}: {describe(truth)} | {how} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
-            "CRASH", math.nan, False, rec.log
+            "CRASH", math.nan, False, log if logs_from is None else "reused"
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
@@ -112,7 +127,7 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite") -> 
     runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{run_text(r)}" for r in j.arc_runs)
     line = (f"axis {seed:3d}: {describe(truth)} | {how} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
             f"| {runs} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
-    return seed, line, cat, j.ratio, j.emitted, rec.log
+    return seed, line, cat, j.ratio, j.emitted, log if logs_from is None else "reused"
 
 
 def main() -> None:
@@ -124,7 +139,13 @@ def main() -> None:
     ap.add_argument("--log", choices=LOG_KINDS, default="excite",
                     help="how each axis is recorded: excite (the plan of commission excite from the axis's "
                          "limits, played on the true axis; default) or legacy (ladder, moves, low multisine)")
+    ap.add_argument("--reuse-logs", type=pathlib.Path, default=None, metavar="DIR",
+                    help="judge the logs a previous sweep kept (DIR/axisN/log.h5, its --workdir) instead of "
+                         "recording new ones; --workdir must then be another folder")
     args = ap.parse_args()
+    if args.reuse_logs is not None and args.workdir is not None and args.workdir.resolve() == args.reuse_logs.resolve():
+        ap.error("--workdir must differ from --reuse-logs (the run outputs would overwrite the kept ones)")
+    logs_from = None if args.reuse_logs is None else str(args.reuse_logs)
     seeds = parse_seeds(args.seeds)
     results = []
     t0 = time.perf_counter()
@@ -132,13 +153,13 @@ def main() -> None:
         workdir = str(args.workdir or tmp)
         if args.workers > 1:
             with ProcessPoolExecutor(max_workers=args.workers) as ex:
-                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log) for s in seeds]
+                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log, logs_from) for s in seeds]
                 for f in futs:
                     results.append(f.result())
                     print(results[-1][1], flush=True)
         else:
             for s in seeds:
-                results.append(sweep_axis(s, workdir, args.tune_seed, args.log))
+                results.append(sweep_axis(s, workdir, args.tune_seed, args.log, logs_from))
                 print(results[-1][1], flush=True)
     n = len(results)
     cats = [r[2] for r in results]

@@ -881,6 +881,8 @@ def identify_log(
         del extra["evidence"]
     if tb is None:
         del extra["bounds"], extra["frequency_response"]  # both need M
+    if tb is not None:
+        tb = _clip_negative_viscous(tb, params, extra, warnings)
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
     ident = Identification(
         units=_units(u_unit, logs[0]),
@@ -910,6 +912,35 @@ def _bounds_record(bounds: BoundsOptions, tb: ThetaBounds) -> dict[str, object]:
 def _units(u_unit: str | None, log: ExcitationLog) -> dict[str, str]:
     """ident.json's ``units``: u after the gain (``--u-unit``, else the file's), q in m or rad."""
     return {"u": u_unit or log.u_unit, "q": "rad" if log.q_unit_in_file == "rad" else "m"}
+
+
+def _clip_negative_viscous(tb: ThetaBounds, params: dict[str, Estimate | None], extra: dict[str, object],
+                           warnings: list[str]) -> ThetaBounds:
+    """A negative viscous estimate whose confidence interval reaches B > 0: the physical box, not a refusal.
+
+    A viscous coefficient below zero (friction that pushes the axis along) is not physical; a fit
+    returns one when the rigid model explains the log poorly (structural modes, a high rate).  The
+    box already holds only B >= 0 (:func:`identify.bounds.theta_bounds_from` cuts its lower end at 0),
+    and when its upper end is above 0 the estimate's interval B + k_sigma std reaches physical values:
+    the nominal B is then clipped to the box's lower end (>= 0), which lies inside that interval's
+    physical part, and the box is kept.  ``bounds.viscous_clipped`` records the estimate and a warning
+    says so.  An interval entirely below zero (upper end 0) is still refused by :func:`_theta_box`.
+    """
+    est = params.get("B")
+    if est is None or not tb.nominal[1] < tb.theta_min[1] or not tb.theta_max[1] > 0:
+        return tb
+    b_phys = float(tb.viscous_range[0])
+    m = 1.0 / tb.nominal[0]
+    params["B"] = Estimate(b_phys, est.std)
+    bounds = extra.get("bounds")
+    if isinstance(bounds, dict):
+        bounds["viscous_clipped"] = {"estimate": est.value, "std": est.std, "clipped_to": b_phys}
+    warnings.append(f"B: the fit's viscous coefficient {est.value:.4g} +- {est.std:.2g} is negative (not physical); "
+                    f"its interval reaches B > 0, so B is taken as {b_phys:.4g}, the lower end of the physical box "
+                    f"[{tb.viscous_range[0]:.4g}, {tb.viscous_range[1]:.4g}] (ident.json bounds.viscous_clipped); "
+                    f"the rigid model explains this log poorly: record a log with a broadband segment "
+                    f"(commission excite)")
+    return dataclasses.replace(tb, nominal=(tb.nominal[0], b_phys / m, tb.nominal[2]))
 
 
 def _theta_box(tb: ThetaBounds, path: str, fit: AxisFit) -> ThetaBox:

@@ -765,8 +765,9 @@ def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> 
     how = ("the fastest PID of (57) that keeps the margin floors on the identified plant and +1 sample"
            if ys.get("method") == "margin_search" else "the PID of (57) at the spec's pole")
     return [
-        f"{b}Safe, but not better than the PID yardstick.{b} The ARC held every floor and every limit on "
-        f"every scenario (no divergence, errors, c_u, peak command, stability margins); it failed only the "
+        f"{b}Safe, but not better than the PID yardstick.{b} The ARC held every floor and every limit "
+        f"(no divergence, c_u, peak command and stability margins on every scenario; the error limits on the "
+        f"identified plant and the ranges the user stated); it failed only the "
         f"comparison with the PID yardstick ({how}, pole {tuning.pid_pole:.4g} rad/s). No "
         f"{code('controller.json')} was written (exit code 1).",
         f"Deployable instead: the ARC, flagged (validated.flag.beats_yardstick = false), in "

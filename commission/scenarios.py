@@ -32,7 +32,8 @@ back-and-forth moves), both scaled to the spec's envelope:
     load can do to it); a second identified mode moves with the first.  Without a known mode, the stability margins
     (:mod:`commission.robustness`) stand in for it.
 ``mc/NNN``
-    ``n_monte_carlo`` plants from the theta box, alternating case1 and case2,
+    ``n_monte_carlo`` plants from the theta box (a defaulted payload or load-force range only
+    where the log supports it: :func:`monte_carlo_support`), alternating case1 and case2,
     drawn from the passed Generator: theta1 uniform in the box (M = 1/theta1),
     the viscous B and the disturbance force d_n = -offset uniform in the ranges
     the box admits at every mass (:func:`viscous_range`, :func:`force_range`),
@@ -617,11 +618,50 @@ def clip_to_box(plants: np.ndarray, ident: Identification) -> np.ndarray:
     return out
 
 
+def monte_carlo_support(ident: Identification) -> tuple[float, float, float, float]:
+    """The part of the theta box the Monte-Carlo sample draws from: ``(theta1_lo, theta1_hi, d_lo, d_hi)``.
+
+    The whole box (theta1 in [theta1_min, theta1_max], d_n in :func:`force_range`), except where
+    ident.json records a range as the tool's default rather than the user's statement
+    (``bounds.payload_defaulted``, ``bounds.disturbance_bound_defaulted``):
+
+    * a defaulted payload: masses up to the unloaded heavy end only (theta1 >= 1 / (M_hi - payload_max),
+      the mass the identification itself supports, with its spread and model margin);
+    * a defaulted load-force bound: d_n within the Assumption-1 load step about the identified
+      constant force, ``-offset +- delta_d M`` (the step the ``disturbance`` scenario applies), cut to
+      :func:`force_range`.
+
+    Why: the Monte-Carlo plants certify performance (the ARC-vs-yardstick quantiles,
+    :mod:`commission.gate`, "What each scenario certifies"), which rests on what the log supports;
+    a default payload of up to three times the mass and a load of ten times the stiction are guesses,
+    whose corners the fixed scenarios (``payload_heavy``, ``disturbance``) and the whole-box margins
+    still hold to safety.  A stated range is drawn in full.
+    """
+    t_lo, t_hi = ident.theta.min[0], ident.theta.max[0]
+    d_lo, d_hi = force_range(ident)
+    b = ident.extra.get("bounds") if isinstance(ident.extra, dict) else None
+    if not isinstance(b, dict):
+        return t_lo, t_hi, d_lo, d_hi
+    pr = b.get("payload_range")
+    if b.get("payload_defaulted") is True and isinstance(pr, list) and len(pr) == 2:
+        m_unloaded = 1.0 / t_lo - float(pr[1])
+        if m_unloaded > 0:
+            t_lo = min(max(t_lo, 1.0 / m_unloaded), t_hi)
+    if b.get("disturbance_bound_defaulted") is True and ident.delta_d is not None:
+        p = identified_plant(ident)
+        dn, r = -float(p[P_OFFSET]), abs(float(ident.delta_d) * float(p[P_M]))
+        lo, hi = max(d_lo, dn - r), min(d_hi, dn + r)
+        if lo <= hi:
+            d_lo, d_hi = lo, hi
+    return t_lo, t_hi, d_lo, d_hi
+
+
 def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator,
                        spec: Spec | None = None) -> np.ndarray:
     """``n`` plant vectors from the theta box (identified friction curve), shape (n, NP).
 
-    theta1 is uniform in the box (M = 1/theta1); the viscous coefficient B is
+    theta1 is uniform in the box (M = 1/theta1), within :func:`monte_carlo_support` (a defaulted payload
+    or load bound is drawn only where the log supports it); the viscous coefficient B is
     uniform in :func:`viscous_range` and the disturbance force d_n = -offset
     uniform in :func:`force_range`, the ranges the box admits at every mass, so
     that theta2 = B / M and theta3 = d_n / M lie in the box for every drawn mass.
@@ -631,11 +671,9 @@ def monte_carlo_plants(ident: Identification, n: int, rng: np.random.Generator,
     payload adds mass, not viscous friction or force.)
     """
     base = identified_plant(ident, spec)
-    lo = ident.theta.min[0]
-    hi = ident.theta.max[0]
+    lo, hi, d_lo, d_hi = monte_carlo_support(ident)
     u = rng.random((n, 3))
     b_lo, b_hi = viscous_range(ident)
-    d_lo, d_hi = force_range(ident)
     out = np.tile(base, (n, 1))
     out[:, P_M] = 1.0 / (lo + (hi - lo) * u[:, 0])
     out[:, P_B] = b_lo + (b_hi - b_lo) * u[:, 1]

@@ -66,13 +66,13 @@ from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             box_checks, margin_checks, resolve_gate, safe_not_better)
+                             box_checks, margin_checks, performance_scenarios, resolve_gate, safe_not_better)
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.evidence import Evidence, RobustStability, evidence_checks, evidence_table
 from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
-                                   nominal_loops, worst)
+                                   nominal_loops, payload_box, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
                                   force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
@@ -327,7 +327,9 @@ def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
       a still run allows (a constant acceleration a spreads positions over at
       least a T^2/8 in a time T, whatever the initial speed).  A smaller push
       counts sqrt of its fraction of the rail's (the same spread takes 1/sqrt(a)
-      as long); a rejected reading counts 1.
+      as long); a rejected reading counts 1.  The delay counted is the identified one plus one
+      sample: the gate certifies the loop with one more sample of delay (``<case>/delay+1``), so
+      the guard must not take the later answer of such a drive for a frozen encoder.
     * ``dy_fault = travel``: no reading can move by the whole stroke in one sample.
     * ``n_reject_max = max(2, ceil(GUARD_REJECT_TIME / Ts))``: the prediction
       (tracking error held) carries the loop through at most 2 ms of glitches.
@@ -351,7 +353,7 @@ def runtime_guards(tuning: Tuning, limits: GateLimits) -> dict[str, Any]:
                         a_max=envelope_acceleration(spec, Ts), u_free=holding_force(tuning.identification, tuning.plant),
                         noise_std=resolve_encoder_noise(tuning.identification, spec),
                         theta1_min=tuning.arc.theta_min[0], u_max=tuning.arc.u_max,
-                        delay=float(tuning.plant[P_DELAY]))
+                        delay=float(tuning.plant[P_DELAY]) + Ts)  # the +1 sample the certificate covers
 
 
 def holding_force(ident: Identification, plant: np.ndarray) -> float:
@@ -498,7 +500,29 @@ def _simulate_one(ctx: _SimContext, s: Any, kind: int, keep: bool) -> _Outcome:
                  e_abort=ctx.e_abort)
     th = r.theta_hat
     final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
-    return _Outcome(_score(r), _t_abort(r, ctx.Ts), final, r if keep else None)  # type: ignore[arg-type]
+    score, t_abort = _score(r), _t_abort(r, ctx.Ts)
+    k = latched_fault_start(r) if kind == KIND_ARC and not r.diverged else None
+    if k is not None:
+        # A latched runtime guard (the safe command 0 to the end) stops the machine: a safety failure on
+        # every scenario, as an abort is (the error limits no longer catch it on a safety scenario).
+        score, t_abort = dataclasses.replace(score, diverged=True), k * ctx.Ts
+    return _Outcome(score, t_abort, final, r if keep else None)  # type: ignore[arg-type]
+
+
+#: Trailing samples of an exactly-zero ARC command that count as a latched runtime fault (the step's
+#: safe command): a running ARC's command (feedforward, friction compensation, robust terms) is never
+#: exactly 0.0 for this long.
+FAULT_ZERO_SAMPLES = 8
+
+
+def latched_fault_start(r: SimResult) -> int | None:
+    """The sample from which the ARC's command is exactly 0 to the end, when that is a latched fault
+    (at least :data:`FAULT_ZERO_SAMPLES` samples, ending the run); else None."""
+    u = r.u[: r.n_steps]
+    if u.size < FAULT_ZERO_SAMPLES or np.any(u[-FAULT_ZERO_SAMPLES:] != 0.0):
+        return None
+    nz = np.flatnonzero(u != 0.0)
+    return int(nz[-1]) + 1 if nz.size else 0
 
 
 def _simulate_chunk(ctx: _SimContext, chunk: Sequence[tuple[Any, bool]]) -> list[tuple[_Outcome, _Outcome]]:
@@ -621,7 +645,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                           limits={k: float(getattr(arc, k)) for k in ("u_max", "k1s_max", "k2s_max")},
                           drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
     with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
-        gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors)
+        gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors,
+                              performance=performance_set(runs, tuning.identification))
     # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
     box = BoxArcCheck(tuning.identification, spec)(arc)
     evidence, evidence_rows = evidence_table(arc, tuning.pid, tuning.identification, spec)
@@ -641,6 +666,20 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             evidence=evidence, evidence_rows=evidence_rows,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
                             executor=ex.describe(), monte_carlo_summary=mc_summary)
+
+
+def performance_set(runs: Sequence[RunRecord], ident: Identification) -> frozenset[str]:
+    """The validation's PERFORMANCE scenarios (:func:`commission.gate.performance_scenarios`).
+
+    The payload range counts as stated unless ident.json records it as defaulted
+    (``bounds.payload_defaulted``, :func:`commission.robustness.payload_box`), the load-force bound
+    unless ``bounds.disturbance_bound_defaulted`` is true.
+    """
+    pb = payload_box(ident)
+    bounds = ident.extra.get("bounds")
+    dist_defaulted = isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True
+    return performance_scenarios([r.name for r in runs], payload_stated=pb is None or not pb[3],
+                                 disturbance_stated=not dist_defaulted)
 
 
 # --------------------------------------------------------------------------- controller.json
@@ -974,5 +1013,5 @@ __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
     "controller_config", "validated_record", "not_better_flag", "FLAGGED_NAME", "run_validate", "write_outputs", "output_names", "check_provenance",
     "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration", "holding_force",
-    "log_sha256_of",
+    "log_sha256_of", "latched_fault_start", "performance_set",
 ]

@@ -242,8 +242,17 @@ def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
     # nor is one that fits the drive at its default
     doc["bounds"]["disturbance_bound_defaulted"] = True
     assert tune_mod.resolve_spec({}, "s.toml", Identification.from_dict(doc)).notes == ()
-    # friction alone above the share: still refused
+    # friction above the share (0.6 V of 1.4 V): the share rule declines, and the range is narrowed to the
+    # load step delta_d M about d_n instead of a refusal (issue 30, commission.tune.box.fit_force_to_drive)
     doc["parameters"]["fs"]["value"] = 0.5
+    idn = Identification.from_dict(doc)
+    rs = tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", idn)
+    step = idn.delta_d * idn.value("M")
+    assert rs.ident.theta.max[2] == pytest.approx(step * 50.0, rel=1e-12)  # theta3 binds at the lightest mass
+    assert "certified for that load range only" in rs.notes[0]
+    assert tune_mod.drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
+    # friction alone above the budget: still refused, naming u_max
+    doc["parameters"]["fs"]["value"] = 1.2
     with pytest.raises(SpecError, match=r"controller\.u_max = 2 V is too small"):
         tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
 

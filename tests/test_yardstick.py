@@ -100,3 +100,26 @@ def test_spec_pole_is_kept_and_flagged_when_it_misses_the_floors():
     again = YardstickChoice.from_dict(choice.to_dict())
     assert again.to_dict() == choice.to_dict()
     assert math.isclose(again.radius_plus_one, choice.radius_plus_one)
+
+
+def test_the_recorded_yardstick_is_the_final_pid_where_the_evidence_bounds_the_loop():
+    """A rigid log backed to 22 Hz (the sample's whole-log band): the fastest PID that keeps the margin
+    floors reaches beyond the evidence (||W T|| >= 1).  The evidence bound is part of the yardstick's
+    admissibility, so the recorded choice already holds it and pid_within_evidence keeps it: tuning.json's
+    ``pid_yardstick`` and the PID that is validated are the same controller."""
+    from commission.evidence import EvidenceBound
+    from commission.tune.baseline import pid_within_evidence
+
+    ident = reference_identification(frequency_response={"source": "whole_log", "band_hz": [8.0, 22.0]})
+    spec = spec_from_mapping({})
+    bound = EvidenceBound(ident, spec)
+    assert bound.evidence.applies
+    margin_only = [c for c in pid_candidates(ident, spec, [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS])
+                   if c.admissible]
+    fastest = max(c.pole for c in margin_only)
+    assert not bound.pid_row(pid_baseline(ident, spec.__class__(**{**spec.__dict__, "pid_pole": fastest}))[0]).holds
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert choice.is_yardstick and base.pole == choice.pole < fastest
+    assert bound.pid_row(base.gains).holds
+    final = pid_within_evidence(base, ident, spec, _evaluator(1e-6), True)
+    assert final is base

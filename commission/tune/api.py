@@ -53,7 +53,7 @@ from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import pid_within_evidence, pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
-from commission.tune.box import box_guarantees, fit_payload_to_drive, narrow_default_payload, validity_of
+from commission.tune.box import box_guarantees, fit_force_to_drive, fit_payload_to_drive, narrow_default_payload, validity_of
 
 
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
@@ -247,6 +247,8 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
         check_moves_against_drive(spec, ident, spec_name)
     spec, rate_notes = rate_scaled_envelope(spec, given, ident.units)
     ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
+    ident, force_notes = fit_force_to_drive(spec, ident, given, spec_name)
+    box_notes = box_notes + force_notes
     ident, drive_notes = fit_payload_to_drive(spec, ident, given, spec_name)
     spec, notes = default_envelope(spec, ident, given, spec_name)
     spec, ref_notes = reference_envelope(spec, ident, given, spec_name)

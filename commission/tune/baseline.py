@@ -318,6 +318,30 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     return out
 
 
+def _within_evidence(cands: list[PidCandidate], ident: Identification, spec: Spec) -> list[PidCandidate]:
+    """``cands`` with the evidence bound as one more admissibility test (:mod:`commission.evidence`).
+
+    Where the log backs the model only up to a band (the evidence applies), a PID whose loop has
+    ``||W T|| >= 1`` reaches beyond it and certifies nothing: it gets the violation ``"beyond the
+    evidence ..."``, so that :func:`pid_yardstick` never records a yardstick that
+    :func:`pid_within_evidence` would then lower (tuning.json's ``pid_yardstick`` is the final PID).
+    """
+    from commission.evidence import EvidenceBound
+
+    bound = EvidenceBound(ident, spec)
+    if not bound.evidence.applies:
+        return cands
+    out = []
+    for c in cands:
+        if c.admissible:
+            row = bound.pid_row(pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole))[0])
+            if not row.holds:
+                c = dataclasses.replace(c, violations=c.violations + (
+                    f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",))
+        out.append(c)
+    return out
+
+
 def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: float,
                   pole_free: bool) -> tuple[PidBaseline, YardstickChoice]:
     """The PID the ARC is judged against: the best PID of (57) under the ARC's own margin floors.
@@ -327,8 +351,10 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     paper's (57) with the triple pole of (56) at M_min, its pole swept over
     :data:`YARDSTICK_POLE_FRACTIONS` x f_s.  A pole is admissible when the PID keeps every floor
     of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
-    is stable with one more sample of delay (:func:`pid_candidates`); a PID that is unstable on
-    the identified model or with +1 sample is never the yardstick.  Of the admissible poles the
+    is stable with one more sample of delay (:func:`pid_candidates`) and, where the log backs the
+    model only up to a band, holds the evidence bound ``||W T|| < 1`` (:func:`_within_evidence`,
+    the test :func:`pid_within_evidence` applies after the choice, so the two agree); a PID that
+    is unstable on the identified model or with +1 sample is never the yardstick.  Of the admissible poles the
     fastest (the largest bandwidth) whose simulated PID stays within ``c_u_limit`` and bounded on
     every tuning scenario is chosen (up to :data:`YARDSTICK_BATCHES` batches of
     :data:`YARDSTICK_BATCH`, simulated together); when none of those does, the slowest of them.
@@ -344,7 +370,7 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
         return base, YardstickChoice("spec_pole", base.pole, 1, int(c.admissible), 1, c.margins,
                                      c.radius_plus_one, c.violations)
     poles = [fr * spec.sample_rate for fr in YARDSTICK_POLE_FRACTIONS]
-    cands = pid_candidates(ident, spec, poles)
+    cands = _within_evidence(pid_candidates(ident, spec, poles), ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
     if not ok:
         base = deployable_pid(ident, spec, ev, c_u_limit, True)

@@ -147,6 +147,83 @@ def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
     return _narrowed(ident, lo, why)
 
 
+def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
+                       source: str = "spec (defaults)") -> tuple[Identification, tuple[str, ...]]:
+    """Narrow a *defaulted* load-force range to what the drive can hold, instead of refusing the axis.
+
+    :func:`commission.tune.defaults.fit_disturbance_to_drive` narrows a defaulted load-force bound
+    (``10 max(fc, fs)``) to a fixed share of the drive's feedforward budget; when that share cannot
+    even hold the Assumption-1 load step of the ``disturbance`` scenario (``|offset| + delta_d M``),
+    it leaves the box, and :func:`commission.tune.defaults.default_envelope` used to refuse the axis
+    ("controller.u_max ... too small for this theta box") although no one stated that load.  Here,
+    when the bound was defaulted and the box (with :func:`fit_payload_to_drive`'s payload fit) still
+    leaves the drive no default envelope, the force range is narrowed symmetrically about the
+    identified constant force to the load step that validate applies (``delta_d M`` about it): the
+    least a certificate may cover, and the most room left to the envelope (whose defaulted keys
+    :func:`commission.tune.defaults.default_envelope` then fits to the drive).  The record and
+    note are :func:`fit_disturbance_to_drive`'s (``bounds.narrowed_by_tune``: ``validate`` checks
+    and undoes it for provenance), so the range of validity is stated in tuning.json and the report.
+
+    A bound the user stated, an envelope set in full, a box already narrowed, or a drive that cannot
+    hold even the load step is left alone: ``default_envelope`` then refuses, naming ``controller.u_max``
+    and the term that does not fit.
+    """
+    from commission.controllers.plant import P_M, P_OFFSET
+    from commission.errors import SpecError
+    from commission.scenarios import force_range, identified_plant
+    from commission.tune.defaults import _axis_units, default_envelope
+
+    bounds = ident.extra.get("bounds")
+    if not (isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True) \
+            or "narrowed_by_tune" in bounds or {"v_max", "a_max"} <= given or ident.theta is None:
+        return ident, ()
+
+    def fits(idn: Identification) -> bool:
+        idn2, _ = fit_payload_to_drive(spec, idn, given, source)
+        try:
+            default_envelope(spec, idn2, given, source)
+        except SpecError:
+            return False
+        return True
+
+    if fits(ident):
+        return ident, ()
+    p = identified_plant(ident)
+    dn = -float(p[P_OFFSET])
+    m_light = 1.0 / ident.theta.max[0]
+    d_lo, d_hi = force_range(ident)
+    r_min = max(float(ident.delta_d) * float(p[P_M]), 0.0)  # the load step of the disturbance scenario
+    r_max = max(dn - d_lo, d_hi - dn)
+    if not r_max > r_min:
+        return ident, ()
+
+    def narrowed(reach: float) -> Identification:
+        lo = max(ident.theta.min[2], (dn - reach) / m_light)
+        hi = min(ident.theta.max[2], (dn + reach) / m_light)
+        theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
+        b = dict(bounds)
+        b["narrowed_by_tune"] = {"theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
+                                 "force_range": [d_lo, d_hi], "narrowed_force_range": [lo * m_light, hi * m_light],
+                                 "u_max": spec.u_max}
+        return dataclasses.replace(ident, theta=theta, extra={**ident.extra, "bounds": b})
+
+    out = narrowed(r_min)
+    if not fits(out):
+        return ident, ()
+    u = ident.units.get("u", "u-unit")
+    _, _, a_unit = _axis_units(ident.units)
+    old_bound = bounds.get("disturbance_bound")
+    was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
+    f_lo, f_hi = out.extra["bounds"]["narrowed_by_tune"]["narrowed_force_range"]
+    note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to "
+            f"[{out.theta.min[2]:.4g}, {out.theta.max[2]:.4g}] {a_unit} (constant load force {f_lo:.3g}..{f_hi:.3g} "
+            f"{u}, from {d_lo:.3g}..{d_hi:.3g} {u}): the defaulted load-force bound{was} with friction leaves "
+            f"controller.u_max = {spec.u_max:g} {u} no default envelope on the most demanding plant; the controller "
+            f"is certified for that load range only.  State the real load with commission identify "
+            f"--disturbance-bound")
+    return out, (note,)
+
+
 def mass_unit(ident: Identification) -> str:
     """The mass unit of the axis: u-unit·s²/m (or /rad)."""
     u = ident.units.get("u", "u-unit")
@@ -189,4 +266,4 @@ def box_guarantees(box: BoxRobustness, spec: Spec, validity: dict[str, Any] | No
     }
 
 
-__all__ = ["box_guarantees", "mass_unit", "narrow_default_payload", "start_gains", "validity_of"]
+__all__ = ["box_guarantees", "fit_force_to_drive", "mass_unit", "narrow_default_payload", "start_gains", "validity_of"]
