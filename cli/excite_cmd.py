@@ -9,7 +9,7 @@ from rich.console import Console
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
-from commission.excite import load_excite_spec, plan_run, write_plan_csv, write_plan_h5
+from commission.excite import band_lines, load_excite_spec, plan_run, write_plan_csv, write_plan_h5
 from commission.files import Outputs
 from commission.jsonio import write_json_atomic
 
@@ -21,7 +21,8 @@ PLAN_NAMES = ("plan.csv", "plan.h5", "plan.json", "plan.png")
 @cli_errors
 def excite(
     spec: Path = typer.Option(..., "--spec", help="limits.toml: [limits] travel, v_max, a_max, u_max; [drive] "
-                              "sample_rate and bandwidth_hz or kp, kd (ki); [axis] optional mass, friction; [plan]."),
+                              "sample_rate and bandwidth_hz or kp, kd (ki); [axis] optional mass, friction, encoder_step, encoder_noise; [evidence] optional "
+                              "target_hz, first_mode_hz; [plan]."),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for plan.csv, plan.h5, plan.json, plan.png."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing plan files in --out-dir."),
 ) -> None:
@@ -60,6 +61,8 @@ def excite(
     if plan.injection_scale < 1.0:
         console.print(f"note: the injection was lowered to {plan.injection_scale:.3g} of its design amplitude "
                       "to stay within the limits")
+    for line in band_lines(plan):
+        console.print(line, markup=False)
     for name in PLAN_NAMES:
         console.print(f"wrote {out_dir / name}")
     console.print(f"next: play plan.csv on the drive (u_inject added to the holding loop's command), record t, q, u "
