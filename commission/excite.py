@@ -36,6 +36,16 @@ the limit over the peak (by 5 % to a half; up to :data:`MAX_INJECTION_RETRIES` r
 in all); a loop that diverges, or a limit still broken, and the plan is refused naming
 the limit, the segment and the model.
 
+The band the plan will back
+---------------------------
+:func:`predict_band` says, before the machine time is spent, up to which frequency a recording
+of the plan will back the model: the injection's spectrum on identify's bins against the
+encoder's floor (``[axis] encoder_step``, ``encoder_noise``), through the holding loop on the
+rigid model, gives the expected coherence, and identify's own band rule
+(:func:`commission.identify.frf.backed_band`) the band.  Against ``[evidence] target_hz`` (or
+1.5 times ``first_mode_hz``) a short band is warned with what would reach the target
+(:func:`band_lines`).
+
 :func:`simulate_plan` plays a plan on a known-truth :class:`commission.synth.AxisTruth`
 through the same loop and returns a log in the CONTRACT §1 format (tests, sample data).
 """
