@@ -46,6 +46,8 @@ def excite(
     pk = plan.peaks
     console.print(f"plan: {plan.duration:.2f} s ({plan.duration / 60:.2f} min), {plan.t.size} samples at "
                   f"{s.sample_rate:g} Hz, {len(plan.segments)} segments")
+    for line in band_lines(plan):
+        console.print(line, markup=False, soft_wrap=True)
     for g in plan.segments:
         extra = "".join(f", {k} {g.info[k]:.4g} {un}" for k, un in (("speed", f"{q}/s"), ("amplitude", u),
                                                                    ("acceleration", f"{q}/s^2")) if k in g.info)
@@ -61,8 +63,6 @@ def excite(
     if plan.injection_scale < 1.0:
         console.print(f"note: the injection was lowered to {plan.injection_scale:.3g} of its design amplitude "
                       "to stay within the limits")
-    for line in band_lines(plan):
-        console.print(line, markup=False)
     for name in PLAN_NAMES:
         console.print(f"wrote {out_dir / name}")
     console.print(f"next: play plan.csv on the drive (u_inject added to the holding loop's command), record t, q, u "

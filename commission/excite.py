@@ -1059,9 +1059,12 @@ def band_lines(plan: Plan) -> list[str]:
         r = pr.remedies
         ways = []
         if r.get("injection_amplitude_factor") is not None:
+            room = s.u_max - (s.friction or 0.0)
+            within = (f"within u_max {s.u_max:g} {u}" if r["injection_amplitude"] <= room else
+                      f"beyond u_max {s.u_max:g} {u} less friction: not reachable by the injection alone")
             ways.append(f"an injection {r['injection_amplitude_factor']:.3g} times larger "
                         f"({r['injection_amplitude']:.4g} {u}: a_max >= {r['a_max_for_injection']:.4g} {q}/s^2 "
-                        f"for the injection segment, within u_max {s.u_max:g} {u})")
+                        f"for the injection segment, {within})")
         if r.get("encoder_floor_factor") is not None:
             ways.append(f"an encoder floor {1 / r['encoder_floor_factor']:.3g} times lower (step "
                         f"{r['encoder_step']:.3g} {q}, noise {r['encoder_noise']:.3g} {q} rms)")
