@@ -932,8 +932,14 @@ def _injection_psd(plan: Plan) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def expected_coherence(f_hz: np.ndarray, psd_inject: np.ndarray, floor_psd: float, M: float, B: float,
-                       gains: tuple[float, float, float], fs: float, n_averages: int) -> np.ndarray:
-    """Expected coherence of identify's H1 estimate u -> q in the holding loop, per bin (1).
+                       gains: tuple[float, float, float], fs: float, n_averages: int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Expected coherence of identify's H1 estimate u -> q in the holding loop, and its ratio to the model.
+
+    Returns ``(gamma^2, R)`` per bin: ``R = E[H1] / P`` with
+    ``E[H1] = (P Pii - conj(C) Pnn) / (Pii + |C|^2 Pnn)``, which tends to ``-1 / C`` where the
+    loop's answer to the noise dominates the command (coherent, but not the plant: identify's band
+    rule ends the band there by the model's disagreement, and so does the prediction).
 
     The encoder's reading is ``q_m = P u + n`` (``n``: its noise and quantization, white, one-sided
     density ``floor_psd``); the recorded command is ``u = S u_i - C S n`` with ``S = 1 / (1 + C P)``,
@@ -957,7 +963,10 @@ def expected_coherence(f_hz: np.ndarray, psd_inject: np.ndarray, floor_psd: floa
     with np.errstate(divide="ignore", invalid="ignore"):
         g2 = np.where(den > 0, num / den, 0.0)
     g2 = np.clip(np.nan_to_num(g2), 0.0, 1.0)
-    return np.clip(g2 + (1.0 - g2) ** 2 / max(int(n_averages), 1), 0.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = (P * Pii - np.conj(C) * Pnn) / ((Pii + np.abs(C) ** 2 * Pnn) * P)
+    R = np.where(np.isfinite(R), R, 0.0)
+    return np.clip(g2 + (1.0 - g2) ** 2 / max(int(n_averages), 1), 0.0, 1.0), R
 
 
 def predict_band(plan: Plan) -> BandPrediction:
@@ -967,8 +976,8 @@ def predict_band(plan: Plan) -> BandPrediction:
     :func:`injection_ranges`), the response on the rigid model of the nominal mass (``[axis] mass``,
     else the geometric mean of :func:`mass_bracket`) in the holding loop of ``[drive]``, the floor
     ``(encoder_noise^2 + encoder_step^2 / 12) * 2 / sample_rate`` (white up to Nyquist); the expected
-    coherence (:func:`expected_coherence`) goes through identify's own band rule
-    (:func:`commission.identify.frf.backed_band`, the model taken as right).  A structural mode is not
+    coherence and the expected estimate over the model (:func:`expected_coherence`) go through
+    identify's own band rule (:func:`commission.identify.frf.backed_band`).  A structural mode is not
     in the model: above a motor-side mode the motor moves more than the rigid body (the band is then
     a little higher), below an anti-resonance less.
 
@@ -989,13 +998,15 @@ def predict_band(plan: Plan) -> BandPrediction:
     gains = loop_gains_for(s, M)
     f, Pii, n_avg = _injection_psd(plan)
 
+    def predicted(scale_inj: float = 1.0, scale_floor: float = 1.0, n: int = n_avg):
+        g2, R = expected_coherence(f, Pii * scale_inj, floor * scale_floor, M, B, gains, fs, n)
+        return g2, (backed_band(f, R, g2) if f.size else None)
+
     def top(scale_inj: float = 1.0, scale_floor: float = 1.0, n: int = n_avg) -> tuple[np.ndarray, float]:
-        g2 = expected_coherence(f, Pii * scale_inj, floor * scale_floor, M, B, gains, fs, n)
-        band = backed_band(f, np.ones(f.size, complex), g2) if f.size else None
+        g2, band = predicted(scale_inj, scale_floor, n)
         return g2, (float(band[1]) if band is not None else 0.0)
 
-    g2, _ = top()
-    band = backed_band(f, np.ones(f.size, complex), g2) if f.size else None
+    g2, band = predicted()
     band_t = (float(band[0]), float(band[1])) if band is not None else None
     target, source = None, None
     if s.target_band_hz is not None:
