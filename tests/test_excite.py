@@ -173,8 +173,9 @@ def test_emitted_plan_never_exceeds_a_limit(travel, v_max, a_max, u_max, fs, bw_
 # motion it makes at f falls as a_max / (2 pi f)^2 against the encoder's noise floor.  Measured with
 # these plans: a 500 Hz mode on a 1 um scale with 0.5 um noise and a_max = 20 m/s^2 is backed to
 # ~595 Hz (1.2x); with 0.1 um / 0.2 um (A below) past 750 Hz.  C's 5 um scale at 1 kHz and a_max = 10 m/s^2
-# backs 205-210 Hz with a 130 Hz mode, 315 Hz with a 300 Hz one (found at 299 Hz, but not backed to 450 Hz),
-# so its mode is 130 Hz.  Seeds 0-4 of the recording: A's band 760-815 Hz, B's 1755-1815 Hz, C's 205-210 Hz,
+# backs 205-210 Hz with a 130 Hz mode, 315 Hz with a 300 Hz one (found at 299 Hz, but not backed to 450 Hz;
+# with today's plan 135-145 Hz over seeds 0-4: test_predicted_band_agrees_with_identify_on_known_truth), so its
+# mode is 130 Hz.  Seeds 0-4 of the recording: A's band 760-815 Hz, B's 1755-1815 Hz, C's 205-210 Hz,
 # C's damping 15-20 % high (the 5 Hz bins smooth its 16 Hz wide peak).  Figures: docs/interface.md §10.
 LOOP_AXES = {
     "A 2.5 kHz, motor-side 500 Hz mode, 0.1 um scale, 0.2 um noise, 0.5-sample delay": (
