@@ -9,7 +9,7 @@ from rich.console import Console
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
-from commission.excite import load_excite_spec, plan_run, write_plan_csv, write_plan_h5
+from commission.excite import band_lines, load_excite_spec, plan_run, write_plan_csv, write_plan_h5
 from commission.files import Outputs
 from commission.jsonio import write_json_atomic
 
@@ -21,7 +21,8 @@ PLAN_NAMES = ("plan.csv", "plan.h5", "plan.json", "plan.png")
 @cli_errors
 def excite(
     spec: Path = typer.Option(..., "--spec", help="limits.toml: [limits] travel, v_max, a_max, u_max; [drive] "
-                              "sample_rate and bandwidth_hz or kp, kd (ki); [axis] optional mass, friction; [plan]."),
+                              "sample_rate and bandwidth_hz or kp, kd (ki); [axis] optional mass, friction, encoder_step, encoder_noise; [evidence] optional "
+                              "target_hz, first_mode_hz; [plan]."),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for plan.csv, plan.h5, plan.json, plan.png."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing plan files in --out-dir."),
 ) -> None:
@@ -45,6 +46,8 @@ def excite(
     pk = plan.peaks
     console.print(f"plan: {plan.duration:.2f} s ({plan.duration / 60:.2f} min), {plan.t.size} samples at "
                   f"{s.sample_rate:g} Hz, {len(plan.segments)} segments")
+    for line in band_lines(plan):
+        console.print(line, markup=False, soft_wrap=True)
     for g in plan.segments:
         extra = "".join(f", {k} {g.info[k]:.4g} {un}" for k, un in (("speed", f"{q}/s"), ("amplitude", u),
                                                                    ("acceleration", f"{q}/s^2")) if k in g.info)
