@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from commission.blas import one_blas_thread
 
 from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
@@ -143,7 +143,7 @@ def _one_thread(fn):
     """Run ``fn`` with BLAS on one thread: its small dense problems lose more to threading than they gain."""
     @functools.wraps(fn)
     def wrapped(*args, **kwargs):
-        with threadpool_limits(1):
+        with one_blas_thread():
             return fn(*args, **kwargs)
 
     return wrapped
@@ -186,7 +186,7 @@ class IdentifiedPlantArcMargins:
         self.name, p = margin_plants(ident, spec)[0]
         self.plant = sampled_plant(p, spec.period)
         self.f_hz = frequency_grid(spec.period)
-        with threadpool_limits(1):
+        with one_blas_thread():
             self.response = self.plant.frequency_response(self.f_hz)
         self.theta_plant = _theta_of(p, ident.theta.nominal[2])
 
@@ -415,7 +415,7 @@ class BoxArcCheck:
         self.plants = box_plants(ident, spec, self.theta_min)
         self.f_hz = frequency_grid(Ts)
         self.th3 = ident.theta.nominal[2]
-        with threadpool_limits(1):
+        with one_blas_thread():
             self.sampled = [sampled_plant(p, Ts) for _, p in self.plants]
             self.responses = [sp.frequency_response(self.f_hz) for sp in self.sampled]
             self.ss = [sp.state_space() for sp in self.sampled]

@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.linalg import expm, matrix_balance, schur
 
 from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE2_DAMPING, P_MODE2_HZ, P_MODE2_LOAD_SIDE,
@@ -106,9 +107,9 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
 
     ``A`` is balanced (a diagonal similarity, scipy.linalg.matrix_balance: the linearised ARC's
     states span fifteen decades of scale) and reduced once to complex Schur form
-    ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
-    every frequency at once by back-substitution: O(n^2) array operations over the grid
-    instead of a dense LU per frequency (tests/test_margins.py holds it to the dense solve;
+    ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved by
+    back-substitution at each frequency (compiled, :func:`_triangular_response`): O(n^2) per
+    frequency instead of a dense LU per frequency (tests/test_margins.py holds it to the dense solve;
     docs/robustness.md has the timing).  The balancing matters: the unitary reduction's
     rounding is relative to the largest entry, which without it swamps the small ones.  An
     eigen-decomposition would not do: the linearised ARC has near-repeated poles at z = 1.
@@ -125,11 +126,31 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     T, U = schur(Ab.astype(complex), output="complex")
     bt = U.conj().T @ (b / scale)
     ct = (c * scale) @ U
-    x = np.empty((z.size, n), dtype=complex)
-    for k in range(n - 1, -1, -1):  # (z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k
-        r = bt[k] + x[:, k + 1:] @ T[k, k + 1:] if k < n - 1 else np.full(z.size, bt[k])
-        x[:, k] = r / (z - T[k, k])
-    return x @ ct + D
+    return _triangular_response(np.ascontiguousarray(T), bt, ct, complex(D), z)
+
+
+@njit(cache=True)
+def _triangular_response(T, bt, ct, D, z):
+    """``ct (zI - T)^-1 bt + D`` for upper-triangular ``T`` at every ``z``, by back-substitution.
+
+    ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up, one frequency at a
+    time (compiled: no temporaries over the grid, no BLAS threads for these small products).
+    """
+    n = T.shape[0]
+    out = np.empty(z.size, dtype=np.complex128)
+    x = np.empty(n, dtype=np.complex128)
+    for i in range(z.size):
+        zi = z[i]
+        acc = D
+        for k in range(n - 1, -1, -1):
+            r = bt[k]
+            for j in range(k + 1, n):
+                r += T[k, j] * x[j]
+            x[k] = r / (zi - T[k, k])
+        for k in range(n):
+            acc += x[k] * ct[k]
+        out[i] = acc
+    return out
 
 
 @dataclass(frozen=True)

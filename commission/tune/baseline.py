@@ -292,7 +292,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     included), the floors the spec's ``[margins]`` (:class:`commission.robustness.MarginFloors`):
     the same loop and the same floors the ARC is held to.  Linear checks only (no simulation).
     """
-    from threadpoolctl import threadpool_limits
+    from commission.blas import one_blas_thread
     from commission.controllers.linear import sampled_plant
     from commission.controllers.margins import closed_loop_radius, frequency_grid, linearize_pid, loop_margins
     from commission.robustness import MarginFloors, floor_violations
@@ -301,7 +301,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     floors = MarginFloors.from_spec(spec)
     p = identified_plant(ident, spec)
     out = []
-    with threadpool_limits(1):
+    with one_blas_thread():
         sp = sampled_plant(p, spec.period)
         sp1 = sampled_plant(p, spec.period, extra_delay=1.0)
         f = frequency_grid(spec.period)
