@@ -102,14 +102,20 @@ def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarra
 
 
 def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts: float,
-                      f_hz: np.ndarray) -> np.ndarray:
+                      f_hz: np.ndarray, *, compiled: bool = False) -> np.ndarray:
     """``C (zI - A)^-1 B + D`` of a single-input single-output discrete system at ``z = exp(j 2 pi f Ts)``.
 
     ``A`` is balanced (a diagonal similarity, scipy.linalg.matrix_balance: the linearised ARC's
     states span fifteen decades of scale) and reduced once to complex Schur form
-    ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved by
-    back-substitution at each frequency (compiled, :func:`_triangular_response`): O(n^2) per
-    frequency instead of a dense LU per frequency (tests/test_margins.py holds it to the dense solve;
+    ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
+    every frequency at once by back-substitution: O(n^2) array operations over the grid
+    instead of a dense LU per frequency, or with ``compiled`` one frequency at a time in a
+    compiled loop (:func:`_triangular_response`: no temporaries over the grid and no BLAS
+    threads; the same values to rounding, summed in another order).  The controllers' responses,
+    computed for every candidate of a search, take the compiled loop
+    (:meth:`commission.controllers.margins.LinearController.frequency_response`); the plants'
+    keep the array form, so that identification's fits, which use them, give the same figures
+    to the last bit as before (tests/test_margins.py holds both to the dense solve;
     docs/robustness.md has the timing).  The balancing matters: the unitary reduction's
     rounding is relative to the largest entry, which without it swamps the small ones.  An
     eigen-decomposition would not do: the linearised ARC has near-repeated poles at z = 1.
@@ -126,7 +132,13 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     T, U = schur(Ab.astype(complex), output="complex")
     bt = U.conj().T @ (b / scale)
     ct = (c * scale) @ U
-    return _triangular_response(np.ascontiguousarray(T), bt, ct, complex(D), z)
+    if compiled:
+        return _triangular_response(np.ascontiguousarray(T), bt, ct, complex(D), z)
+    x = np.empty((z.size, n), dtype=complex)
+    for k in range(n - 1, -1, -1):  # (z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k
+        r = bt[k] + x[:, k + 1:] @ T[k, k + 1:] if k < n - 1 else np.full(z.size, bt[k])
+        x[:, k] = r / (z - T[k, k])
+    return x @ ct + D
 
 
 @njit(cache=True)

@@ -83,8 +83,10 @@ class LinearController:
     Ts: float
 
     def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
-        """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m."""
-        return discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f_hz)
+        """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m (the compiled back-substitution of
+        :func:`commission.controllers.linear.discrete_response`: a search evaluates it for every
+        candidate)."""
+        return discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f_hz, compiled=True)
 
 
 def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,

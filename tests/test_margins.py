@@ -21,7 +21,7 @@ import pytest
 from scipy.signal import cont2discrete, ss2tf
 
 from commission.controllers.arc import arc_pack, arc_step, paper_gains_implementable
-from commission.controllers.linear import continuous_model, sampled_plant
+from commission.controllers.linear import continuous_model, discrete_response, sampled_plant
 from commission.controllers.margins import (arc_operating_point, closed_loop_radius, frequency_grid, linearize_arc,
                                             linearize_pid, loop_margins)
 from commission.controllers.pid import pid_pack, pid_place_poles
@@ -147,6 +147,10 @@ def test_frequency_response_of_the_badly_scaled_linearised_arc_equals_a_dense_so
     sp = sampled_plant(p, TS)
     A, B, C = sp.state_space()
     np.testing.assert_allclose(sp.frequency_response(f), _dense_response(A, B, C, 0.0, TS, f), rtol=1e-9)
+    # the compiled back-substitution (the controllers' path) on the plant too, and the array form on the ARC
+    np.testing.assert_allclose(discrete_response(A, B, C, 0.0, TS, f, compiled=True),
+                               _dense_response(A, B, C, 0.0, TS, f), rtol=1e-9)
+    np.testing.assert_allclose(discrete_response(lin.Ac, lin.Bc, lin.Cc, lin.Dc, TS, f, compiled=False), ref, rtol=1e-9)
 
 
 # --------------------------------------------------------------------------- the paper's fact
