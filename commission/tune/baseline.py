@@ -195,10 +195,14 @@ def pid_pole_note(tuning: Tuning) -> str | None:
 #: to 0.4 f_s, geometric (the paper's 300 rad/s at 2.5 kHz is 0.12 f_s; 0.5 f_s is the spec's
 #: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).
 YARDSTICK_POLE_FRACTIONS = tuple(float(x) for x in np.geomspace(0.02, 0.4, 33))
-#: Candidates simulated at once (fastest first) when looking for one within the gate's c_u.
-YARDSTICK_BATCH = 4
-#: Batches simulated at most before the yardstick falls back to the slowest pole that keeps the floors.
-YARDSTICK_BATCHES = 2
+#: Candidates simulated at once (fastest first) when looking for one within the gate's c_u: one,
+#: so that the search stops at the first that is (usually the fastest admissible pole; a batch of
+#: four simulated three PIDs for nothing there, a sixth of ``run``'s simulations on the sample).
+#: Each candidate's scenarios run in parallel all the same.
+YARDSTICK_BATCH = 1
+#: Batches simulated at most before the yardstick falls back to the slowest pole that keeps the
+#: floors (eight candidates, as two batches of four before).
+YARDSTICK_BATCHES = 8
 
 
 @dataclass(frozen=True)
