@@ -109,9 +109,9 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     states span fifteen decades of scale) and reduced once to complex Schur form
     ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
     every frequency at once by back-substitution: O(n^2) array operations over the grid
-    instead of a dense LU per frequency, or with ``compiled`` one frequency at a time in a
-    compiled loop (:func:`_triangular_response`: no temporaries over the grid and no BLAS
-    threads; the same values to rounding, summed in another order).  The controllers' responses,
+    instead of a dense LU per frequency, or with ``compiled`` the same back-substitution in
+    compiled loops (:func:`_triangular_response`: no temporaries over the grid and no BLAS
+    threads; the same values to rounding, the products summed in another order).  The controllers' responses,
     computed for every candidate of a search, take the compiled loop
     (:meth:`commission.controllers.margins.LinearController.frequency_response`); the plants'
     keep the array form, so that identification's fits, which use them, give the same figures
@@ -145,23 +145,31 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
 def _triangular_response(T, bt, ct, D, z):
     """``ct (zI - T)^-1 bt + D`` for upper-triangular ``T`` at every ``z``, by back-substitution.
 
-    ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up, one frequency at a
-    time (compiled: no temporaries over the grid, no BLAS threads for these small products).
+    ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up; at each frequency
+    the sums run in the same order (j up from k + 1, then k up for the output), but each step
+    sweeps the whole grid in a contiguous inner loop (compiled: no temporaries, no BLAS threads).
     """
     n = T.shape[0]
-    out = np.empty(z.size, dtype=np.complex128)
-    x = np.empty(n, dtype=np.complex128)
-    for i in range(z.size):
-        zi = z[i]
-        acc = D
-        for k in range(n - 1, -1, -1):
-            r = bt[k]
-            for j in range(k + 1, n):
-                r += T[k, j] * x[j]
-            x[k] = r / (zi - T[k, k])
-        for k in range(n):
-            acc += x[k] * ct[k]
-        out[i] = acc
+    nf = z.size
+    x = np.empty((n, nf), dtype=np.complex128)
+    out = np.full(nf, D, dtype=np.complex128)
+    for k in range(n - 1, -1, -1):
+        xk = x[k]
+        for i in range(nf):
+            xk[i] = bt[k]
+        for j in range(k + 1, n):
+            t = T[k, j]
+            xj = x[j]
+            for i in range(nf):
+                xk[i] += t * xj[i]
+        d = T[k, k]
+        for i in range(nf):
+            xk[i] = xk[i] / (z[i] - d)
+    for k in range(n):
+        c = ct[k]
+        xk = x[k]
+        for i in range(nf):
+            out[i] += xk[i] * c
     return out
 
 
