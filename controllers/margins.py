@@ -51,7 +51,9 @@ crossings refined by linear interpolation; eigenvalues decide stability.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -81,12 +83,39 @@ class LinearController:
     Cc: np.ndarray
     Dc: float
     Ts: float
+    _responses: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
         """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m (the compiled back-substitution of
         :func:`commission.controllers.linear.discrete_response`: a search evaluates it for every
-        candidate)."""
-        return discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f_hz, compiled=True)
+        candidate).
+
+        Kept per grid (the last :data:`RESPONSES_KEPT`, read-only): one gain set's linearisation
+        at its initial estimate meets the identified plant's margins, the evidence bound and the
+        box check (:func:`linearize_arc` returns the same object to each), which then share it.
+        """
+        f = np.ascontiguousarray(f_hz, dtype=np.float64)
+        key = (f.shape, f.tobytes())
+        with _cache_lock:
+            hit = self._responses.get(key)
+        if hit is not None:
+            return hit
+        r = discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f, compiled=True)
+        r.setflags(write=False)
+        with _cache_lock:
+            if len(self._responses) >= RESPONSES_KEPT:
+                self._responses.pop(next(iter(self._responses)))
+            self._responses[key] = r
+        return r
+
+
+#: Frequency grids whose response a :class:`LinearController` keeps.
+RESPONSES_KEPT = 4
+#: Linearisations :func:`linearize_arc` keeps (the last ones asked for: the checks of one
+#: candidate ask for the same few several times).
+LINEARISATIONS_KEPT = 32
+_cache_lock = threading.Lock()
+_arc_linearisations: "OrderedDict[bytes, LinearController]" = OrderedDict()
 
 
 def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,
@@ -161,9 +190,28 @@ def arc_operating_point(p: np.ndarray, theta_hat) -> tuple[np.ndarray, np.ndarra
 
 
 def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
-    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring)."""
-    p, s = arc_operating_point(p, theta_hat)
-    return _jacobian(arc_step, p, s, S_DYNAMIC, _scales(arc_step, p, s, S_DYNAMIC), 1e-9)
+    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring).
+
+    A pure function of its arguments, so the last :data:`LINEARISATIONS_KEPT` are kept (keyed
+    by the exact bits of ``p`` and ``theta_hat``) and the same object is returned again: a
+    search's margin, evidence and box checks of one candidate linearise it at the same
+    estimates, and share the frequency responses too (:meth:`LinearController.frequency_response`).
+    """
+    key = np.ascontiguousarray(p, dtype=np.float64).tobytes() + np.asarray(theta_hat, dtype=np.float64).tobytes()
+    with _cache_lock:
+        hit = _arc_linearisations.get(key)
+        if hit is not None:
+            _arc_linearisations.move_to_end(key)
+            return hit
+    pl, s = arc_operating_point(p, theta_hat)
+    lin = _jacobian(arc_step, pl, s, S_DYNAMIC, _scales(arc_step, pl, s, S_DYNAMIC), 1e-9)
+    for a in (lin.Ac, lin.Bc, lin.Cc):
+        a.setflags(write=False)
+    with _cache_lock:
+        _arc_linearisations[key] = lin
+        while len(_arc_linearisations) > LINEARISATIONS_KEPT:
+            _arc_linearisations.popitem(last=False)
+    return lin
 
 
 def linearize_pid(p: np.ndarray) -> LinearController:
