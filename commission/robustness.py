@@ -429,6 +429,23 @@ class BoxArcCheck:
     @_one_thread
     def __call__(self, arc: ArcGains, floors_only_if_stable: bool = False) -> BoxRobustness:
         """(a) and (b) for ``arc`` (class docstring)."""
+        out = self._check(arc, None)
+        assert out is not None
+        return out
+
+    @_one_thread
+    def holds(self, arc: ArcGains, floors: MarginFloors) -> bool:
+        """``self(arc).holds(floors)``, stopping at the first loop that settles it false.
+
+        A row of (a) below a floor, or a loop of (b) whose spectral radius already reaches the
+        neutral tolerance (the worst radius only grows), decides it: the rest is not computed.
+        For a bisection or a list of start gains, most of which fail.
+        """
+        out = self._check(arc, floors)
+        return out is not None and out.holds(floors)
+
+    def _check(self, arc: ArcGains, stop: MarginFloors | None) -> BoxRobustness | None:
+        """:meth:`__call__`; with ``stop``, None as soon as the check cannot hold for those floors."""
         ap = arc_pack(arc)
         th0 = tuple(float(x) for x in arc.theta0)
         ests: list[tuple[str, tuple[float, float, float]]] = [
@@ -452,6 +469,8 @@ class BoxArcCheck:
                     resp[th_l] = lin[th_l].frequency_response(self.f_hz)
                 at_plant.append(LoopMargins(f"{name}/{end}", "arc", th_l, "plant",
                                             loop_margins(lin[th_l], sp, self.f_hz, presp, resp[th_l])))
+                if stop is not None and floor_violations(at_plant[-1].margins, stop):
+                    return None
             every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
             # With one more sample of delay: theta_hat(0) and the plant's theta only, unless
             # delay_any_estimate (class docstring).
@@ -465,6 +484,8 @@ class BoxArcCheck:
                     if use[k][1] == th_p:
                         at = "plant"
                     worst = (float(rho[k]), name + tag, use[k][1], at)
+                if stop is not None and not worst[0] < 1.0 + NEUTRAL_TOL:
+                    return None
         return BoxRobustness(tuple(at_plant), AnyEstimateWorst(worst[1], worst[2], worst[3], worst[0], n))
 
 
@@ -546,9 +567,8 @@ def certified_payload(gains_for: Callable[[Identification], Sequence[ArcGains]],
         idn = narrowed_ident(ident, p)
         chk = BoxArcCheck(idn, spec, delay_any_estimate=delay_any_estimate)
         for g in gains_for(idn):
-            r = chk(g)
-            if r.holds(floors):
-                return r
+            if chk.holds(g, floors):  # stops at the first failing loop; the whole check for the one that holds
+                return chk(g)
         return None
 
     best = check(pmin)
