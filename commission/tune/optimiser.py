@@ -257,15 +257,20 @@ class Problem:
         mv: list[float] = []
         pending = {}
         with ThreadPoolExecutor(max_workers=1) as pool:
-            for i, (_, _, g) in enumerate(parts):
-                v = margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
-                # The whole box only where the identified plant's margins hold (the cheaper check first).
-                if not v > 0:
-                    v = box_violation(self.box(g), self.floors)
-                mv.append(v)
-                if v == 0.0:
-                    pending[i] = pool.submit(self._simulate_candidate, arc_pack(g), ref_screen)
-            done = {i: fut.result() for i, fut in pending.items()}
+            try:
+                for i, (_, _, g) in enumerate(parts):
+                    v = margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
+                    # The whole box only where the identified plant's margins hold (the cheaper check first).
+                    if not v > 0:
+                        v = box_violation(self.box(g), self.floors)
+                    mv.append(v)
+                    if v == 0.0:
+                        pending[i] = pool.submit(self._simulate_candidate, arc_pack(g), ref_screen)
+                done = {i: fut.result() for i, fut in pending.items()}
+            except BaseException:  # Ctrl-C or an error: the queued candidates are not simulated
+                for fut in pending.values():
+                    fut.cancel()
+                raise
         first: dict[int, list[Score]] = {i: r[0] for i, r in done.items()}
         screen_excess = {i: r[1] for i, r in done.items()}
         scores: dict[int, list[Score]] = {}
