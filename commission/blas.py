@@ -27,6 +27,8 @@ def one_blas_thread() -> Any:
     if _controller is None:
         with _lock:
             if _controller is None:
+                import numpy.linalg  # noqa: F401  (numpy's and scipy's BLAS loaded before the one scan)
+                import scipy.linalg  # noqa: F401
                 from threadpoolctl import ThreadpoolController
                 _controller = ThreadpoolController()
     return _controller.limit(limits=1)
