@@ -64,9 +64,9 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
-from commission.blas import one_blas_thread
 
 from commission.artifacts import Identification
+from commission.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import LinearController, frequency_grid, linearize_arc, linearize_pid

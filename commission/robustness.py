@@ -28,9 +28,9 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-from commission.blas import one_blas_thread
 
 from commission.artifacts import Identification
+from commission.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import (NEUTRAL_TOL, Margins, frequency_grid, linearize_arc, linearize_pid, loop_margins,
