@@ -21,6 +21,7 @@ close the loop on it.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -205,7 +206,13 @@ class SampledPlant:
 
         States ``[x, u_{k-1}, ..., u_{k-n-1}]``; ``y_k = C x_k`` has no direct
         feedthrough, so the loop can be closed on it without an algebraic loop.
+        Built once per plant (read-only arrays): the margin checks close a loop on the same
+        plant for every candidate.
         """
+        return self._realisation
+
+    @functools.cached_property
+    def _realisation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nx = self.Phi.shape[0]
         nb = self.n + 1  # u_{k-1} .. u_{k-n-1}
         A = np.zeros((nx + nb, nx + nb))
@@ -222,6 +229,8 @@ class SampledPlant:
             A[nx + j, nx + j - 1] = 1.0
         C = np.zeros((1, nx + nb))
         C[0, :nx] = self.C[0]
+        for a in (A, B, C):
+            a.setflags(write=False)
         return A, B, C
 
 
