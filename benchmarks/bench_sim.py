@@ -1,6 +1,7 @@
 """Speed of the closed-loop simulator (targets from the project brief).
 
-* one 10-s ARC run, Set 1, 2.5 kHz, 10 plant sub-steps: median over repeats, target <= 50 ms;
+* one 10-s ARC run, Set 1, 2.5 kHz, 10 plant sub-steps: median over repeats, target <= 10 ms
+  (issue 33; the project brief's first target was 50 ms), wall and CPU;
 * a batch of 256 ARC runs on 256 different plants (Set-1 trajectory): target <= 10 s;
 * speed-up against the same loop run as plain Python (every compiled kernel
   replaced by its ``.py_func``) on a shorter horizon, scaled to 10 s.
@@ -28,6 +29,10 @@ from commission.controllers.plant import plant_vector
 from commission.controllers.simulate import simulate, simulate_batch
 from commission.controllers.trajectory import sinusoid
 from commission.paper import TS, paper_controller, scenario
+
+#: Issue 33: one 10-s scenario (Set 1, ARC, 10 plant sub-steps) in at most this time, ms (the
+#: project brief's first target was 50 ms).
+KERNEL_TARGET_MS = 10.0
 
 
 @contextlib.contextmanager
@@ -84,7 +89,9 @@ def main() -> None:
         cpu.append(time.process_time() - c0)
     med = statistics.median(times)
     print(f"single 10-s run: median {med * 1e3:.1f} ms wall over {args.repeats} (min {min(times) * 1e3:.1f} ms;"
-          f" median CPU {statistics.median(cpu) * 1e3:.1f} ms)  target <= 50 ms")
+          f" median CPU {statistics.median(cpu) * 1e3:.1f} ms)  target <= {KERNEL_TARGET_MS:.0f} ms (issue 33; "
+          f"{'met' if med * 1e3 <= KERNEL_TARGET_MS else 'NOT met'} on wall, "
+          f"{'met' if statistics.median(cpu) * 1e3 <= KERNEL_TARGET_MS else 'NOT met'} on CPU)")
     print(f"load average (1 min) {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 
     plants = random_plants(np.random.default_rng(2024), args.batch)

@@ -261,19 +261,33 @@ def _loops(result: ValidationResult, path: Path) -> Path:
     return path
 
 
-def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path]:
-    """Write the validation figures into ``out_dir``; return their paths (names as in
-    :data:`commission.validate.FIGURE_NAMES`)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for case in CASES:
-        paths.append(_tracking(result, case, out / f"tracking_{case}.png", with_trajectory=(case == "case2")))
+def _tracking_figures(result: ValidationResult, out: Path) -> list[Path]:
+    paths = [_tracking(result, case, out / f"tracking_{case}.png", with_trajectory=(case == "case2")) for case in CASES]
     if any(name.startswith("user/") for name in result.traces):  # the machine's own moves
         paths.append(_tracking(result, "user", out / USER_FIGURE_NAME, with_trajectory=True))
-    paths.append(_theta(result, out / "theta_hat.png"))
-    paths.append(_inputs(result, out / "control_input.png"))
-    paths.append(monte_carlo_figure(result, out / "monte_carlo.png"))
-    if result.loops:
-        paths.append(_loops(result, out / "loops.png"))
     return paths
+
+
+def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path]:
+    """Write the validation figures into ``out_dir``; return their paths (names as in
+    :data:`commission.validate.FIGURE_NAMES`).
+
+    The tracking figures (about half of the drawing) are drawn in a forked child process
+    (:class:`commission.background.ChildJob`) while this process draws the others:
+    matplotlib holds the interpreter lock, so a thread would not run beside it.  Without
+    ``fork`` the child's part runs here, as before.  The same files either way.
+    """
+    from commission.background import ChildJob
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tracking = ChildJob(_tracking_figures, result, out)
+    try:
+        rest = [_theta(result, out / "theta_hat.png"), _inputs(result, out / "control_input.png"),
+                monte_carlo_figure(result, out / "monte_carlo.png")]
+        if result.loops:
+            rest.append(_loops(result, out / "loops.png"))
+    except BaseException:
+        tracking.cancel()
+        raise
+    return [*tracking.result(), *rest]

@@ -64,9 +64,9 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from commission.artifacts import Identification
+from commission.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import LinearController, frequency_grid, linearize_arc, linearize_pid
@@ -316,7 +316,7 @@ class EvidenceBound:
         self.f_hz = frequency_grid(self.Ts)
         _, p = margin_plants(ident, spec)[0]
         self.theta_plant = (1.0 / float(p[P_M]), float(p[P_B]) / float(p[P_M]), float(ident.theta.nominal[2]))
-        with threadpool_limits(1):
+        with one_blas_thread():
             self.P = sampled_plant(p, self.Ts).frequency_response(self.f_hz)
         self.W = self.evidence.weight(self.f_hz)
         self.modulus_floor = float(spec.min_modulus_margin)
@@ -331,12 +331,12 @@ class EvidenceBound:
     def arc_rows(self, arc: ArcGains) -> tuple[RobustStability, ...]:
         """The ARC at its initial estimate and at the identified theta."""
         ap = arc_pack(arc)
-        with threadpool_limits(1):
+        with one_blas_thread():
             return tuple(self.row(linearize_arc(ap, th), "arc", at)
                          for at, th in (("initial", tuple(arc.theta0)), ("plant", self.theta_plant)))
 
     def pid_row(self, pid: PidGains) -> RobustStability:
-        with threadpool_limits(1):
+        with one_blas_thread():
             return self.row(linearize_pid(pid_pack(pid)), "pid", "")
 
     def violation(self, arc: ArcGains) -> float:

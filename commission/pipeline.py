@@ -22,6 +22,7 @@ from commission.tuning import Tuning
 from commission.files import Outputs
 from commission.identification import IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome
 from commission.spec import check_flags
+from commission.blas import on_one_blas_thread
 from commission.executor import Executor, compute_scheduler, make_executor, resolve_scheduler
 from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWriter, Progress, ValidateOutcome,
                                  output_names, validate, write_outputs)
@@ -172,6 +173,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
         raise
 
 
+@on_one_blas_thread
 def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data, spec_src, gate, gate_path, seed,
                     n_monte_carlo, stage, workers, figures, sign_key, log_path, executor=None):
     """Tune and validate the identified axis, then write every file into ``staging``."""

@@ -28,9 +28,9 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from commission.artifacts import Identification
+from commission.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import (NEUTRAL_TOL, Margins, frequency_grid, linearize_arc, linearize_pid, loop_margins,
@@ -143,7 +143,7 @@ def _one_thread(fn):
     """Run ``fn`` with BLAS on one thread: its small dense problems lose more to threading than they gain."""
     @functools.wraps(fn)
     def wrapped(*args, **kwargs):
-        with threadpool_limits(1):
+        with one_blas_thread():
             return fn(*args, **kwargs)
 
     return wrapped
@@ -186,7 +186,7 @@ class IdentifiedPlantArcMargins:
         self.name, p = margin_plants(ident, spec)[0]
         self.plant = sampled_plant(p, spec.period)
         self.f_hz = frequency_grid(spec.period)
-        with threadpool_limits(1):
+        with one_blas_thread():
             self.response = self.plant.frequency_response(self.f_hz)
         self.theta_plant = _theta_of(p, ident.theta.nominal[2])
 
@@ -415,7 +415,7 @@ class BoxArcCheck:
         self.plants = box_plants(ident, spec, self.theta_min)
         self.f_hz = frequency_grid(Ts)
         self.th3 = ident.theta.nominal[2]
-        with threadpool_limits(1):
+        with one_blas_thread():
             self.sampled = [sampled_plant(p, Ts) for _, p in self.plants]
             self.responses = [sp.frequency_response(self.f_hz) for sp in self.sampled]
             self.ss = [sp.state_space() for sp in self.sampled]
@@ -429,6 +429,23 @@ class BoxArcCheck:
     @_one_thread
     def __call__(self, arc: ArcGains, floors_only_if_stable: bool = False) -> BoxRobustness:
         """(a) and (b) for ``arc`` (class docstring)."""
+        out = self._check(arc, None)
+        assert out is not None
+        return out
+
+    @_one_thread
+    def holds(self, arc: ArcGains, floors: MarginFloors) -> bool:
+        """``self(arc).holds(floors)``, stopping at the first loop that settles it false.
+
+        A row of (a) below a floor, or a loop of (b) whose spectral radius already reaches the
+        neutral tolerance (the worst radius only grows), decides it: the rest is not computed.
+        For a bisection or a list of start gains, most of which fail.
+        """
+        out = self._check(arc, floors)
+        return out is not None and out.holds(floors)
+
+    def _check(self, arc: ArcGains, stop: MarginFloors | None) -> BoxRobustness | None:
+        """:meth:`__call__`; with ``stop``, None as soon as the check cannot hold for those floors."""
         ap = arc_pack(arc)
         th0 = tuple(float(x) for x in arc.theta0)
         ests: list[tuple[str, tuple[float, float, float]]] = [
@@ -452,6 +469,8 @@ class BoxArcCheck:
                     resp[th_l] = lin[th_l].frequency_response(self.f_hz)
                 at_plant.append(LoopMargins(f"{name}/{end}", "arc", th_l, "plant",
                                             loop_margins(lin[th_l], sp, self.f_hz, presp, resp[th_l])))
+                if stop is not None and floor_violations(at_plant[-1].margins, stop):
+                    return None
             every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
             # With one more sample of delay: theta_hat(0) and the plant's theta only, unless
             # delay_any_estimate (class docstring).
@@ -465,6 +484,8 @@ class BoxArcCheck:
                     if use[k][1] == th_p:
                         at = "plant"
                     worst = (float(rho[k]), name + tag, use[k][1], at)
+                if stop is not None and not worst[0] < 1.0 + NEUTRAL_TOL:
+                    return None
         return BoxRobustness(tuple(at_plant), AnyEstimateWorst(worst[1], worst[2], worst[3], worst[0], n))
 
 
@@ -546,9 +567,8 @@ def certified_payload(gains_for: Callable[[Identification], Sequence[ArcGains]],
         idn = narrowed_ident(ident, p)
         chk = BoxArcCheck(idn, spec, delay_any_estimate=delay_any_estimate)
         for g in gains_for(idn):
-            r = chk(g)
-            if r.holds(floors):
-                return r
+            if chk.holds(g, floors):  # stops at the first failing loop; the whole check for the one that holds
+                return chk(g)
         return None
 
     best = check(pmin)

@@ -55,6 +55,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 import commission
+from commission.blas import on_one_blas_thread
 from commission.artifacts import Identification
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.controllers.arc import ArcGains, arc_pack
@@ -584,6 +585,7 @@ def _simulate_matrix(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], u
     return runs, traces, None if summary is None else summary.to_dict()
 
 
+@on_one_blas_thread
 def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
              n_monte_carlo: int = DEFAULT_MONTE_CARLO, progress: Progress | None = None,
              workers: int | None = None, executor: Executor | None = None) -> ValidationResult:

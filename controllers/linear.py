@@ -21,10 +21,12 @@ close the loop on it.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.linalg import expm, matrix_balance, schur
 
 from commission.controllers.plant import (P_B, P_DELAY, P_M, P_MODE2_DAMPING, P_MODE2_HZ, P_MODE2_LOAD_SIDE,
@@ -101,14 +103,20 @@ def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarra
 
 
 def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts: float,
-                      f_hz: np.ndarray) -> np.ndarray:
+                      f_hz: np.ndarray, *, compiled: bool = False) -> np.ndarray:
     """``C (zI - A)^-1 B + D`` of a single-input single-output discrete system at ``z = exp(j 2 pi f Ts)``.
 
     ``A`` is balanced (a diagonal similarity, scipy.linalg.matrix_balance: the linearised ARC's
     states span fifteen decades of scale) and reduced once to complex Schur form
     ``T = U^H A U`` (unitary); ``(zI - T) x = U^H B`` is then a triangular system, solved at
     every frequency at once by back-substitution: O(n^2) array operations over the grid
-    instead of a dense LU per frequency (tests/test_margins.py holds it to the dense solve;
+    instead of a dense LU per frequency, or with ``compiled`` the same back-substitution in
+    compiled loops (:func:`_triangular_response`: no temporaries over the grid and no BLAS
+    threads; the same values to rounding, the products summed in another order).  The controllers' responses,
+    computed for every candidate of a search, take the compiled loop
+    (:meth:`commission.controllers.margins.LinearController.frequency_response`); the plants'
+    keep the array form, so that identification's fits, which use them, give the same figures
+    to the last bit as before (tests/test_margins.py holds both to the dense solve;
     docs/robustness.md has the timing).  The balancing matters: the unitary reduction's
     rounding is relative to the largest entry, which without it swamps the small ones.  An
     eigen-decomposition would not do: the linearised ARC has near-repeated poles at z = 1.
@@ -125,11 +133,45 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     T, U = schur(Ab.astype(complex), output="complex")
     bt = U.conj().T @ (b / scale)
     ct = (c * scale) @ U
+    if compiled:
+        return _triangular_response(np.ascontiguousarray(T), bt, ct, complex(D), z)
     x = np.empty((z.size, n), dtype=complex)
     for k in range(n - 1, -1, -1):  # (z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k
         r = bt[k] + x[:, k + 1:] @ T[k, k + 1:] if k < n - 1 else np.full(z.size, bt[k])
         x[:, k] = r / (z - T[k, k])
     return x @ ct + D
+
+
+@njit(cache=True)
+def _triangular_response(T, bt, ct, D, z):
+    """``ct (zI - T)^-1 bt + D`` for upper-triangular ``T`` at every ``z``, by back-substitution.
+
+    ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up; at each frequency
+    the sums run in the same order (j up from k + 1, then k up for the output), but each step
+    sweeps the whole grid in a contiguous inner loop (compiled: no temporaries, no BLAS threads).
+    """
+    n = T.shape[0]
+    nf = z.size
+    x = np.empty((n, nf), dtype=np.complex128)
+    out = np.full(nf, D, dtype=np.complex128)
+    for k in range(n - 1, -1, -1):
+        xk = x[k]
+        for i in range(nf):
+            xk[i] = bt[k]
+        for j in range(k + 1, n):
+            t = T[k, j]
+            xj = x[j]
+            for i in range(nf):
+                xk[i] += t * xj[i]
+        d = T[k, k]
+        for i in range(nf):
+            xk[i] = xk[i] / (z[i] - d)
+    for k in range(n):
+        c = ct[k]
+        xk = x[k]
+        for i in range(nf):
+            out[i] += xk[i] * c
+    return out
 
 
 @dataclass(frozen=True)
@@ -164,7 +206,13 @@ class SampledPlant:
 
         States ``[x, u_{k-1}, ..., u_{k-n-1}]``; ``y_k = C x_k`` has no direct
         feedthrough, so the loop can be closed on it without an algebraic loop.
+        Built once per plant (read-only arrays): the margin checks close a loop on the same
+        plant for every candidate.
         """
+        return self._realisation
+
+    @functools.cached_property
+    def _realisation(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nx = self.Phi.shape[0]
         nb = self.n + 1  # u_{k-1} .. u_{k-n-1}
         A = np.zeros((nx + nb, nx + nb))
@@ -181,6 +229,8 @@ class SampledPlant:
             A[nx + j, nx + j - 1] = 1.0
         C = np.zeros((1, nx + nb))
         C[0, :nx] = self.C[0]
+        for a in (A, B, C):
+            a.setflags(write=False)
         return A, B, C
 
 

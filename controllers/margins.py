@@ -51,10 +51,13 @@ crossings refined by linear interpolation; eigenvalues decide stability.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+from numba import njit
 
 from commission.controllers.arc import (P_FLEVEL, P_GAMMA, P_K1, P_TMAX, P_TMIN, P_TS, S_DYNAMIC, S_THETA,
                                         arc_new_state, arc_reset, arc_step)
@@ -80,10 +83,39 @@ class LinearController:
     Cc: np.ndarray
     Dc: float
     Ts: float
+    _responses: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def frequency_response(self, f_hz: np.ndarray) -> np.ndarray:
-        """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m."""
-        return discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f_hz)
+        """``K`` at ``z = exp(j 2 pi f Ts)``, u-unit per m (the compiled back-substitution of
+        :func:`commission.controllers.linear.discrete_response`: a search evaluates it for every
+        candidate).
+
+        Kept per grid (the last :data:`RESPONSES_KEPT`, read-only): one gain set's linearisation
+        at its initial estimate meets the identified plant's margins, the evidence bound and the
+        box check (:func:`linearize_arc` returns the same object to each), which then share it.
+        """
+        f = np.ascontiguousarray(f_hz, dtype=np.float64)
+        key = (f.shape, f.tobytes())
+        with _cache_lock:
+            hit = self._responses.get(key)
+        if hit is not None:
+            return hit
+        r = discrete_response(self.Ac, self.Bc, self.Cc, self.Dc, self.Ts, f, compiled=True)
+        r.setflags(write=False)
+        with _cache_lock:
+            if len(self._responses) >= RESPONSES_KEPT:
+                self._responses.pop(next(iter(self._responses)))
+            self._responses[key] = r
+        return r
+
+
+#: Frequency grids whose response a :class:`LinearController` keeps.
+RESPONSES_KEPT = 4
+#: Linearisations :func:`linearize_arc` keeps (the last ones asked for: the checks of one
+#: candidate ask for the same few several times).
+LINEARISATIONS_KEPT = 32
+_cache_lock = threading.Lock()
+_arc_linearisations: "OrderedDict[bytes, LinearController]" = OrderedDict()
 
 
 def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,
@@ -126,6 +158,13 @@ def _scales(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...])
     return np.maximum(peak, 1e-18)
 
 
+@njit(cache=True)
+def _settle(p, s, n):
+    """``n`` steps of ``arc_step(p, s, 0, 0, 0, 0)`` in place (compiled: a few thousand steps per call)."""
+    for _ in range(n):
+        arc_step(p, s, 0.0, 0.0, 0.0, 0.0)
+
+
 def arc_operating_point(p: np.ndarray, theta_hat) -> tuple[np.ndarray, np.ndarray]:
     """The ARC at rest with the estimate ``theta_hat``: ``(p_lin, s)`` to linearise about.
 
@@ -145,16 +184,34 @@ def arc_operating_point(p: np.ndarray, theta_hat) -> tuple[np.ndarray, np.ndarra
     arc_reset(frozen, s, 0.0)
     s[S_THETA:S_THETA + 3] = th
     settle = int(math.ceil(SETTLE_TIME_CONSTANTS / (0.5 * p[P_K1] * p[P_TS])))
-    for _ in range(settle):  # filters (psi, lambda) to their rest values, estimates held
-        arc_step(frozen, s, 0.0, 0.0, 0.0, 0.0)
+    _settle(frozen, s, settle)  # filters (psi, lambda) to their rest values, estimates held
     s[S_THETA:S_THETA + 3] = th
     return p, s
 
 
 def linearize_arc(p: np.ndarray, theta_hat) -> LinearController:
-    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring)."""
-    p, s = arc_operating_point(p, theta_hat)
-    return _jacobian(arc_step, p, s, S_DYNAMIC, _scales(arc_step, p, s, S_DYNAMIC), 1e-9)
+    """Linearise the packed ARC ``p`` at rest with the estimate ``theta_hat`` (module docstring).
+
+    A pure function of its arguments, so the last :data:`LINEARISATIONS_KEPT` are kept (keyed
+    by the exact bits of ``p`` and ``theta_hat``) and the same object is returned again: a
+    search's margin, evidence and box checks of one candidate linearise it at the same
+    estimates, and share the frequency responses too (:meth:`LinearController.frequency_response`).
+    """
+    key = np.ascontiguousarray(p, dtype=np.float64).tobytes() + np.asarray(theta_hat, dtype=np.float64).tobytes()
+    with _cache_lock:
+        hit = _arc_linearisations.get(key)
+        if hit is not None:
+            _arc_linearisations.move_to_end(key)
+            return hit
+    pl, s = arc_operating_point(p, theta_hat)
+    lin = _jacobian(arc_step, pl, s, S_DYNAMIC, _scales(arc_step, pl, s, S_DYNAMIC), 1e-9)
+    for a in (lin.Ac, lin.Bc, lin.Cc):
+        a.setflags(write=False)
+    with _cache_lock:
+        _arc_linearisations[key] = lin
+        while len(_arc_linearisations) > LINEARISATIONS_KEPT:
+            _arc_linearisations.popitem(last=False)
+    return lin
 
 
 def linearize_pid(p: np.ndarray) -> LinearController:
@@ -247,6 +304,67 @@ def _at(a: np.ndarray, fi: float) -> float:
     return float(a[i] + (fi - i) * (a[i + 1] - a[i]))
 
 
+@njit(cache=True)
+def _unwrap(p):
+    """``numpy.unwrap(p)`` of a 1-D float64 array (period 2 pi), the same operations in the same order."""
+    n = p.size
+    up = np.empty(n)
+    if n == 0:
+        return up
+    period = 2.0 * math.pi
+    hi = period / 2
+    lo = -hi
+    up[0] = p[0]
+    acc = 0.0
+    for i in range(1, n):
+        dd = p[i] - p[i - 1]
+        ddmod = (dd - lo) % period + lo
+        if ddmod == lo and dd > 0:
+            ddmod = hi
+        corr = ddmod - dd
+        if abs(dd) < hi:
+            corr = 0.0
+        acc += corr
+        up[i] = p[i] + acc
+    return up
+
+
+@njit(cache=True)
+def _phase_crossover_gain_margin(phase, k, mag_db, first_gc):
+    """``(found, gm)``: the smallest ``-mag_db`` at a phase crossover above ``first_gc`` (dB).
+
+    The crossovers of ``phase = -pi + 2 pi kk`` for every branch ``kk`` that ``k`` holds
+    (ascending), located and interpolated as :func:`_crossings` and :func:`_at` do, in one
+    compiled pass over the grid per branch instead of an array expression per branch.
+    """
+    n = phase.size
+    kmin = k.min()
+    m = int(k.max() - kmin) + 1
+    present = np.zeros(m, dtype=np.bool_)
+    for i in range(n):
+        present[int(k[i] - kmin)] = True
+    found = False
+    best = math.inf
+    for j in range(m):
+        if not present[j]:
+            continue
+        off = 2 * math.pi * (kmin + j)
+        for i in range(n - 1):
+            x0 = phase[i] + math.pi - off
+            x1 = phase[i + 1] + math.pi - off
+            if (x0 > 0.0 and x1 < 0.0) or (x0 < 0.0 and x1 > 0.0):
+                c = i + x0 / (x0 - x1)
+                if c > first_gc:
+                    ii = min(int(c), n - 2)
+                    v = -(mag_db[ii] + (c - ii) * (mag_db[ii + 1] - mag_db[ii]))
+                    if not found:
+                        best = v
+                        found = True
+                    elif v < best:
+                        best = v
+    return found, best
+
+
 def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray | None = None,
                  plant_response: np.ndarray | None = None, ctrl_response: np.ndarray | None = None) -> Margins:
     """Margins of the loop ``ctrl`` x ``plant`` (module docstring).
@@ -258,18 +376,22 @@ def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray |
         f_hz = frequency_grid(plant.Ts)
     L = loop_response(ctrl, plant, f_hz, plant_response, ctrl_response)
     mag_db = 20 * np.log10(np.maximum(np.abs(L), 1e-300))
-    phase = np.unwrap(np.angle(L))
+    phase = _unwrap(np.ascontiguousarray(np.angle(L)))
     w = 2 * np.pi * f_hz
     gc = _crossings(mag_db)
     pm = np.array([math.remainder(_at(phase, g) + math.pi, 2 * math.pi) for g in gc])
     wc = np.array([_at(w, g) for g in gc])
-    # phase crossovers: phase = -pi (mod 2 pi)
+    # phase crossovers: phase = -pi (mod 2 pi), on every branch the unwrapped phase visits
     k = np.round((phase + math.pi) / (2 * math.pi))
-    pc = []
-    for kk in np.unique(k):
-        pc.extend(_crossings(phase + math.pi - 2 * math.pi * kk).tolist())
     first_gc = gc.min() if gc.size else -1.0
-    gm_vals = [-_at(mag_db, c) for c in pc if c > first_gc]
+    if np.all(np.isfinite(phase)):
+        has_gm, gm = _phase_crossover_gain_margin(phase, k, mag_db, float(first_gc))
+    else:  # a non-finite response: the array form (np.unique sorts NaN branches out)
+        pc = []
+        for kk in np.unique(k):
+            pc.extend(_crossings(phase + math.pi - 2 * math.pi * kk).tolist())
+        gm_vals = [-_at(mag_db, c) for c in pc if c > first_gc]
+        has_gm, gm = bool(gm_vals), (min(gm_vals) if gm_vals else math.inf)
     radius = closed_loop_radius(ctrl, plant)
     stable = radius < 1.0 + NEUTRAL_TOL
     if not gc.size:
@@ -278,7 +400,7 @@ def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray |
         dm = float((np.mod(pm, 2 * math.pi) / (wc * plant.Ts)).min())
     else:  # signed: the lag that would have to be removed
         dm = -float((np.mod(-pm, 2 * math.pi) / (wc * plant.Ts)).min())
-    return Margins(gain_margin_db=float(min(gm_vals)) if gm_vals else math.inf,
+    return Margins(gain_margin_db=float(gm) if has_gm else math.inf,
                    phase_margin_deg=float(np.degrees(pm[np.argmin(gc)])) if gc.size else math.inf,
                    delay_margin_samples=dm,
                    modulus_margin=float(np.abs(1 + L).min()),

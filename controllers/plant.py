@@ -221,7 +221,7 @@ def ripple(p, x):
 
 
 @njit(cache=True)
-def plant_advance(p, x, v, u, h, n):
+def plant_advance(p, x, v, u, h, n, v_cut=-1.0):
     """Advance the plant over ``n`` sub-steps of ``h`` seconds under a held input.
 
     Parameters
@@ -236,6 +236,9 @@ def plant_advance(p, x, v, u, h, n):
         Sub-step, s.
     n : int
         Number of sub-steps.
+    v_cut : float
+        :func:`stribeck_cut` of ``p`` when the caller has it (a closed loop computes it once per
+        run, not once per sample); negative: computed here.
 
     Returns
     -------
@@ -243,7 +246,8 @@ def plant_advance(p, x, v, u, h, n):
         Position (m) and velocity (m/s) at the end.
     """
     M = p[P_M]
-    v_cut = stribeck_cut(p)
+    if v_cut < 0.0:
+        v_cut = stribeck_cut(p)
     for _ in range(n):
         F = u - p[P_OFFSET] - ripple(p, x)  # everything but friction and viscous
         if v == 0.0:
@@ -283,16 +287,17 @@ def plant_output(p, st):
 
 
 @njit(cache=True, nogil=True)
-def plant_step(p, st, u, h, n):
+def plant_step(p, st, u, h, n, v_cut=-1.0):
     """Advance the plant state ``st`` in place over ``n`` sub-steps of ``h`` s under the held input ``u``.
 
     A rigid plant (``p[P_MODE_HZ] <= 0``) is :func:`plant_advance`, with the load
     coordinates kept equal to the motor's; a plant with one or two modes integrates the
     coupled masses (module docstring) with the same stiction scheme on the
     motor side.  Without a second mode, the second load's coordinates follow the motor's.
+    ``v_cut``: as in :func:`plant_advance`.
     """
     if p[P_MODE_HZ] <= 0.0:
-        x, v = plant_advance(p, st[X_MOTOR], st[V_MOTOR], u, h, n)
+        x, v = plant_advance(p, st[X_MOTOR], st[V_MOTOR], u, h, n, v_cut)
         st[X_MOTOR] = x
         st[V_MOTOR] = v
         st[X_LOAD] = x
@@ -326,7 +331,8 @@ def plant_step(p, st, u, h, n):
     if split < 1:
         split = 1
     hh = h / split
-    v_cut = stribeck_cut(p)
+    if v_cut < 0.0:
+        v_cut = stribeck_cut(p)
     x1 = st[X_MOTOR]
     v1 = st[V_MOTOR]
     x2 = st[X_LOAD]

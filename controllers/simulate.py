@@ -38,7 +38,7 @@ from commission.controllers.arc import S_THETA, arc_new_state, arc_reset, arc_st
 from commission.controllers.metrics import FINAL_WINDOW, Indexes, indexes_kernel
 from commission.controllers.pid import G_TS as PID_P_TS
 from commission.controllers.pid import pid_new_state, pid_reset, pid_step
-from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step
+from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step, stribeck_cut
 from commission.controllers.trajectory import Trajectory
 
 KIND_PID = 0
@@ -61,8 +61,12 @@ def _quantize(q, quant):
 
 
 @njit(cache=True, nogil=True)
-def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts):
-    """Hold the saturated command ``c`` (+ disturbance ``d``) on the plant for ``t_len`` s; returns it."""
+def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts, v_cut=-1.0):
+    """Hold the saturated command ``c`` (+ disturbance ``d``) on the plant for ``t_len`` s; returns it.
+
+    ``v_cut``: the plant's :func:`commission.controllers.plant.stribeck_cut`, computed once per run
+    (negative, the default: computed at each call).
+    """
     if c > u_sat:
         c = u_sat
     elif c < -u_sat:
@@ -71,7 +75,7 @@ def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts):
         m = int(math.ceil(substeps * t_len / Ts - 1e-9))
         if m < 1:
             m = 1
-        plant_step(plant_p, st, c + d, t_len / m, m)
+        plant_step(plant_p, st, c + d, t_len / m, m, v_cut)
     return c
 
 
@@ -100,6 +104,7 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     hist = np.zeros(n_d + 2)  # hist[j % len] = c_j
     nh = n_d + 2
     st = np.empty(NX)
+    v_cut = stribeck_cut(plant_p)  # once per run: the same value every sample would compute
     plant_start(plant_p, st, y0)
     y = _quantize(plant_output(plant_p, st) + (noise[0] if has_n else 0.0), quant)
     if kind == 0:
@@ -127,8 +132,8 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
         if kind == 1:
             for j in range(3):
                 th_out[k, j] = s[S_THETA + j]
-        _segment(plant_p, st, c_early, u_sat, d, f * Ts, substeps, Ts)
-        u_out[k] = _segment(plant_p, st, c_late, u_sat, d, (1.0 - f) * Ts, substeps, Ts)
+        _segment(plant_p, st, c_early, u_sat, d, f * Ts, substeps, Ts, v_cut)
+        u_out[k] = _segment(plant_p, st, c_late, u_sat, d, (1.0 - f) * Ts, substeps, Ts, v_cut)
     return n, False
 
 

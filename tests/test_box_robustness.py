@@ -240,3 +240,19 @@ def test_a_defaulted_payload_the_drive_cannot_move_is_narrowed_to_what_it_can_no
     stated = axis(30 * M, defaulted=False)
     same, none = fit_payload_to_drive(spec, stated, set())
     assert same is stated and none == ()
+
+
+def test_the_early_stopping_holds_answers_as_the_whole_check():
+    """BoxArcCheck.holds (stops at the first loop that settles it) gives the whole check's holds(),
+    on boxes that hold and boxes that fail (unstable, below a floor), with and without the delayed estimates."""
+    answers = []
+    for payload, designed in ((3 * M, 3 * M), (30 * M, 3 * M), (10 * M, 3 * M), (3 * M, 10 * M)):
+        ident = axis(payload, defaulted=False)
+        for g in start_gains(axis(designed, defaulted=False), SPEC)[:3]:
+            g = dataclasses.replace(g, theta_min=ident.theta.min)
+            for delayed in (False, True):
+                chk = BoxArcCheck(ident, SPEC, delay_any_estimate=delayed)
+                whole = chk(g).holds(FLOORS)
+                assert chk.holds(g, FLOORS) == whole
+                answers.append(whole)
+    assert any(answers) and not all(answers)

@@ -21,7 +21,7 @@ import pytest
 from scipy.signal import cont2discrete, ss2tf
 
 from commission.controllers.arc import arc_pack, arc_step, paper_gains_implementable
-from commission.controllers.linear import continuous_model, sampled_plant
+from commission.controllers.linear import continuous_model, discrete_response, sampled_plant
 from commission.controllers.margins import (arc_operating_point, closed_loop_radius, frequency_grid, linearize_arc,
                                             linearize_pid, loop_margins)
 from commission.controllers.pid import pid_pack, pid_place_poles
@@ -147,6 +147,10 @@ def test_frequency_response_of_the_badly_scaled_linearised_arc_equals_a_dense_so
     sp = sampled_plant(p, TS)
     A, B, C = sp.state_space()
     np.testing.assert_allclose(sp.frequency_response(f), _dense_response(A, B, C, 0.0, TS, f), rtol=1e-9)
+    # the compiled back-substitution (the controllers' path) on the plant too, and the array form on the ARC
+    np.testing.assert_allclose(discrete_response(A, B, C, 0.0, TS, f, compiled=True),
+                               _dense_response(A, B, C, 0.0, TS, f), rtol=1e-9)
+    np.testing.assert_allclose(discrete_response(lin.Ac, lin.Bc, lin.Cc, lin.Dc, TS, f, compiled=False), ref, rtol=1e-9)
 
 
 # --------------------------------------------------------------------------- the paper's fact
@@ -240,3 +244,47 @@ def test_gain_margin_is_where_the_simulated_loop_loses_stability(axis):
     lin = linearize_pid(ctrl)
     g = 10 ** (m.gain_margin_db / 20)
     assert closed_loop_radius(lin, sp, 0.98 * g) < 1 < closed_loop_radius(lin, sp, 1.02 * g)
+
+
+def test_compiled_unwrap_and_phase_crossovers_equal_the_array_forms():
+    """loop_margins' compiled unwrap is numpy.unwrap to the last bit (exact +-pi steps included), and
+    its phase-crossover gain margin is the array form's (np.unique branches, sign changes, interpolation)."""
+    from commission.controllers.margins import _at, _crossings, _phase_crossover_gain_margin, _unwrap
+
+    rng = np.random.default_rng(3)
+    for t in range(30):
+        p = np.angle(np.exp(1j * np.cumsum(rng.normal(0.0, rng.uniform(0.1, 3.0), 2000))))
+        if t % 3 == 0:
+            p = np.round(p / np.pi) * np.pi  # steps of exactly +-pi: numpy's boundary rule
+        assert np.array_equal(_unwrap(p), np.unwrap(p))
+        phase = np.unwrap(p) * rng.uniform(0.5, 3.0)
+        mag_db = rng.normal(0.0, 10.0, p.size)
+        k = np.round((phase + math.pi) / (2 * math.pi))
+        first = float(rng.uniform(-1.0, p.size / 2))
+        pc = []
+        for kk in np.unique(k):
+            pc.extend(_crossings(phase + math.pi - 2 * math.pi * kk).tolist())
+        vals = [-_at(mag_db, c) for c in pc if c > first]
+        found, gm = _phase_crossover_gain_margin(phase, k, mag_db, first)
+        assert found == bool(vals) and (gm == min(vals) if vals else gm == math.inf)
+
+
+def test_linearisations_are_kept_read_only_and_equal_a_fresh_one():
+    """linearize_arc returns the kept object for the same (p, theta_hat) bits, its arrays and
+    responses read-only, with the values a fresh linearisation gives."""
+    import commission.controllers.margins as mg
+
+    p = arc_pack(paper_gains_implementable(TS))
+    th = (30.0, 10.0, 0.0)
+    a = linearize_arc(p, th)
+    assert linearize_arc(p.copy(), tuple(th)) is a
+    f = frequency_grid(TS)
+    r = a.frequency_response(f)
+    assert a.frequency_response(f.copy()) is r and not r.flags.writeable and not a.Ac.flags.writeable
+    mg._arc_linearisations.clear()
+    b = linearize_arc(p, th)
+    assert b is not a
+    for x, y in ((a.Ac, b.Ac), (a.Bc, b.Bc), (a.Cc, b.Cc)):
+        assert np.array_equal(x, y)
+    assert a.Dc == b.Dc and np.array_equal(b.frequency_response(f), r)
+    assert linearize_arc(p, (30.0, 10.0, 1.0)) is not b  # another estimate, another linearisation

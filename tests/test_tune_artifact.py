@@ -553,3 +553,14 @@ def test_pid_yardstick_record_is_additive_and_strict(small):
     bad = {**doc, "pid_yardstick": {**doc["pid_yardstick"], "pole": "fast"}}
     with pytest.raises(SchemaError, match=r"\$\.pid_yardstick"):
         Tuning.from_dict(bad)
+
+
+def test_a_candidates_scores_do_not_depend_on_what_is_simulated_beside_it(holdout_setup):
+    """The search simulates each candidate on its own, in the background (Problem.evaluate): its
+    scores are the ones a batch of several candidates gives, row for row."""
+    ident, spec, base, ev, hg = holdout_setup
+    a, b = arc_pack(base), arc_pack(apply_free(base, [1.0] * 4 + [0.5] * 5))
+    idx = screening_indices(ev.scenarios)[:6]
+    together = ev.scores(KIND_ARC, [a, b], idx)
+    assert together == [ev.scores(KIND_ARC, [a], idx)[0], ev.scores(KIND_ARC, [b], idx)[0]]
+    assert together[0] != together[1]

@@ -54,8 +54,10 @@ from commission.tune.baseline import pid_within_evidence, pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, fit_force_to_drive, fit_payload_to_drive, narrow_default_payload, validity_of
+from commission.blas import on_one_blas_thread
 
 
+@on_one_blas_thread
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
          ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
          workers: int | None = None, created_utc: str | None = None, observer_free: bool = False,

@@ -195,10 +195,14 @@ def pid_pole_note(tuning: Tuning) -> str | None:
 #: to 0.4 f_s, geometric (the paper's 300 rad/s at 2.5 kHz is 0.12 f_s; 0.5 f_s is the spec's
 #: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).
 YARDSTICK_POLE_FRACTIONS = tuple(float(x) for x in np.geomspace(0.02, 0.4, 33))
-#: Candidates simulated at once (fastest first) when looking for one within the gate's c_u.
-YARDSTICK_BATCH = 4
-#: Batches simulated at most before the yardstick falls back to the slowest pole that keeps the floors.
-YARDSTICK_BATCHES = 2
+#: Candidates simulated at once (fastest first) when looking for one within the gate's c_u: one,
+#: so that the search stops at the first that is (usually the fastest admissible pole; a batch of
+#: four simulated three PIDs for nothing there, a sixth of ``run``'s simulations on the sample).
+#: Each candidate's scenarios run in parallel all the same.
+YARDSTICK_BATCH = 1
+#: Batches simulated at most before the yardstick falls back to the slowest pole that keeps the
+#: floors (eight candidates, as two batches of four before).
+YARDSTICK_BATCHES = 8
 
 
 @dataclass(frozen=True)
@@ -292,7 +296,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     included), the floors the spec's ``[margins]`` (:class:`commission.robustness.MarginFloors`):
     the same loop and the same floors the ARC is held to.  Linear checks only (no simulation).
     """
-    from threadpoolctl import threadpool_limits
+    from commission.blas import one_blas_thread
     from commission.controllers.linear import sampled_plant
     from commission.controllers.margins import closed_loop_radius, frequency_grid, linearize_pid, loop_margins
     from commission.robustness import MarginFloors, floor_violations
@@ -301,7 +305,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     floors = MarginFloors.from_spec(spec)
     p = identified_plant(ident, spec)
     out = []
-    with threadpool_limits(1):
+    with one_blas_thread():
         sp = sampled_plant(p, spec.period)
         sp1 = sampled_plant(p, spec.period, extra_delay=1.0)
         f = frequency_grid(spec.period)

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -240,31 +241,48 @@ class Problem:
 
     # -- evaluation
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
-        """Every constraint and the objective of each search vector, cheapest first."""
+        """Every constraint and the objective of each search vector, cheapest first.
+
+        Per candidate: the identified plant's margins and the evidence bound, then (only where
+        they hold) the whole box, then (only where that holds) the screening scenarios, and the
+        rest of the tuning set only for a candidate not already far off the gate there.  The
+        simulations of a candidate that passed the linear checks run in the background
+        (:meth:`_simulate_candidate`, compiled kernels without the GIL) while the next
+        candidates' linear checks run here: the two overlap on the cores instead of taking turns.
+        Each scenario's run is the same whatever else runs beside it, so the scores are the ones
+        a batch of all the candidates gives.
+        """
         parts = [self.gains(np.asarray(z)) for z in Z]
-        mv = [margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
-              for _, _, g in parts]
-        # The whole box only where the identified plant's margins hold (the cheaper check first).
-        mv = [v if v > 0 else box_violation(self.box(g), self.floors) for v, (_, _, g) in zip(mv, parts)]
-        sim = [i for i, v in enumerate(mv) if v == 0.0]
-        # The gate on the screening scenarios first; the rest only for the candidates not already far off.
-        first: dict[int, list[Score]] = {}
-        if sim:
-            first = dict(zip(sim, self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in sim], self.screen)))
         ref_screen = [self.reference[i] for i in self.screen]
-        screen_excess = {i: gate_excess(self.gate, sc, ref_screen, margin=GATE_MARGIN) for i, sc in first.items()}
-        full = [i for i in sim if screen_excess[i] <= SCREEN_EXCESS]
+        mv: list[float] = []
+        pending = {}
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            try:
+                for i, (_, _, g) in enumerate(parts):
+                    v = margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
+                    # The whole box only where the identified plant's margins hold (the cheaper check first).
+                    if not v > 0:
+                        v = box_violation(self.box(g), self.floors)
+                    mv.append(v)
+                    if v == 0.0:
+                        pending[i] = pool.submit(self._simulate_candidate, arc_pack(g), ref_screen)
+                done = {i: fut.result() for i, fut in pending.items()}
+            except BaseException:  # Ctrl-C or an error: the queued candidates are not simulated
+                for fut in pending.values():
+                    fut.cancel()
+                raise
+        first: dict[int, list[Score]] = {i: r[0] for i, r in done.items()}
+        screen_excess = {i: r[1] for i, r in done.items()}
         scores: dict[int, list[Score]] = {}
-        if full:
-            rest = self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in full], self.rest) if self.rest else [
-                [] for _ in full]
-            for i, r in zip(full, rest):
-                sc: list[Score] = [None] * len(self.ev.scenarios)  # type: ignore[list-item]
-                for j, s in zip(self.screen, first[i]):
-                    sc[j] = s
-                for j, s in zip(self.rest, r):
-                    sc[j] = s
-                scores[i] = sc
+        for i, (fs, _, rest) in done.items():
+            if rest is None:
+                continue
+            sc: list[Score] = [None] * len(self.ev.scenarios)  # type: ignore[list-item]
+            for j, s in zip(self.screen, fs):
+                sc[j] = s
+            for j, s in zip(self.rest, rest):
+                sc[j] = s
+            scores[i] = sc
         out = []
         for i, (x, f, g) in enumerate(parts):
             if i not in first:
@@ -285,6 +303,20 @@ class Problem:
             fv = feasibility_violation(rep)
             out.append(Candidate(x, f, g, FEASIBLE if fv == 0 else STABILITY_MISSED, fv, obj, sc, rep))
         return out
+
+    def _simulate_candidate(self, pack: np.ndarray,
+                            ref_screen: Sequence[Score]) -> tuple[list[Score], float, list[Score] | None]:
+        """``(screen scores, their gate excess, the other scenarios' scores or None)`` of one gain set.
+
+        The gate on the screening scenarios first; the rest only when the excess is at most
+        :data:`SCREEN_EXCESS` (None otherwise).
+        """
+        first = self.ev.scores(KIND_ARC, [pack], self.screen)[0]
+        excess = gate_excess(self.gate, first, ref_screen, margin=GATE_MARGIN)
+        if not excess <= SCREEN_EXCESS:
+            return first, excess, None
+        rest = self.ev.scores(KIND_ARC, [pack], self.rest)[0] if self.rest else []
+        return first, excess, rest
 
 
 @dataclass(frozen=True)
