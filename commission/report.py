@@ -16,7 +16,7 @@ import numpy as np
 
 from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
-from commission.gate import CRITERIA, safe_not_better
+from commission.gate import CRITERIA, safe_not_better, search_infeasible_line
 from commission.robustness import floor_violations
 from commission.scenarios import VARIANTS, case_names, horizon_notes, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
@@ -529,6 +529,10 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
         for line in failure_lines(v):
             L.append(f"- {line}")
     else:
+        miss = search_infeasible_line(tuning.search)
+        if miss is not None:  # the search's own refusal, said first (commission.gate.search_infeasible_line)
+            L.append(f"**{md_text(miss)}**")
+            L.append("")
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
         for line in failure_lines(v):
