@@ -503,6 +503,13 @@ def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
     return out
 
 
+def _search_miss_lines(tuning: Tuning) -> list[str]:
+    """The search's own refusal, said before the failed checks when it found nothing feasible
+    (:func:`commission.gate.search_infeasible_line`; none when it did)."""
+    miss = search_infeasible_line(tuning.search)
+    return [] if miss is None else [f"**{md_text(miss)}**", ""]
+
+
 def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
                      sources: Mapping[str, str | None] | None, tuning_sha256: str | None) -> str:
     sources = sources or {}
@@ -524,15 +531,13 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
     elif safe_not_better(v):
+        L.extend(_search_miss_lines(tuning))
         L.extend(not_better_lines(result, tuning, markdown=True))
         L.append("")
         for line in failure_lines(v):
             L.append(f"- {line}")
     else:
-        miss = search_infeasible_line(tuning.search)
-        if miss is not None:  # the search's own refusal, said first (commission.gate.search_infeasible_line)
-            L.append(f"**{md_text(miss)}**")
-            L.append("")
+        L.extend(_search_miss_lines(tuning))
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
         for line in failure_lines(v):
