@@ -10,7 +10,7 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 
-from commission.gate import safe_not_better
+from commission.gate import safe_not_better, search_infeasible_line
 from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.options import SCHEDULER_HELP, Friction, identify_options, opt
@@ -108,5 +108,8 @@ def run_command(
         if safe_not_better(v.result.verdict):
             for line in not_better_lines(v.result, v.tuning):
                 typer.echo(line)
+        miss = search_infeasible_line(v.tuning.search)
+        if miss is not None:
+            typer.echo(miss)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

@@ -9,7 +9,7 @@ from typing import Any, Optional
 import typer
 from rich.console import Console
 
-from commission.gate import safe_not_better
+from commission.gate import safe_not_better, search_infeasible_line
 from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
@@ -82,5 +82,8 @@ def validate_command(
         if safe_not_better(outcome.result.verdict):
             for line in not_better_lines(outcome.result, outcome.tuning):
                 typer.echo(line)
+        miss = search_infeasible_line(outcome.tuning.search)
+        if miss is not None:
+            typer.echo(miss)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

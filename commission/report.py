@@ -16,7 +16,7 @@ import numpy as np
 
 from commission.next_steps import next_steps
 from commission.units import axis_units_context, mass_wording, nominal, parameter_units, unit as unit_of
-from commission.gate import CRITERIA, safe_not_better
+from commission.gate import CRITERIA, safe_not_better, search_infeasible_line
 from commission.robustness import floor_violations
 from commission.scenarios import VARIANTS, case_names, horizon_notes, plant_dynamics
 from commission.tuning import Score, Tuning, log_sha256_of
@@ -503,6 +503,13 @@ def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
     return out
 
 
+def _search_miss_lines(tuning: Tuning) -> list[str]:
+    """The search's own refusal, said before the failed checks when it found nothing feasible
+    (:func:`commission.gate.search_infeasible_line`; none when it did)."""
+    miss = search_infeasible_line(tuning.search)
+    return [] if miss is None else [f"**{md_text(miss)}**", ""]
+
+
 def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
                      sources: Mapping[str, str | None] | None, tuning_sha256: str | None) -> str:
     sources = sources or {}
@@ -524,11 +531,13 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
         L.append("`controller.json` was written next to this report; load it with "
                  "`commission.runtime.load_controller`.")
     elif safe_not_better(v):
+        L.extend(_search_miss_lines(tuning))
         L.extend(not_better_lines(result, tuning, markdown=True))
         L.append("")
         for line in failure_lines(v):
             L.append(f"- {line}")
     else:
+        L.extend(_search_miss_lines(tuning))
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
         for line in failure_lines(v):

@@ -241,3 +241,28 @@ def test_report_states_a_theta3_box_that_tune_narrowed(tuned, tmp_path):
     # an untouched tuning says nothing of the kind
     r = invoke("validate", tpath, "--out-dir", tmp_path / "plain", "--gate", gate, "--monte-carlo", MC)
     assert "narrowed" not in (tmp_path / "plain" / "report.md").read_text()
+
+
+@pytest.mark.parametrize("level", [0, 2])
+def test_a_refusal_of_gains_the_search_found_infeasible_says_so_first(tuned, tmp_path, level):
+    """tuning.json's ``search.chosen_level`` 2 (no candidate met the search's constraints): the report's
+    refusal and the CLI say it before the failed checks; a feasible search's refusal does not."""
+    tpath, _, worst = tuned
+    doc = read_json(tpath)
+    doc["search"]["chosen_level"], doc["search"]["chosen_violation"] = level, (0.00365 if level else 0.0)
+    t2 = tmp_path / "tuning.json"
+    write_json_atomic(t2, doc)
+    strict = tmp_path / "strict.toml"
+    strict.write_text(f"[gate]\ne_rms = {worst['e_rms'] / 2!r}\n")
+    out = tmp_path / "val"
+    r = invoke("validate", t2, "--out-dir", out, "--gate", strict, "--monte-carlo", MC)
+    assert r.exit_code == 1, r.output
+    text = " ".join(r.output.split())
+    report = (out / "report.md").read_text()
+    said = "The gain search found no feasible gains"
+    if level:
+        n = doc["search"]["n_evaluations"]
+        assert f"{said}: none of its {n} candidates" in text and "0.00365" in text
+        assert report.index(said) < report.index("**No `controller.json` was written.**")
+    else:
+        assert said not in text and said not in report

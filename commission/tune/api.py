@@ -37,7 +37,8 @@ from commission.scenarios import (
     tuning_scenarios,
 )
 from commission.spec import Spec, read_spec_toml, spec_from_mapping
-from commission.tuning import Provenance, SearchRecord, Tuning
+from commission.gate import search_infeasible_line
+from commission.tuning import Guarantee, Provenance, SearchRecord, Tuning
 from commission.tune.defaults import (
     check_moves_against_drive,
     check_spec_against_ident,
@@ -159,13 +160,30 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
                  pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
-                 guarantees={**guarantees(chosen, t1, feas["arc"]), **box_guarantees(box, spec, validity)},
+                 guarantees={**guarantees(chosen, t1, feas["arc"]), **box_guarantees(box, spec, validity),
+                             "search_feasible": _search_guarantee(record)},
                  scores=scores, search=record,
                  margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity,
                  pid_yardstick=yardstick.to_dict())
     if progress is not None:
         progress(total, total)
     return out
+
+
+def _search_guarantee(record: SearchRecord) -> Guarantee:
+    """tuning.json's ``guarantees.search_feasible``: did the search find gains meeting its constraints?
+
+    The chosen gains are written either way (validate then names what they miss), but a search
+    that found nothing feasible says so here, in the words of the report's refusal
+    (:func:`commission.gate.search_infeasible_line`).
+    """
+    miss = search_infeasible_line(record)
+    if miss is None:
+        return Guarantee(True, f"the chosen gains meet every constraint of the search ({record.n_feasible} of "
+                               f"{record.n_evaluations} candidates did): the margin floors on the identified "
+                               f"plant and over the whole theta box, the evidence bound, discrete feasibility "
+                               f"and the gate on the tuning scenarios")
+    return Guarantee(False, miss)
 
 
 def _log_sha256(ident: Identification) -> str | None:
