@@ -16,7 +16,7 @@ from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, KIND_PID
 from commission.controllers.pid import PidGains, pid_pack
 from commission.controllers.simulate import simulate_batch
-from commission.gate import GateLimits, evaluate_gate
+from commission.gate import ARC_VS_PID_QUANTILES, GateLimits, evaluate_gate, required_factor
 from commission.scenarios import Scenario, plant_substeps, scenario_matrix
 from commission.spec import Spec
 from commission.tuning import Score
@@ -54,6 +54,10 @@ W_WORST = 1.0
 #: Objective weight of each of the 16 box-corner scenarios (the 12 fixed scenarios weigh 1):
 #: the corners mostly act through the penalties (divergence, no worse than the PID).
 CORNER_WEIGHT = 0.25
+
+
+#: Weight of the gate's ARC-vs-PID quantiles in the objective (:func:`quantile_excess`).
+W_QUANTILE = 4.0
 
 
 #: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
@@ -158,10 +162,12 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
                                                                      by the margin m = PID_MARGIN
         + W_CHATTER ln(e_M / e_M_ref)^+ + W_STEP [e_M > e_M_ref]     and on the transient
 
-    averaged over the scenarios with ``weights`` (default equal), plus
-    ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))``: the scenario where the ARC gains least
-    over the PID (often the heavy payload) counts again, so the search does not
-    trade it away for the easy scenarios.  A diverged run
+    averaged over the scenarios with ``weights`` (default equal), plus, with ``gate`` given,
+    ``W_QUANTILE`` x :func:`quantile_excess` at ``PID_MARGIN``: the gate's own ARC-vs-PID
+    judgement (median and 90th percentile of its factor over the scenarios), so that the search
+    minimises what the gate checks; without ``gate``,
+    ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))`` (the scenario where the ARC gains least
+    over the PID counts again).  A diverged run
     counts W_DIVERGED.  ``reference`` are the PID baseline's scores on the same
     scenarios (optional).
 
@@ -205,9 +211,37 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
             j += W_SATURATION
         total += w * j
     out = total / wsum if wsum > 0 else 0.0
-    if math.isfinite(worst):
+    if gate is not None and reference is not None:
+        # What the gate judges (the median and 90th percentile of the ARC/PID factor), not the single
+        # worst scenario: the minimax term chased the plant where no controller beats the PID.
+        out += W_QUANTILE * quantile_excess(gate, scores, reference, PID_MARGIN)
+    elif math.isfinite(worst):
         out += W_WORST * worst
     return out
+
+
+def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score], margin: float = 1.0) -> float:
+    """How far the ARC misses the gate's ARC-vs-PID quantiles on these scenarios (0: within), ln units.
+
+    The factors are the gate's own (:func:`commission.gate.required_factor`, with the gate's slack)
+    and so are the quantiles (:data:`commission.gate.ARC_VS_PID_QUANTILES`, numpy's ``"higher"``
+    method); each quantile ``q`` counts ``ln(q / (margin limit))^+`` against its limit
+    (``arc_vs_pid_median``, ``arc_vs_pid_p90``), an infinite one (a diverged run among the
+    quantile's scenarios) :data:`DIVERGED_EXCESS`.  ``margin`` < 1 asks for room: the tuning
+    scenarios stand in for validate's Monte-Carlo plants.
+    """
+    f = np.array([required_factor(a, p, gate.arc_vs_pid_slack) for a, p in zip(arc, pid)])
+    if f.size == 0:
+        return 0.0
+    total = 0.0
+    for key, q in ARC_VS_PID_QUANTILES.items():
+        v = float(np.quantile(f, q, method="higher"))
+        lim = margin * float(getattr(gate, key))
+        if not math.isfinite(v):
+            total += DIVERGED_EXCESS
+        elif v > lim > 0:
+            total += math.log(v / lim)
+    return total
 
 
 def meets_targets(scores: Sequence[Score], spec: Spec) -> bool:

@@ -89,6 +89,20 @@ SIGMA_MAX = 1.0
 #: observer leaves a light axis' delay margin room, a faster one passes more encoder noise.
 OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
 
+#: Directions of :meth:`Problem.matched_starts`: (observer factor, K2 cap / K1 cap as multiples of
+#: the base's); a factor other than 1 only when the observer pole is free.
+MATCH_DIRECTIONS = ((1.0, 1.0), (1.25, 1.0), (0.8, 1.0), (1.0, 2.0), (1.0, 0.5))
+
+#: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
+#: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
+MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, 0.25, 13))
+
+#: Matched starts injected into the first generation besides the one that becomes its mean.
+MATCH_INJECTED = 2
+
+#: A matched start may cross over this much above the PID yardstick's crossover.
+MATCH_CROSSOVER_ROOM = 1.05
+
 #: Simulation work of one candidate (:func:`candidate_work`, plant sub-steps) above which a
 #: *defaulted* budget shrinks in proportion (:func:`work_scaled_budget`).
 WORK_CAP = 22e6
@@ -192,12 +206,17 @@ class Problem:
         Discrete feasibility over the theta box.
     observer_free : bool
         The observer pole is a coordinate (the spec left it at its default).
+    target_crossover_hz : float, optional
+        The PID yardstick's crossover on the identified plant, Hz: :meth:`matched_starts` looks
+        for ARC gains with the same bandwidth (None: no such start).
     """
 
     def __init__(self, base: ArcGains, ev: Evaluator, spec: Spec, ident: Identification,
                  reference: Sequence[Score], gate: GateLimits,
-                 feasible: Callable[[ArcGains], FeasibilityReport], *, observer_free: bool) -> None:
+                 feasible: Callable[[ArcGains], FeasibilityReport], *, observer_free: bool,
+                 target_crossover_hz: float | None = None) -> None:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
+        self.target_crossover_hz = target_crossover_hz
         self.reference, self.gate, self.feasible = list(reference), gate, feasible
         self.floors = MarginFloors.from_spec(spec)
         self.screen = screening_indices(ev.scenarios)
@@ -237,6 +256,49 @@ class Problem:
             ob = observer_design(self.spec.observer_pole * f, g.Ts)
             g = dataclasses.replace(g, k1=ob.k1, k2=ob.k2)
         return x, f, g
+
+    def stability_violation(self, g: ArcGains) -> float:
+        """The linear constraints of :meth:`evaluate` (margins and evidence on the identified plant,
+        then the whole box), summed (0: every one met)."""
+        v = margin_violation(self.margins(g), self.floors) + self.evidence.violation(g)
+        return v if v > 0 else box_violation(self.box(g), self.floors)
+
+    def matched_starts(self) -> list[np.ndarray]:
+        """Search vectors whose linear feedback matches the PID yardstick's bandwidth, best match first.
+
+        The ARC has the PID's feedback structure (position and velocity-estimate feedback, the
+        theta3 adaptation as its integral action) plus model compensation: with the same
+        crossover under the same floors it should at least tie the PID, and the compensation does
+        the rest.  Along each of :data:`MATCH_DIRECTIONS` (the observer factor, when free, and the
+        K2/K1 cap ratio) the caps are scaled down through :data:`MATCH_SCALES` until the loop on
+        the identified plant crosses over at most :data:`MATCH_CROSSOVER_ROOM` x the target and
+        every linear constraint holds (:meth:`stability_violation`: the floors on the identified plant
+        and over the whole box, the evidence bound); the first such scale of each direction is a
+        start.  Only linearisations: no simulation.
+        """
+        target = self.target_crossover_hz
+        if target is None or not (math.isfinite(target) and target > 0):
+            return []
+        found: list[tuple[float, np.ndarray]] = []
+        free_obs = N_FREE in self.active
+        for f, ratio in MATCH_DIRECTIONS:
+            if f != 1.0 and not free_obs:
+                continue
+            for sc in MATCH_SCALES:
+                x = list(FREE_START)
+                x[0], x[1] = sc, sc * ratio
+                z = self.z_of(x, f)
+                _, _, g = self.gains(z)
+                rows = self.margins(g)
+                xo = max((r.margins.crossover_hz for r in rows if math.isfinite(r.margins.crossover_hz)),
+                         default=math.nan)
+                if not (xo <= MATCH_CROSSOVER_ROOM * target):
+                    continue
+                if self.stability_violation(g) == 0.0:
+                    found.append((abs(math.log(xo / target)), z))
+                    break
+        found.sort(key=lambda t: t[0])
+        return [z for _, z in found]
 
     # -- evaluation
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
@@ -313,8 +375,10 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
            progress_total: int | None = None) -> SearchResult:
     """CMA-ES over the problem's coordinates for ``budget`` candidates (the last generation cut).
 
-    The first generation holds the carried-over paper gains (the mean),
-    :func:`commission.tune.gains.paper_implementable_start` and
+    The first generation holds the mean -- the best of :meth:`Problem.matched_starts` (the ARC
+    whose loop crosses over where the PID yardstick's does, every linear constraint met), or the
+    carried-over paper gains when there is none --, up to :data:`MATCH_INJECTED` further matched
+    starts, :func:`commission.tune.gains.paper_implementable_start` and
     :data:`commission.tune.gains.EXTRA_STARTS` (injected), and CMA-ES draws around the mean.
     ``seed`` seeds pycma's sampler (so the same seed gives the same tuning).  CMA-ES is told
     :meth:`Candidate.fitness`, the feasibility-first order as one number comparable across
@@ -328,8 +392,13 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
     opts = {"bounds": [list(problem.lo), list(problem.hi)], "popsize": POP, "seed": int(seed), "CMA_elitist": True,
             "CMA_stds": list(stds), "verbose": -9, "verb_log": 0, "verb_disp": 0, "verb_filenameprefix": "",
             "tolfun": 0, "tolx": 0, "tolfunhist": 0, "tolstagnation": int(1e9), "maxfevals": math.inf}
+    # (a stand-in problem without a linear model has no matched start)
+    matched = problem.matched_starts() if hasattr(problem, "matched_starts") else []
+    if matched:  # the mean where the ARC's loop ties the PID yardstick's (Problem.matched_starts)
+        z0 = matched[0]
     es = cma.CMAEvolutionStrategy(list(z0), 1.0, opts)
-    es.inject([problem.z_of(s) for s in (paper_implementable_start(), *EXTRA_STARTS)], force=True)
+    injected = [*matched[1:MATCH_INJECTED + 1], *(problem.z_of(s) for s in (paper_implementable_start(), *EXTRA_STARTS))]
+    es.inject(injected[:POP - 1], force=True)
     cands: list[Candidate] = []
     total = progress_total if progress_total is not None else budget
     generations = 0
