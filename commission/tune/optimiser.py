@@ -64,6 +64,7 @@ from commission.tuning import Score
 from commission.tune.constraints import GATE_MARGIN, box_violation, feasibility_violation, margin_violation
 from commission.tune.gains import (
     EXTRA_STARTS,
+    FREE_BOUNDS,
     FREE_LOG_HI,
     FREE_LOG_LO,
     FREE_START,
@@ -91,11 +92,15 @@ OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
 
 #: Directions of :meth:`Problem.matched_starts`: (observer factor, K2 cap / K1 cap as multiples of
 #: the base's); a factor other than 1 only when the observer pole is free.
-MATCH_DIRECTIONS = ((1.0, 1.0), (1.25, 1.0), (0.8, 1.0), (1.0, 2.0), (1.0, 0.5))
+MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
 
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
-MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, 0.25, 13))
+MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, 0.25, 9))
+
+#: Factors on the base theta3 adaptation rate tried in turn by :meth:`Problem._integral_matched`
+#: (up to the first that breaks a linear constraint).
+MATCH_G3 = (2.0, 4.0, 8.0, 16.0, 32.0)
 
 #: Matched starts injected into the first generation besides the one that becomes its mean.
 MATCH_INJECTED = 2
@@ -295,10 +300,39 @@ class Problem:
                 if not (xo <= MATCH_CROSSOVER_ROOM * target):
                     continue
                 if self.stability_violation(g) == 0.0:
+                    z, xo = self._integral_matched(x, f, z, xo, target)
                     found.append((abs(math.log(xo / target)), z))
                     break
         found.sort(key=lambda t: t[0])
-        return [z for _, z in found]
+        out: list[np.ndarray] = []
+        for _, z in found:  # directions clipped to the same bounds give the same start: once
+            if not any(np.allclose(z, o) for o in out):
+                out.append(z)
+        return out
+
+    def _integral_matched(self, x: list[float], f: float, z: np.ndarray, xo: float,
+                          target: float) -> tuple[np.ndarray, float]:
+        """The fastest theta3 adaptation (the ARC's integral action) along :data:`MATCH_G3` that keeps
+        every linear constraint at the matched caps ``x``: ``(search vector, crossover Hz)``.
+
+        The PID's integral term holds its low-frequency loop gain far above the ARC's at the base
+        adaptation rate, and a constant-force or friction mismatch is then rejected slowly; a
+        faster theta3 adaptation is the ARC's way to the same, up to where the heavy corner of the
+        box (its crossover lowest) loses its margins.
+        """
+        i_g3 = next(k for k, b in enumerate(FREE_BOUNDS) if b[0] == "G3")
+        for m in MATCH_G3:
+            y = list(x)
+            y[i_g3] = x[i_g3] * m
+            zz = self.z_of(y, f)
+            _, _, g = self.gains(zz)
+            rows = self.margins(g)
+            xx = max((r.margins.crossover_hz for r in rows if math.isfinite(r.margins.crossover_hz)),
+                     default=math.nan)
+            if not (xx <= MATCH_CROSSOVER_ROOM * target) or self.stability_violation(g) > 0.0:
+                break
+            z, xo = zz, xx
+        return z, xo
 
     # -- evaluation
     def evaluate(self, Z: Sequence[np.ndarray]) -> list[Candidate]:
