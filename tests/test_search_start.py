@@ -90,3 +90,23 @@ def test_quantile_excess_is_the_gates_quantiles_in_log_units():
     bad = [*arc[:9], _s(1e-6, diverged=True)]
     assert quantile_excess(gate, bad, pid) == pytest.approx(math.log(med) + DIVERGED_EXCESS)
     assert np.isfinite(quantile_excess(gate, [], []))
+
+
+def test_gate_excess_holds_the_arc_to_the_yardstick_where_the_yardstick_misses_a_limit():
+    """With ``yardstick_reach`` the search's gate constraint asks no more than the PID yardstick
+    reaches on a scenario where the PID itself misses an absolute limit (and as much as the gate
+    elsewhere); without it, it is the gate's limits exactly."""
+    from commission.tune.objective import gate_excess
+    gate = GateLimits(e_F=1.0, e_M=10e-6, e_rms=1.0, c_u=1.0, u_max=10.0, no_divergence=True, arc_vs_pid_e_rms=1.0,
+                      basis={}, lsb=1e-6, travel=1.0, arc_vs_pid_every=False)
+
+    def s(e_M: float) -> Score:
+        return Score(e_M=e_M, e_F=1e-7, e_rms=1e-7, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
+
+    pid = [s(12e-6), s(5e-6)]  # the PID misses e_M on the first scenario, meets it on the second
+    arc = [s(11e-6), s(5e-6)]
+    assert gate_excess(gate, arc, pid) == pytest.approx(math.log(11 / 10))
+    assert gate_excess(gate, arc, pid, yardstick_reach=True) == 0.0  # better than the yardstick there
+    worse = [s(13e-6), s(11e-6)]  # worse than the PID on the first, over the limit on the second
+    assert gate_excess(gate, worse, pid, margin=0.95, yardstick_reach=True) == pytest.approx(
+        math.log(13 / 12) + math.log(11 / 9.5))

@@ -63,6 +63,7 @@ from commission.spec import Spec
 from commission.tuning import Score
 from commission.tune.constraints import GATE_MARGIN, box_violation, feasibility_violation, margin_violation
 from commission.tune.gains import (
+    CAP_LOW,
     EXTRA_STARTS,
     FREE_BOUNDS,
     FREE_LOG_HI,
@@ -96,7 +97,7 @@ MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
 
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
-MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, 0.25, 9))
+MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 12))
 
 #: Factors on the base theta3 adaptation rate tried in turn by :meth:`Problem._integral_matched`
 #: (up to the first that breaks a linear constraint).
@@ -348,7 +349,8 @@ class Problem:
         if sim:
             first = dict(zip(sim, self.ev.scores(KIND_ARC, [arc_pack(parts[i][2]) for i in sim], self.screen)))
         ref_screen = [self.reference[i] for i in self.screen]
-        screen_excess = {i: gate_excess(self.gate, sc, ref_screen, margin=GATE_MARGIN) for i, sc in first.items()}
+        screen_excess = {i: gate_excess(self.gate, sc, ref_screen, margin=GATE_MARGIN, yardstick_reach=True)
+                         for i, sc in first.items()}
         full = [i for i in sim if screen_excess[i] <= SCREEN_EXCESS]
         scores: dict[int, list[Score]] = {}
         if full:
@@ -373,7 +375,7 @@ class Problem:
             obj = cost(sc, self.spec, self.reference, self.ev.weights, self.gate)
             # Every tuning scenario, the stand-ins for validate's Monte-Carlo sample included: held to
             # the gate on validate's fixed scenarios only, the winners failed it on Monte-Carlo plants.
-            excess = gate_excess(self.gate, sc, self.reference, margin=GATE_MARGIN)
+            excess = gate_excess(self.gate, sc, self.reference, margin=GATE_MARGIN, yardstick_reach=True)
             if excess > 0:
                 out.append(Candidate(x, f, g, GATE_MISSED, excess, obj, sc, None))
                 continue
