@@ -97,7 +97,7 @@ MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
 
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
-MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 12))
+MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 25))
 
 #: Factors on the base theta3 adaptation rate tried in turn by :meth:`Problem._integral_matched`
 #: (up to the first that breaks a linear constraint).
@@ -290,17 +290,35 @@ class Problem:
         for f, ratio in MATCH_DIRECTIONS:
             if f != 1.0 and not free_obs:
                 continue
-            for sc in MATCH_SCALES:
+            memo: dict[int, tuple[list[float], np.ndarray, ArcGains, float]] = {}
+
+            def at(k: int) -> tuple[list[float], np.ndarray, ArcGains, float]:
+                if k in memo:
+                    return memo[k]
                 x = list(FREE_START)
-                x[0], x[1] = sc, sc * ratio
+                x[0], x[1] = MATCH_SCALES[k], MATCH_SCALES[k] * ratio
                 z = self.z_of(x, f)
                 _, _, g = self.gains(z)
-                rows = self.margins(g)
-                xo = max((r.margins.crossover_hz for r in rows if math.isfinite(r.margins.crossover_hz)),
+                xo = max((r.margins.crossover_hz for r in self.margins(g) if math.isfinite(r.margins.crossover_hz)),
                          default=math.nan)
-                if not (xo <= MATCH_CROSSOVER_ROOM * target):
-                    continue
-                if self.stability_violation(g) == 0.0:
+                memo[k] = (x, z, g, xo)
+                return memo[k]
+
+            # The crossover falls with the caps: bisect for the fastest scale within the room (an
+            # unstable loop, no crossover found, counts as too fast), then walk down to the first
+            # scale that keeps every linear constraint.
+            lo, hi = 0, len(MATCH_SCALES) - 1
+            if not (at(hi)[3] <= MATCH_CROSSOVER_ROOM * target):
+                continue
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if at(mid)[3] <= MATCH_CROSSOVER_ROOM * target:
+                    hi = mid
+                else:
+                    lo = mid
+            for k in range(hi if at(lo)[3] > MATCH_CROSSOVER_ROOM * target else lo, len(MATCH_SCALES)):
+                x, z, g, xo = at(k)
+                if xo <= MATCH_CROSSOVER_ROOM * target and self.stability_violation(g) == 0.0:
                     z, xo = self._integral_matched(x, f, z, xo, target)
                     found.append((abs(math.log(xo / target)), z))
                     break
