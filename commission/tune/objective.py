@@ -173,11 +173,11 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
 
     ``gate`` (optional) are validate's default gate limits for this axis.  Their ARC-vs-PID
     ``slack`` (m; the encoder's quantization-noise rms,
-    :data:`commission.gate.DEFAULT_ARC_VS_PID_SLACK_LSB`) enters the minimax term only: there
-    it keeps a scenario where both controllers sit at the quantization floor from dominating
-    the objective (in the per-scenario margin penalty it made the search settle for less).
-    The gate itself is not part of the objective: it is a constraint of the search
-    (:mod:`commission.tune.constraints`).
+    :data:`commission.gate.DEFAULT_ARC_VS_PID_SLACK_LSB`) and quantile limits enter the
+    quantile term only (as in the gate, the slack keeps a scenario where both controllers sit
+    at the quantization floor from counting; in the per-scenario margin penalty it made the
+    search settle for less).  The gate's absolute limits are not part of the objective: they
+    are a constraint of the search (:mod:`commission.tune.constraints`).
     """
     total = 0.0
     wsum = 0.0

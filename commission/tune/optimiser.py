@@ -106,6 +106,10 @@ MATCH_G3 = (2.0, 4.0, 8.0, 16.0, 32.0)
 #: Matched starts injected into the first generation besides the one that becomes its mean.
 MATCH_INJECTED = 2
 
+#: The best matched start becomes CMA-ES's mean (else the carried-over paper gains stay the mean
+#: and the matched starts are injected only).
+MATCH_AS_MEAN = True
+
 #: A matched start may cross over this much above the PID yardstick's crossover.
 MATCH_CROSSOVER_ROOM = 1.05
 
@@ -448,10 +452,12 @@ def search(problem: Problem, budget: int, seed: int, progress: Progress | None =
             "tolfun": 0, "tolx": 0, "tolfunhist": 0, "tolstagnation": int(1e9), "maxfevals": math.inf}
     # (a stand-in problem without a linear model has no matched start)
     matched = problem.matched_starts() if hasattr(problem, "matched_starts") else []
-    if matched:  # the mean where the ARC's loop ties the PID yardstick's (Problem.matched_starts)
+    n_mean = 1 if (matched and MATCH_AS_MEAN) else 0
+    if n_mean:  # the mean where the ARC's loop ties the PID yardstick's (Problem.matched_starts)
         z0 = matched[0]
     es = cma.CMAEvolutionStrategy(list(z0), 1.0, opts)
-    injected = [*matched[1:MATCH_INJECTED + 1], *(problem.z_of(s) for s in (paper_implementable_start(), *EXTRA_STARTS))]
+    injected = [*matched[n_mean:n_mean + MATCH_INJECTED],
+                *(problem.z_of(s) for s in (paper_implementable_start(), *EXTRA_STARTS))]
     es.inject(injected[:POP - 1], force=True)
     cands: list[Candidate] = []
     total = progress_total if progress_total is not None else budget
