@@ -141,8 +141,8 @@ SCREEN_OFFSET = 0.3 * LEVEL_OFFSET
 #: summed over indexes and scenarios) above which a candidate is not simulated on the rest: an
 #: index 35 % over its limit, far from feasibility.  (1.0, an e-fold, while nearly every candidate
 #: missed a margin: once the matched starts and the yardstick's reach put most of them past the
-#: margins, 1.0 simulated three times as many in full and cost the sample 12 s of CPU more; 0.3
-#: kept the same ARC-vs-PID quantiles there, docs/robustness.md.)
+#: margins, 1.0 simulated several times as many in full, 3.6 s of CPU more than 0.3 on the
+#: sample, for about the same ARC-vs-PID quantiles there, docs/robustness.md.)
 SCREEN_EXCESS = 0.3
 
 
@@ -283,11 +283,13 @@ class Problem:
         theta3 adaptation as its integral action) plus model compensation: with the same
         crossover under the same floors it should at least tie the PID, and the compensation does
         the rest.  Along each of :data:`MATCH_DIRECTIONS` (the observer factor, when free, and the
-        K2/K1 cap ratio) the caps are scaled down through :data:`MATCH_SCALES` until the loop on
-        the identified plant crosses over at most :data:`MATCH_CROSSOVER_ROOM` x the target and
-        every linear constraint holds (:meth:`stability_violation`: the floors on the identified plant
-        and over the whole box, the evidence bound); the first such scale of each direction is a
-        start.  Only linearisations: no simulation.
+        K2/K1 cap ratio) the cap scale of :data:`MATCH_SCALES` is bisected for the fastest loop
+        on the identified plant that crosses over at most :data:`MATCH_CROSSOVER_ROOM` x the
+        target, then lowered to the first that keeps every linear constraint
+        (:meth:`stability_violation`: the floors on the identified plant and over the whole box,
+        the evidence bound), and its theta3 adaptation raised while they hold
+        (:meth:`_integral_matched`): one start per direction.  Only linearisations, no
+        simulation (about a second of CPU).
         """
         target = self.target_crossover_hz
         if target is None or not (math.isfinite(target) and target > 0):
@@ -557,6 +559,7 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 
 __all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
-           "HoldoutChoice", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
+           "HoldoutChoice", "MATCH_AS_MEAN", "MATCH_CROSSOVER_ROOM", "MATCH_DIRECTIONS", "MATCH_G3",
+           "MATCH_INJECTED", "MATCH_SCALES", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
            "SCREEN_EXCESS", "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
