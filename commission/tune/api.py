@@ -51,7 +51,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import pid_within_evidence, pid_yardstick
+from commission.tune.baseline import pid_candidates, pid_within_evidence, pid_yardstick
 from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, fit_force_to_drive, fit_payload_to_drive, narrow_default_payload, validity_of
@@ -117,7 +117,8 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
                                     margin=spec.margin)
 
-    problem = Problem(base, ev, spec, ident, pid_scores, gate, feasible, observer_free=observer_free)
+    problem = Problem(base, ev, spec, ident, pid_scores, gate, feasible, observer_free=observer_free,
+                      target_crossover_hz=pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz)
     res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total)
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
     choice = select_on_holdout(res, hg)

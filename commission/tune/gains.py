@@ -84,6 +84,13 @@ class FreeGains:
                 "theta1_0": self.theta1_0}
 
 
+#: Lowest cap multiple the search considers: an axis whose PID yardstick crosses over far below the
+#: carried-over paper gains' bandwidth (a low rate against a structural mode) needs caps of a tenth of
+#: the base to keep its margins (:meth:`commission.tune.optimiser.Problem.matched_starts`); 0.25 left
+#: such axes no gains that tie the PID's loop.
+CAP_LOW = 0.05
+
+
 #: Search box of the free gains, relative to :func:`base_arc_gains`: (name, low, high).
 #: k1, k2: caps as multiples of the base g1, g2; f1, f2: g as a fraction of its cap;
 #: G1..G3: Gamma entries as multiples of the base Gamma; w2: the weight w2 of (41) as a
@@ -91,7 +98,7 @@ class FreeGains:
 #: adaptation (the loop's integral action, tau3 = w1 psi2 z1 + w2 phi2_3 z2) run much faster
 #: before its loop loses stability, at the price of more chattering: the search trades them.
 #: t1: theta_hat1(0) as a multiple of the identified nominal (clipped to the box; see THETA1_0_LOW).
-FREE_BOUNDS = (("k1", 0.25, 4.0), ("k2", 0.25, 4.0), ("f1", 0.05, 1.0), ("f2", 0.05, 1.0),
+FREE_BOUNDS = (("k1", CAP_LOW, 4.0), ("k2", CAP_LOW, 4.0), ("f1", 0.05, 1.0), ("f2", 0.05, 1.0),
                ("G1", 1e-2, 30.0), ("G2", 1e-2, 30.0), ("G3", 1e-2, 1e4), ("w2", 1e-3, 10.0),
                ("t1", THETA1_0_LOW, 1.0))
 

@@ -16,7 +16,7 @@ from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, KIND_PID
 from commission.controllers.pid import PidGains, pid_pack
 from commission.controllers.simulate import simulate_batch
-from commission.gate import GateLimits, evaluate_gate
+from commission.gate import ARC_VS_PID_QUANTILES, GateLimits, evaluate_gate, required_factor
 from commission.scenarios import Scenario, plant_substeps, scenario_matrix
 from commission.spec import Spec
 from commission.tuning import Score
@@ -54,6 +54,10 @@ W_WORST = 1.0
 #: Objective weight of each of the 16 box-corner scenarios (the 12 fixed scenarios weigh 1):
 #: the corners mostly act through the penalties (divergence, no worse than the PID).
 CORNER_WEIGHT = 0.25
+
+
+#: Weight of the gate's ARC-vs-PID quantiles in the objective (:func:`quantile_excess`).
+W_QUANTILE = 4.0
 
 
 #: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
@@ -158,20 +162,22 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
                                                                      by the margin m = PID_MARGIN
         + W_CHATTER ln(e_M / e_M_ref)^+ + W_STEP [e_M > e_M_ref]     and on the transient
 
-    averaged over the scenarios with ``weights`` (default equal), plus
-    ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))``: the scenario where the ARC gains least
-    over the PID (often the heavy payload) counts again, so the search does not
-    trade it away for the easy scenarios.  A diverged run
+    averaged over the scenarios with ``weights`` (default equal), plus, with ``gate`` given,
+    ``W_QUANTILE`` x :func:`quantile_excess` at ``PID_MARGIN``: the gate's own ARC-vs-PID
+    judgement (median and 90th percentile of its factor over the scenarios), so that the search
+    minimises what the gate checks; without ``gate``,
+    ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))`` (the scenario where the ARC gains least
+    over the PID counts again).  A diverged run
     counts W_DIVERGED.  ``reference`` are the PID baseline's scores on the same
     scenarios (optional).
 
     ``gate`` (optional) are validate's default gate limits for this axis.  Their ARC-vs-PID
     ``slack`` (m; the encoder's quantization-noise rms,
-    :data:`commission.gate.DEFAULT_ARC_VS_PID_SLACK_LSB`) enters the minimax term only: there
-    it keeps a scenario where both controllers sit at the quantization floor from dominating
-    the objective (in the per-scenario margin penalty it made the search settle for less).
-    The gate itself is not part of the objective: it is a constraint of the search
-    (:mod:`commission.tune.constraints`).
+    :data:`commission.gate.DEFAULT_ARC_VS_PID_SLACK_LSB`) and quantile limits enter the
+    quantile term only (as in the gate, the slack keeps a scenario where both controllers sit
+    at the quantization floor from counting; in the per-scenario margin penalty it made the
+    search settle for less).  The gate's absolute limits are not part of the objective: they
+    are a constraint of the search (:mod:`commission.tune.constraints`).
     """
     total = 0.0
     wsum = 0.0
@@ -205,9 +211,37 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
             j += W_SATURATION
         total += w * j
     out = total / wsum if wsum > 0 else 0.0
-    if math.isfinite(worst):
+    if gate is not None and reference is not None:
+        # What the gate judges (the median and 90th percentile of the ARC/PID factor), not the single
+        # worst scenario: the minimax term chased the plant where no controller beats the PID.
+        out += W_QUANTILE * quantile_excess(gate, scores, reference, PID_MARGIN)
+    elif math.isfinite(worst):
         out += W_WORST * worst
     return out
+
+
+def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score], margin: float = 1.0) -> float:
+    """How far the ARC misses the gate's ARC-vs-PID quantiles on these scenarios (0: within), ln units.
+
+    The factors are the gate's own (:func:`commission.gate.required_factor`, with the gate's slack)
+    and so are the quantiles (:data:`commission.gate.ARC_VS_PID_QUANTILES`, numpy's ``"higher"``
+    method); each quantile ``q`` counts ``ln(q / (margin limit))^+`` against its limit
+    (``arc_vs_pid_median``, ``arc_vs_pid_p90``), an infinite one (a diverged run among the
+    quantile's scenarios) :data:`DIVERGED_EXCESS`.  ``margin`` < 1 asks for room: the tuning
+    scenarios stand in for validate's Monte-Carlo plants.
+    """
+    f = np.array([required_factor(a, p, gate.arc_vs_pid_slack) for a, p in zip(arc, pid)])
+    if f.size == 0:
+        return 0.0
+    total = 0.0
+    for key, q in ARC_VS_PID_QUANTILES.items():
+        v = float(np.quantile(f, q, method="higher"))
+        lim = margin * float(getattr(gate, key))
+        if not math.isfinite(v):
+            total += DIVERGED_EXCESS
+        elif v > lim > 0:
+            total += math.log(v / lim)
+    return total
 
 
 def meets_targets(scores: Sequence[Score], spec: Spec) -> bool:
@@ -277,7 +311,7 @@ class HoldoutGate:
 
 
 def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
-                margin: float = 1.0) -> float:
+                margin: float = 1.0, *, yardstick_reach: bool = False) -> float:
     """Summed log-excess of the ARC's indexes over ``margin`` x their gate limits (0: all within).
 
     Per scenario: ``sum ln(index / (margin limit))^+`` over e_F, e_M, e_rms, c_u, the peak
@@ -290,6 +324,14 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
     checked for discrete feasibility: the search then returned gains unstable over the box.
     A smooth companion of the failure count (0 exactly when every index is within ``margin``
     of its limit): the search's gate constraint (:mod:`commission.tune.constraints`).
+
+    ``yardstick_reach`` (the search's constraint, not the gate): on a scenario where the PID
+    yardstick itself misses an absolute error limit (e_F, e_M, e_rms), the ARC is held to the
+    PID's value there instead (no worse than the yardstick).  The box-corner stand-ins for the
+    Monte-Carlo sample are harsher than any plant validate draws; where no PID meets a limit
+    there, every candidate missed the constraint, the search ranked them all by that excess
+    alone and the ARC-vs-PID objective never decided (the sample: e_M at the heavy corners,
+    ARC and PID 1.16 and 1.18 x the limit).  validate's gate is unchanged.
     """
     total = 0.0
     every = getattr(limits, "arc_vs_pid_every", True)
@@ -297,7 +339,11 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
         if a.diverged or not math.isfinite(a.e_rms):
             total += DIVERGED_EXCESS
             continue
-        ratios = [a.e_F / limits.e_F, a.e_M / limits.e_M, a.e_rms / limits.e_rms, a.c_u / limits.c_u,
+        lim_f, lim_m, lim_r = limits.e_F, limits.e_M, limits.e_rms
+        if yardstick_reach and not p.diverged:
+            lim_f, lim_m, lim_r = (max(lim, v / margin) if math.isfinite(v) else lim
+                                   for lim, v in ((lim_f, p.e_F), (lim_m, p.e_M), (lim_r, p.e_rms)))
+        ratios = [a.e_F / lim_f, a.e_M / lim_m, a.e_rms / lim_r, a.c_u / limits.c_u,
                   a.u_peak / limits.u_max]
         if not p.diverged and math.isfinite(p.e_rms):
             if every:

@@ -1,0 +1,112 @@
+"""The search starts where the ARC's loop ties the PID yardstick's, and minimises what the gate judges.
+
+:meth:`commission.tune.optimiser.Problem.matched_starts` (linearisations only) and
+:func:`commission.tune.objective.quantile_excess` (the gate's ARC-vs-PID quantiles) are checked
+against independent computations: the margins and the box check recomputed through the public
+robustness classes, the quantiles by hand.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from commission.gate import GateLimits, required_factor
+from commission.paper import reference_identification
+from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, MarginFloors
+from commission.spec import spec_from_mapping
+from commission.tune.baseline import pid_candidates
+from commission.tune.constraints import box_violation, margin_violation
+from commission.tune.objective import DIVERGED_EXCESS, quantile_excess
+from commission.tune.optimiser import MATCH_CROSSOVER_ROOM, Problem
+from commission.tuning import Score
+
+
+class _NoScenarios:
+    scenarios: list = []
+    weights: list = []
+
+
+def _problem(target):
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({}, "spec (defaults)")
+    gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=spec.u_max, no_divergence=True,
+                      arc_vs_pid_e_rms=1.0, basis={}, lsb=1e-6, travel=1.0)
+    return ident, spec, Problem(_base(ident, spec), _NoScenarios(), spec, ident, [], gate, lambda g: None,
+                                observer_free=True, target_crossover_hz=target)
+
+
+def _base(ident, spec):
+    from commission.tune.gains import base_arc_gains
+    return base_arc_gains(ident, spec)
+
+
+def test_matched_starts_tie_the_yardstick_bandwidth_within_every_linear_constraint():
+    """Each matched start crosses over at most MATCH_CROSSOVER_ROOM x the PID's crossover on the
+    identified plant, keeps the margin floors there and over the whole box (checked again through
+    the public classes), and the best match comes first."""
+    ident0, spec0, _ = _problem(None)
+    pid = pid_candidates(ident0, spec0, [0.1 * spec0.sample_rate])[0].margins.crossover_hz
+    ident, spec, prob = _problem(pid)
+    starts = prob.matched_starts()
+    assert starts, "no ARC gains match the yardstick's bandwidth on the reference plant"
+    floors = MarginFloors.from_spec(spec)
+    pm, box = IdentifiedPlantArcMargins(ident, spec), BoxArcCheck(ident, spec)
+    gaps = []
+    for z in starts:
+        _, _, g = prob.gains(z)
+        rows = pm(g)
+        xo = max(r.margins.crossover_hz for r in rows)
+        assert xo <= MATCH_CROSSOVER_ROOM * pid
+        assert margin_violation(rows, floors) == 0.0
+        assert box_violation(box(g), floors) == 0.0
+        gaps.append(abs(math.log(xo / pid)))
+    assert gaps == sorted(gaps)
+    # no target (a spec that pinned nothing to match): no start, the search keeps its old one
+    assert _problem(None)[2].matched_starts() == []
+
+
+def _s(e_rms: float, diverged: bool = False) -> Score:
+    return Score(e_M=1e-6, e_F=1e-6, e_rms=e_rms, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=diverged)
+
+
+def test_quantile_excess_is_the_gates_quantiles_in_log_units():
+    """Median and 90th percentile (numpy's "higher") of the gate's required factor, each counted
+    ln(q / (margin limit)) above its limit; a diverged ARC inside a quantile counts DIVERGED_EXCESS."""
+    gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=10.0, no_divergence=True, arc_vs_pid_e_rms=1.0,
+                      basis={}, lsb=1e-6, travel=1.0, arc_vs_pid_slack=0.0, arc_vs_pid_median=1.0, arc_vs_pid_p90=1.2)
+    pid = [_s(1e-6)] * 10
+    ratios = [0.5, 0.6, 0.7, 0.8, 0.9, 1.1, 1.2, 1.3, 1.5, 2.0]
+    arc = [_s(r * 1e-6) for r in ratios]
+    f = [required_factor(a, p, 0.0) for a, p in zip(arc, pid)]
+    med, p90 = sorted(f)[5], sorted(f)[9]  # "higher": the 6th and the 10th of ten
+    assert quantile_excess(gate, arc, pid) == pytest.approx(math.log(med / 1.0) + math.log(p90 / 1.2))
+    assert quantile_excess(gate, arc, pid, margin=0.9) == pytest.approx(
+        math.log(med / 0.9) + math.log(p90 / (0.9 * 1.2)))
+    assert quantile_excess(gate, [_s(0.5e-6)] * 10, pid) == 0.0  # every factor within: nothing owed
+    # one diverged run among ten lies above the median but inside the 90th percentile
+    bad = [*arc[:9], _s(1e-6, diverged=True)]
+    assert quantile_excess(gate, bad, pid) == pytest.approx(math.log(med) + DIVERGED_EXCESS)
+    assert np.isfinite(quantile_excess(gate, [], []))
+
+
+def test_gate_excess_holds_the_arc_to_the_yardstick_where_the_yardstick_misses_a_limit():
+    """With ``yardstick_reach`` the search's gate constraint asks no more than the PID yardstick
+    reaches on a scenario where the PID itself misses an absolute limit (and as much as the gate
+    elsewhere); without it, it is the gate's limits exactly."""
+    from commission.tune.objective import gate_excess
+    gate = GateLimits(e_F=1.0, e_M=10e-6, e_rms=1.0, c_u=1.0, u_max=10.0, no_divergence=True, arc_vs_pid_e_rms=1.0,
+                      basis={}, lsb=1e-6, travel=1.0, arc_vs_pid_every=False)
+
+    def s(e_M: float) -> Score:
+        return Score(e_M=e_M, e_F=1e-7, e_rms=1e-7, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
+
+    pid = [s(12e-6), s(5e-6)]  # the PID misses e_M on the first scenario, meets it on the second
+    arc = [s(11e-6), s(5e-6)]
+    assert gate_excess(gate, arc, pid) == pytest.approx(math.log(11 / 10))
+    assert gate_excess(gate, arc, pid, yardstick_reach=True) == 0.0  # better than the yardstick there
+    worse = [s(13e-6), s(11e-6)]  # worse than the PID on the first, over the limit on the second
+    assert gate_excess(gate, worse, pid, margin=0.95, yardstick_reach=True) == pytest.approx(
+        math.log(13 / 12) + math.log(11 / 9.5))
