@@ -29,7 +29,9 @@ import time
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+
+import commission.units as units_mod
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
@@ -141,6 +143,7 @@ def _assert_escaped(text):
 @given(value=hostile, field=st.sampled_from(["units.u", "units.q", "validated.note",
                                              *(f"provenance.{n}" for n in PROVENANCE)]),
        kind=st.sampled_from(["arc", "pid"]), target=st.sampled_from(["c", "st"]))
+@example(value="", field="units.q", kind="arc", target="c")  # an empty unit: the README shows the default's
 def test_no_hostile_string_leaves_its_comment(base, value, field, kind, target):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(export_mod, "VECTOR_STEPS", 60)  # the vectors carry no text; keep each example quick
@@ -165,7 +168,9 @@ def test_no_hostile_string_leaves_its_comment(base, value, field, kind, target):
     elif field == "units.q":  # the position unit reaches the README only, as escaped code spans
         _assert_escaped(markdown_code(value)[1:-1])
         expected = _expected(base, harmless, MARK, _checksum(hostile_config))
-        expected["README.md"] = expected.get("README.md", "").replace("`m`", markdown_code(value))
+        # the README words q's unit as commission.units does (an empty unit is the default's)
+        shown = units_mod.unit("q", {"u": MARK, "q": value})
+        expected["README.md"] = expected.get("README.md", "").replace("`m`", markdown_code(shown))
         assert {n: t for n, t in files.items()} == {n: t for n, t in expected.items() if n in files}
     else:  # free-form validated text reaches no generated file (but the checksum line)
         assert files == _expected(base, harmless, MARK, _checksum(hostile_config))
