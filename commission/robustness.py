@@ -495,6 +495,23 @@ def box_check(arc: ArcGains, ident: Identification, spec: Spec) -> BoxRobustness
 
 
 
+def identified_performance(names: Sequence[str], ident: Identification) -> frozenset[str]:
+    """The PERFORMANCE scenarios among ``names`` for this identification (:func:`commission.gate.performance_scenarios`).
+
+    The payload range counts as stated unless ident.json records it as defaulted
+    (``bounds.payload_defaulted``, :func:`payload_box`), the load-force bound unless
+    ``bounds.disturbance_bound_defaulted`` is true.  One answer for validate's gate and tune's
+    search, so that the search holds the absolute error limits exactly where the gate does.
+    """
+    from commission.gate import performance_scenarios
+
+    pb = payload_box(ident)
+    bounds = ident.extra.get("bounds")
+    dist_defaulted = isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True
+    return performance_scenarios(list(names), payload_stated=pb is None or not pb[3],
+                                 disturbance_stated=not dist_defaulted)
+
+
 def payload_box(ident: Identification) -> tuple[float, float, float, bool] | None:
     """``(payload_min, payload_max, heaviest mass without payload, defaulted)`` from ident.json's ``bounds``.
 

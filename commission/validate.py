@@ -67,13 +67,13 @@ from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             box_checks, margin_checks, performance_scenarios, resolve_gate, safe_not_better)
+                             box_checks, margin_checks, resolve_gate, safe_not_better)
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.evidence import Evidence, RobustStability, evidence_checks, evidence_table
 from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
-                                   nominal_loops, payload_box, worst)
+                                   identified_performance, nominal_loops, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
                                   force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
@@ -671,17 +671,8 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
 
 
 def performance_set(runs: Sequence[RunRecord], ident: Identification) -> frozenset[str]:
-    """The validation's PERFORMANCE scenarios (:func:`commission.gate.performance_scenarios`).
-
-    The payload range counts as stated unless ident.json records it as defaulted
-    (``bounds.payload_defaulted``, :func:`commission.robustness.payload_box`), the load-force bound
-    unless ``bounds.disturbance_bound_defaulted`` is true.
-    """
-    pb = payload_box(ident)
-    bounds = ident.extra.get("bounds")
-    dist_defaulted = isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True
-    return performance_scenarios([r.name for r in runs], payload_stated=pb is None or not pb[3],
-                                 disturbance_stated=not dist_defaulted)
+    """The validation's PERFORMANCE scenarios (:func:`commission.robustness.identified_performance`)."""
+    return identified_performance([r.name for r in runs], ident)
 
 
 # --------------------------------------------------------------------------- controller.json
