@@ -10,6 +10,7 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 
+from commission.evidence import evidence_limited_line
 from commission.gate import safe_not_better, search_infeasible_line
 from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
@@ -111,5 +112,8 @@ def run_command(
         miss = search_infeasible_line(v.tuning.search)
         if miss is not None:
             typer.echo(miss)
+        missing = evidence_limited_line(v.result)
+        if missing is not None:
+            typer.echo(missing)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

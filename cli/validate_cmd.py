@@ -9,6 +9,7 @@ from typing import Any, Optional
 import typer
 from rich.console import Console
 
+from commission.evidence import evidence_limited_line
 from commission.gate import safe_not_better, search_infeasible_line
 from commission.report import not_better_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
@@ -85,5 +86,8 @@ def validate_command(
         miss = search_infeasible_line(outcome.tuning.search)
         if miss is not None:
             typer.echo(miss)
+        missing = evidence_limited_line(outcome.result)
+        if missing is not None:
+            typer.echo(missing)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

@@ -447,6 +447,38 @@ def limits_toml(spec: Spec, ident: Identification) -> str:
                "viscous": "identified"})
 
 
+#: The absolute error criteria of the gate: a loop held within the evidence that misses one of them
+#: misses it for want of evidence (a faster loop would need the plant above the backed band).
+ERROR_CRITERIA = ("e_F", "e_M", "e_rms")
+
+
+def evidence_limited_line(result: Any) -> str | None:
+    """One plain sentence when the gate failed on error limits while the loop was held within a
+    band the log backs without broadband content (None otherwise).
+
+    Above the backed band the plant is unknown, so the search and the gate hold the loop to
+    ||W T|| < 1 there; on a log without a broadband segment that band ends at a few tens of hertz,
+    and the error limits may then be out of reach at any gains.  The refusal is then for want of
+    evidence, and the remedy is a recording, not a retune: said first, with the command.
+
+    Parameters
+    ----------
+    result : commission.validate.ValidationResult
+        Its ``evidence`` and ``verdict``.
+    """
+    ev = getattr(result, "evidence", None)
+    if ev is None or not ev.applies or ev.source == "broadband":
+        return None
+    fails = [c for c in result.verdict.failures if c.criterion in ERROR_CRITERIA]
+    if not fails:
+        return None
+    worst = max(fails, key=lambda c: c.value / c.limit if c.limit > 0 else math.inf)
+    return (f"Missing evidence: the log has no broadband segment and backs the model only up to "
+            f"{ev.top_hz:.3g} Hz, so the loop is held to robust stability above it (||W T|| < 1), and at that "
+            f"bandwidth {len(fails)} error limit(s) are missed (worst: {worst.scenario} {worst.criterion} "
+            f"{worst.detail}). Record the run `{excite_command()}` plans to raise the band, or relax the targets.")
+
+
 def excite_command(out_dir: str = "excite") -> str:
     """The command that plans the run which raises the evidence (CONTRACT §6, planned face)."""
     return f"commission excite --spec limits.toml --out-dir {out_dir}"
@@ -467,4 +499,4 @@ def raise_evidence_line(evidence: Evidence, spec: Spec, ident: Identification) -
 
 __all__ = ["EVIDENCE_FACTOR", "ZETA_W", "Evidence", "EvidenceBound", "MeasuredResponse", "RobustStability", "SEARCH_ROOM",
            "W_INF", "evidence_checks", "evidence_lines", "evidence_of", "evidence_table", "excite_command", "limits_toml",
-           "raise_evidence_line", "measured_margins", "weighted_peak"]
+           "raise_evidence_line", "measured_margins", "weighted_peak", "evidence_limited_line", "ERROR_CRITERIA"]

@@ -538,6 +538,11 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
             L.append(f"- {line}")
     else:
         L.extend(_search_miss_lines(tuning))
+        from commission.evidence import evidence_limited_line  # evidence imports this module's helpers
+
+        missing = evidence_limited_line(result)
+        if missing is not None:
+            L.extend([f"**{md_text(missing)}**", ""])
         L.append(f"**No `controller.json` was written.** {len(v.failures)} checks failed:")
         L.append("")
         for line in failure_lines(v):

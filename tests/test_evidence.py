@@ -179,3 +179,28 @@ def test_the_spec_states_the_machines_lowest_mode_and_its_damping():
     assert not EvidenceBound(ident, SPEC).row(K, "pid", "").holds
     stated = spec_from_mapping({"evidence": {"first_mode_hz": 5000.0}})
     assert EvidenceBound(ident, stated).row(K, "pid", "").holds
+
+
+def _verdict_with(*checks):
+    from types import SimpleNamespace
+    return SimpleNamespace(failures=tuple(c for c in checks if not c.passed))
+
+
+def test_a_refusal_on_error_limits_within_a_rigid_logs_band_is_for_want_of_evidence():
+    from types import SimpleNamespace
+
+    from commission.evidence import evidence_limited_line
+    from commission.gate import Check
+
+    e_rms = Check("e_rms", "case1/nominal", 32.1e-6, 20e-6, False, "32.1 um (limit 20 um)")
+    c_u = Check("c_u", "case1/nominal", 1.2, 1.0, False, "1.2 (limit 1)")
+    rigid = Evidence(source="whole_log", band_hz=(8.0, 22.0))
+    line = evidence_limited_line(SimpleNamespace(evidence=rigid, verdict=_verdict_with(e_rms)))
+    assert line is not None and line.startswith("Missing evidence:")
+    assert "up to 22 Hz" in line and "case1/nominal e_rms 32.1 um (limit 20 um)" in line
+    assert "commission excite --spec limits.toml" in line
+    # not for want of evidence: a broadband log, no band at all, or a failure that is not an error limit
+    broadband = Evidence(source="broadband", band_hz=(5.0, 600.0))
+    for ev, verdict in ((broadband, _verdict_with(e_rms)), (Evidence(source="none", band_hz=None), _verdict_with(e_rms)),
+                        (rigid, _verdict_with(c_u))):
+        assert evidence_limited_line(SimpleNamespace(evidence=ev, verdict=verdict)) is None
