@@ -33,18 +33,12 @@ from commission.export.translate import TranslationError, translate
 from commission.gate import GateSpec, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.paper import reference_identification
-from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps
+from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps, scenario_matrix
 from commission.spec import default_spec
 from commission.tune import base_arc_gains, pid_baseline
 from commission.validate import deployable_gains, guard_values
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.csv"
-#: Why the whole run on the sample is an expected failure for now (tests marked with it).
-SAMPLE_REFUSED = (
-    "the gate on main refuses the sample since issue 31 made it a two-mass axis (500 Hz non-collocated "
-    "mode, 0.5-sample delay): the ARC loses to the PID baseline at the heavy payload corner and on most "
-    "Monte-Carlo plants, and e_rms exceeds 20 um there (issue 30); strict: remove this mark when the "
-    "verdict work passes it")
 needs_cc = pytest.mark.skipif(find_cc() is None, reason="no C compiler (cc) on the PATH: the C export cannot be built")
 runner = CliRunner()
 LSB = 1e-6
@@ -131,23 +125,34 @@ def test_replay_detects_a_one_ulp_difference(axis, tmp_path, replay_exe):
     assert r.returncode == 1 and "unequal 1 " in r.stdout
 
 
-def _c_closed_loop(step, init, plant, traj, Ts, substeps, quant, u_sat, e_abort):
-    """closed_loop_kernel of controllers.simulate for a delay-free plant, with the C step (Python loop)."""
-    assert plant[P_DELAY] == 0.0
+def _c_closed_loop(step, init, plant, traj, Ts, substeps, quant, u_sat, e_abort, noise=None):
+    """closed_loop_kernel of controllers.simulate with the C step (Python loop): the plant's input delay
+    (``c_{k-n_d-1}`` over the first ``f Ts`` of a sample, ``c_{k-n_d}`` over the rest) and encoder noise
+    (the scenario's own draw) as there."""
     n = traj.n
     y_o, u_o = np.empty(n), np.empty(n)
+    tau = plant[P_DELAY] / Ts
+    n_d = int(math.floor(tau + 1e-9))
+    f = tau - n_d if tau - n_d >= 1e-9 else 0.0
+    hist = np.zeros(n_d + 2)
+    nh = n_d + 2
+    nz = np.zeros(n) if noise is None else noise
     st = np.empty(NX)
     plant_start(plant, st, 0.0)
-    y = _quantize(plant_output(plant, st), quant)
+    y = _quantize(plant_output(plant, st) + nz[0], quant)
     init(y)
     for k in range(n):
         x = plant_output(plant, st)
         if k > 0:
-            y = _quantize(x, quant)
+            y = _quantize(x + nz[k], quant)
         assert math.isfinite(x) and abs(x - traj.qd[k]) <= e_abort
         c = step(y, traj.qd[k], traj.dqd[k], traj.ddqd[k])
+        hist[k % nh] = c
+        c_late = hist[(k - n_d) % nh] if k >= n_d else 0.0
+        c_early = hist[(k - n_d - 1) % nh] if k >= n_d + 1 else 0.0
         y_o[k] = y
-        u_o[k] = _segment(plant, st, c, u_sat, 0.0, Ts, substeps, Ts)
+        _segment(plant, st, c_early, u_sat, 0.0, f * Ts, substeps, Ts)
+        u_o[k] = _segment(plant, st, c_late, u_sat, 0.0, (1.0 - f) * Ts, substeps, Ts)
     return y_o, u_o, indexes_kernel(y_o - traj.qd, u_o, float(traj.t[-1]), Ts, n, float(FINAL_WINDOW))
 
 
@@ -266,7 +271,6 @@ def test_translator_keeps_python_order_of_operations(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=SAMPLE_REFUSED)
 @needs_cc
 def test_sample_pipeline_export_matches_validate(tmp_path):
     """The sample log through `commission run`, then export (ARC and PID, with --tuning): bit-exact
@@ -275,9 +279,7 @@ def test_sample_pipeline_export_matches_validate(tmp_path):
     from commission.jsonio import read_json
 
     out = tmp_path / "axis"
-    spec = tmp_path / "spec.toml"
-    spec.write_text("[evidence]\nfirst_mode_hz = 5000.0\n")  # the sample's axis is rigid (truth.json)
-    r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(out), "--spec", str(spec)])
+    r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(out)])
     assert r.exit_code == 0, r.output
     for kind in ("arc", "pid"):
         r = runner.invoke(app, ["export", str(out / "controller.json"), "--out-dir", str(tmp_path / kind),
@@ -291,11 +293,16 @@ def test_sample_pipeline_export_matches_validate(tmp_path):
     lib = ctypes.CDLL(str(build_shared(tmp_path / "arc", "arc", tmp_path / "libarc.so")))
     step, init, p_addr, state = _bind(lib)
     g, spec = tuning.arc, tuning.spec
-    for case, tspec in (("case1", case1_trajectory(spec)), ("case2", case2_trajectory(spec))):
-        traj = tspec.render(g.Ts, 0.0)
+    # validate's nominal scenarios as validate builds them: the identified plant (its mode and delay), the
+    # encoder's quantization and noise (drawn per scenario name)
+    nominal_sc = {sc.name: sc for sc in scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(0),
+                                                        n_monte_carlo=0)}
+    for case in ("case1", "case2"):
+        sc = nominal_sc[f"{case}/nominal"]
+        traj = sc.trajectory.render(g.Ts, sc.y0)
         _, _, idx = _c_closed_loop(lambda *a: step(state, p_addr, *a), lambda y0: init(state, p_addr, y0),
-                                   identified_plant(tuning.identification), traj, g.Ts, plant_substeps(1.0 / g.Ts),
-                                   tuning.quantization, spec.u_max, spec.travel)
+                                   sc.plant, traj, g.Ts, plant_substeps(1.0 / g.Ts), sc.quantization, spec.u_max,
+                                   spec.travel, noise=sc.noise(traj.n))
         assert (idx[0], idx[1], idx[2]) == (nominal[case]["e_M"], nominal[case]["e_F"], nominal[case]["e_rms"])
 
 
