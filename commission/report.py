@@ -772,7 +772,7 @@ def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> 
     """
     p = tuning.pid
     unit = result.units.get("u", "u")
-    q = unit_of("q")
+    q = unit_of("q", result.units)  # called outside the report's units context too (the CLI)
     b = "**" if markdown else ""
     code = (lambda x: f"`{x}`") if markdown else (lambda x: x)
     ys = tuning.pid_yardstick or {}

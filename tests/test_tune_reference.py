@@ -2,8 +2,8 @@
 gains (made implementable) on e_rms, and against the PID on e_M, e_F and e_rms.
 
 Since issue 20 the search keeps the stability margins (delay margin one sample beyond the
-identified delay, ...); since issue 30 it compares with the PID yardstick (see
-:data:`YARDSTICK_SHORTFALL` for what that changed).  Before the margin constraints (the history below) it won them all:
+identified delay, ...); since issue 30 it compares with the PID yardstick (the comment above
+``test_tuned_arc_beats_the_pids``).  Before the margin constraints (the history below) it won them all:
 the search chose theta_hat1(0) below the nominal (as the paper did,
 30 for 37) together with a higher K2 cap and a faster theta3 adaptation, so the
 start-up against the unlearnt payload no longer decides e_M and e_rms.
@@ -43,12 +43,14 @@ from commission.tune import OBSERVER_FACTOR_BOUNDS
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
 from commission.tune import run_tune
 
-#: Issue 30 (open): held to the margin floors over the whole theta box (Build 1) with Set 2's payload in
-#: it, the search finds no gains as fast as before and the tuned ARC falls behind the paper's hand-set
-#: gains and the PIDs on Table 1 (measured on the merged code: Set 1 e_rms 15.7 um against the paper's
-#: implementable ARC's 1.05 um).  Not strict: the design checks still hold.
+#: Issue 30 (open): held to the margin floors over the whole theta box with Set 2's payload in it and,
+#: since this log has no broadband content, to robust stability above the band it backs (tens of hertz),
+#: the tuned ARC beats the yardstick held to the same bound but falls behind the paper's hand-set gains
+#: and its PID(-300) on Table 1.  Not strict: the design checks and the yardstick comparison pass.
 pytestmark = [pytest.mark.slow,
-              pytest.mark.xfail(strict=False, reason="issue 30 open: the whole-box search loses Table 1")]
+              pytest.mark.xfail(strict=False, reason="issue 30 open: Table 1 on the reference plant's rigid log: "
+                                                "the evidence bound (no broadband content) caps the ARC's crossover, "
+                                                "and the paper's PID(-300) is not held to it")]
 
 #: The payload of Table 1's Set 2 (M = 0.1 V s^2/m on the 0.027 axis), stated to identify, V s^2/m.
 SET2_PAYLOAD = 0.1 - 0.027 + 0.005
@@ -104,22 +106,11 @@ def test_design_checks_hold(tuned):
     assert tuned.guarantees["sampled_data_stability"].holds
 
 
-#: Since issue 30 the PID the search and the gate compare with is the yardstick (the fastest PID
-#: of (57) that keeps the margin floors on the identified plant and +1 sample: 570 rad/s here, the
-#: paper's 300 rad/s keeps far more margin than the floors ask), and the search's gate constraint
-#: is the ARC's own limits (the comparison is the objective's).  Measured with seed 0: e_rms of
-#: Sets 1-3 and Case 2 0.92 / 2.91 / 1.22 / 0.77 um (paper's PID 2.45 / 5.81 / 3.98 / 5.75, ratios
-#: 0.37 / 0.50 / 0.31 / 0.13; paper's implementable ARC 1.05 / 3.08 / 2.27 / 1.40), e_M 32.2 /
-#: 105 / 32.2 / 5.1 um (paper's PID 65.6 / 120 / 77.9 / 17.4): the Set 2 shortfalls of issue 20
-#: are gone.  The yardstick itself tracks at 0.52 / 1.48 / 0.76 / 0.48 um (e_M 6.7 / 52 / 19.7 /
-#: 6.1 um): the tuned ARC does not beat it on these, known shortfalls kept as strict expected
-#: failures (they turn into errors the day they pass).
-YARDSTICK_SHORTFALL = pytest.mark.xfail(strict=True, reason="the margin-floored PID yardstick beats the ARC "
-                                                            "here (issue 30)")
-_YARDSTICK_LOSSES = {("set1", "e_M"), ("set1", "e_rms"), ("set2", "e_M"), ("set2", "e_rms"), ("set3", "e_M"),
-                     ("set3", "e_rms"), ("case2", "e_rms")}
-
-
+#: The tuned PID is the yardstick (issue 30): the fastest PID of (57) that keeps the margin floors on
+#: the identified plant and +1 sample, and robust stability above the band the log backs.  The
+#: reference log holds no broadband content, so that bound holds both loops to a few tens of hertz:
+#: the tuned ARC beats the yardstick on every index, but not the paper's PID(-300), which no bound
+#: holds (the module's expected failure).
 @pytest.mark.parametrize("scenario", paper.SCENARIOS)
 def test_tuned_arc_beats_the_papers_gains_on_e_rms(table, scenario):
     row = table[scenario]
@@ -127,8 +118,7 @@ def test_tuned_arc_beats_the_papers_gains_on_e_rms(table, scenario):
 
 
 @pytest.mark.parametrize("scenario,pid,index", [
-    pytest.param(s, p, i, marks=YARDSTICK_SHORTFALL) if p == "tuned_pid" and (s, i) in _YARDSTICK_LOSSES
-    else (s, p, i)
+    (s, p, i)
     for s in paper.SCENARIOS for p in ("tuned_pid", "paper_pid") for i in ("e_M", "e_F", "e_rms")])
 def test_tuned_arc_beats_the_pids(table, scenario, pid, index):
     row = table[scenario]
