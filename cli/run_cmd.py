@@ -10,9 +10,7 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 
-from commission.evidence import evidence_limited_line
-from commission.gate import safe_not_better, search_infeasible_line
-from commission.report import not_better_lines
+from commission.report import refusal_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.options import SCHEDULER_HELP, Friction, identify_options, opt
 from commission.cli.main import app
@@ -106,14 +104,7 @@ def run_command(
         typer.echo(f"wrote {p}")
     print_next_steps(v.result, v.tuning, out_dir, Path(outcome.tuning), signed=key is not None)
     if not v.result.passed:
-        if safe_not_better(v.result.verdict):
-            for line in not_better_lines(v.result, v.tuning):
-                typer.echo(line)
-        miss = search_infeasible_line(v.tuning.search)
-        if miss is not None:
-            typer.echo(miss)
-        missing = evidence_limited_line(v.result)
-        if missing is not None:
-            typer.echo(missing)
+        for line in refusal_lines(v.result, v.tuning):
+            typer.echo(line)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

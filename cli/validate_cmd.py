@@ -9,9 +9,7 @@ from typing import Any, Optional
 import typer
 from rich.console import Console
 
-from commission.evidence import evidence_limited_line
-from commission.gate import safe_not_better, search_infeasible_line
-from commission.report import not_better_lines
+from commission.report import refusal_lines, summary_text
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
 from commission.cli.options import SCHEDULER_HELP
@@ -19,7 +17,6 @@ from commission.cli.progress import StageProgress
 from commission.controller_config import load_sign_key
 from commission.evidence import evidence_lines
 from commission.next_steps import next_steps
-from commission.report import summary_text
 from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
 
 
@@ -80,14 +77,7 @@ def validate_command(
         typer.echo(f"wrote {p}")
     print_next_steps(outcome.result, outcome.tuning, out_dir, tuning, signed=key is not None)
     if not outcome.result.passed:
-        if safe_not_better(outcome.result.verdict):
-            for line in not_better_lines(outcome.result, outcome.tuning):
-                typer.echo(line)
-        miss = search_infeasible_line(outcome.tuning.search)
-        if miss is not None:
-            typer.echo(miss)
-        missing = evidence_limited_line(outcome.result)
-        if missing is not None:
-            typer.echo(missing)
+        for line in refusal_lines(outcome.result, outcome.tuning):
+            typer.echo(line)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

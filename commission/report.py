@@ -792,6 +792,18 @@ def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> 
     ]
 
 
+def refusal_lines(result: Any, tuning: Tuning) -> list[str]:
+    """What stdout says after a failed gate, before pointing at report.md: "safe but not better" with
+    the deployable choices (:func:`not_better_lines`), the search's own refusal
+    (:func:`commission.gate.search_infeasible_line`) and a refusal for want of evidence
+    (:func:`commission.evidence.evidence_limited_line`), each when it applies."""
+    from commission.evidence import evidence_limited_line  # evidence imports this module's helpers
+
+    out = not_better_lines(result, tuning) if safe_not_better(result.verdict) else []
+    out += [x for x in (search_infeasible_line(tuning.search), evidence_limited_line(result)) if x is not None]
+    return out
+
+
 def verdict_text(result: Any, tuning: Tuning | None = None) -> str:
     """``gate PASSED`` or ``gate FAILED: N checks`` followed by one line per failure."""
     v = result.verdict
