@@ -290,7 +290,7 @@ class Problem:
         (:meth:`stability_violation`: the floors on the identified plant and over the whole box,
         the evidence bound), and its theta3 adaptation raised while they hold
         (:meth:`_integral_matched`): one start per direction.  Only linearisations, no
-        simulation (about a second of CPU).
+        simulation.
         """
         target = self.target_crossover_hz
         if target is None or not (math.isfinite(target) and target > 0):
