@@ -140,10 +140,9 @@ SCREEN_OFFSET = 0.3 * LEVEL_OFFSET
 
 #: Gate excess on the screening scenarios (:func:`commission.tune.objective.gate_excess`, ln units
 #: summed over indexes and scenarios) above which a candidate is not simulated on the rest: an
-#: index 35 % over its limit, far from feasibility.  (1.0, an e-fold, while nearly every candidate
-#: missed a margin: once the matched starts and the yardstick's reach put most of them past the
-#: margins, 1.0 simulated several times as many in full, 3.6 s of CPU more than 0.3 on the
-#: sample, for about the same ARC-vs-PID quantiles there, docs/robustness.md.)
+#: index 35 % over its limit, far from feasibility.  Low because the matched starts put most
+#: candidates past the margins: a looser screen simulates many more in full for about the same
+#: ARC-vs-PID quantiles (docs/robustness.md has the measurement).
 SCREEN_EXCESS = 0.3
 
 
