@@ -17,7 +17,8 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.errors import SpecError
 from commission.excite import (PlanRefused, excite_spec_from_mapping, load_excite_spec, load_plan_json, loop_gains_for, mass_bracket,
-                               plan_run, play, simulate_plan, _model_truth)
+                               plan_run, play, simulate_plan)
+from commission.excite.presim import _model_truth
 
 runner = CliRunner()
 
