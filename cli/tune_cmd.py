@@ -8,49 +8,38 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.files import Outputs
-from commission.spec import check_flags
+from commission.formats.spec_toml import SPEC_KEYS
+from commission.formats.table import help_lines
+from commission.spec import MAX_OMEGA_T, check_flags
 from commission.tune import load_tune_inputs, pid_chatter, pid_pole_note, run_tune
 from commission.tuning import Tuning
 from commission.units import nominal, unit
 
-_HELP = """Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
+_HELP = f"""Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
 
 Reads ident.json, checks the spec (before any simulation), places the observer
 poles, searches the free gains on the tuning scenarios, checks Theorem 1 and
 the discrete feasibility over the theta box, and writes tuning.json.
 
 \b
-Spec TOML keys (section.key; every key optional; defaults = the paper's setting):
-  controller.sample_rate   = the log's rate recorded in ident.json, else 2500 Hz
-  controller.u_max         = 10 (u-unit, the input limit)
-  controller.observer_pole = 0.08 * sample_rate rad/s (paper: 200 -> k1 = 400, k2 = 4e4);
-    when defaulted, the hold-out repair may move it within 0.6-1.25x (tuning.json: observer)
-  controller.quantization  = ident.json's, else 1e-6 m
-  trajectory.v_max = 1 m/s, a_max = 12 m/s^2, travel = 0.4 m, dwell = 0.5 s, moves = 6
-    (v_max, a_max left at their defaults are scaled by r and r^2 below 2.5 kHz, r = rate/2500,
-    then lowered, with a note, until the box's most demanding plant needs <= 0.7 u_max of
-    feedforward; values you set are checked, not changed.  When identify's defaulted load-force
-    bound leaves no room for any envelope, the theta3 box is narrowed with a note instead)
-  trajectory.beta1 = 100 1/s, beta2 = 2500 1/s^2 (reference filter 58)
-  trajectory.file = "moves.csv" (t,q[,v,a]) or [[trajectory.move]] tables (to m, v_max, a_max,
-    optional j_max, dwell): the machine's own moves, validated as user/* beside Case 1 and 2;
-    they set v_max, a_max, travel (no derivation from u_max); Case 1 and 2 then run at
-    trajectory.reference_v_max/reference_a_max, derived for the drive when not given
-  targets.e_rms = 5e-6 m, e_f = 1e-5 m (max |e| over the last 2 s), c_u = 0.5
-  pid.pole = 0.12 * sample_rate rad/s (paper: 300); when defaulted and that PID exceeds validate's
-    c_u limit on a tuning scenario, the baseline runs at the fastest 0.95^k of it that does not
-    (k <= 12; tuning.json: pid.pole, with a note)
-  tune.budget = 144 candidates, monte_carlo = 0, margin = 0.01
-    (when defaulted: fewer where one candidate is slow to simulate, with a note)
-  margins: gain 6 dB, phase 30 deg, delay 1 sample beyond the identified delay, modulus 0.5
-    (constraints of the search, and floors of validate's gate)
-A requested bandwidth w (rad/s) needs w / sample_rate <= 0.5.
+Spec TOML keys (section.key = default, then what it is; every key optional):
+{escape(chr(10).join(help_lines(SPEC_KEYS)))}
+
+\b
+Defaulted keys tune may change, each with a note: the envelope (trajectory.v_max, a_max) is scaled
+below the paper's rate and lowered to what the drive can feed forward on the box's most demanding
+plant; the theta3 box is narrowed instead when identify's defaulted load-force bound leaves no room;
+the observer pole is a coordinate of the search; pid.pole is lowered when that PID chatters beyond
+validate's c_u limit; tune.budget is lowered where one candidate is slow to simulate.  Values you
+set are checked, not changed.  Ranges: docs/interface.md section 6.
+A requested bandwidth w (rad/s) needs w / sample_rate <= {MAX_OMEGA_T:g}.
 A bad spec (unknown key, negative rate, too low a sample rate) exits 2 naming the key.
 """
 

@@ -1,0 +1,258 @@
+"""One table per input file: each key once, and everything else derived from it.
+
+A format is a tuple of :class:`Key` rows (section, name, type, default or the rule
+of a derived default, range, unit, one-line doc).  From the rows this module
+builds
+
+* a strict pydantic model (:func:`build_model`): unknown sections and keys,
+  wrong types (a bool is not a number, a float is not an integer), non-finite
+  numbers and values outside the inclusive range are refused;
+* the error line of a refused value (:func:`first_error`), naming the key path
+  (``controller.sample_rate = -2500.0 Hz must be positive``) in the order the
+  file gives the keys, so that the first bad key of the file is the one named;
+* the versioned JSON Schema (:func:`json_schema`) written to ``docs/schemas/``;
+* the key list of a command's ``--help`` (:func:`help_lines`) and the Markdown
+  table of ``docs/interface.md`` (:func:`markdown_table`).
+
+Why pydantic (v2)
+-----------------
+It is already installed with typer (typer depends on it), so it adds no package.
+Its validation errors are structured (``type``, ``loc``, ``input``, ``ctx``):
+the path and the rule a value broke come from the library, not from parsing
+message text (msgspec reports one error as a sentence), so the one-line errors
+users and tests know stay exactly as they were.  Strict mode refuses
+``true`` for a number and ``2.5`` for an integer, ``allow_inf_nan=False``
+refuses inf and nan, and ``model_json_schema`` exports the schema with the
+ranges, defaults and our ``unit`` and ``default_rule`` annotations.
+
+The sign words of an error follow from the range: a key whose range starts
+above 0 "must be positive", one whose range starts at 0 "must not be
+negative", and a value past either end "is outside the accepted range".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Annotated, Literal, Mapping, Sequence
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic.json_schema import GenerateJsonSchema
+
+#: Strict: no coercion (bool is not a number, 2.5 is not an integer), no unknown key, no inf/nan.
+_CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+@dataclass(frozen=True)
+class Scaled:
+    """A default that is a fraction of another key's resolved value (``0.08 x controller.sample_rate``)."""
+
+    fraction: float
+    of: str
+
+    def text(self) -> str:
+        return f"{self.fraction:g} x {self.of}"
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of an input file.
+
+    Attributes
+    ----------
+    section, name : str
+        TOML table and key: ``[section] name = ...``.
+    type : type
+        ``float``, ``int``, ``str`` (with ``choices``: one of them) or ``list`` (an array of
+        tables); a key with ``checked_by`` is read by another reader.
+    default : object
+        The value of an absent key; ``None`` when the default is derived (``rule``).
+    range : (float, float) or None
+        Inclusive accepted range of a number.
+    unit : str
+        Unit of the value ("" for a dimensionless one).
+    doc : str
+        One line: what the key is.
+    rule : Scaled or str or None
+        A derived default: a :class:`Scaled` fraction of another key (resolved by the loader),
+        or a sentence (resolved where the data is, e.g. from ident.json); ``{default}`` in the
+        sentence is replaced by the formatted ``default``.
+    choices : tuple of str
+        Allowed values of a ``str`` key.
+    attr : str or None
+        Name of the attribute in the resolved object; default: ``name``.
+    checked_by : str or None
+        Where a key outside the number/choice types is checked (its model type is then any value).
+    """
+
+    section: str
+    name: str
+    type: type
+    default: Any
+    range: tuple[float, float] | None
+    unit: str
+    doc: str
+    rule: Scaled | str | None = None
+    choices: tuple[str, ...] = ()
+    attr: str | None = None
+    checked_by: str | None = None
+
+    @property
+    def path(self) -> str:
+        return f"{self.section}.{self.name}"
+
+    @property
+    def field_name(self) -> str:
+        return self.attr or self.name
+
+    def default_text(self) -> str:
+        """The default as a user reads it: a value with its unit, or the rule."""
+        if isinstance(self.rule, Scaled):
+            return self.rule.text() + (f" {self.unit}" if self.unit else "")
+        value = "" if self.default is None else fmt(self.default) + (f" {self.unit}" if self.unit else "")
+        if isinstance(self.rule, str):
+            return self.rule.format(default=value)
+        return value if value else "absent"
+
+    def type_text(self) -> str:
+        if self.choices:
+            return " | ".join(f'"{c}"' for c in self.choices)
+        return {float: "number", int: "integer", str: "string", list: "array of tables"}[self.type]
+
+
+def fmt(value: Any) -> str:
+    """A default as written in help and docs (``2500``, ``1e-05``, ``"motor"``)."""
+    if isinstance(value, str):
+        return f'"{value}"'
+    return f"{value:g}"
+
+
+def sections(keys: Sequence[Key]) -> dict[str, list[Key]]:
+    """Section -> its keys, in table order."""
+    out: dict[str, list[Key]] = {}
+    for k in keys:
+        out.setdefault(k.section, []).append(k)
+    return out
+
+
+def _annotation(k: Key) -> Any:
+    if k.checked_by is not None:
+        return Any
+    if k.choices:
+        return Literal[k.choices]  # type: ignore[valid-type]
+    lo, hi = k.range if k.range is not None else (None, None)
+    return Annotated[k.type, Field(ge=lo, le=hi)]
+
+
+def _field(k: Key) -> Any:
+    extra: dict[str, Any] = {"unit": k.unit} if k.unit else {}
+    if k.rule is not None:
+        extra["default_rule"] = k.default_text()
+    if k.checked_by is not None:
+        extra["checked_by"] = k.checked_by
+
+    def schema_extra(schema: dict[str, Any]) -> None:
+        if k.default is None:
+            schema.pop("default", None)
+        schema.update(extra)
+
+    return Field(default=k.default, description=k.doc, json_schema_extra=schema_extra)
+
+
+def build_model(name: str, keys: Sequence[Key], doc: str) -> type[BaseModel]:
+    """The strict pydantic model of a file: one sub-model per section, every key optional."""
+    secs = {}
+    for section, ks in sections(keys).items():
+        sub = create_model(f"{name}_{section}", __config__=_CONFIG,
+                           **{k.name: (_annotation(k), _field(k)) for k in ks})
+        secs[section] = (sub, Field(default=None, description=f"[{section}]"))
+    model = create_model(name, __config__=_CONFIG, **secs)
+    model.__doc__ = doc
+    return model
+
+
+class _NoTitles(GenerateJsonSchema):
+    """No generated ``title`` per property (the key name says it)."""
+
+    def field_title_should_be_set(self, schema: Any) -> bool:
+        return False
+
+
+def json_schema(model: type[BaseModel], schema_id: str, version: int) -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a file, with its ``$id`` and ``version``."""
+    out = model.model_json_schema(schema_generator=_NoTitles)
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": schema_id, "version": version, **out}
+
+
+def first_error(exc: ValidationError, data: Mapping[str, Any], keys: Sequence[Key], *, source: str, prefix: str,
+                extra_known: Mapping[str, Sequence[str]] = {}) -> str:
+    """The one error line of a refused file: its first bad key in the file's order.
+
+    Parameters
+    ----------
+    exc : ValidationError
+        The model's errors.
+    data : mapping
+        The validated input (sections -> keys -> values).
+    source, prefix : str
+        File name (first word) and key-path prefix (``$.spec.`` inside tuning.json).
+    extra_known : mapping
+        Section -> keys read outside the table, listed with the known keys of an unknown-key error.
+    """
+    by_path = {(k.section, k.name): k for k in keys}
+    secs = list(sections(keys))
+
+    def order(e: Any) -> tuple[int, int]:
+        loc = e["loc"]
+        sec = list(data).index(loc[0]) if loc[0] in data else len(data)
+        tbl = data.get(loc[0])
+        key = list(tbl).index(loc[1]) if len(loc) > 1 and isinstance(tbl, Mapping) and loc[1] in tbl else 0
+        return sec, key
+
+    e = min(exc.errors(), key=order)
+    loc, raw, kind = e["loc"], e["input"], e["type"]
+    section = str(loc[0])
+    if len(loc) == 1:
+        if kind == "extra_forbidden":
+            return f"{source}: {prefix}{section}: unknown section (known: {', '.join(secs)})"
+        return f"{source}: {prefix}{section}: expected a table, got {raw!r}"
+    name = str(loc[1])
+    path = f"{source}: {prefix}{section}.{name}"
+    if kind == "extra_forbidden":
+        known = [k.name for k in sections(keys)[section] if k.checked_by is None] + list(extra_known.get(section, ()))
+        return f"{path}: unknown key (known in [{section}]: {', '.join(known)})"
+    k = by_path[(section, name)]
+    u = f" {k.unit}" if k.unit else ""
+    if k.choices:
+        return f"{path} = {raw!r}: expected one of {', '.join(map(repr, k.choices))}"
+    if k.type is int and (isinstance(raw, bool) or not isinstance(raw, int)):
+        return f"{path} = {raw!r}: expected an integer"
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw):
+        return f"{path} = {raw!r}: expected a finite number{u and ' in' + u}"
+    val = k.type(raw)
+    lo, hi = k.range  # type: ignore[misc]
+    if lo > 0 and not val > 0:
+        return f"{path} = {val!r}{u} must be positive"
+    if lo >= 0 and val < 0:
+        return f"{path} = {val!r}{u} must not be negative"
+    return f"{path} = {val!r}{u} is outside the accepted range [{lo:g}, {hi:g}]{u}"
+
+
+def help_lines(keys: Sequence[Key]) -> list[str]:
+    """Two ``--help`` lines per key: ``section.key = default unit``, then what it is, indented."""
+    return [line for k in keys for line in (f"  {k.path} = {k.default_text()}", f"      {k.doc}")]
+
+
+def markdown_table(keys: Sequence[Key]) -> str:
+    """The Markdown table of docs/interface.md: key, type, default, range, unit, doc."""
+    rows = ["| key | type | default | range | unit | what |", "|---|---|---|---|---|---|"]
+    for k in keys:
+        rng = "" if k.range is None else f"[{k.range[0]:g}, {k.range[1]:g}]"
+        rows.append(f"| `{k.path}` | {_md(k.type_text())} | {_md(k.default_text())} | {rng} | {k.unit} | "
+                    f"{_md(k.doc)} |")
+    return "\n".join(rows) + "\n"
+
+
+def _md(text: str) -> str:
+    """Text for a Markdown table cell (a ``|`` escaped)."""
+    return text.replace("|", "\\|")
