@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import typer
 from rich.console import Console
@@ -16,13 +16,16 @@ from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.files import Outputs
 from commission.formats.spec_toml import SPEC_KEYS
-from commission.formats.table import help_lines
+from commission.formats.table import Key, help_lines
 from commission.spec import MAX_OMEGA_T, check_flags
 from commission.tune import load_tune_inputs, pid_chatter, pid_pole_note, run_tune
 from commission.tuning import Tuning
 from commission.units import nominal, unit
 
-_HELP = f"""Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
+
+def help_text(keys: Sequence[Key] = SPEC_KEYS) -> str:
+    """The command's help: its key list is the spec table's rows (:func:`commission.formats.table.help_lines`)."""
+    return f"""Tune the discrete output-feedback ARC (and the PID baseline) for an identified axis.
 
 Reads ident.json, checks the spec (before any simulation), places the observer
 poles, searches the free gains on the tuning scenarios, checks Theorem 1 and
@@ -30,7 +33,7 @@ the discrete feasibility over the theta box, and writes tuning.json.
 
 \b
 Spec TOML keys (section.key = default, then what it is; every key optional):
-{escape(chr(10).join(help_lines(SPEC_KEYS)))}
+{escape(chr(10).join(help_lines(keys)))}
 
 \b
 Defaulted keys tune may change, each with a note: the envelope (trajectory.v_max, a_max) is scaled
@@ -92,7 +95,7 @@ def print_summary(t: Tuning, console: Console) -> None:
     console.print(sc)
 
 
-@app.command("tune", help=_HELP)
+@app.command("tune", help=help_text())
 @cli_errors
 def tune_command(
     ident: Path = typer.Argument(..., help="ident.json written by `commission identify`."),

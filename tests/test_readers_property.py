@@ -33,7 +33,8 @@ from commission.gate import gate_from_mapping, resolve_gate
 from commission.jsonio import canonical_json, read_json
 from commission.logs import load_log
 from commission.paper import reference_identification
-from commission.spec import _SCHEMA, spec_from_mapping
+from commission.formats.spec_toml import SPEC_FIELDS
+from commission.spec import spec_from_mapping
 from commission.tune import resolve_spec
 from commission.tuning import Tuning
 from commission.validate import deployable_gains
@@ -189,7 +190,7 @@ toml_scalars = st.one_of(st.booleans(), st.integers(-2**63, 2**63 - 1), st.float
                          st.text(max_size=12), st.sampled_from(["20 um", "30 lsb", "0.01 %travel", "-1 m", "1e999 nm"]))
 toml_values = st.recursive(toml_scalars, lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=6), c, max_size=3),
                            max_leaves=6)
-SPEC_KEYS = [(s, k) for s, keys in _SCHEMA.items() for k in keys]
+SPEC_KEYS = {(k.section, k.name): k for k in SPEC_FIELDS}
 GATE_KEYS = ["e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms", "arc_vs_pid_slack"]
 
 
@@ -200,8 +201,8 @@ def spec_tables(draw):
         if draw(st.integers(0, 9)) == 0:
             out[draw(st.text(max_size=6))] = draw(toml_values)
             continue
-        section, key = draw(st.sampled_from(SPEC_KEYS))
-        typ, default, _positive, _unit = _SCHEMA[section][key]
+        section, key = draw(st.sampled_from(sorted(SPEC_KEYS)))
+        typ, default = SPEC_KEYS[(section, key)].type, SPEC_KEYS[(section, key)].default
         near = (default if default is not None else 1.0) * draw(st.sampled_from([0.5, 0.9, 1.0, 1.5, 2.0]))
         plausible = int(max(1, round(near))) if typ is int else float(near)
         table = out.setdefault(section, {})

@@ -149,7 +149,7 @@ def _field(k: Key) -> Any:
     if k.rule is not None:
         extra["default_rule"] = k.default_text()
     if k.checked_by is not None:
-        extra["checked_by"] = k.checked_by
+        extra.update(checked_by=k.checked_by, type={str: "string", list: "array"}[k.type])
 
     def schema_extra(schema: dict[str, Any]) -> None:
         if k.default is None:
@@ -165,10 +165,14 @@ def build_model(name: str, keys: Sequence[Key], doc: str) -> type[BaseModel]:
     for section, ks in sections(keys).items():
         sub = create_model(f"{name}_{section}", __config__=_CONFIG,
                            **{k.name: (_annotation(k), _field(k)) for k in ks})
-        secs[section] = (sub, Field(default=None, description=f"[{section}]"))
+        secs[section] = (sub, Field(default=None, description=f"[{section}]", json_schema_extra=_no_default))
     model = create_model(name, __config__=_CONFIG, **secs)
     model.__doc__ = doc
     return model
+
+
+def _no_default(schema: dict[str, Any]) -> None:
+    schema.pop("default", None)  # an absent section: every key at its default
 
 
 class _NoTitles(GenerateJsonSchema):

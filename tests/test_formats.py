@@ -1,0 +1,169 @@
+"""commission.formats: spec.toml's one table, and everything derived from it (issue #34, "one place").
+
+Every key of the table is walked: ``commission tune --help``, docs/interface.md §6 and
+docs/schemas/spec.schema.json must state its name, default (or the rule of a derived
+default), range and unit as the table does; ``Spec``'s defaults and ``RANGES`` must be the
+table's; and a table with one default changed must change all three renderings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from commission import formats
+from commission.cli.main import app
+from commission.cli.tune_cmd import help_text
+from commission.errors import SpecError
+from commission.formats.spec_toml import SPEC_FIELDS, SPEC_KEYS
+from commission.formats.table import Key, Scaled, build_model, help_lines, json_schema, markdown_table
+from commission.spec import RANGES, Spec, default_spec, spec_from_mapping
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMA_FILE = ROOT / "docs" / "schemas" / "spec.schema.json"
+INTERFACE = ROOT / "docs" / "interface.md"
+NUMERIC = [k for k in SPEC_FIELDS if k.range is not None]
+
+
+def _cli_help() -> str:
+    r = CliRunner().invoke(app, ["tune", "--help"], env={"COLUMNS": "250", "TERMINAL_WIDTH": "250"})
+    assert r.exit_code == 0, r.output
+    return r.output
+
+
+def _doc_rows(text: str) -> dict[str, list[str]]:
+    """Key path -> the cells of its row in the generated table of docs/interface.md."""
+    begin = text.index("<!-- generated: spec.toml keys")
+    block = text[begin:text.index("<!-- end: spec.toml keys -->")]
+    rows = {}
+    for line in block.splitlines()[3:]:
+        cells = [c.strip() for c in line.strip().strip("|").replace("\\|", "\x00").split("|")]
+        rows[cells[0].strip("`")] = [c.replace("\x00", "|") for c in cells]
+    return rows
+
+
+# --------------------------------------------------------------------------- the generated files do not drift
+
+
+def test_schema_file_is_the_tables():
+    assert SCHEMA_FILE.read_text() == formats.schema_text(formats.schemas()["spec.schema.json"]), (
+        "docs/schemas/spec.schema.json is stale: run `python -m commission.formats`")
+
+
+def test_interface_md_table_is_the_tables():
+    text = INTERFACE.read_text()
+    assert formats.fill_markdown(text, formats.tables()) == text, (
+        "docs/interface.md's spec.toml table is stale: run `python -m commission.formats`")
+
+
+# --------------------------------------------------------------------------- one place: every key walked
+
+
+def test_every_key_agrees_in_help_docs_and_schema():
+    help_out = _cli_help()
+    rows = _doc_rows(INTERFACE.read_text())
+    schema = json.loads(SCHEMA_FILE.read_text())
+    assert set(rows) == {k.path for k in SPEC_KEYS}
+    for k in SPEC_KEYS:
+        default = k.default_text()
+        # CLI help: the key and its default (with its unit) on one line
+        assert f"  {k.path} = {default}" in help_out, k.path
+        # docs/interface.md: name, default, unit, range
+        cells = rows[k.path]
+        assert cells[2] == default and cells[4] == k.unit, (k.path, cells)
+        assert cells[3] == ("" if k.range is None else f"[{k.range[0]:g}, {k.range[1]:g}]"), k.path
+        # the schema: the section's property with its default (or rule), unit and range
+        ref = schema["properties"][k.section]["$ref"].split("/")[-1]
+        prop = schema["$defs"][ref]["properties"][k.name]
+        assert prop.get("unit", "") == k.unit, k.path
+        if k.default is not None:
+            assert prop["default"] == k.default, k.path
+        else:
+            assert "default" not in prop and prop["default_rule"] == default, k.path
+        if k.range is not None:
+            assert (prop["minimum"], prop["maximum"]) == k.range, k.path
+        assert prop["description"] == k.doc
+        assert schema["$defs"][ref]["additionalProperties"] is False
+
+
+def test_changing_a_default_in_the_table_changes_help_docs_and_schema():
+    changed = tuple(dataclasses.replace(k, default=200) if k.path == "tune.budget" else k for k in SPEC_KEYS)
+    model = build_model("SpecToml", changed, "modified")
+    budget_schema = json_schema(model, "x", 1)["$defs"]["SpecToml_tune"]["properties"]["budget"]
+    assert budget_schema["default"] == 200
+    assert "  tune.budget = 200; a defaulted one" in help_text(changed)
+    assert "  tune.budget = 144; a defaulted one" in help_text(SPEC_KEYS)
+    assert "| `tune.budget` | integer | 200; a defaulted one" in markdown_table(changed)
+    assert formats.fill_markdown(INTERFACE.read_text(), {"spec.toml keys": markdown_table(changed)}) != \
+        INTERFACE.read_text()
+    # a derived default follows its rule: a new fraction shows in all three as well
+    scaled = tuple(dataclasses.replace(k, rule=Scaled(0.1, "controller.sample_rate")) if k.path == "pid.pole" else k
+                   for k in SPEC_KEYS)
+    assert "  pid.pole = 0.1 x controller.sample_rate rad/s" in help_lines(scaled)
+    assert "| 0.1 x controller.sample_rate rad/s |" in markdown_table(scaled)
+    pole = json_schema(build_model("S", scaled, ""), "x", 1)["$defs"]["S_pid"]["properties"]["pole"]
+    assert pole["default_rule"] == "0.1 x controller.sample_rate rad/s"
+
+
+def test_spec_defaults_and_ranges_are_the_tables():
+    spec = Spec()
+    assert spec == default_spec()  # an empty spec.toml
+    names = [f.name for f in dataclasses.fields(Spec)]
+    assert names == [k.field_name for k in SPEC_FIELDS] + ["profile"]
+    for k in SPEC_FIELDS:
+        if isinstance(k.rule, Scaled):
+            assert getattr(spec, k.field_name) == pytest.approx(k.rule.fraction * 2500.0), k.path
+        else:
+            assert getattr(spec, k.field_name) == k.default, k.path
+        if k.range is not None:
+            assert RANGES[(k.section, k.name)] == k.range
+    # the paper's setting (Xu & Yao 2001, §4.3): poles -200 (observer) and -300 (PID) at 2.5 kHz
+    assert (spec.observer_pole, spec.pid_pole) == (pytest.approx(200.0), pytest.approx(300.0))
+
+
+def test_resolved_spec_round_trips_through_its_layout():
+    spec = spec_from_mapping({"controller": {"sample_rate": 4000}, "plant": {"encoder": "load"}})
+    d = spec.to_dict()
+    assert d["controller"]["observer_pole"] == pytest.approx(320.0) and d["plant"] == {"encoder": "load"}
+    assert spec_from_mapping(d) == spec
+
+
+# --------------------------------------------------------------------------- strict loading names the key
+
+
+@pytest.mark.parametrize("k", NUMERIC, ids=lambda k: k.path)
+def test_every_number_outside_its_range_is_refused_naming_the_key(k: Key):
+    lo, hi = k.range
+    above = hi * 2 if k.type is float else hi + 1
+    path = re.escape(f"s.toml: {k.path} = ")
+    with pytest.raises(SpecError, match="^" + path + re.escape(f"{above!r}") + ".* is outside the accepted range "
+                                        + re.escape(f"[{lo:g}, {hi:g}]")):
+        spec_from_mapping({k.section: {k.name: above}}, "s.toml")
+    below, word = (-1, "must not be negative") if lo == 0 else (0, "must be positive")
+    with pytest.raises(SpecError, match="^" + path + re.escape(f"{k.type(below)!r}") + f".* {word}$"):
+        spec_from_mapping({k.section: {k.name: below}}, "s.toml")
+    wrong = [True, "1", math.inf] if k.type is float else [True, 2.5, "1"]
+    for raw in wrong:
+        with pytest.raises(SpecError, match="^" + path + re.escape(f"{raw!r}") + ": expected an? "):
+            spec_from_mapping({k.section: {k.name: raw}}, "s.toml")
+
+
+def test_the_first_bad_key_of_the_file_is_named_and_the_prefix_kept():
+    data = {"targets": {"c_u": 0.5, "e_f": -1.0}, "controller": {"sampel_rate": 1.0}}
+    with pytest.raises(SpecError, match=r"^tuning\.json: \$\.spec\.targets\.e_f = -1\.0 m must be positive$"):
+        spec_from_mapping(data, "tuning.json", prefix="$.spec.")
+    with pytest.raises(SpecError, match=r"plant\.encoder = 'side': expected one of 'motor', 'load'$"):
+        spec_from_mapping({"plant": {"encoder": "side"}})
+    with pytest.raises(SpecError, match=r"trajectory\.speed: unknown key \(known in \[trajectory\]: v_max, .*"
+                                        r"reference_a_max, file, file_sha256, move\)$"):
+        spec_from_mapping({"trajectory": {"speed": 1.0}})
+    with pytest.raises(SpecError, match=r"^spec\.toml: pid: expected a table, got 3$"):
+        spec_from_mapping({"pid": 3})
+    # [compute] is read by the executor, not here: accepted as it is
+    assert spec_from_mapping({"compute": {"scheduler": "tcp://h:1"}}) == default_spec()
