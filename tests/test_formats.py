@@ -167,3 +167,14 @@ def test_the_first_bad_key_of_the_file_is_named_and_the_prefix_kept():
         spec_from_mapping({"pid": 3})
     # [compute] is read by the executor, not here: accepted as it is
     assert spec_from_mapping({"compute": {"scheduler": "tcp://h:1"}}) == default_spec()
+
+
+def test_readme_quotes_the_tables_defaults_and_ranges():
+    text = " ".join((ROOT / "README.md").read_text().split())
+    keys = {k.path: k for k in SPEC_KEYS}
+    assert f"{keys['tune.budget'].default} candidates unless the spec sets `tune.budget`" in text
+    lo, hi = keys["controller.sample_rate"].range
+    assert f"`controller.sample_rate` {lo:g} Hz–{hi / 1e3:g} kHz" in text
+    for path, shown in (("trajectory.dwell", "`trajectory.dwell` ≤ {:g} s"), ("trajectory.moves", "`moves` ≤ {:g}"),
+                        ("tune.budget", "`tune.budget` ≤ {:,}"), ("tune.margin", "`tune.margin` ≤ {:g}")):
+        assert shown.format(keys[path].range[1]) in text, path
