@@ -1,4 +1,11 @@
-"""The limits file (``limits.toml``): its keys, their checks, and the sketch other commands write."""
+"""The limits file (``limits.toml``): its checks across keys, and the sketch other commands write.
+
+The keys themselves (type, default, range, unit, doc) are one table,
+:data:`commission.formats.limits_toml.LIMITS_KEYS`; :func:`excite_spec_from_mapping`
+validates each key with the model built from it and adds the rules that join keys
+(the holding loop's two forms, the bandwidth rule, friction below u_max, bands
+below Nyquist, v_min below v_max).
+"""
 
 from __future__ import annotations
 
@@ -8,8 +15,12 @@ import os
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from pydantic import ValidationError
+
 from commission.errors import SpecError
 from commission.files import read_toml
+from commission.formats.limits_toml import INJECTIONS, LIMITS_KEYS, Q_UNITS, U_UNITS, LimitsToml
+from commission.formats.table import Key, first_error
 
 PLAN_SCHEMA_VERSION = 1
 #: Pre-simulation: how often the injection is lowered before a plan is refused.
@@ -20,61 +31,8 @@ MAX_OMEGA_T = 0.5
 LOOP_DAMPING = 0.7
 #: Plant sub-steps per sample of the pre-simulation.
 PRESIM_SUBSTEPS = 4
-#: Accepted values of the unit keys.
-Q_UNITS = ("m", "rad")
-U_UNITS = ("V", "N", "A", "Nm", "%")
-INJECTIONS = ("multisine", "prbs")
-
-# section -> key -> (kind, default, rule, unit); kind: "f" float, "i" int, "s" str, "fl" list of floats.
-# rule: "pos" > 0, "nonneg" >= 0, "frac" in (0, 1), None.  Default None: required or derived.
-_REQUIRED = object()
-_SCHEMA: dict[str, dict[str, tuple[str, Any, str | None, str]]] = {
-    "limits": {
-        "travel": ("f", _REQUIRED, "pos", "{q}"),
-        "v_max": ("f", _REQUIRED, "pos", "{q}/s"),
-        "a_max": ("f", _REQUIRED, "pos", "{q}/s^2"),
-        "u_max": ("f", _REQUIRED, "pos", "{u}"),
-    },
-    "drive": {
-        "sample_rate": ("f", _REQUIRED, "pos", "Hz"),
-        "bandwidth_hz": ("f", None, "pos", "Hz"),
-        "kp": ("f", None, "pos", "{u}/{q}"),
-        "kd": ("f", None, "nonneg", "{u} s/{q}"),
-        "ki": ("f", None, "nonneg", "{u}/({q} s)"),
-    },
-    "axis": {
-        "mass": ("f", None, "pos", "{u} s^2/{q}"),
-        "friction": ("f", None, "nonneg", "{u}"),
-        "viscous": ("f", None, "nonneg", "{u} s/{q}"),
-        "q_unit": ("s", "m", None, ""),
-        "u_unit": ("s", "V", None, ""),
-        "encoder_step": ("f", None, "pos", "{q}"),
-        "encoder_noise": ("f", None, "nonneg", "{q}"),
-    },
-    "evidence": {
-        "target_hz": ("f", None, "pos", "Hz"),
-        "first_mode_hz": ("f", None, "pos", "Hz"),
-    },
-    "plan": {
-        "n_speeds": ("i", 8, "pos", ""),
-        "v_min": ("f", None, "pos", "{q}/s"),
-        "leg_time": ("f", 1.0, "pos", "s"),
-        "min_cruise": ("f", 0.2, "pos", "s"),
-        "moves": ("i", 6, "pos", ""),
-        "dwell": ("f", 0.2, "nonneg", "s"),
-        "jerk_time": ("f", 0.02, "pos", "s"),
-        "injection": ("s", "prbs", None, ""),
-        "injection_s": ("f", 8.0, "pos", "s"),
-        "injection_fraction": ("f", 0.5, "frac", ""),
-        "band_hz": ("fl", None, None, "Hz"),
-        "shaping": ("f", 1.0, None, ""),
-        "stepped_sine_hz": ("fl", (), None, "Hz"),
-        "sine_cycles": ("f", 20.0, "pos", ""),
-        "margin": ("f", 0.1, "frac", ""),
-        "mass_range": ("f", 2.0, "pos", ""),
-    },
-}
-_CHOICES = {("axis", "q_unit"): Q_UNITS, ("axis", "u_unit"): U_UNITS, ("plan", "injection"): INJECTIONS}
+#: Keys of limits.toml: one table (:data:`commission.formats.limits_toml.LIMITS_KEYS`), read here.
+_KEYS: dict[tuple[str, str], Key] = {(k.section, k.name): k for k in LIMITS_KEYS}
 
 
 @dataclass(frozen=True)
@@ -121,8 +79,8 @@ class ExciteSpec:
     mass: float | None = None
     friction: float | None = None
     viscous: float | None = None
-    q_unit: str = "m"
-    u_unit: str = "V"
+    q_unit: str = _KEYS[("axis", "q_unit")].default
+    u_unit: str = _KEYS[("axis", "u_unit")].default
     encoder_step: float | None = None
     encoder_noise: float | None = None
     target_band_hz: float | None = None
@@ -163,51 +121,21 @@ def excite_spec_from_mapping(data: Mapping[str, Any], source: str = "limits.toml
     u_unit = data.get("axis", {}).get("u_unit", "V") if isinstance(data.get("axis"), Mapping) else "V"
     q_unit = q_unit if q_unit in Q_UNITS else "m"
     u_unit = u_unit if u_unit in U_UNITS else "V"
+    try:
+        model = LimitsToml.model_validate(data)
+    except ValidationError as exc:
+        raise SpecError(first_error(exc, data, LIMITS_KEYS, source=source, prefix="",
+                                    units={"q": q_unit, "u": u_unit})) from None
     vals: dict[tuple[str, str], Any] = {}
-    for section, table in data.items():
-        if section not in _SCHEMA:
-            raise fail(section, f": unknown section (known: {', '.join(_SCHEMA)})")
-        if not isinstance(table, Mapping):
-            raise fail(section, f": expected a table, got {table!r}")
-        for key, raw in table.items():
-            path = f"{section}.{key}"
-            if key not in _SCHEMA[section]:
-                raise fail(path, f": unknown key (known in [{section}]: {', '.join(_SCHEMA[section])})")
-            kind, _d, rule, unit = _SCHEMA[section][key]
-            un = unit.format(q=q_unit, u=u_unit)
-            u = f" {un}" if un else ""
-            if kind == "s":
-                if raw not in _CHOICES[(section, key)]:
-                    raise fail(path, f" = {raw!r}: expected one of {', '.join(map(repr, _CHOICES[(section, key)]))}")
-                vals[(section, key)] = raw
-                continue
-            if kind == "fl":
-                if not isinstance(raw, list) or not all(
-                        not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) and x > 0
-                        for x in raw):
-                    raise fail(path, f" = {raw!r}: expected a list of positive numbers{u and ' in' + u}")
-                vals[(section, key)] = tuple(float(x) for x in raw)
-                continue
-            if kind == "i":
-                if isinstance(raw, bool) or not isinstance(raw, int):
-                    raise fail(path, f" = {raw!r}: expected an integer")
-                val: Any = int(raw)
-            else:
-                if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw):
-                    raise fail(path, f" = {raw!r}: expected a finite number{u and ' in' + u}")
-                val = float(raw)
-            if rule == "pos" and not val > 0:
-                raise fail(path, f" = {val!r}{u} must be positive")
-            if rule == "nonneg" and val < 0:
-                raise fail(path, f" = {val!r}{u} must not be negative")
-            if rule == "frac" and not 0 < val < 1:
-                raise fail(path, f" = {val!r} must be between 0 and 1")
-            vals[(section, key)] = val
-    for section, keys in _SCHEMA.items():
-        for key, (_k, default, _r, _u) in keys.items():
-            if default is _REQUIRED and (section, key) not in vals:
-                raise fail(f"{section}.{key}", f": missing (required in [{section}])")
-    g = lambda s, k: vals.get((s, k), None if _SCHEMA[s][k][1] is _REQUIRED else _SCHEMA[s][k][1])  # noqa: E731
+    for section in model.model_fields_set:
+        table = getattr(model, section)
+        for key in table.model_fields_set:
+            v = getattr(table, key)
+            vals[(section, key)] = tuple(float(x) for x in v) if isinstance(v, list) else v
+    for k in LIMITS_KEYS:
+        if k.required and (k.section, k.name) not in vals:
+            raise fail(k.path, f": missing (required in [{k.section}])")
+    g = lambda s, k: vals.get((s, k), _KEYS[(s, k)].default)  # noqa: E731
     fs = g("drive", "sample_rate")
     has_bw = ("drive", "bandwidth_hz") in vals
     gains = [k for k in ("kp", "kd", "ki") if ("drive", k) in vals]
@@ -226,7 +154,7 @@ def excite_spec_from_mapping(data: Mapping[str, Any], source: str = "limits.toml
     if fr is not None and fr >= umax:
         raise fail("axis.friction", f" = {fr:g} {u_unit} is not below limits.u_max = {umax:g} {u_unit}: "
                    "no motion is possible within u_max")
-    plan = {k: g("plan", k) for k in _SCHEMA["plan"]}
+    plan = {k.name: g("plan", k.name) for k in LIMITS_KEYS if k.section == "plan"}
     nyq = fs / 2.0
     band = plan["band_hz"]
     if band is None:
@@ -242,8 +170,6 @@ def excite_spec_from_mapping(data: Mapping[str, Any], source: str = "limits.toml
     vmin = plan["v_min"]
     if vmin is not None and vmin >= g("limits", "v_max"):
         raise fail("plan.v_min", f" = {vmin:g} {q_unit}/s is not below limits.v_max = {g('limits', 'v_max'):g} {q_unit}/s")
-    if plan["mass_range"] < 1.0:
-        raise fail("plan.mass_range", f" = {plan['mass_range']:g} must be >= 1")
     return ExciteSpec(
         travel=g("limits", "travel"), v_max=g("limits", "v_max"), a_max=g("limits", "a_max"), u_max=umax,
         sample_rate=fs, bandwidth_hz=g("drive", "bandwidth_hz"), kp=g("drive", "kp"), kd=g("drive", "kd"),

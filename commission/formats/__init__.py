@@ -3,7 +3,8 @@
 :mod:`commission.formats.table` holds the machinery (a row per key, the strict
 pydantic model built from the rows, the error line naming the key path, the
 JSON Schema, the ``--help`` and Markdown renderings);
-:mod:`commission.formats.spec_toml` is ``spec.toml``'s table.  The generated
+:mod:`commission.formats.spec_toml` is ``spec.toml``'s table and
+:mod:`commission.formats.limits_toml` ``limits.toml``'s.  The generated
 files (docs/schemas/*.schema.json and the key tables of docs/interface.md) are
 rewritten by ``python -m commission.formats`` (:func:`write_generated`) and
 compared with the tables by the tests.  This package imports no simulation code.
@@ -15,7 +16,7 @@ import json
 import re
 from pathlib import Path
 
-from commission.formats import spec_toml
+from commission.formats import limits_toml, spec_toml
 from commission.formats.table import json_schema, markdown_table
 
 #: Marker lines around a generated table in a Markdown file: ``<!-- generated: NAME -->`` ... ``<!-- end: NAME -->``.
@@ -25,7 +26,9 @@ _BEGIN, _END = "<!-- generated: {name} (python -m commission.formats; do not edi
 def schemas() -> dict[str, dict]:
     """File name in docs/schemas/ -> its JSON Schema."""
     return {"spec.schema.json": json_schema(spec_toml.SpecToml, "commission/spec.schema.json",
-                                            spec_toml.SCHEMA_VERSION)}
+                                            spec_toml.SCHEMA_VERSION),
+            "limits.schema.json": json_schema(limits_toml.LimitsToml, "commission/limits.schema.json",
+                                              limits_toml.SCHEMA_VERSION)}
 
 
 def schema_text(schema: dict) -> str:
@@ -35,7 +38,8 @@ def schema_text(schema: dict) -> str:
 
 def tables() -> dict[str, str]:
     """Name of a generated Markdown table in docs/interface.md -> its text."""
-    return {"spec.toml keys": markdown_table(spec_toml.SPEC_KEYS)}
+    return {"spec.toml keys": markdown_table(spec_toml.SPEC_KEYS),
+            "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS)}
 
 
 def fill_markdown(text: str, generated: dict[str, str]) -> str:

@@ -83,6 +83,10 @@ class Key:
         Name of the attribute in the resolved object; default: ``name``.
     checked_by : str or None
         Where a key outside the number/choice types is checked (its model type is then any value).
+    open : (bool, bool)
+        Whether the low and the high end of ``range`` are excluded (``(0, inf)`` open at 0: positive).
+    required : bool
+        The file must give the key (its section then too); the loader checks it after the values.
     """
 
     section: str
@@ -96,6 +100,8 @@ class Key:
     choices: tuple[str, ...] = ()
     attr: str | None = None
     checked_by: str | None = None
+    open: tuple[bool, bool] = (False, False)
+    required: bool = False
 
     @property
     def path(self) -> str:
@@ -105,25 +111,44 @@ class Key:
     def field_name(self) -> str:
         return self.attr or self.name
 
+    @property
+    def shown_unit(self) -> str:
+        """The unit as docs show it: a unit that depends on the file (``{q}/s``) with the symbols q, u."""
+        return self.unit.format(q="q", u="u")
+
     def default_text(self) -> str:
         """The default as a user reads it: a value with its unit, or the rule."""
+        unit = f" {self.shown_unit}" if self.shown_unit else ""
+        if self.required:
+            return "required"
         if isinstance(self.rule, Scaled):
-            return self.rule.text() + (f" {self.unit}" if self.unit else "")
-        value = "" if self.default is None else fmt(self.default) + (f" {self.unit}" if self.unit else "")
+            return self.rule.text() + unit
+        value = "" if self.default is None else fmt(self.default) + unit
         if isinstance(self.rule, str):
             return self.rule.format(default=value)
         return value if value else "absent"
 
+    def range_text(self) -> str:
+        """``[1, 100000]``, ``(0, inf)``: the accepted range, brackets saying which ends are included."""
+        if self.range is None:
+            return ""
+        lo, hi = self.range
+        return f"{'(' if self.open[0] or lo == -math.inf else '['}{lo:g}, {hi:g}{')' if self.open[1] or hi == math.inf else ']'}"
+
     def type_text(self) -> str:
         if self.choices:
             return " | ".join(f'"{c}"' for c in self.choices)
-        return {float: "number", int: "integer", str: "string", list: "array of tables"}[self.type]
+        if self.type is list:
+            return "array of tables" if self.checked_by else "list of numbers"
+        return {float: "number", int: "integer", str: "string"}[self.type]
 
 
 def fmt(value: Any) -> str:
     """A default as written in help and docs (``2500``, ``1e-05``, ``"motor"``)."""
     if isinstance(value, str):
         return f'"{value}"'
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}"
 
 
@@ -140,12 +165,20 @@ def _annotation(k: Key) -> Any:
         return Any
     if k.choices:
         return Literal[k.choices]  # type: ignore[valid-type]
-    lo, hi = k.range if k.range is not None else (None, None)
-    return Annotated[k.type, Field(ge=lo, le=hi)]
+    bounds: dict[str, float] = {}
+    if k.range is not None:
+        lo, hi = k.range
+        if math.isfinite(lo):
+            bounds["gt" if k.open[0] else "ge"] = lo
+        if math.isfinite(hi):
+            bounds["lt" if k.open[1] else "le"] = hi
+    if k.type is list:  # a list of numbers, each within the range
+        return list[Annotated[float, Field(**bounds)]]
+    return Annotated[k.type, Field(**bounds)]
 
 
 def _field(k: Key) -> Any:
-    extra: dict[str, Any] = {"unit": k.unit} if k.unit else {}
+    extra: dict[str, Any] = {"unit": k.shown_unit} if k.unit else {}
     if k.rule is not None:
         extra["default_rule"] = k.default_text()
     if k.checked_by is not None:
@@ -156,17 +189,22 @@ def _field(k: Key) -> Any:
             schema.pop("default", None)
         schema.update(extra)
 
-    return Field(default=k.default, description=k.doc, json_schema_extra=schema_extra)
+    default = list(k.default) if isinstance(k.default, tuple) else k.default
+    return Field(default=default, description=k.doc, json_schema_extra=schema_extra)
 
 
 def build_model(name: str, keys: Sequence[Key], doc: str) -> type[BaseModel]:
     """The strict pydantic model of a file: one sub-model per section, every key optional."""
     secs = {}
     for section, ks in sections(keys).items():
-        sub = create_model(f"{name}_{section}", __config__=_CONFIG,
+        required = [k.name for k in ks if k.required]
+        config = ConfigDict(**_CONFIG, json_schema_extra={"required": required}) if required else _CONFIG
+        sub = create_model(f"{name}_{section}", __config__=config,
                            **{k.name: (_annotation(k), _field(k)) for k in ks})
         secs[section] = (sub, Field(default=None, description=f"[{section}]", json_schema_extra=_no_default))
-    model = create_model(name, __config__=_CONFIG, **secs)
+    needed = list(dict.fromkeys(k.section for k in keys if k.required))
+    model = create_model(name, __config__=ConfigDict(**_CONFIG, json_schema_extra={"required": needed})
+                         if needed else _CONFIG, **secs)
     model.__doc__ = doc
     return model
 
@@ -189,7 +227,7 @@ def json_schema(model: type[BaseModel], schema_id: str, version: int) -> dict[st
 
 
 def first_error(exc: ValidationError, data: Mapping[str, Any], keys: Sequence[Key], *, source: str, prefix: str,
-                extra_known: Mapping[str, Sequence[str]] = {}) -> str:
+                extra_known: Mapping[str, Sequence[str]] = {}, units: Mapping[str, str] = {}) -> str:
     """The one error line of a refused file: its first bad key in the file's order.
 
     Parameters
@@ -202,6 +240,8 @@ def first_error(exc: ValidationError, data: Mapping[str, Any], keys: Sequence[Ke
         File name (first word) and key-path prefix (``$.spec.`` inside tuning.json).
     extra_known : mapping
         Section -> keys read outside the table, listed with the known keys of an unknown-key error.
+    units : mapping
+        Values of the symbols of a unit that depends on the file (``{"q": "rad", "u": "V"}``).
     """
     by_path = {(k.section, k.name): k for k in keys}
     secs = list(sections(keys))
@@ -226,7 +266,13 @@ def first_error(exc: ValidationError, data: Mapping[str, Any], keys: Sequence[Ke
         known = [k.name for k in sections(keys)[section] if k.checked_by is None] + list(extra_known.get(section, ()))
         return f"{path}: unknown key (known in [{section}]: {', '.join(known)})"
     k = by_path[(section, name)]
-    u = f" {k.unit}" if k.unit else ""
+    unit = k.unit.format(**units) if units else k.unit
+    u = f" {unit}" if unit else ""
+    if k.type is list:
+        raw = data[section][name]
+        lo = k.range[0] if k.range is not None else -math.inf
+        what = "positive numbers" if lo == 0 and k.open[0] else "numbers"
+        return f"{path} = {raw!r}: expected a list of {what}{u and ' in' + u}"
     if k.choices:
         return f"{path} = {raw!r}: expected one of {', '.join(map(repr, k.choices))}"
     if k.type is int and (isinstance(raw, bool) or not isinstance(raw, int)):
@@ -235,11 +281,13 @@ def first_error(exc: ValidationError, data: Mapping[str, Any], keys: Sequence[Ke
         return f"{path} = {raw!r}: expected a finite number{u and ' in' + u}"
     val = k.type(raw)
     lo, hi = k.range  # type: ignore[misc]
-    if lo > 0 and not val > 0:
+    if all(k.open) and math.isfinite(lo) and math.isfinite(hi):
+        return f"{path} = {val!r} must be between {lo:g} and {hi:g}"
+    if (lo > 0 or (lo == 0 and k.open[0])) and not val > 0:
         return f"{path} = {val!r}{u} must be positive"
     if lo >= 0 and val < 0:
         return f"{path} = {val!r}{u} must not be negative"
-    return f"{path} = {val!r}{u} is outside the accepted range [{lo:g}, {hi:g}]{u}"
+    return f"{path} = {val!r}{u} is outside the accepted range {k.range_text()}{u}"
 
 
 def help_lines(keys: Sequence[Key]) -> list[str]:
@@ -251,8 +299,8 @@ def markdown_table(keys: Sequence[Key]) -> str:
     """The Markdown table of docs/interface.md: key, type, default, range, unit, doc."""
     rows = ["| key | type | default | range | unit | what |", "|---|---|---|---|---|---|"]
     for k in keys:
-        rng = "" if k.range is None else f"[{k.range[0]:g}, {k.range[1]:g}]"
-        rows.append(f"| `{k.path}` | {_md(k.type_text())} | {_md(k.default_text())} | {rng} | {k.unit} | "
+        rows.append(f"| `{k.path}` | {_md(k.type_text())} | {_md(k.default_text())} | {k.range_text()} | "
+                    f"{k.shown_unit} | "
                     f"{_md(k.doc)} |")
     return "\n".join(rows) + "\n"
 
