@@ -3,15 +3,28 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.excite import band_lines, load_excite_spec, plan_run, write_plan_csv, write_plan_h5
 from commission.files import Outputs
+from commission.formats.limits_toml import LIMITS_KEYS
+from commission.formats.table import Key, sections
 from commission.jsonio import write_json_atomic
+
+def spec_help(keys: Sequence[Key] = LIMITS_KEYS) -> str:
+    """``--spec``'s help from limits.toml's table: the required keys, then every other key by section."""
+    required = [k.path for k in keys if k.required]
+    optional = {s: [k.name for k in ks if not k.required] for s, ks in sections(keys).items()}
+    rest = "; ".join(f"[{s}] {', '.join(names)}" for s, names in optional.items() if names)
+    return (f"limits.toml: required {', '.join(required)}; optional {escape(rest)} "
+            "(drive: bandwidth_hz, or kp and kd; units, defaults and ranges: docs/interface.md section 10).")
+
 
 #: Files of ``--out-dir``.
 PLAN_NAMES = ("plan.csv", "plan.h5", "plan.json", "plan.png")
@@ -20,9 +33,7 @@ PLAN_NAMES = ("plan.csv", "plan.h5", "plan.json", "plan.png")
 @app.command("excite")
 @cli_errors
 def excite(
-    spec: Path = typer.Option(..., "--spec", help="limits.toml: [limits] travel, v_max, a_max, u_max; [drive] "
-                              "sample_rate and bandwidth_hz or kp, kd (ki); [axis] optional mass, friction, encoder_step, encoder_noise; [evidence] optional "
-                              "target_hz, first_mode_hz; [plan]."),
+    spec: Path = typer.Option(..., "--spec", help=spec_help()),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for plan.csv, plan.h5, plan.json, plan.png."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing plan files in --out-dir."),
 ) -> None:

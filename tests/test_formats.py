@@ -37,10 +37,10 @@ def _cli_help() -> str:
     return r.output
 
 
-def _doc_rows(text: str) -> dict[str, list[str]]:
-    """Key path -> the cells of its row in the generated table of docs/interface.md."""
-    begin = text.index("<!-- generated: spec.toml keys")
-    block = text[begin:text.index("<!-- end: spec.toml keys -->")]
+def _doc_rows(text: str, name: str = "spec.toml keys") -> dict[str, list[str]]:
+    """Key path -> the cells of its row in the generated table ``name`` of docs/interface.md."""
+    begin = text.index(f"<!-- generated: {name}")
+    block = text[begin:text.index(f"<!-- end: {name} -->")]
     rows = {}
     for line in block.splitlines()[3:]:
         cells = [c.strip() for c in line.strip().strip("|").replace("\\|", "\x00").split("|")]
@@ -51,15 +51,16 @@ def _doc_rows(text: str) -> dict[str, list[str]]:
 # --------------------------------------------------------------------------- the generated files do not drift
 
 
-def test_schema_file_is_the_tables():
-    assert SCHEMA_FILE.read_text() == formats.schema_text(formats.schemas()["spec.schema.json"]), (
-        "docs/schemas/spec.schema.json is stale: run `python -m commission.formats`")
+@pytest.mark.parametrize("name", ["spec.schema.json", "limits.schema.json"])
+def test_schema_files_are_the_tables(name):
+    assert (ROOT / "docs" / "schemas" / name).read_text() == formats.schema_text(formats.schemas()[name]), (
+        f"docs/schemas/{name} is stale: run `python -m commission.formats`")
 
 
 def test_interface_md_table_is_the_tables():
     text = INTERFACE.read_text()
     assert formats.fill_markdown(text, formats.tables()) == text, (
-        "docs/interface.md's spec.toml table is stale: run `python -m commission.formats`")
+        "docs/interface.md's generated tables are stale: run `python -m commission.formats`")
 
 
 # --------------------------------------------------------------------------- one place: every key walked
@@ -178,3 +179,91 @@ def test_readme_quotes_the_tables_defaults_and_ranges():
     for path, shown in (("trajectory.dwell", "`trajectory.dwell` ≤ {:g} s"), ("trajectory.moves", "`moves` ≤ {:g}"),
                         ("tune.budget", "`tune.budget` ≤ {:,}"), ("tune.margin", "`tune.margin` ≤ {:g}")):
         assert shown.format(keys[path].range[1]) in text, path
+
+
+# --------------------------------------------------------------------------- limits.toml (commission excite)
+
+from commission.excite import excite_spec_from_mapping  # noqa: E402
+from commission.formats.limits_toml import LIMITS_KEYS  # noqa: E402
+
+LIMITS_FILE = ROOT / "docs" / "schemas" / "limits.schema.json"
+MINIMAL = {"limits": {"travel": 0.2, "v_max": 0.5, "a_max": 5.0, "u_max": 10.0},
+           "drive": {"sample_rate": 2000.0, "bandwidth_hz": 10.0}}
+
+
+def _bounds(k: Key) -> dict:
+    lo, hi = k.range
+    out = {}
+    if math.isfinite(lo):
+        out["exclusiveMinimum" if k.open[0] else "minimum"] = lo
+    if math.isfinite(hi):
+        out["exclusiveMaximum" if k.open[1] else "maximum"] = hi
+    return out
+
+
+def test_every_limits_key_agrees_in_help_docs_and_schema():
+    r = CliRunner().invoke(app, ["excite", "--help"], env={"COLUMNS": "250", "TERMINAL_WIDTH": "250"})
+    help_out = " ".join(r.output.replace("│", " ").split())
+    rows = _doc_rows(INTERFACE.read_text(), "limits.toml keys")
+    schema = json.loads(LIMITS_FILE.read_text())
+    assert set(rows) == {k.path for k in LIMITS_KEYS}
+    assert schema["required"] == ["limits", "drive"]
+    for k in LIMITS_KEYS:
+        assert (k.path if k.required else k.name) in help_out, k.path
+        cells = rows[k.path]
+        assert (cells[2], cells[3], cells[4]) == (k.default_text(), k.range_text(), k.shown_unit), (k.path, cells)
+        sec = schema["$defs"][schema["properties"][k.section]["$ref"].split("/")[-1]]
+        prop = sec["properties"][k.name]
+        assert prop.get("unit", "") == k.shown_unit and prop["description"] == k.doc, k.path
+        assert (k.name in sec.get("required", [])) == k.required, k.path
+        if k.default is not None:
+            assert prop["default"] == (list(k.default) if isinstance(k.default, tuple) else k.default), k.path
+        else:
+            assert "default" not in prop, k.path
+        if k.range is not None:
+            where = prop["items"] if k.type is list else prop
+            assert {b: where[b] for b in where if "imum" in b} == _bounds(k), k.path
+
+
+def test_changing_a_limits_default_changes_docs_and_schema_and_the_loader_follows_the_table():
+    changed = tuple(dataclasses.replace(k, default=9) if k.path == "plan.n_speeds" else k for k in LIMITS_KEYS)
+    assert "| `plan.n_speeds` | integer | 9 |" in markdown_table(changed)
+    assert json_schema(build_model("L", changed, ""), "x", 1)["$defs"]["L_plan"]["properties"]["n_speeds"][
+        "default"] == 9
+    spec = excite_spec_from_mapping(MINIMAL)
+    for k in LIMITS_KEYS:
+        if k.section == "plan" and k.name not in ("band_hz",):  # band_hz: derived from Nyquist
+            assert spec.plan[k.name] == k.default, k.path
+    assert (spec.q_unit, spec.u_unit) == ("m", "V")
+
+
+@pytest.mark.parametrize("k", [k for k in LIMITS_KEYS if k.range is not None and math.isfinite(k.range[0])],
+                         ids=lambda k: k.path)
+def test_every_limits_number_below_its_range_is_refused_naming_the_key(k: Key):
+    data = json.loads(json.dumps(MINIMAL))
+    data.setdefault(k.section, {})[k.name] = [-1.0] if k.type is list else k.type(k.range[0] - 1)
+    with pytest.raises(SpecError, match="^" + re.escape(f"limits.toml: {k.path} = ")):
+        excite_spec_from_mapping(data)
+
+
+def test_limits_errors_name_the_key_in_the_files_units():
+    def refused(section, key, value, **extra):
+        data = json.loads(json.dumps(MINIMAL))
+        data.setdefault(section, {})[key] = value
+        for s, t in extra.items():
+            data.setdefault(s, {}).update(t)
+        with pytest.raises(SpecError) as exc:
+            excite_spec_from_mapping(data)
+        return str(exc.value)
+
+    assert refused("limits", "v_max", -1.0, axis={"q_unit": "rad"}) == "limits.toml: limits.v_max = -1.0 rad/s must be positive"
+    assert refused("drive", "kd", -1.0) == "limits.toml: drive.kd = -1.0 V s/m must not be negative"
+    assert refused("plan", "margin", 1.0) == "limits.toml: plan.margin = 1.0 must be between 0 and 1"
+    assert refused("plan", "band_hz", [1.0, True]) == \
+        "limits.toml: plan.band_hz = [1.0, True]: expected a list of positive numbers in Hz"
+    assert refused("plan", "mass_range", 0.5) == "limits.toml: plan.mass_range = 0.5 is outside the accepted range [1, inf)"
+    assert refused("plan", "injection", "sine") == \
+        "limits.toml: plan.injection = 'sine': expected one of 'multisine', 'prbs'"
+    with pytest.raises(SpecError, match=r"^limits\.toml: limits\.u_max: missing \(required in \[limits\]\)$"):
+        excite_spec_from_mapping({"limits": {k: v for k, v in MINIMAL["limits"].items() if k != "u_max"},
+                                  "drive": MINIMAL["drive"]})
