@@ -283,11 +283,12 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
     if ("controller", "sample_rate") not in values:  # the default may come from ident.json's log rate
         if not (isinstance(fs, (int, float)) and math.isfinite(fs) and fs > 0):
             raise _fail(source, f"{prefix}controller.sample_rate", f" = {fs!r} Hz (the log's rate): not a positive rate")
-        check_range(source, f"{prefix}controller.sample_rate (the log's rate)", ("controller", "sample_rate"), fs, "Hz")
-    obs_req = ("controller", "observer_pole") in values
-    pid_req = ("pid", "pole") in values
-    obs = get("controller", "observer_pole") if obs_req else _KEYS[("controller", "observer_pole")].rule.fraction * fs
-    pid = get("pid", "pole") if pid_req else _KEYS[("pid", "pole")].rule.fraction * fs
+        check_range(source, f"{prefix}controller.sample_rate (the log's rate)", ("controller", "sample_rate"), fs,
+                    _KEYS[("controller", "sample_rate")].unit)
+    for k in SPEC_FIELDS:  # defaults that follow another key (the poles follow the rate): the table's rule
+        if isinstance(k.rule, Scaled) and (k.section, k.name) not in values:
+            values[(k.section, k.name)] = k.rule.fraction * get(*k.rule.of.split("."))
+    obs, pid = get("controller", "observer_pole"), get("pid", "pole")
     b1, b2 = get("trajectory", "beta1"), get("trajectory", "beta2")
     # Fastest root magnitude of s^2 + b1 s + b2 (real or complex pair).
     disc = b1 * b1 - 4.0 * b2
@@ -307,8 +308,8 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
     profile = parse_profile(traj, source, prefix)
     if profile is not None:
         # The envelope is the moves' own unless given; a given one must cover them.
-        for key, unit, have in (("v_max", "m/s", profile.v_peak), ("a_max", "m/s^2", profile.a_peak),
-                                ("travel", "m", profile.span)):
+        for key, have in (("v_max", profile.v_peak), ("a_max", profile.a_peak), ("travel", profile.span)):
+            unit = _KEYS[("trajectory", key)].unit
             if ("trajectory", key) not in values:
                 check_range(source, f"{prefix}trajectory.{key} (from {profile.label})", ("trajectory", key), have, unit)
                 values[("trajectory", key)] = have
@@ -335,9 +336,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
                 f" = {vmax_c:g} m/s cannot be reached within trajectory.travel = {travel:g} m at "
                 f"a_max = {amax_c:g} m/s^2 (need v_max^2/a_max <= travel)",
             )
-    resolved = {("controller", "sample_rate"): fs, ("controller", "observer_pole"): obs, ("pid", "pole"): pid,
-                ("trajectory", "v_max"): vmax, ("trajectory", "a_max"): amax, ("trajectory", "travel"): travel}
-    return Spec(profile=profile, **{k.field_name: resolved.get(key, get(*key)) for key, k in _KEYS.items()})
+    return Spec(profile=profile, **{k.field_name: get(*key) for key, k in _KEYS.items()})
 
 
 def _given_values(data: Mapping[str, Any], source: str, prefix: str) -> dict[tuple[str, str], Any]:
