@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from commission import formats
+from commission.formats import generated as formats
 from commission.cli.main import app
 from commission.cli.tune_cmd import help_text
 from commission.errors import SpecError

@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from commission.formats import write_generated
+from commission.formats.generated import write_generated
 
 for p in write_generated(Path(sys.argv[1] if len(sys.argv) > 1 else ".")):
     print(f"wrote {p}")

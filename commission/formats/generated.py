@@ -1,0 +1,60 @@
+"""The files generated from the format tables: docs/schemas/*.schema.json and docs/interface.md's key tables.
+
+``python -m commission.formats`` rewrites them (:func:`write_generated`); tests compare them with the tables.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+from commission.formats import limits_toml, spec_toml
+from commission.formats.table import json_schema, markdown_table
+
+#: Marker lines around a generated table in a Markdown file: ``<!-- generated: NAME -->`` ... ``<!-- end: NAME -->``.
+_BEGIN, _END = "<!-- generated: {name} (python -m commission.formats; do not edit) -->", "<!-- end: {name} -->"
+
+
+def schemas() -> dict[str, dict]:
+    """File name in docs/schemas/ -> its JSON Schema."""
+    return {"spec.schema.json": json_schema(spec_toml.SpecToml, "commission/spec.schema.json",
+                                            spec_toml.SCHEMA_VERSION),
+            "limits.schema.json": json_schema(limits_toml.LimitsToml, "commission/limits.schema.json",
+                                              limits_toml.SCHEMA_VERSION)}
+
+
+def schema_text(schema: dict) -> str:
+    """A schema as written to disk: sorted keys, 2-space indent, one trailing newline."""
+    return json.dumps(schema, sort_keys=True, indent=2) + "\n"
+
+
+def tables() -> dict[str, str]:
+    """Name of a generated Markdown table in docs/interface.md -> its text."""
+    return {"spec.toml keys": markdown_table(spec_toml.SPEC_KEYS),
+            "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS)}
+
+
+def fill_markdown(text: str, generated: dict[str, str]) -> str:
+    """``text`` with every generated table between its markers replaced by ``generated[name]``."""
+    for name, body in generated.items():
+        begin, end = _BEGIN.format(name=name), _END.format(name=name)
+        pattern = re.compile(re.escape(begin) + r"\n.*?" + re.escape(end), re.S)
+        if not pattern.search(text):
+            raise ValueError(f"no '{begin}' ... '{end}' block")
+        text = pattern.sub(lambda _m: f"{begin}\n{body}{end}", text)
+    return text
+
+
+def write_generated(root: Path) -> list[Path]:
+    """Rewrite the generated files under a checkout's ``root``; returns the files written."""
+    out = []
+    folder = root / "docs" / "schemas"
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, schema in schemas().items():
+        (folder / name).write_text(schema_text(schema))
+        out.append(folder / name)
+    doc = root / "docs" / "interface.md"
+    doc.write_text(fill_markdown(doc.read_text(), tables()))
+    out.append(doc)
+    return out
