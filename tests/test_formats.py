@@ -267,3 +267,31 @@ def test_limits_errors_name_the_key_in_the_files_units():
     with pytest.raises(SpecError, match=r"^limits\.toml: limits\.u_max: missing \(required in \[limits\]\)$"):
         excite_spec_from_mapping({"limits": {k: v for k, v in MINIMAL["limits"].items() if k != "u_max"},
                                   "drive": MINIMAL["drive"]})
+
+
+# --------------------------------------------------------------------------- any table: one of our errors, or a spec
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_values = st.one_of(st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True, allow_infinity=True),
+                    st.text(max_size=4), st.sampled_from(["m", "rad", "prbs", "V"]),
+                    st.lists(st.one_of(st.floats(allow_nan=True), st.booleans(), st.text(max_size=2)), max_size=3),
+                    st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(changes=st.lists(st.tuples(st.sampled_from([k.path for k in LIMITS_KEYS] + ["plan.zzz", "zzz.a"]), _values),
+                        max_size=4))
+def test_any_limits_table_gives_one_named_error_or_a_spec(changes):
+    data = json.loads(json.dumps(MINIMAL))
+    for path, value in changes:
+        section, key = path.split(".")
+        data.setdefault(section, {})[key] = value
+    try:
+        excite_spec_from_mapping(data)
+    except SpecError as exc:  # one line, naming the file and then a section the file has (or a key of it)
+        msg = str(exc)
+        assert msg.startswith("limits.toml: ") and "\n" not in msg, msg
+        named = msg[len("limits.toml: "):].split(" ")[0].split(":")[0].split(".")[0]
+        assert named in data, msg
