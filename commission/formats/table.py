@@ -26,8 +26,9 @@ refuses inf and nan, and ``model_json_schema`` exports the schema with the
 ranges, defaults and our ``unit`` and ``default_rule`` annotations.
 
 The sign words of an error follow from the range: a key whose range starts
-above 0 "must be positive", one whose range starts at 0 "must not be
-negative", and a value past either end "is outside the accepted range".
+above 0, or is open at 0, "must be positive", one whose range starts at 0
+"must not be negative", one open at both finite ends "must be between" them,
+and a value past either end "is outside the accepted range".
 """
 
 from __future__ import annotations
@@ -194,7 +195,11 @@ def _field(k: Key) -> Any:
 
 
 def build_model(name: str, keys: Sequence[Key], doc: str) -> type[BaseModel]:
-    """The strict pydantic model of a file: one sub-model per section, every key optional."""
+    """The strict pydantic model of a file: one sub-model per section.
+
+    Every key is optional in the model; the schema lists the ``required`` ones and the
+    loader checks them after the values, so that a bad value is named before a missing key.
+    """
     secs = {}
     for section, ks in sections(keys).items():
         required = [k.name for k in ks if k.required]
