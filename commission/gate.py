@@ -414,8 +414,32 @@ _DEFAULT_ERR = {
 }
 
 
+def absolute_mode(yardstick: Mapping[str, Any] | None) -> str:
+    """How the defaulted absolute error limits apply, from tuning.json's ``pid_yardstick`` record.
+
+    * :data:`ABSOLUTE_YARDSTICK` -- the yardstick is the fastest PID of (57) that the margin floors
+      admit (``method`` ``"margin_search"``, admissible, and the first candidate simulated -- the
+      candidates are simulated one at a time from the fastest, ``YARDSTICK_BATCH`` = 1 -- was kept):
+      its bandwidth is what this axis's modes, delay and evidence allow a fixed-gain loop under the
+      floors, so its error on a scenario is a level this axis can be asked for;
+    * :data:`ABSOLUTE_REPORTED` -- no PID of (57) keeps the floors (``is_yardstick`` false): there is
+      no achievable level to hold the ARC to;
+    * :data:`ABSOLUTE_FIXED` otherwise: no record (older tuning.json), ``[pid] pole`` given, or a
+      yardstick slowed below the floors' bandwidth by its simulated check (chattering or unbounded
+      faster PIDs: the PID family's noise, not the axis, set its level).  The limits as resolved.
+    """
+    if not yardstick or "is_yardstick" not in yardstick:
+        return ABSOLUTE_FIXED
+    if not yardstick["is_yardstick"]:
+        return ABSOLUTE_REPORTED
+    if yardstick.get("method") == "margin_search" and int(yardstick.get("simulated", 0)) == 1:
+        return ABSOLUTE_YARDSTICK
+    return ABSOLUTE_FIXED
+
+
 def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
-                 targets: Mapping[str, float] | None = None, yardstick: bool | None = None) -> GateLimits:
+                 targets: Mapping[str, float] | None = None,
+                 yardstick: Mapping[str, Any] | None = None) -> GateLimits:
     """Resolve a gate for one axis.
 
     Parameters
@@ -430,13 +454,12 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
     targets : mapping, optional
         The spec's ``[targets]`` (``e_rms``, ``e_f``, m): a defaulted e_rms or e_F limit is at
         least :data:`TARGET_FACTOR` times the target (None: not used).
-    yardstick : bool, optional
-        Whether the validation's PID is an admissible yardstick (``tuning.json``
-        ``pid_yardstick.is_yardstick``): True -- a defaulted error limit is at least the yardstick's
-        value on the same scenario (:data:`ABSOLUTE_YARDSTICK`); False -- no PID keeps the margin
-        floors, a defaulted error limit is reported, not gated (:data:`ABSOLUTE_REPORTED`); None (the
-        search; a tuning.json without the record) -- the limits as resolved (:data:`ABSOLUTE_FIXED`).
-        A limit gate.toml gives is never moved (:func:`scenario_error_limit`).
+    yardstick : mapping, optional
+        tuning.json's ``pid_yardstick`` record (None: the search, or a tuning.json without it):
+        :func:`absolute_mode` decides whether a defaulted error limit is at least the yardstick's
+        value on the same scenario (:data:`ABSOLUTE_YARDSTICK`), reported, not gated
+        (:data:`ABSOLUTE_REPORTED`), or as resolved (:data:`ABSOLUTE_FIXED`).  A limit gate.toml
+        gives is never moved (:func:`scenario_error_limit`).
 
     Returns
     -------
@@ -489,8 +512,7 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
         slack = gate.arc_vs_pid_slack.metres(lsb, travel)
         basis["arc_vs_pid_slack"] = f"{gate.source}: {gate.arc_vs_pid_slack.text}"
     defaulted = tuple(k for k in _ERROR_KEYS if getattr(gate, k) is None)
-    absolute = (ABSOLUTE_FIXED if yardstick is None or not defaulted
-                else ABSOLUTE_YARDSTICK if yardstick else ABSOLUTE_REPORTED)
+    absolute = absolute_mode(yardstick) if defaulted else ABSOLUTE_FIXED
     for key in defaulted:
         if absolute == ABSOLUTE_YARDSTICK:
             basis[key] += ", or the PID yardstick's value on the same scenario where larger"
@@ -509,10 +531,11 @@ def scenario_error_limit(limits: GateLimits, key: str, pid: Score) -> tuple[floa
     A limit the user set (gate.toml) applies as given.  A DEFAULTED limit is the axis's default
     (encoder steps, % of travel, :data:`TARGET_FACTOR` x ``[targets]``, :func:`resolve_gate`), and:
 
-    * with an admissible PID yardstick (:data:`ABSOLUTE_YARDSTICK`), at least the yardstick's own
-      value on the same scenario.  The yardstick is the fastest PID keeping the margin floors on the
-      identified plant: where it cannot meet the default, the trajectory asks more than this axis's
-      margins allow any fixed-gain loop, and the default measures the trajectory, not the controller.
+    * with a yardstick at the margin floors (:data:`ABSOLUTE_YARDSTICK`, :func:`absolute_mode`), at
+      least the yardstick's own value on the same scenario.  That yardstick is the fastest PID the
+      margin floors admit on the identified plant: where it cannot meet the default, the trajectory
+      asks more than this axis's modes and delay allow a loop under the floors, and the default
+      measures the trajectory, not the controller.
       Whether the ARC beats the yardstick is then the comparison criteria's question
       (``arc_vs_pid_*``), and a safe ARC that loses is flagged, never certified;
     * without one (:data:`ABSOLUTE_REPORTED`: no PID keeps the floors), measured and reported, not

@@ -617,7 +617,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     gate = GateSpec() if gate is None else gate
     spec = tuning.spec
     limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max,
-                                       targets=spec.targets, yardstick=_is_yardstick(tuning))
+                                       targets=spec.targets, yardstick=tuning.pid_yardstick)
     scenarios = scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(seed),
                                 n_monte_carlo=n_monte_carlo)
     arc = deployable_gains(tuning.arc, runtime_guards(tuning, limits))
@@ -668,12 +668,6 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             evidence=evidence, evidence_rows=evidence_rows,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
                             executor=ex.describe(), monte_carlo_summary=mc_summary)
-
-
-def _is_yardstick(tuning: Tuning) -> bool | None:
-    """Whether the tuning's PID is an admissible yardstick (None: a tuning.json without the record)."""
-    ys = tuning.pid_yardstick
-    return None if ys is None or "is_yardstick" not in ys else bool(ys["is_yardstick"])
 
 
 def performance_set(runs: Sequence[RunRecord], ident: Identification) -> frozenset[str]:

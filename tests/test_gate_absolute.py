@@ -9,12 +9,17 @@ the 0.4 m envelope: e_rms 20 um, e_F 40 um, e_M 800 um).
 
 import math
 
-from commission.gate import (ABSOLUTE_FIXED, ABSOLUTE_REPORTED, ABSOLUTE_YARDSTICK, GateSpec, evaluate_gate,
-                             gate_from_mapping, resolve_gate)
+from commission.gate import (ABSOLUTE_FIXED, ABSOLUTE_REPORTED, ABSOLUTE_YARDSTICK, GateSpec, absolute_mode,
+                             evaluate_gate, gate_from_mapping, resolve_gate)
 from commission.tuning import Score
 
 NAN = math.nan
 NOMINAL = frozenset({"case2/nominal"})
+#: tuning.json ``pid_yardstick`` records: the fastest PID the floors admit (the first simulated, kept); one
+#: whose faster candidates chattered (eight simulated); none admissible.
+AT_FLOORS = {"method": "margin_search", "is_yardstick": True, "simulated": 1, "admissible": 11, "pole": 102.0}
+SLOWED = {"method": "margin_search", "is_yardstick": True, "simulated": 8, "admissible": 18, "pole": 102.0}
+NONE = {"method": "none_admissible", "is_yardstick": False, "simulated": 1, "admissible": 0, "pole": 441.0}
 
 
 def score(e_rms, e_F=None, e_M=1e-4, c_u=0.1, u_peak=1.0, diverged=False) -> Score:
@@ -34,7 +39,7 @@ def test_without_a_yardstick_record_the_defaults_are_fixed_as_before():
 
 
 def test_a_default_the_yardstick_cannot_meet_follows_the_yardstick_on_the_same_scenario():
-    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=True)
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=AT_FLOORS)
     assert lim.absolute == ABSOLUTE_YARDSTICK and set(lim.defaulted) == {"e_F", "e_M", "e_rms"}
     # The ARC at 22 um rms, 65 um final; the yardstick at 33 um and 197 um: the axis's defaults (20, 40 um)
     # ask more than any PID keeping the floors gives, so the yardstick's values are the limits there.
@@ -51,13 +56,13 @@ def test_a_default_the_yardstick_cannot_meet_follows_the_yardstick_on_the_same_s
 
 def test_a_limit_the_user_set_never_follows_the_yardstick():
     lim = resolve_gate(gate_from_mapping({"gate": {"e_rms": "20 um"}}), lsb=1e-6, travel=0.4, u_max=10.0,
-                       yardstick=True)
+                       yardstick=AT_FLOORS)
     assert lim.defaulted == ("e_F", "e_M")
     assert failed(lim, score(22e-6, e_F=30e-6), score(33e-6, e_F=197e-6)) == {"e_rms"}
 
 
 def test_without_an_admissible_yardstick_errors_are_reported_and_safety_stays():
-    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=False)
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=NONE)
     assert lim.absolute == ABSOLUTE_REPORTED and "reported" in lim.basis["e_rms"]
     assert failed(lim, score(58e-6), score(800e-6)) == set()
     v = evaluate_gate(lim, [("case2/nominal", score(58e-6), score(800e-6), NAN)], performance=NOMINAL)
@@ -67,3 +72,14 @@ def test_without_an_admissible_yardstick_errors_are_reported_and_safety_stays():
     assert failed(lim, score(58e-6, c_u=1.5), score(800e-6)) == {"c_u"}
     assert "u_peak" in failed(lim, score(58e-6, u_peak=10.0), score(800e-6))
     assert "divergence" in failed(lim, score(NAN, diverged=True), score(800e-6), t_abort=0.5)
+
+
+def test_a_yardstick_slowed_by_its_own_chattering_sets_no_level():
+    """Faster PIDs that keep the floors but chatter on the encoder: the PID family's noise, not the axis,
+    set the yardstick's level, so the axis's defaults stay (and a record from [pid] pole, or none, too)."""
+    assert absolute_mode(AT_FLOORS) == ABSOLUTE_YARDSTICK
+    assert absolute_mode(SLOWED) == ABSOLUTE_FIXED
+    assert absolute_mode({**AT_FLOORS, "method": "spec_pole"}) == ABSOLUTE_FIXED
+    assert absolute_mode(None) == ABSOLUTE_FIXED and absolute_mode(NONE) == ABSOLUTE_REPORTED
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=SLOWED)
+    assert failed(lim, score(22e-6, e_F=65e-6), score(33e-6, e_F=197e-6)) == {"e_rms", "e_F"}
