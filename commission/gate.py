@@ -82,6 +82,13 @@ Defaults (LSB = encoder resolution, travel = the spec's envelope stroke)
            (heavy payload, large offset) that the estimates have not yet learnt.
 ``e_rms``  max(:data:`DEFAULT_E_RMS_LSB` LSB, :data:`DEFAULT_E_RMS_TRAVEL` x travel)
            = max(15 LSB, 0.005 % travel): 20 um (paper: ARC 1.9-4.3 um, PID 3-8 um).
+A DEFAULTED error limit (gate.toml leaves it out) also depends on the axis's PID yardstick
+(:func:`absolute_mode`, :func:`scenario_error_limit`): where the yardstick is the fastest PID the
+margin floors admit, the limit on a scenario is at least that PID's own value there (a trajectory
+asking more than the floors allow any fixed-gain loop on this axis does not refuse the ARC; the
+comparison criteria judge it against the yardstick); where no PID keeps the floors, the error limits
+are reported, not gated.  Safety criteria and the floors never move; a limit gate.toml gives never
+moves.
 ``c_u``    :data:`DEFAULT_C_U` = 1.0: input increments as large as the input
            itself mean a chattering command (paper: 0.11-0.32).
 ``u_max``  the tuning spec's ``controller.u_max``.  A command that *reaches*
