@@ -715,6 +715,17 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
     return GateVerdict(tuple(checks), limits)
 
 
+#: The SAFETY criteria of a simulated scenario (module docstring, "What each scenario certifies").
+SAFETY_CRITERIA = ("divergence", "c_u", "u_peak")
+
+
+def safety_failures(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> list[Check]:
+    """The failed SAFETY checks (:data:`SAFETY_CRITERIA`) of ``runs``: divergence (always, whatever
+    ``no_divergence`` says: it is a floor), chattering and a clipped command."""
+    v = evaluate_gate(dataclasses.replace(limits, no_divergence=True), runs, performance=frozenset())
+    return [c for c in v.failures if c.criterion in SAFETY_CRITERIA]
+
+
 #: Variants of the fixed matrix (``<case>/<variant>``) that always certify PERFORMANCE: the identified
 #: plant.  The payload corners and the load step join them when the user stated the range they come
 #: from; the others (friction corners, one more sample of delay, the mode's variants) certify SAFETY

@@ -532,7 +532,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"**Gate: {status}** -- {len(v.checks)} checks on {len(result.runs)} scenarios "
              f"({nfix} fixed + {result.n_monte_carlo} Monte-Carlo plants), ARC and PID baseline.")
     L.append("")
-    L.extend(validity_lines(tuning))
+    L.extend(validity_lines(result if getattr(result, "validity", None) else tuning))
     L.extend(evidence_markdown(result, tuning))
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "
