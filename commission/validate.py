@@ -729,7 +729,9 @@ def certify_default_payload(ex: Executor, ctx: _SimContext, scenarios: Sequence[
     unit = mass_unit(ident)
     b = ident.extra["bounds"]
     earlier = tuning.validity or {}
-    what = "; ".join(sorted({f"{c.criterion} at {c.scenario}" for c in bad}))
+    diverged = {c.scenario for c in bad if c.criterion == "divergence"}  # its c_u and peak say nothing more
+    what = "; ".join(sorted({f"{c.criterion} at {c.scenario}" for c in bad
+                             if c.criterion == "divergence" or c.scenario not in diverged}))
     validity = {"payload_range": [pmin, got], "mass_range": [float(b["mass_range"][0]), m0 + got], "unit": unit,
                 "default_payload_range": list(earlier.get("default_payload_range", [pmin, pmax])),
                 "payload_defaulted": True, "narrowed_by": "validate",
