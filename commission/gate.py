@@ -635,7 +635,7 @@ class GateVerdict:
                 out[c.criterion] = c
                 continue
             pr = prev.value / prev.limit if (math.isfinite(prev.value) and prev.limit > 0) else math.inf
-            if ratio > pr:
+            if ratio > pr or (ratio == pr == 0.0 and c.value > prev.value):  # reported only (limit inf): the largest
                 out[c.criterion] = c
         return out
 

@@ -68,6 +68,10 @@ def test_without_an_admissible_yardstick_errors_are_reported_and_safety_stays():
     v = evaluate_gate(lim, [("case2/nominal", score(58e-6), score(800e-6), NAN)], performance=NOMINAL)
     row = [c for c in v.checks if c.criterion == "e_rms"][0]
     assert math.isclose(row.value, 58e-6) and "reported" in row.detail
+    two = evaluate_gate(lim, [("case1/nominal", score(13e-6), score(800e-6), NAN),
+                              ("case2/nominal", score(58e-6), score(800e-6), NAN)],
+                        performance={"case1/nominal", "case2/nominal"})
+    assert two.worst()["e_rms"].scenario == "case2/nominal"  # the report's worst row: the largest error
     # Safety is never reported only: chattering, a clipped command and divergence still refuse.
     assert failed(lim, score(58e-6, c_u=1.5), score(800e-6)) == {"c_u"}
     assert "u_peak" in failed(lim, score(58e-6, u_peak=10.0), score(800e-6))
