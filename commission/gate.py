@@ -82,6 +82,13 @@ Defaults (LSB = encoder resolution, travel = the spec's envelope stroke)
            (heavy payload, large offset) that the estimates have not yet learnt.
 ``e_rms``  max(:data:`DEFAULT_E_RMS_LSB` LSB, :data:`DEFAULT_E_RMS_TRAVEL` x travel)
            = max(15 LSB, 0.005 % travel): 20 um (paper: ARC 1.9-4.3 um, PID 3-8 um).
+A DEFAULTED error limit (gate.toml leaves it out) also depends on the axis's PID yardstick
+(:func:`absolute_mode`, :func:`scenario_error_limit`): where the yardstick is the fastest PID the
+margin floors admit, the limit on a scenario is at least that PID's own value there (a trajectory
+asking more than the floors allow any fixed-gain loop on this axis does not refuse the ARC; the
+comparison criteria judge it against the yardstick); where no PID keeps the floors, the error limits
+are reported, not gated.  Safety criteria and the floors never move; a limit gate.toml gives never
+moves.
 ``c_u``    :data:`DEFAULT_C_U` = 1.0: input increments as large as the input
            itself mean a chattering command (paper: 0.11-0.32).
 ``u_max``  the tuning spec's ``controller.u_max``.  A command that *reaches*
@@ -152,6 +159,13 @@ ARC_VS_PID_QUANTILES = {"arc_vs_pid_median": 0.5, "arc_vs_pid_p90": 0.9}
 #: who states looser targets gets limits that follow them instead of a constant.
 TARGET_FACTOR = 4.0
 _TARGET_OF = {"e_rms": "e_rms", "e_F": "e_f"}
+#: How a defaulted absolute error limit applies on a scenario (:func:`scenario_error_limit`): as
+#: resolved (the search's strict reading, and a validation without a yardstick record) ...
+ABSOLUTE_FIXED = "fixed"
+#: ... at least the PID yardstick's own value on the same scenario (an admissible yardstick) ...
+ABSOLUTE_YARDSTICK = "yardstick"
+#: ... or reported only, the safety criteria staying (no PID keeps the margin floors on this axis).
+ABSOLUTE_REPORTED = "reported"
 #: Default slack of the ARC-vs-PID comparison: the rms of uniform quantization noise, 1/sqrt(12) LSB.
 DEFAULT_ARC_VS_PID_SLACK_LSB = 1.0 / math.sqrt(12.0)
 #: Relative tolerance below u_max at which a command counts as having reached the limit.
@@ -263,6 +277,13 @@ class GateLimits:
         Criterion -> how its limit was set (e.g. ``"default max(30 LSB, 0.01 % travel)"``).
     lsb, travel : float
         The encoder resolution and the envelope stroke the limits were resolved with, m.
+    absolute : str
+        How the DEFAULTED error limits (``defaulted``) apply on a scenario
+        (:func:`scenario_error_limit`): :data:`ABSOLUTE_FIXED` (as resolved),
+        :data:`ABSOLUTE_YARDSTICK` (at least the PID yardstick's value on the same scenario) or
+        :data:`ABSOLUTE_REPORTED` (no admissible yardstick: measured and reported, not gated).
+    defaulted : tuple of str
+        The error keys (``e_F``, ``e_M``, ``e_rms``) that gate.toml left at their default.
     """
 
     e_F: float
@@ -279,13 +300,16 @@ class GateLimits:
     arc_vs_pid_every: bool = True
     arc_vs_pid_median: float = DEFAULT_ARC_VS_PID_MEDIAN
     arc_vs_pid_p90: float = DEFAULT_ARC_VS_PID_P90
+    absolute: str = ABSOLUTE_FIXED
+    defaulted: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return {"e_F": self.e_F, "e_M": self.e_M, "e_rms": self.e_rms, "c_u": self.c_u, "u_max": self.u_max,
                 "no_divergence": self.no_divergence, "arc_vs_pid_e_rms": self.arc_vs_pid_e_rms,
                 "arc_vs_pid_slack": self.arc_vs_pid_slack, "arc_vs_pid_every": self.arc_vs_pid_every,
                 "arc_vs_pid_median": self.arc_vs_pid_median, "arc_vs_pid_p90": self.arc_vs_pid_p90,
-                "basis": dict(self.basis), "lsb": self.lsb, "travel": self.travel}
+                "basis": dict(self.basis), "lsb": self.lsb, "travel": self.travel,
+                "absolute_limits": self.absolute, "defaulted_limits": list(self.defaulted)}
 
 
 def _fail(source: str, key: str, msg: str) -> SpecError:
@@ -397,8 +421,32 @@ _DEFAULT_ERR = {
 }
 
 
+def absolute_mode(yardstick: Mapping[str, Any] | None) -> str:
+    """How the defaulted absolute error limits apply, from tuning.json's ``pid_yardstick`` record.
+
+    * :data:`ABSOLUTE_YARDSTICK` -- the yardstick is the fastest PID of (57) that the margin floors
+      admit (``method`` ``"margin_search"``, admissible, and the first candidate simulated -- the
+      candidates are simulated one at a time from the fastest, ``YARDSTICK_BATCH`` = 1 -- was kept):
+      its bandwidth is what this axis's modes, delay and evidence allow a fixed-gain loop under the
+      floors, so its error on a scenario is a level this axis can be asked for;
+    * :data:`ABSOLUTE_REPORTED` -- no PID of (57) keeps the floors (``is_yardstick`` false): there is
+      no achievable level to hold the ARC to;
+    * :data:`ABSOLUTE_FIXED` otherwise: no record (older tuning.json), ``[pid] pole`` given, or a
+      yardstick slowed below the floors' bandwidth by its simulated check (chattering or unbounded
+      faster PIDs: the PID family's noise, not the axis, set its level).  The limits as resolved.
+    """
+    if not yardstick or "is_yardstick" not in yardstick:
+        return ABSOLUTE_FIXED
+    if not yardstick["is_yardstick"]:
+        return ABSOLUTE_REPORTED
+    if yardstick.get("method") == "margin_search" and int(yardstick.get("simulated", 0)) == 1:
+        return ABSOLUTE_YARDSTICK
+    return ABSOLUTE_FIXED
+
+
 def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
-                 targets: Mapping[str, float] | None = None) -> GateLimits:
+                 targets: Mapping[str, float] | None = None,
+                 yardstick: Mapping[str, Any] | None = None) -> GateLimits:
     """Resolve a gate for one axis.
 
     Parameters
@@ -413,6 +461,12 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
     targets : mapping, optional
         The spec's ``[targets]`` (``e_rms``, ``e_f``, m): a defaulted e_rms or e_F limit is at
         least :data:`TARGET_FACTOR` times the target (None: not used).
+    yardstick : mapping, optional
+        tuning.json's ``pid_yardstick`` record (None: the search, or a tuning.json without it):
+        :func:`absolute_mode` decides whether a defaulted error limit is at least the yardstick's
+        value on the same scenario (:data:`ABSOLUTE_YARDSTICK`), reported, not gated
+        (:data:`ABSOLUTE_REPORTED`), or as resolved (:data:`ABSOLUTE_FIXED`).  A limit gate.toml
+        gives is never moved (:func:`scenario_error_limit`).
 
     Returns
     -------
@@ -464,10 +518,52 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
                             f"has no encoder quantization, so an LSB-relative slack is undefined")
         slack = gate.arc_vs_pid_slack.metres(lsb, travel)
         basis["arc_vs_pid_slack"] = f"{gate.source}: {gate.arc_vs_pid_slack.text}"
+    defaulted = tuple(k for k in _ERROR_KEYS if getattr(gate, k) is None)
+    absolute = absolute_mode(yardstick) if defaulted else ABSOLUTE_FIXED
+    for key in defaulted:
+        if absolute == ABSOLUTE_YARDSTICK:
+            basis[key] += ", or the PID yardstick's value on the same scenario where larger"
+        elif absolute == ABSOLUTE_REPORTED:
+            basis[key] += "; reported, not gated: no PID keeps the margin floors (no yardstick)"
     return GateLimits(e_F=limits["e_F"], e_M=limits["e_M"], e_rms=limits["e_rms"], c_u=c_u, u_max=um,
                       no_divergence=gate.no_divergence, arc_vs_pid_e_rms=factor, basis=basis,
                       lsb=lsb, travel=travel, arc_vs_pid_slack=slack, arc_vs_pid_every=every,
-                      arc_vs_pid_median=q_lim["arc_vs_pid_median"], arc_vs_pid_p90=q_lim["arc_vs_pid_p90"])
+                      arc_vs_pid_median=q_lim["arc_vs_pid_median"], arc_vs_pid_p90=q_lim["arc_vs_pid_p90"],
+                      absolute=absolute, defaulted=defaulted)
+
+
+def scenario_error_limit(limits: GateLimits, key: str, pid: Score) -> tuple[float, str]:
+    """The absolute error limit ``key`` (``e_F``, ``e_M``, ``e_rms``) on one scenario, and how it was set.
+
+    A limit the user set (gate.toml) applies as given.  A DEFAULTED limit is the axis's default
+    (encoder steps, % of travel, :data:`TARGET_FACTOR` x ``[targets]``, :func:`resolve_gate`), and:
+
+    * with a yardstick at the margin floors (:data:`ABSOLUTE_YARDSTICK`, :func:`absolute_mode`), at
+      least the yardstick's own value on the same scenario.  That yardstick is the fastest PID the
+      margin floors admit on the identified plant: where it cannot meet the default, the trajectory
+      asks more than this axis's modes and delay allow a loop under the floors, and the default
+      measures the trajectory, not the controller.
+      Whether the ARC beats the yardstick is then the comparison criteria's question
+      (``arc_vs_pid_*``), and a safe ARC that loses is flagged, never certified;
+    * without one (:data:`ABSOLUTE_REPORTED`: no PID keeps the floors), measured and reported, not
+      gated: there is no achievable level to hold it to; every safety criterion stays.
+
+    Returns
+    -------
+    limit : float
+        m (inf: reported only).
+    note : str
+        Appended to the check's detail ("" for a limit as resolved).
+    """
+    base = float(getattr(limits, key))
+    if key not in limits.defaulted or limits.absolute == ABSOLUTE_FIXED:
+        return base, ""
+    if limits.absolute == ABSOLUTE_REPORTED:
+        return math.inf, f"; reported: no PID yardstick keeps the floors (default {_um(base)})"
+    v = float(getattr(pid, key))
+    if pid.diverged or not math.isfinite(v) or v <= base:
+        return base, ""
+    return v, f"; the PID yardstick's {key} here (default {_um(base)})"
 
 
 @dataclass(frozen=True)
@@ -539,7 +635,7 @@ class GateVerdict:
                 out[c.criterion] = c
                 continue
             pr = prev.value / prev.limit if (math.isfinite(prev.value) and prev.limit > 0) else math.inf
-            if ratio > pr:
+            if ratio > pr or (ratio == pr == 0.0 and c.value > prev.value):  # reported only (limit inf): the largest
                 out[c.criterion] = c
         return out
 
@@ -581,12 +677,12 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
             checks.append(Check("divergence", name, t_abort if arc.diverged else math.nan, math.nan,
                                 not arc.diverged,
                                 f"ARC aborted at t = {t_abort:.4g} s" if arc.diverged else "ARC stayed bounded"))
-        for key, value, limit in (("e_F", arc.e_F, limits.e_F), ("e_M", arc.e_M, limits.e_M),
-                                  ("e_rms", arc.e_rms, limits.e_rms)):
+        for key, value in (("e_F", arc.e_F), ("e_M", arc.e_M), ("e_rms", arc.e_rms)):
             if performance is not None and name not in performance:
                 break  # a SAFETY scenario: certified stable and within the drive, not held to the error limits
+            limit, note = scenario_error_limit(limits, key, pid)
             ok = (not arc.diverged) and math.isfinite(value) and value <= limit
-            detail = "ARC diverged" if arc.diverged else f"{_um(value)} (limit {_um(limit)})"
+            detail = "ARC diverged" if arc.diverged else f"{_um(value)} (limit {_um(limit)}{note})"
             checks.append(Check(key, name, value, limit, ok, detail))
         ok = (not arc.diverged) and math.isfinite(arc.c_u) and arc.c_u <= limits.c_u
         checks.append(Check("c_u", name, arc.c_u, limits.c_u, ok,
@@ -617,6 +713,17 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
     if floors is not None:
         checks.extend(check_floors(floors))
     return GateVerdict(tuple(checks), limits)
+
+
+#: The SAFETY criteria of a simulated scenario (module docstring, "What each scenario certifies").
+SAFETY_CRITERIA = ("divergence", "c_u", "u_peak")
+
+
+def safety_failures(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> list[Check]:
+    """The failed SAFETY checks (:data:`SAFETY_CRITERIA`) of ``runs``: divergence (always, whatever
+    ``no_divergence`` says: it is a floor), chattering and a clipped command."""
+    v = evaluate_gate(dataclasses.replace(limits, no_divergence=True), runs, performance=frozenset())
+    return [c for c in v.failures if c.criterion in SAFETY_CRITERIA]
 
 
 #: Variants of the fixed matrix (``<case>/<variant>``) that always certify PERFORMANCE: the identified

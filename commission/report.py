@@ -97,7 +97,9 @@ def _limit_text(key: str, limits: Any) -> str:
     if key == "divergence":
         return "required" if limits.no_divergence else "not checked"
     if key in ("e_F", "e_M", "e_rms"):
-        return f"{getattr(limits, key) * 1e6:.3g} {unit_of('small')}"
+        text = f"{getattr(limits, key) * 1e6:.3g} {unit_of('small')}"
+        mode = getattr(limits, "absolute", "fixed") if key in getattr(limits, "defaulted", ()) else "fixed"
+        return {"yardstick": f"max({text}, the PID yardstick's)", "reported": f"reported (default {text})"}.get(mode, text)
     if key == "c_u":
         return f"{limits.c_u:.3g}"
     if key == "u_peak":
@@ -124,7 +126,12 @@ def _value_text(c: Any) -> str:
     if c.criterion == "divergence":
         return "none" if c.passed else f"at t = {c.value:.4g} s"
     if c.criterion in ("e_F", "e_M", "e_rms"):
-        return f"{c.value * 1e6:.3g} {unit_of('small')}" if math.isfinite(c.value) else "n/a (diverged)"
+        if not math.isfinite(c.value):
+            return "n/a (diverged)"
+        text = f"{c.value * 1e6:.3g} {unit_of('small')}"
+        if "yardstick" in c.detail and math.isfinite(c.limit):  # a limit set by the yardstick there
+            text += f" (limit there {c.limit * 1e6:.3g} {unit_of('small')}, the PID yardstick's)"
+        return text
     if not math.isfinite(c.value):
         return "n/a (diverged)"
     return f"{c.value:.3g}"
@@ -525,7 +532,7 @@ def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
     L.append(f"**Gate: {status}** -- {len(v.checks)} checks on {len(result.runs)} scenarios "
              f"({nfix} fixed + {result.n_monte_carlo} Monte-Carlo plants), ARC and PID baseline.")
     L.append("")
-    L.extend(validity_lines(tuning))
+    L.extend(validity_lines(result if getattr(result, "validity", None) else tuning))
     L.extend(evidence_markdown(result, tuning))
     if v.passed:
         L.append("`controller.json` was written next to this report; load it with "

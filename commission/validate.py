@@ -67,15 +67,16 @@ from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor, make_executor, resolve_scheduler
 from commission.files import Outputs
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, load_gate,
-                             box_checks, margin_checks, resolve_gate, safe_not_better)
+                             box_checks, margin_checks, resolve_gate, safe_not_better, safety_failures)
 from commission.montecarlo import MonteCarloSummary
 from commission.jsonio import canonical_json, read_json, sha256_file, sha256_json, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
 from commission.evidence import Evidence, RobustStability, evidence_checks, evidence_table
 from commission.robustness import (CONTROLLERS, BoxArcCheck, BoxRobustness, LoopMargins, MarginFloors, margin_table,
-                                   identified_performance, nominal_loops, worst)
+                                   identified_performance, nominal_loops, payload_box, worst)
 from commission.scenarios import (FRICTION_SCALE, case1_trajectory, case2_trajectory, check_run_length,
-                                  force_range, plant_substeps, resolve_encoder_noise, scenario_matrix)
+                                  PAYLOAD_BISECTIONS, force_range, largest_safe_payload, payload_heavy_at, plant_substeps,
+                                  resolve_encoder_noise, scenario_matrix)
 from commission.spec import Spec, check_flags, nominal_rate
 from commission.tuning import Score, Tuning, log_sha256_of
 from commission.units import axis_units_context
@@ -221,6 +222,9 @@ class ValidationResult:
     evidence_rows : tuple of RobustStability
         Peak ``|W T|`` of the ARC (both linearisations) and the PID, and their margins on the
         measured response.
+    validity : mapping or None
+        The payload range certified when validate narrowed a defaulted one
+        (:func:`certify_default_payload`); None: the tuning's own ``validity`` (or the whole box).
     """
 
     runs: tuple[RunRecord, ...]
@@ -244,6 +248,7 @@ class ValidationResult:
     box: BoxRobustness | None = None
     evidence: Evidence | None = None
     evidence_rows: tuple[RobustStability, ...] = ()
+    validity: Mapping[str, Any] | None = None
 
     @property
     def passed(self) -> bool:
@@ -282,6 +287,7 @@ class ValidationResult:
             **({} if self.box is None else {"box_robustness": self.box.to_dict(self.margin_floors)}),
             "evidence": None if self.evidence is None else {
                 **self.evidence.to_dict(), "loops": [r.to_dict() for r in self.evidence_rows]},
+            **({} if self.validity is None else {"validity": dict(self.validity)}),
         }
 
 
@@ -617,7 +623,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     gate = GateSpec() if gate is None else gate
     spec = tuning.spec
     limits: GateLimits = resolve_gate(gate, lsb=tuning.quantization, travel=spec.travel, u_max=spec.u_max,
-                                       targets=spec.targets)
+                                       targets=spec.targets, yardstick=tuning.pid_yardstick)
     scenarios = scenario_matrix(tuning.identification, spec, rng=np.random.default_rng(seed),
                                 n_monte_carlo=n_monte_carlo)
     arc = deployable_gains(tuning.arc, runtime_guards(tuning, limits))
@@ -636,6 +642,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     ctx = _SimContext(ctrl=ctrl, refs=refs, Ts=Ts, u_sat=u_sat, e_abort=e_abort)
     t0 = time.perf_counter()
     runs, traces, mc_summary = _simulate_matrix(ex, ctx, scenarios, dict(tuning.identification.units), progress)
+    runs, traces, validity = certify_default_payload(ex, ctx, scenarios, runs, traces, tuning, limits)
     elapsed = time.perf_counter() - t0
     nworkers = ex.workers
     margins = margin_table(arc, tuning.pid, tuning.identification, spec)
@@ -667,7 +674,71 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             margins=margins, margin_floors=margin_floors, robustness=robustness, box=box,
                             evidence=evidence, evidence_rows=evidence_rows,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
-                            executor=ex.describe(), monte_carlo_summary=mc_summary)
+                            executor=ex.describe(), monte_carlo_summary=mc_summary, validity=validity)
+
+
+def certify_default_payload(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], runs: list[RunRecord],
+                            traces: dict[str, Trace], tuning: Tuning, limits: GateLimits
+                            ) -> tuple[list[RunRecord], dict[str, Trace], dict[str, Any] | None]:
+    """Certify the largest DEFAULTED payload the ARC holds safely (issue 30, Build 1; docs/robustness.md).
+
+    When the payload range was defaulted (``bounds.payload_defaulted``: the user stated no payload) and
+    the ARC fails a SAFETY criterion (:func:`commission.gate.safety_failures`: divergence, c_u, a clipped
+    command) on a ``<case>/payload_heavy`` scenario, the heavy end is bisected
+    (:func:`commission.scenarios.largest_safe_payload` on :func:`commission.scenarios.payload_heavy_at`,
+    the same gains): the payload_heavy runs of the largest safe payload replace the failed ones, and the
+    certified range becomes the certificate's ``validity`` (controller.json, validation.json, the report's
+    first lines).  The controller is unchanged (its projection still spans the default box, whose margins
+    the box check certifies); what is narrowed is the range the certificate claims.  A stated payload range
+    is never narrowed: the gate refuses it, naming the corner.
+
+    Returns
+    -------
+    runs, traces
+        With the payload_heavy runs at the certified payload (unchanged when nothing was narrowed).
+    validity : dict or None
+        The ``validity`` record (:func:`commission.tune.box.validity_of`'s keys, plus ``narrowed_by``
+        "validate"), None when nothing was narrowed.
+    """
+    ident = tuning.identification
+    pb = payload_box(ident)
+    if pb is None or not pb[3] or ident.theta is None:
+        return runs, traces, None
+    pmin, pmax, m0, _ = pb
+
+    def unsafe(rs: Sequence[RunRecord]) -> list[Any]:
+        return safety_failures(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in rs])
+
+    bad = unsafe([r for r in runs if r.name.endswith("/payload_heavy") and "monte_carlo" not in r.tags])
+    if not bad or not pmax > pmin:
+        return runs, traces, None
+    units = dict(ident.units)
+    tried: dict[float, tuple[list[RunRecord], dict[str, Trace]]] = {}
+
+    def safe(payload: float) -> bool:
+        sims, tr, _ = _simulate_matrix(ex, ctx, payload_heavy_at(scenarios, m0 + payload), units, None)
+        tried[payload] = (sims, tr)
+        return not unsafe(sims)
+
+    got = largest_safe_payload(pmin, pmax, safe)
+    if got is None:
+        return runs, traces, None
+    sims, tr = tried[got]
+    new = {r.name: r for r in sims}
+    from commission.tune.box import mass_unit
+    unit = mass_unit(ident)
+    b = ident.extra["bounds"]
+    earlier = tuning.validity or {}
+    diverged = {c.scenario for c in bad if c.criterion == "divergence"}  # its c_u and peak say nothing more
+    what = "; ".join(sorted({f"{c.criterion} at {c.scenario}" for c in bad
+                             if c.criterion == "divergence" or c.scenario not in diverged}))
+    validity = {"payload_range": [pmin, got], "mass_range": [float(b["mass_range"][0]), m0 + got], "unit": unit,
+                "default_payload_range": list(earlier.get("default_payload_range", [pmin, pmax])),
+                "payload_defaulted": True, "narrowed_by": "validate",
+                "reason": (f"validate: with {pmax:.4g} {unit} of payload the ARC fails {what}; every safety check "
+                           f"holds up to {got:.4g} {unit} (bisection to 1/{2 ** PAYLOAD_BISECTIONS} of the range)")
+                + (f"; tune had narrowed the default before: {earlier['reason']}" if earlier.get("reason") else "")}
+    return [new.get(r.name, r) for r in runs], {**traces, **tr}, validity
 
 
 def performance_set(runs: Sequence[RunRecord], ident: Identification) -> frozenset[str]:
@@ -738,7 +809,13 @@ def controller_config(result: ValidationResult, tuning: Tuning, tuning_sha256: s
         record["flag"] = not_better_flag(result, tuning)
     return ControllerConfig(gains=result.arc_gains, sample_rate=rate,
                             units=dict(tuning.identification.units), validated=record,
-                            provenance=prov, validity=None if tuning.validity is None else dict(tuning.validity))
+                            provenance=prov, validity=certified_validity(result, tuning))
+
+
+def certified_validity(result: ValidationResult, tuning: Tuning) -> dict[str, Any] | None:
+    """The payload range the certificate claims: validate's narrowing, else tune's, else None (the whole box)."""
+    v = result.validity if result.validity is not None else tuning.validity
+    return None if v is None else dict(v)
 
 
 def not_better_flag(result: ValidationResult, tuning: Tuning) -> dict[str, Any]:
