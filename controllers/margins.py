@@ -318,12 +318,12 @@ def _unwrap(p):
     acc = 0.0
     for i in range(1, n):
         dd = p[i] - p[i - 1]
-        ddmod = (dd - lo) % period + lo
-        if ddmod == lo and dd > 0:
-            ddmod = hi
-        corr = ddmod - dd
-        if abs(dd) < hi:
-            corr = 0.0
+        corr = 0.0
+        if not abs(dd) < hi:  # numpy zeroes the correction of every smaller step: no modulo there
+            ddmod = (dd - lo) % period + lo
+            if ddmod == lo and dd > 0:
+                ddmod = hi
+            corr = ddmod - dd
         acc += corr
         up[i] = p[i] + acc
     return up
