@@ -329,3 +329,20 @@ def test_linearisations_are_kept_read_only_and_equal_a_fresh_one():
         assert np.array_equal(x, y)
     assert a.Dc == b.Dc and np.array_equal(b.frequency_response(f), r)
     assert linearize_arc(p, (30.0, 10.0, 1.0)) is not b  # another estimate, another linearisation
+
+
+@pytest.mark.parametrize("theta", [(30.0, 10.0, 0.0), (45.0, 3.0, -2.0)])
+def test_compiled_arc_jacobian_equals_the_python_differences_to_the_last_bit(theta):
+    """linearize_arc's compiled central differences give the matrices the generic Python
+    _jacobian (calling the compiled step 2 (n + 1) times) gives, bit for bit."""
+    import commission.controllers.margins as mg
+    from commission.controllers.arc import S_DYNAMIC
+
+    p = arc_pack(paper_gains_implementable(TS))
+    pl, s = arc_operating_point(p, theta)
+    ref = mg._jacobian(arc_step, pl, s, S_DYNAMIC, mg._scales(arc_step, pl, s, S_DYNAMIC), 1e-9)
+    mg._arc_linearisations.clear()
+    got = linearize_arc(p, theta)
+    for x, y in ((got.Ac, ref.Ac), (got.Bc, ref.Bc), (got.Cc, ref.Cc)):
+        assert x.shape == y.shape and np.array_equal(x, y)
+    assert got.Dc == ref.Dc and got.Ts == ref.Ts
