@@ -152,9 +152,9 @@ _z_lock = threading.Lock()
 def _unit_circle(f: np.ndarray, Ts: float) -> np.ndarray:
     """``exp(j 2 pi f Ts)`` of the grid ``f`` (Hz), read-only, computed once per grid and period.
 
-    A search evaluates every candidate's controller on the same grid: the complex exponential
-    of the whole grid cost about a seventh of each response.  The same expression as before,
-    so the same values.
+    A search evaluates every candidate's controller on the same grid, and the complex
+    exponential of the whole grid is a visible part of each response (docs/scaling.md).  The
+    same expression as before, so the same values.
     """
     key = (f.shape, f.tobytes(), float(Ts))
     with _z_lock:
