@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,7 +123,7 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     eigen-decomposition would not do: the linearised ARC has near-repeated poles at z = 1.
     """
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
-    z = np.exp(1j * 2.0 * np.pi * f * Ts)
+    z = _unit_circle(f, Ts) if compiled else np.exp(1j * 2.0 * np.pi * f * Ts)
     A = np.asarray(A, dtype=float)
     b = np.asarray(B, dtype=float)[:, 0]
     c = np.asarray(C, dtype=float)[0]
@@ -142,35 +143,108 @@ def discrete_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, Ts:
     return x @ ct + D
 
 
-@njit(cache=True)
+#: The last grids' ``z = exp(j 2 pi f Ts)`` (:func:`_unit_circle`), keyed by the grid's bits and Ts.
+_Z_KEPT = 4
+_z_cache: dict = {}
+_z_lock = threading.Lock()
+
+
+def _unit_circle(f: np.ndarray, Ts: float) -> np.ndarray:
+    """``exp(j 2 pi f Ts)`` of the grid ``f`` (Hz), read-only, computed once per grid and period.
+
+    A search evaluates every candidate's controller on the same grid, and the complex
+    exponential of the whole grid is a visible part of each response (docs/scaling.md).  The
+    same expression as before, so the same values.
+    """
+    key = (f.shape, f.tobytes(), float(Ts))
+    with _z_lock:
+        hit = _z_cache.get(key)
+    if hit is not None:
+        return hit
+    z = np.exp(1j * 2.0 * np.pi * f * Ts)
+    z.setflags(write=False)
+    with _z_lock:
+        if len(_z_cache) >= _Z_KEPT:
+            _z_cache.pop(next(iter(_z_cache)))
+        _z_cache[key] = z
+    return z
+
+
+@njit(cache=True, nogil=True)
 def _triangular_response(T, bt, ct, D, z):
     """``ct (zI - T)^-1 bt + D`` for upper-triangular ``T`` at every ``z``, by back-substitution.
 
     ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up; at each frequency
     the sums run in the same order (j up from k + 1, then k up for the output), but each step
     sweeps the whole grid in a contiguous inner loop (compiled: no temporaries, no BLAS threads).
+
+    The complex values are held as separate real and imaginary arrays, and the products,
+    sums and quotients are written out as numba's complex arithmetic computes them (the
+    product ``(ac - bd) + i(ad + bc)``, the quotient by CPython's ``_Py_c_quot``): the same
+    values to the last bit as the complex-typed loop, in loops the compiler vectorises.
     """
     n = T.shape[0]
     nf = z.size
-    x = np.empty((n, nf), dtype=np.complex128)
-    out = np.full(nf, D, dtype=np.complex128)
+    zr = np.empty(nf)
+    zi = np.empty(nf)
+    for i in range(nf):
+        zr[i] = z[i].real
+        zi[i] = z[i].imag
+    xr = np.empty((n, nf))
+    xi = np.empty((n, nf))
     for k in range(n - 1, -1, -1):
-        xk = x[k]
+        ar = xr[k]
+        ai = xi[k]
+        b = bt[k]
         for i in range(nf):
-            xk[i] = bt[k]
+            ar[i] = b.real
+            ai[i] = b.imag
         for j in range(k + 1, n):
             t = T[k, j]
-            xj = x[j]
-            for i in range(nf):
-                xk[i] += t * xj[i]
-        d = T[k, k]
+            tr = t.real
+            ti = t.imag
+            br = xr[j]
+            bi = xi[j]
+            for i in range(nf):  # x_k += T_kj x_j
+                ar[i] = ar[i] + (tr * br[i] - ti * bi[i])
+                ai[i] = ai[i] + (tr * bi[i] + ti * br[i])
+        dr = T[k, k].real
+        di = T[k, k].imag
         for i in range(nf):
-            xk[i] = xk[i] / (z[i] - d)
-    for k in range(n):
+            if zr[i] - dr == 0.0 and zi[i] - di == 0.0:
+                raise ZeroDivisionError("complex division by zero")
+        for i in range(nf):  # x_k /= z - T_kk (CPython's _Py_c_quot, as numba divides)
+            er = zr[i] - dr
+            ei = zi[i] - di
+            pr = ar[i]
+            pi = ai[i]
+            if abs(er) >= abs(ei):
+                ratio = ei / er
+                den = er + ei * ratio
+                ar[i] = (pr + pi * ratio) / den
+                ai[i] = (pi - pr * ratio) / den
+            elif abs(ei) >= abs(er):
+                ratio = er / ei
+                den = er * ratio + ei
+                ar[i] = (pr * ratio + pi) / den
+                ai[i] = (pi * ratio - pr) / den
+            else:  # a NaN in the denominator
+                ar[i] = np.nan
+                ai[i] = np.nan
+    orr = np.full(nf, D.real)
+    oi = np.full(nf, D.imag)
+    for k in range(n):  # out += x_k ct_k
         c = ct[k]
-        xk = x[k]
+        cr = c.real
+        ci = c.imag
+        ar = xr[k]
+        ai = xi[k]
         for i in range(nf):
-            out[i] += xk[i] * c
+            orr[i] = orr[i] + (ar[i] * cr - ai[i] * ci)
+            oi[i] = oi[i] + (ar[i] * ci + ai[i] * cr)
+    out = np.empty(nf, dtype=np.complex128)
+    for i in range(nf):
+        out[i] = complex(orr[i], oi[i])
     return out
 
 

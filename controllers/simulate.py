@@ -80,6 +80,28 @@ def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts, v_cut=-1.0):
 
 
 @njit(cache=True, nogil=True)
+def _substep_count(t_len, substeps, Ts):
+    """Sub-steps :func:`_segment` takes for a segment of ``t_len`` s (0: an empty segment)."""
+    if not t_len > 0.0:
+        return 0
+    m = int(math.ceil(substeps * t_len / Ts - 1e-9))
+    return m if m >= 1 else 1
+
+
+@njit(cache=True, nogil=True)
+def _held(plant_p, st, c, u_sat, d, h, m, v_cut):
+    """:func:`_segment` with its sub-step count ``m`` and length ``h`` (s) computed once per run
+    (:func:`_substep_count`; ``m = 0``: an empty segment); returns the saturated command."""
+    if c > u_sat:
+        c = u_sat
+    elif c < -u_sat:
+        c = -u_sat
+    if m > 0:
+        plant_step(plant_p, st, c + d, h, m, v_cut)
+    return c
+
+
+@njit(cache=True, nogil=True)
 def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, quant, dist, noise,
                        delay, y0, u_sat, e_abort, u_abort, y_out, q_out, u_out, th_out):
     """Run the loop; fill the first ``n_done`` rows of the outputs.
@@ -105,6 +127,18 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     nh = n_d + 2
     st = np.empty(NX)
     v_cut = stribeck_cut(plant_p)  # once per run: the same value every sample would compute
+    # The two segments' sub-step counts and lengths are the same every sample: computed once here,
+    # with the same expressions as _segment (the same values to the last bit).
+    t_early = f * Ts
+    t_late = (1.0 - f) * Ts
+    m_early = _substep_count(t_early, substeps, Ts)
+    m_late = _substep_count(t_late, substeps, Ts)
+    h_early = t_early / m_early if m_early > 0 else 0.0
+    h_late = t_late / m_late if m_late > 0 else 0.0
+    # ring positions of c_k, c_{k-n_d} and c_{k-n_d-1} (k % nh and the others, without a division per sample)
+    i_now = 0
+    i_late = (-n_d) % nh
+    i_early = (-n_d - 1) % nh
     plant_start(plant_p, st, y0)
     y = _quantize(plant_output(plant_p, st) + (noise[0] if has_n else 0.0), quant)
     if kind == 0:
@@ -123,17 +157,20 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
             c = arc_step(ctrl_p, s, y, qd[k], dqd[k], ddqd[k])
         if not math.isfinite(c) or abs(c) > u_abort:
             return k, True
-        hist[k % nh] = c
-        c_late = hist[(k - n_d) % nh] if k >= n_d else 0.0
-        c_early = hist[(k - n_d - 1) % nh] if k >= n_d + 1 else 0.0
+        hist[i_now] = c
+        c_late = hist[i_late] if k >= n_d else 0.0
+        c_early = hist[i_early] if k >= n_d + 1 else 0.0
+        i_now = i_now + 1 if i_now + 1 < nh else 0
+        i_late = i_late + 1 if i_late + 1 < nh else 0
+        i_early = i_early + 1 if i_early + 1 < nh else 0
         d = dist[k] if has_d else 0.0
         y_out[k] = y
         q_out[k] = x
         if kind == 1:
             for j in range(3):
                 th_out[k, j] = s[S_THETA + j]
-        _segment(plant_p, st, c_early, u_sat, d, f * Ts, substeps, Ts, v_cut)
-        u_out[k] = _segment(plant_p, st, c_late, u_sat, d, (1.0 - f) * Ts, substeps, Ts, v_cut)
+        _held(plant_p, st, c_early, u_sat, d, h_early, m_early, v_cut)
+        u_out[k] = _held(plant_p, st, c_late, u_sat, d, h_late, m_late, v_cut)
     return n, False
 
 

@@ -269,6 +269,47 @@ def test_compiled_unwrap_and_phase_crossovers_equal_the_array_forms():
         assert found == bool(vals) and (gm == min(vals) if vals else gm == math.inf)
 
 
+def test_compiled_back_substitution_equals_python_complex_arithmetic_to_the_last_bit():
+    """The response's compiled back-substitution (real and imaginary parts in separate arrays) gives
+    the values Python's own complex product, sum and quotient (CPython's ``_Py_c_quot``) give in the
+    same order: on the linearised ARC's Schur form, and on a random triangular one with poles on
+    either side of the diagonal of the complex plane (both branches of the quotient)."""
+    from scipy.linalg import matrix_balance, schur
+
+    from commission.controllers.linear import _triangular_response
+
+    def python_complex(T, bt, ct, D, z):
+        n = T.shape[0]
+        out = []
+        for zi in z.tolist():
+            x = [0j] * n
+            for k in range(n - 1, -1, -1):
+                acc = complex(bt[k])
+                for j in range(k + 1, n):
+                    acc = acc + complex(T[k, j]) * x[j]
+                x[k] = acc / (zi - complex(T[k, k]))
+            o = complex(D)
+            for k in range(n):
+                o = o + x[k] * complex(ct[k])
+            out.append(o)
+        return np.array(out)
+
+    rng = np.random.default_rng(5)
+    f = frequency_grid(TS, 300)
+    z = np.exp(1j * 2.0 * np.pi * f * TS)
+    lin = linearize_arc(arc_pack(paper_gains_implementable(TS)), (30.0, 10.0, 0.5))
+    Ab, (scale, _) = matrix_balance(lin.Ac, permute=False, separate=True)
+    T, U = schur(Ab.astype(complex), output="complex")
+    cases = [(np.ascontiguousarray(T), U.conj().T @ (lin.Bc[:, 0] / scale), (lin.Cc[0] * scale) @ U, complex(lin.Dc))]
+    n = 6
+    R = np.triu(rng.normal(size=(n, n)) + 1j * rng.normal(size=(n, n)))
+    R[np.diag_indices(n)] = rng.uniform(0.2, 0.99, n) * np.exp(1j * rng.uniform(-np.pi, np.pi, n))
+    cases.append((R, rng.normal(size=n) + 1j * rng.normal(size=n), rng.normal(size=n) + 1j * rng.normal(size=n), 0.3 - 0.1j))
+    for T, bt, ct, D in cases:
+        got = _triangular_response(T, bt, ct, D, z)
+        assert np.array_equal(got.view(np.float64), python_complex(T, bt, ct, D, z).view(np.float64))
+
+
 def test_linearisations_are_kept_read_only_and_equal_a_fresh_one():
     """linearize_arc returns the kept object for the same (p, theta_hat) bits, its arrays and
     responses read-only, with the values a fresh linearisation gives."""
@@ -288,3 +329,20 @@ def test_linearisations_are_kept_read_only_and_equal_a_fresh_one():
         assert np.array_equal(x, y)
     assert a.Dc == b.Dc and np.array_equal(b.frequency_response(f), r)
     assert linearize_arc(p, (30.0, 10.0, 1.0)) is not b  # another estimate, another linearisation
+
+
+@pytest.mark.parametrize("theta", [(30.0, 10.0, 0.0), (45.0, 3.0, -2.0)])
+def test_compiled_arc_jacobian_equals_the_python_differences_to_the_last_bit(theta):
+    """linearize_arc's compiled central differences give the matrices the generic Python
+    _jacobian (calling the compiled step 2 (n + 1) times) gives, bit for bit."""
+    import commission.controllers.margins as mg
+    from commission.controllers.arc import S_DYNAMIC
+
+    p = arc_pack(paper_gains_implementable(TS))
+    pl, s = arc_operating_point(p, theta)
+    ref = mg._jacobian(arc_step, pl, s, S_DYNAMIC, mg._scales(arc_step, pl, s, S_DYNAMIC), 1e-9)
+    mg._arc_linearisations.clear()
+    got = linearize_arc(p, theta)
+    for x, y in ((got.Ac, ref.Ac), (got.Bc, ref.Bc), (got.Cc, ref.Cc)):
+        assert x.shape == y.shape and np.array_equal(x, y)
+    assert got.Dc == ref.Dc and got.Ts == ref.Ts
