@@ -9,7 +9,7 @@ import json
 import re
 from pathlib import Path
 
-from commission.formats import ident_json, limits_toml, spec_toml
+from commission.formats import ident_json, limits_toml, spec_toml, tuning_json
 from commission.formats.json_table import markdown_rows
 from commission.formats.table import json_schema, markdown_table
 
@@ -24,7 +24,9 @@ def schemas() -> dict[str, dict]:
             "limits.schema.json": json_schema(limits_toml.LimitsToml, "commission/limits.schema.json",
                                               limits_toml.SCHEMA_VERSION),
             "ident.schema.json": json_schema(ident_json.IdentJson, "commission/ident.schema.json",
-                                             ident_json.IDENT_SCHEMA_VERSION)}
+                                             ident_json.IDENT_SCHEMA_VERSION),
+            "tuning.schema.json": json_schema(tuning_json.TuningJson, "commission/tuning.schema.json",
+                                              tuning_json.TUNING_SCHEMA_VERSION)}
 
 
 def schema_text(schema: dict) -> str:
@@ -36,7 +38,8 @@ def tables() -> dict[str, str]:
     """Name of a generated Markdown table in docs/interface.md -> its text."""
     return {"spec.toml keys": markdown_table(spec_toml.SPEC_KEYS),
             "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS),
-            "ident.json fields": markdown_rows(ident_json.IDENT_FIELDS)}
+            "ident.json fields": markdown_rows(ident_json.IDENT_FIELDS),
+            "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS)}
 
 
 def fill_markdown(text: str, generated: dict[str, str]) -> str:

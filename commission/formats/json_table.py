@@ -39,6 +39,8 @@ TYPES = {
     "numbers": "a list of finite numbers",
     "strings": "a list of strings",
     "string map": "an object of name -> string",
+    "number map": "an object of name -> finite number",
+    "map": "an object of name -> an object of the fields below NAME.*",
     "any": "any JSON value (read by the code named in the doc)",
 }
 
@@ -152,6 +154,8 @@ def _leaf(f: Field) -> Any:
         return list[str]
     if f.type == "string map":
         return dict[str, str]
+    if f.type == "number map":
+        return dict[str, float]
     if f.type == "any":
         return Any
     raise ValueError(f"{f.path}: unknown type {f.type!r}")
@@ -178,15 +182,21 @@ def build_json_model(name: str, fields: Sequence[Field], doc: str, *, root_close
     by_parent: dict[str, list[Field]] = {}
     for f in fields:
         by_parent.setdefault(f.parent, []).append(f)
-    objects = {f.path: f for f in fields if f.type == "object"}
+    objects = {f.path: f for f in fields if f.type in ("object", "map")}
 
     def model(path: str, closed: bool) -> type[BaseModel]:
         cfg = ConfigDict(strict=True, allow_inf_nan=False, extra="forbid" if closed else "allow")
         members = {}
         for f in by_parent.get(path, []):
+            if f.name == "*":  # the value row of a map: built by the map's row
+                continue
             sub = model(f.path, f.closed) if f.type == "object" else None
+            if f.type == "map":
+                star = objects[f.path + ".*"]
+                sub = dict[str, model(star.path, star.closed)]  # type: ignore[misc, assignment]
             members[f.name] = _annotation_and_default(f, sub)
-        title = name + "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").split(".") if p)
+        title = name + "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").replace("*", "item").split(".")
+                               if p)
         return create_model(title, __config__=cfg, **members)
 
     missing = [p for p in by_parent if p and p not in objects]
@@ -248,8 +258,7 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
     e = exc.errors()[0]
     loc = [p for p in e["loc"]]
     v, kind = e["input"], e["type"]
-    keys = [p for p in loc if isinstance(p, str)]
-    f = rows.get(".".join(keys))
+    f = _row(rows, [p for p in loc if isinstance(p, str)])
     if kind == "value_error":
         err = e["ctx"]["error"]
         arg = err.args[0] if err.args else str(err)
@@ -257,6 +266,16 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
         return f"{source}: {prefix}{json_path(loc)[1:]}{sub}: {msg}"
     path = f"{source}: {prefix}{json_path(loc)[1:]}"
     return f"{path}: {_why(kind, v, f, e)}"
+
+
+def _row(rows: dict[str, Field], keys: list[str]) -> Field | None:
+    """The row of a location, a map's entry (``guarantees.stable``) standing for ``guarantees.*``."""
+    path = ""
+    for k in keys:
+        nxt = f"{path}.{k}" if path else k
+        star = f"{path}.*" if path else "*"
+        path = star if nxt not in rows and star in rows else nxt
+    return rows.get(path)
 
 
 def _why(kind: str, v: Any, f: Field | None, e: Any) -> str:
