@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from commission.errors import SchemaError
 from commission.formats.json_table import check_header, json_error
 from commission.formats.tuning_json import (SCORE_NAMES, TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION,
                                             TuningJson)
-from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.jsonio import read_json, write_json_atomic
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 from commission.spec import RANGES, Spec, spec_from_mapping
 
@@ -422,13 +422,13 @@ class Tuning:
             if not math.isclose(getattr(observer, k), getattr(arc, k), rel_tol=1e-9):
                 raise fail(f"$.observer.{k}", f"{getattr(observer, k):.12g} does not equal arc.{k} = "
                                               f"{getattr(arc, k):.12g}")
-        r = Reader(data, "$", source)
         return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=m.plant.quantization,
                    arc=arc, pid=pid, pid_pole=m.pid.pole, pid_design_mass=m.pid.design_mass,
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search, margins=_margins(r), box=_box(r),
+                   scores=scores, search=search, margins=_margins(data, source),
+                   box=_record(data, "box_robustness", BoxRobustness.from_dict, source),
                    validity=None if data.get("validity") is None else dict(data["validity"]),
-                   pid_yardstick=_yardstick(r))
+                   pid_yardstick=_record(data, "pid_yardstick", _yardstick_record, source))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
@@ -436,43 +436,31 @@ class Tuning:
         return cls.from_dict(read_json(path), source=str(path))
 
 
-def _yardstick(r: Reader) -> dict[str, Any] | None:
-    """The optional ``pid_yardstick`` record (absent in older files); a malformed one is named by its path."""
-    if not r.has("pid_yardstick"):
+def _record(data: Mapping[str, Any], key: str, parse: Callable[[Any], Any], source: str) -> Any:
+    """An optional record read by its own type's ``from_dict`` (None when absent or null); a malformed
+    one is named by its JSON path.  The table has checked its shape (an object, a list)."""
+    if data.get(key) is None:
         return None
-    y = r.child("pid_yardstick")
-    from commission.tune.baseline import YardstickChoice
     try:
-        return YardstickChoice.from_dict(y.data).to_dict()
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise y.fail(f"bad record ({exc})") from None
+        return parse(data[key])
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
+        raise SchemaError(f"{source}: $.{key}: bad record ({exc})") from None
 
 
-def _margins(r: Reader) -> tuple[LoopMargins, ...]:
+def _margins(data: Mapping[str, Any], source: str) -> tuple[LoopMargins, ...]:
     """The optional ``margins`` list; an entry that does not parse is named by its JSON path."""
-    if not r.has("margins"):
-        return ()
-    lst = r.child("margins")
-    if not isinstance(lst.data, list):
-        raise lst.fail("expected a list")
     out = []
-    for i, row in enumerate(lst.data):
+    for i, row in enumerate(data.get("margins") or ()):
         try:
             out.append(LoopMargins.from_dict(row))
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
-            raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise SchemaError(f"{source}: $.margins[{i}]: bad entry ({exc})") from None
     return tuple(out)
 
 
-def _box(r: Reader) -> BoxRobustness | None:
-    """The optional ``box_robustness`` record (None: a tuning.json written before it)."""
-    if not r.has("box_robustness"):
-        return None
-    b = r.obj("box_robustness")
-    try:
-        return BoxRobustness.from_dict(b.data)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise b.fail(f"bad entry ({exc})") from None
+def _yardstick_record(d: Any) -> dict[str, Any]:
+    from commission.tune.baseline import YardstickChoice  # the record's type lives with the stage that makes it
+    return YardstickChoice.from_dict(d).to_dict()
 
 
 def _score(m: Any) -> Score:

@@ -55,6 +55,11 @@ def _object(v: Any) -> None:
         raise ValueError(("", f"expected an object, got {type(v).__name__}"))
 
 
+def _list(v: Any) -> None:
+    if not isinstance(v, list):
+        raise ValueError(("", "expected a list"))
+
+
 def _matrix(rows: int, cols: int):
     def check(m: Any) -> None:
         if not isinstance(m, list) or len(m) != rows:
@@ -210,8 +215,10 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("search.chosen_violation", "number", "", "the chosen gains' violation"),
     Field("search.screened", "any", "", "each candidate was simulated on the screening scenarios only",
           check=_BOOLS),
-    Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)"),
-    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)"),
+    Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)",
+          check=_list),
+    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)",
+          check=_object),
     Field("validity", "any", "", "tune narrowed a defaulted payload range: payload_range, mass_range [min, max] "
           "in unit, default_payload_range, reason", check=_validity),
     Field("pid_yardstick", "any", "", "how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)"),
