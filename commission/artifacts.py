@@ -2,8 +2,10 @@
 
 The JSON keys of CONTRACT §2 are a stable external interface: fields may be
 added, never renamed or removed.  Saved with sorted keys via
-:func:`commission.jsonio.write_json_atomic`; loaded strictly via
-:class:`commission.jsonio.Reader`, which names the JSON path of a bad field.
+:func:`commission.jsonio.write_json_atomic`; loaded strictly through
+the model of its one table, :mod:`commission.formats.ident_json`, naming the JSON path of a bad
+field.  :func:`read_units` and :func:`read_sha256` remain for controller.json, whose reader is
+not yet on a table.
 """
 
 from __future__ import annotations
@@ -11,24 +13,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from pydantic import ValidationError
+
+from commission.errors import SchemaError
+from commission.formats.ident_json import (IDENT_FIELDS, IDENT_KIND, IDENT_SCHEMA_VERSION, PARAMETER_NAMES,
+                                           REQUIRED_PARAMETERS, UNIT_VOCABULARY_Q, UNIT_VOCABULARY_U, IdentJson)
+from commission.formats.json_table import check_header, json_error, sub_model
 from commission.jsonio import Reader, read_json
-from commission.logs.model import U_UNITS
-from commission.spec import RANGES
 from commission.units import mass_wording  # noqa: F401  (the wording lives in commission.units)
 
-IDENT_KIND = "identification"
-IDENT_SCHEMA_VERSION = 1
-
-#: Parameters of CONTRACT §2 in a stable order.
-PARAMETER_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset")
-
-#: ``units.u`` of every artifact: exactly the command units this tool itself can write
-#: (:data:`commission.logs.model.U_UNITS`: a log's ``u_unit`` attribute, an EPOS file's torque
-#: unit, ``--u-unit``).  A fixed vocabulary rather than free text, because the unit travels from
-#: ident.json through tuning.json and controller.json into generated code and reports.
-UNIT_VOCABULARY_U = U_UNITS
-#: ``units.q``: a linear axis in m (a log in mm or um is converted on reading), a rotary one in rad.
-UNIT_VOCABULARY_Q = ("m", "rad")
+__all__ = ["IDENT_KIND", "IDENT_SCHEMA_VERSION", "PARAMETER_NAMES", "UNIT_VOCABULARY_Q", "UNIT_VOCABULARY_U",
+           "Estimate", "Identification", "StructuralModel", "ThetaBox", "read_sha256", "read_units"]
 
 
 def read_units(r: Reader) -> dict[str, str]:
@@ -65,81 +60,6 @@ def read_sha256(r: Reader, key: str, *, optional: bool = False) -> str | None:
 
 def _is_sha256(v: object) -> bool:
     return isinstance(v, str) and len(v) == 64 and all(c in "0123456789abcdef" for c in v)
-
-
-def _in_range(r: Reader, key: str, rng: tuple[str, str], unit: str) -> None:
-    """An optional number at ``key`` that, when present, lies in the spec's range :data:`commission.spec.RANGES`."""
-    v = r.num(key, optional=True)
-    lo, hi = RANGES[rng]
-    if v is not None and not lo <= v <= hi:
-        raise r.fail(f"must be within [{lo:g}, {hi:g}] {unit}, got {v!r}", f"{r.path}.{key}")
-
-
-def _optional_obj(r: Reader, key: str) -> Reader | None:
-    return r.obj(key) if r.has(key) else None
-
-
-def _check_extra(r: Reader) -> None:
-    """Check the optional ident.json fields that ``tune`` and ``validate`` use, where present.
-
-    A missing optional field (or null) takes its documented default downstream
-    (:func:`commission.scenarios.resolve_quantization`, :func:`commission.tune.log_sample_rate`,
-    ...); a field that is **present** with a value of the wrong type or outside its range is
-    refused here, naming its JSON path, instead of being replaced by that default further on
-    (an encoder step of -1 um is not "no encoder step recorded").  The ranges are the spec's
-    (:data:`commission.spec.RANGES`) where the spec has the same quantity.
-    """
-    src = _optional_obj(r, "source")
-    if src is not None:
-        src.num("sample_rate", optional=True, positive=True)
-        if src.has("n_samples") and src.int_("n_samples") < 0:
-            raise src.fail("expected a non-negative integer", f"{src.path}.n_samples")
-        if src.has("sha256"):
-            digests = src.child("sha256")
-            if isinstance(digests.data, list):
-                for i, d in enumerate(digests.data):
-                    if not _is_sha256(d):
-                        raise src.fail(f"expected a sha256 (64 lowercase hex digits), got {str(d)[:80]!r}",
-                                       f"{digests.path}[{i}]")
-            else:
-                read_sha256(src, "sha256")
-    read_sha256(r, "log_sha256", optional=True)
-    _in_range(r, "quantization", ("controller", "quantization"), "m")  # the older place of encoder.quantization
-    enc = _optional_obj(r, "encoder")
-    if enc is not None:
-        _in_range(enc, "quantization", ("controller", "quantization"), "m")
-        _in_range(enc, "noise_std", ("plant", "noise_std"), "m")
-        enc.num("apparent_resolution", optional=True, nonneg=True)
-    model = _optional_obj(r, "model")
-    if model is not None:
-        model.num("ripple_pitch", optional=True, positive=True)
-        if model.has("ripple_amp"):
-            amp = model.child("ripple_amp")
-            if isinstance(amp.data, dict):
-                amp.num("value")
-                amp.num("std", nonneg=True)
-            else:
-                model.num("ripple_amp")
-    ripple = _optional_obj(r, "ripple")
-    if ripple is not None:
-        ripple.num("pitch", positive=True)
-        for k in ("amplitude", "amp"):
-            ripple.num(k, optional=True)
-    bounds = _optional_obj(r, "bounds")
-    if bounds is not None:
-        if bounds.has("disturbance_bound_defaulted"):
-            bounds.bool_("disturbance_bound_defaulted")
-        bounds.num("disturbance_bound", optional=True, nonneg=True)
-        nb = _optional_obj(bounds, "narrowed_by_tune")
-        if nb is not None:
-            lo, hi = nb.num("theta3_min"), nb.num("theta3_max")
-            if not lo <= hi:  # type: ignore[operator]
-                raise nb.fail(f"theta3_min {lo!r} exceeds theta3_max {hi!r}")
-            nb.num("u_max", optional=True, positive=True)
-    if r.has("warnings"):
-        w = r.child("warnings")
-        if not isinstance(w.data, list) or not all(isinstance(x, str) for x in w.data):
-            raise w.fail("expected a list of strings")
 
 
 @dataclass(frozen=True)
@@ -220,37 +140,25 @@ class StructuralModel:
         return kw
 
 
+#: The model of ``frequency_response.model`` (a row of ident.json's table).
+_StructuralJson = sub_model(IdentJson, "frequency_response.model")
+
+
 def _structural_model(data: Mapping[str, Any], source: str) -> StructuralModel | None:
-    """Strictly read ``$.frequency_response.model`` (None when the section or the model is absent)."""
-    r = Reader(data, "$", source)
-    if not r.has("frequency_response"):
+    """``$.frequency_response.model`` through its model (None when the section or the model is absent)."""
+    fr = data.get("frequency_response")
+    if not isinstance(fr, Mapping) or fr.get("model") is None:
         return None
-    fr = r.obj("frequency_response")
-    if not fr.has("model"):
-        return None
-    m = fr.obj("model")
-    delay = m.num("delay_s", nonneg=True)
-    if not m.has("mode_hz"):
-        return StructuralModel(None, None, None, None, delay)  # type: ignore[arg-type]
-    hz = m.num("mode_hz", positive=True)
-    zeta = m.num("mode_damping", nonneg=True)
-    ratio = m.num("mode_ratio", positive=True)
-    if not zeta < 1:  # type: ignore[operator]
-        raise m.fail(f"expected a damping ratio below 1, got {zeta!r}", f"{m.path}.mode_damping")
-    if not ratio < 1:  # type: ignore[operator]
-        raise m.fail(f"expected a load fraction below 1, got {ratio!r}", f"{m.path}.mode_ratio")
-    if not m.has("mode2_hz"):
-        return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay)  # type: ignore[arg-type]
-    # Added: a second mode, the simulator's second appendage (ident.json written by this version).
-    hz2 = m.num("mode2_hz", positive=True)
-    zeta2 = m.num("mode2_damping", nonneg=True)
-    ratio2 = m.num("mode2_ratio", positive=True)
-    if not zeta2 < 1:  # type: ignore[operator]
-        raise m.fail(f"expected a damping ratio below 1, got {zeta2!r}", f"{m.path}.mode2_damping")
-    if not ratio + ratio2 < 1:  # type: ignore[operator]
-        raise m.fail(f"expected mode_ratio + mode2_ratio below 1, got {ratio!r} + {ratio2!r}", f"{m.path}.mode2_ratio")
-    return StructuralModel(hz, zeta, ratio, m.bool_("mode_load_side"), delay,  # type: ignore[arg-type]
-                           hz2, zeta2, ratio2, m.bool_("mode2_load_side"))
+    try:
+        m = _StructuralJson.model_validate(fr["model"])
+    except ValidationError as exc:
+        raise SchemaError(json_error(exc, (), source=source, prefix="$.frequency_response.model")) from None
+    if m.mode_hz is None:
+        return StructuralModel(None, None, None, None, m.delay_s)
+    if m.mode2_hz is None:
+        return StructuralModel(m.mode_hz, m.mode_damping, m.mode_ratio, m.mode_load_side, m.delay_s)
+    return StructuralModel(m.mode_hz, m.mode_damping, m.mode_ratio, m.mode_load_side, m.delay_s,
+                           m.mode2_hz, m.mode2_damping, m.mode2_ratio, m.mode2_load_side)
 
 
 @dataclass(frozen=True)
@@ -345,62 +253,59 @@ class Identification:
         return d
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "ident.json") -> "Identification":
-        r = Reader(data, "$", source)
-        r.header(IDENT_KIND, IDENT_SCHEMA_VERSION)
-        units = read_units(r)
-        pr = r.obj("parameters")
+    def from_dict(cls, data: Any, source: str = "ident.json", prefix: str = "$") -> "Identification":
+        """Strict load through the table's model (:data:`commission.formats.ident_json.IdentJson`).
+
+        A refused value raises :class:`SchemaError` naming its JSON path (``prefix`` anchors the
+        paths: ``$.identification`` inside tuning.json).  What relates two fields (a required
+        parameter null only when ``not_identified`` says why, a theta box whose nominal lies
+        inside it, ``delta_d`` with ``theta``) is checked here, after the fields.
+        """
+        def fail(path: str, msg: str) -> SchemaError:
+            return SchemaError(f"{source}: {prefix}{path[1:]}: {msg}")
+
+        check_header(data, IDENT_KIND, IDENT_SCHEMA_VERSION, source, prefix)
+        try:
+            m = IdentJson.model_validate(data)
+        except ValidationError as exc:
+            raise SchemaError(json_error(exc, IDENT_FIELDS, source=source, prefix=prefix)) from None
+        not_identified = m.not_identified or {}
         params: dict[str, Estimate | None] = {}
-        not_identified = data.get("not_identified")
-        not_identified = {} if not_identified is None else not_identified  # present: an object, even if empty
-        if not isinstance(not_identified, dict) or not all(isinstance(v, str) for v in not_identified.values()):
-            raise r.fail("expected an object of parameter -> reason", "$.not_identified")
         for name in PARAMETER_NAMES:
-            required = name in ("M", "B", "fc", "offset")
-            if name in not_identified and name in pr.keys() and pr.data[name] is None:
-                params[name] = None  # reported as not identified, with its reason
-                continue
-            if not required and not pr.has(name):
-                params[name] = None
-                continue
-            er = pr.obj(name)
-            # vs and xi are positive by construction (identify searches log vs and xi in a positive
-            # box); a file that says otherwise is refused rather than replaced by the simulator's default
-            params[name] = Estimate(er.num("value", positive=name in ("vs", "xi")),  # type: ignore[arg-type]
-                                    er.num("std", nonneg=True))  # type: ignore[arg-type]
+            est = getattr(m.parameters, name)
+            if est is None and name in REQUIRED_PARAMETERS and name not in not_identified:
+                raise fail(f"$.parameters.{name}", "expected an object, got NoneType")
+            params[name] = None if est is None else Estimate(est.value, est.std)
         M = params["M"]
         if M is not None and M.value <= 0:
-            raise r.fail(f"expected a positive mass, got {M.value!r}", "$.parameters.M.value")
-        fit = r.obj("fit")
+            raise fail("$.parameters.M.value", f"expected a positive mass, got {M.value!r}")
         theta: ThetaBox | None = None
         delta_d: float | None = None
-        if M is None and data.get("theta") is None:
-            if data.get("delta_d") is not None:
-                raise r.fail("expected null: M is not identified", "$.delta_d")
+        if M is None and m.theta is None:
+            if m.delta_d is not None:
+                raise fail("$.delta_d", "expected null: M is not identified")
         else:
-            th = r.obj("theta")
-            nominal, lo, hi = th.vec("nominal", 3), th.vec("min", 3), th.vec("max", 3)
+            if m.theta is None:
+                raise fail("$.theta", "expected an object, got NoneType")
             try:
-                theta = ThetaBox(nominal, lo, hi)  # type: ignore[arg-type]
+                theta = ThetaBox(tuple(m.theta.nominal), tuple(m.theta.min), tuple(m.theta.max))  # type: ignore[arg-type]
             except ValueError as exc:  # only the box's own consistency checks land here
-                raise r.fail(str(exc), "$.theta") from None
-            delta_d = r.num("delta_d", nonneg=True)
-        fcr = r.obj("friction_compensation")
+                raise fail("$.theta", str(exc)) from None
+            if m.delta_d is None:
+                raise fail("$.delta_d", "missing required field")
+            delta_d = m.delta_d
         known = {"kind", "schema_version", "units", "parameters", "fit", "theta", "delta_d", "friction_compensation"}
-        extra = {k: v for k, v in data.items() if k not in known}
-        _structural_model(data, source)  # a malformed optional section fails here, naming its path
-        _check_extra(r)  # so do the optional fields tune and validate read: none is replaced by a default
         return cls(
-            units=units,
+            units={"u": m.units.u, "q": m.units.q},
             parameters=params,
-            relative_error=fit.num("relative_error", nonneg=True),  # type: ignore[arg-type]
-            condition_number=fit.num("condition_number", positive=True),  # type: ignore[arg-type]
-            validation_relative_error=fit.num("validation_relative_error", optional=True, nonneg=True),
+            relative_error=m.fit.relative_error,
+            condition_number=m.fit.condition_number,
+            validation_relative_error=m.fit.validation_relative_error,
             theta=theta,
             delta_d=delta_d,
-            fric_level=fcr.num("level", nonneg=True),  # type: ignore[arg-type]
-            fric_slope=fcr.num("slope", nonneg=True),  # type: ignore[arg-type]
-            extra=extra,
+            fric_level=m.friction_compensation.level,
+            fric_slope=m.friction_compensation.slope,
+            extra={k: v for k, v in data.items() if k not in known},
         )
 
     @classmethod

@@ -1,41 +1,11 @@
 """The tuning artifact (``tuning.json``), written by ``commission tune``.
 
-Schema (kind ``"tuning"``, schema_version 1, keys sorted)::
-
-    provenance        ident_sha256, log_sha256 (or null), tool_version, created_utc, seed, ident_path
-    spec              the resolved spec (commission.spec layout: controller, trajectory, targets, pid, tune)
-    identification    ident.json's content verbatim (rebuilds the scenario matrix exactly)
-    plant             the identified plant model used in simulation: M, B, fc, fs, vs, xi, offset,
-                      ripple_amp, ripple_pitch (u-unit, m, s), quantization (m)
-    arc               every ArcGains field (controllers.arc); null stands for inf
-                      (eps: term switched off; k1s_max, k2s_max, u_max: no cap)
-    pid               every PidGains field (controllers.pid), plus pole (rad/s) and design_mass
-    observer          pole, k1, k2, P (2x2, eq. 11), P_eigenvalues, lyapunov_residual, discrete_pole
-                      (the pole the controller runs: k1, k2 must equal arc.k1, arc.k2; tune's
-                      hold-out repair may move a defaulted pole, so it can differ from the spec's)
-    theorem1          holds, ratios (2x3), min_ratio
-    feasibility       {"arc": ..., "pid": ...}: holds, margin, rho_max (estimates frozen),
-                      rho_adaptive_max (theta3 adaptation in the loop), rho_any_estimate_max
-                      (informational: estimates at any box corner), worst_corner, worst_trajectory,
-                      worst_t, n_points
-    guarantees        {name: {"holds": bool, "detail": str}}: which guarantees of the paper hold
-                      as chosen, and which are traded for implementability
-    scores            {scenario: {"arc": score, "pid": score}}; score = e_M, e_F, e_rms (m), u_rms,
-                      du_rms, u_peak (u-unit), c_u, diverged; indexes null when diverged
-    search            optimiser (name and library version), n_evaluations, budget, seed,
-                      generations, cost_initial, cost_best (objective, null where a candidate was
-                      not simulated), free (name -> value), history (objective of every candidate,
-                      evaluation order), violations and levels (each candidate's constraint
-                      violation and level: 0 every constraint met, 1 the gate missed, 2 a stability
-                      margin or discrete feasibility missed), screened (each candidate was far
-                      off the gate on the screening scenarios and was simulated on those only;
-                      its violation is the excess there), n_feasible, chosen_level,
-                      chosen_violation, holdout_plants, holdout_failures (default-gate failures of
-                      each feasible finalist on the hold-out plants, best objective first; see
-                      commission.tune.select_on_holdout)
-
-Loading is strict (:class:`commission.jsonio.Reader`): a missing or mistyped
-field raises :class:`commission.errors.SchemaError` naming its JSON path.
+Every field of the file is one row of :mod:`commission.formats.tuning_json` (its JSON path, type,
+accepted values, unit and doc); docs/interface.md §3 and docs/schemas/tuning.schema.json are
+generated from that table.  Loading is strict, through the table's model: a missing or mistyped
+field raises :class:`commission.errors.SchemaError` naming its JSON path.  Saving writes sorted
+keys (:func:`commission.jsonio.write_json_atomic`).  This module builds the controllers' objects
+from the file, so it imports :mod:`commission.controllers`; the format's table does not.
 """
 
 from __future__ import annotations
@@ -47,24 +17,21 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from commission.artifacts import Identification, read_sha256
+from pydantic import ValidationError
+
+from commission.artifacts import Identification
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.pid import PidGains
 from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
-from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.formats.json_table import check_header, json_error
+from commission.formats.tuning_json import (SCORE_NAMES, TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION,
+                                            TuningJson)
+from commission.jsonio import read_json, write_json_atomic
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 from commission.spec import RANGES, Spec, spec_from_mapping
 
-TUNING_KIND = "tuning"
-TUNING_SCHEMA_VERSION = 1
-
-#: Plant-vector names in controllers.plant order.
-SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
-#: ArcGains fields that may be infinite (stored as JSON null).
-_ARC_INF_OK = ("eps11", "eps12", "eps21", "eps22", "k1s_max", "k2s_max", "u_max")
-_PID_INF_OK = ("u_max",)
 
 
 def _num_or_null(x: float) -> float | None:
@@ -120,11 +87,6 @@ class Score:
         d["diverged"] = self.diverged
         return d
 
-    @classmethod
-    def from_reader(cls, r: Reader) -> "Score":
-        vals = {k: r.num(k, optional=True) for k in SCORE_NAMES}
-        return cls(**{k: (math.nan if v is None else v) for k, v in vals.items()}, diverged=r.bool_("diverged"))
-
 
 @dataclass(frozen=True)
 class FeasibilitySummary:
@@ -169,18 +131,6 @@ class FeasibilitySummary:
                 "worst_t": self.worst_t, "n_points": self.n_points,
                 "rho_adaptive_max": _num_or_null(self.rho_adaptive_max),
                 "rho_any_estimate_max": _num_or_null(self.rho_any_estimate_max)}
-
-    @classmethod
-    def from_reader(cls, r: Reader) -> "FeasibilitySummary":
-        rho = r.num("rho_max", optional=True)
-        return cls(holds=r.bool_("holds"), margin=r.num("margin", positive=True),  # type: ignore[arg-type]
-                   rho_max=math.inf if rho is None else rho,
-                   worst_corner=r.vec("worst_corner", 3),  # type: ignore[arg-type]
-                   worst_trajectory=r.str_("worst_trajectory"),  # type: ignore[arg-type]
-                   worst_t=r.num("worst_t", nonneg=True),  # type: ignore[arg-type]
-                   n_points=r.int_("n_points"),
-                   rho_adaptive_max=_nan(r.num("rho_adaptive_max", optional=True)),
-                   rho_any_estimate_max=_nan(r.num("rho_any_estimate_max", optional=True)))
 
 
 @dataclass(frozen=True)
@@ -275,30 +225,20 @@ def _gains_to_dict(g: Any) -> dict[str, Any]:
     return out
 
 
-def _gains_from_reader(cls: type, r: Reader, inf_ok: tuple[str, ...], skip: tuple[str, ...] = ()) -> Any:
-    known = {f.name for f in dataclasses.fields(cls)}
-    for k in r.keys():
-        if k not in known and k not in skip:
-            raise r.fail("unknown field", f"{r.path}.{k}")
+def _gains(cls: type, m: Any, source: str, path: str) -> Any:
+    """ArcGains or PidGains from their validated section: null stands for inf; an absent runtime guard is off."""
     kw: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
+        v = getattr(m, f.name)
         if cls is ArcGains and f.name in RUNTIME_GUARDS:
-            if r.has(f.name):
-                raw = r.child(f.name).data
-                kw[f.name] = (r.bool_(f.name) if f.name == "freeze_on_saturation"
-                              else math.inf if raw is None else r.num(f.name))
+            if v is not None:
+                kw[f.name] = v
             continue
-        raw = r.child(f.name).data
-        if "tuple" in str(f.type):  # the field's type decides, not the file's shape
-            kw[f.name] = r.vec(f.name, 3)
-        elif raw is None and f.name in inf_ok:
-            kw[f.name] = math.inf
-        else:
-            kw[f.name] = r.num(f.name)
+        kw[f.name] = tuple(v) if isinstance(v, list) else math.inf if v is None else v
     try:
         return cls(**kw)
     except (ValueError, TypeError) as exc:
-        raise r.fail(str(exc)) from None
+        raise SchemaError(f"{source}: {path}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -427,87 +367,68 @@ class Tuning:
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "tuning.json") -> "Tuning":
-        """Strict load; errors name the JSON path (``tuning.json: $.arc.g1: ...``)."""
-        r = Reader(data, "$", source)
-        r.header(TUNING_KIND, TUNING_SCHEMA_VERSION)
-        pr = r.obj("provenance")
-        prov = Provenance(ident_sha256=read_sha256(pr, "ident_sha256"),  # type: ignore[arg-type]
-                          log_sha256=read_sha256(pr, "log_sha256", optional=True),
-                          tool_version=pr.str_("tool_version"), created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
-                          seed=pr.int_("seed"), ident_path=pr.str_("ident_path"))  # type: ignore[arg-type]
-        sr = r.obj("spec")
-        spec = spec_from_mapping(sr.data, source, prefix="$.spec.")
-        ir = r.obj("identification")
+        """Strict load through the table's model (:data:`commission.formats.tuning_json.TuningJson`).
+
+        Errors name the JSON path (``tuning.json: $.arc.g1: ...``); the embedded spec and
+        identification are checked by their own tables under ``$.spec.`` and ``$.identification``.
+        What relates two fields (the observer's gains and the ARC's, the PID design mass and
+        the theta box) is checked here, after the fields.
+        """
+        def fail(path: str, msg: str) -> SchemaError:
+            return SchemaError(f"{source}: {path}: {msg}")
+
+        check_header(data, TUNING_KIND, TUNING_SCHEMA_VERSION, source)
         try:
-            ident = Identification.from_dict(ir.data, source=source)
-        except SchemaError as exc:
-            # re-anchor the path under $.identification
-            raise SchemaError(str(exc).replace(f"{source}: $", f"{source}: $.identification")) from None
-        plr = r.obj("plant")
-        # The mode and delay entries were added later: absent means a rigid, delay-free plant.
-        default = plant_vector(1.0, 0.0)
-        plant = np.array([plr.num(n) if i < 9 or plr.has(n) else default[i] for i, n in enumerate(PLANT_NAMES)],
-                         dtype=np.float64)
-        quant = plr.num("quantization", nonneg=True)
-        lo, hi = RANGES[("controller", "quantization")]  # the spec's range for the same encoder step
-        if not lo <= quant <= hi:  # type: ignore[operator]
-            raise plr.fail(f"must be within [{lo:g}, {hi:g}] m, got {quant!r}", f"{plr.path}.quantization")
-        arc = _gains_from_reader(ArcGains, r.obj("arc"), _ARC_INF_OK)
-        pidr = r.obj("pid")
-        pid = _gains_from_reader(PidGains, pidr, _PID_INF_OK, skip=("pole", "design_mass"))
+            m = TuningJson.model_validate(data)
+        except ValidationError as exc:
+            raise SchemaError(json_error(exc, TUNING_FIELDS, source=source)) from None
+        pv = m.provenance
+        prov = Provenance(ident_sha256=pv.ident_sha256, log_sha256=pv.log_sha256, tool_version=pv.tool_version,
+                          created_utc=pv.created_utc, seed=pv.seed, ident_path=pv.ident_path)
+        spec = spec_from_mapping(data["spec"], source, prefix="$.spec.")
+        ident = Identification.from_dict(data["identification"], source=source, prefix="$.identification")
+        default = plant_vector(1.0, 0.0)  # the entries added later: absent means a rigid, delay-free plant
+        plant = np.array([default[i] if getattr(m.plant, n) is None else getattr(m.plant, n)
+                          for i, n in enumerate(PLANT_NAMES)], dtype=np.float64)
+        arc = _gains(ArcGains, m.arc, source, "$.arc")
+        pid = _gains(PidGains, m.pid, source, "$.pid")
         lo, hi = RANGES[("controller", "u_max")]  # a finite output limit is a plausible one, as in controller.json
         for section, gains in (("arc", arc), ("pid", pid)):
             if math.isfinite(gains.u_max) and not lo <= gains.u_max <= hi:
-                raise r.fail(f"{gains.u_max!r} is outside the plausible range [{lo:g}, {hi:g}]", f"$.{section}.u_max")
-        obr = r.obj("observer")
-        P = _matrix(obr, "P", 2, 2)
-        dp = obr.num("discrete_pole", optional=True)
-        observer = ObserverDesign(pole=obr.num("pole", positive=True), k1=obr.num("k1", positive=True),  # type: ignore[arg-type]
-                                  k2=obr.num("k2", positive=True), P=P,  # type: ignore[arg-type]
-                                  P_eigenvalues=obr.vec("P_eigenvalues", 2),  # type: ignore[arg-type]
-                                  lyapunov_residual=obr.num("lyapunov_residual", nonneg=True),  # type: ignore[arg-type]
-                                  discrete_pole=math.nan if dp is None else dp)
-        t1 = r.obj("theorem1")
-        ratios = _matrix(t1, "ratios", 2, 3)
-        mr = t1.num("min_ratio", optional=True)
-        theorem1 = Theorem1Check(holds=t1.bool_("holds"), ratios=ratios,  # type: ignore[arg-type]
-                                 min_ratio=math.inf if mr is None else mr)
-        fr = r.obj("feasibility")
-        feas = {k: FeasibilitySummary.from_reader(fr.obj(k)) for k in ("arc", "pid")}
-        gr = r.obj("guarantees")
-        guarantees = {k: Guarantee(gr.obj(k).bool_("holds"), gr.obj(k).str_("detail")) for k in gr.keys()}  # type: ignore[arg-type]
-        scr = r.obj("scores")
-        scores = {s: {c: Score.from_reader(scr.obj(s).obj(c)) for c in ("arc", "pid")} for s in scr.keys()}
-        se = r.obj("search")
-        fre = se.obj("free")
-        search = SearchRecord(n_evaluations=se.int_("n_evaluations"), budget=se.int_("budget"), seed=se.int_("seed"),
-                              cost_initial=_nan(se.num("cost_initial", optional=True)),
-                              cost_best=_nan(se.num("cost_best", optional=True)),
-                              free={k: fre.num(k) for k in fre.keys()},  # type: ignore[misc]
-                              history=_nullable_list(se, "history"),
-                              holdout_plants=se.int_("holdout_plants") if se.has("holdout_plants") else 0,
-                              holdout_failures=_int_list(se, "holdout_failures"),
-                              optimiser=se.str_("optimiser") if se.has("optimiser") else "",
-                              generations=se.int_("generations") if se.has("generations") else 0,
-                              n_feasible=se.int_("n_feasible") if se.has("n_feasible") else 0,
-                              violations=_nullable_list(se, "violations") if se.has("violations") else (),
-                              levels=_int_list(se, "levels") if se.has("levels") else (),
-                              chosen_level=se.int_("chosen_level") if se.has("chosen_level") else 0,
-                              chosen_violation=_nan(se.num("chosen_violation", optional=True))
-                              if se.has("chosen_violation") else 0.0,
-                              screened=_bool_list(se, "screened") if se.has("screened") else ())
-        if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
-            raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
+                raise fail(f"$.{section}.u_max", f"{gains.u_max!r} is outside the plausible range [{lo:g}, {hi:g}]")
+        ob = m.observer
+        observer = ObserverDesign(pole=ob.pole, k1=ob.k1, k2=ob.k2, P=tuple(tuple(map(float, r)) for r in ob.P),
+                                  P_eigenvalues=tuple(ob.P_eigenvalues), lyapunov_residual=ob.lyapunov_residual,
+                                  discrete_pole=_nan(ob.discrete_pole))
+        t1 = m.theorem1
+        theorem1 = Theorem1Check(holds=t1.holds, ratios=tuple(tuple(map(float, r)) for r in t1.ratios),
+                                 min_ratio=math.inf if t1.min_ratio is None else t1.min_ratio)
+        feas = {k: _feasibility(getattr(m.feasibility, k)) for k in ("arc", "pid")}
+        guarantees = {k: Guarantee(g.holds, g.detail) for k, g in m.guarantees.items()}
+        scores = {s: {c: _score(getattr(row, c)) for c in ("arc", "pid")} for s, row in m.scores.items()}
+        se = m.search
+        search = SearchRecord(n_evaluations=se.n_evaluations, budget=se.budget, seed=se.seed,
+                              cost_initial=_nan(se.cost_initial), cost_best=_nan(se.cost_best), free=dict(se.free),
+                              history=_floats(se.history), holdout_plants=se.holdout_plants or 0,
+                              holdout_failures=tuple(se.holdout_failures or ()), optimiser=se.optimiser or "",
+                              generations=se.generations or 0, n_feasible=se.n_feasible or 0,
+                              violations=_floats(se.violations), levels=tuple(se.levels or ()),
+                              chosen_level=se.chosen_level or 0,
+                              chosen_violation=0.0 if se.chosen_violation is None else se.chosen_violation,
+                              screened=tuple(se.screened or ()))
+        if not math.isclose(m.pid.design_mass, 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[union-attr]
+            raise fail("$.pid.design_mass", "does not equal 1/theta_max[0] of the identification")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
             if not math.isclose(getattr(observer, k), getattr(arc, k), rel_tol=1e-9):
-                raise obr.fail(f"{getattr(observer, k):.12g} does not equal arc.{k} = {getattr(arc, k):.12g}",
-                               f"{obr.path}.{k}")
-        return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=quant,  # type: ignore[arg-type]
-                   arc=arc, pid=pid, pid_pole=pidr.num("pole", positive=True),  # type: ignore[arg-type]
-                   pid_design_mass=pidr.num("design_mass", positive=True),  # type: ignore[arg-type]
+                raise fail(f"$.observer.{k}", f"{getattr(observer, k):.12g} does not equal arc.{k} = "
+                                              f"{getattr(arc, k):.12g}")
+        return cls(provenance=prov, spec=spec, identification=ident, plant=plant, quantization=m.plant.quantization,
+                   arc=arc, pid=pid, pid_pole=m.pid.pole, pid_design_mass=m.pid.design_mass,
                    observer=observer, theorem1=theorem1, feasibility=feas, guarantees=guarantees,
-                   scores=scores, search=search, margins=_margins(r), box=_box(r),
-                   validity=_validity(r), pid_yardstick=_yardstick(r))
+                   scores=scores, search=search, margins=_margins(data, source),
+                   box=_record(data, "box_robustness", BoxRobustness.from_dict, source),
+                   validity=None if data.get("validity") is None else dict(data["validity"]),
+                   pid_yardstick=_record(data, "pid_yardstick", _yardstick_record, source))
 
     @classmethod
     def load(cls, path: str) -> "Tuning":
@@ -515,117 +436,47 @@ class Tuning:
         return cls.from_dict(read_json(path), source=str(path))
 
 
-def _yardstick(r: Reader) -> dict[str, Any] | None:
-    """The optional ``pid_yardstick`` record (absent in older files); a malformed one is named by its path."""
-    if not r.has("pid_yardstick"):
+def _record(data: Mapping[str, Any], key: str, parse: Callable[[Any], Any], source: str) -> Any:
+    """An optional record read by its own type's ``from_dict`` (None when absent or null); a malformed
+    one is named by its JSON path.  The table has checked its shape (an object, a list)."""
+    if data.get(key) is None:
         return None
-    y = r.child("pid_yardstick")
-    from commission.tune.baseline import YardstickChoice
     try:
-        return YardstickChoice.from_dict(y.data).to_dict()
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise y.fail(f"bad record ({exc})") from None
+        return parse(data[key])
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
+        raise SchemaError(f"{source}: $.{key}: bad record ({exc})") from None
 
 
-def _margins(r: Reader) -> tuple[LoopMargins, ...]:
+def _margins(data: Mapping[str, Any], source: str) -> tuple[LoopMargins, ...]:
     """The optional ``margins`` list; an entry that does not parse is named by its JSON path."""
-    if not r.has("margins"):
-        return ()
-    lst = r.child("margins")
-    if not isinstance(lst.data, list):
-        raise lst.fail("expected a list")
     out = []
-    for i, row in enumerate(lst.data):
+    for i, row in enumerate(data.get("margins") or ()):
         try:
             out.append(LoopMargins.from_dict(row))
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:  # AttributeError: an entry not an object
-            raise lst.fail(f"bad entry ({exc})", f"{lst.path}[{i}]") from None
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise SchemaError(f"{source}: $.margins[{i}]: bad entry ({exc})") from None
     return tuple(out)
 
 
-def _box(r: Reader) -> BoxRobustness | None:
-    """The optional ``box_robustness`` record (None: a tuning.json written before it)."""
-    if not r.has("box_robustness"):
-        return None
-    b = r.obj("box_robustness")
-    try:
-        return BoxRobustness.from_dict(b.data)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise b.fail(f"bad entry ({exc})") from None
+def _yardstick_record(d: Any) -> dict[str, Any]:
+    from commission.tune.baseline import YardstickChoice  # the record's type lives with the stage that makes it
+    return YardstickChoice.from_dict(d).to_dict()
 
 
-def _validity(r: Reader) -> dict[str, Any] | None:
-    """The optional ``validity`` record: the certified payload and mass ranges, each a [min, max] pair."""
-    if not r.has("validity"):
-        return None
-    v = r.obj("validity")
-    for k in ("payload_range", "mass_range"):
-        x = v.data.get(k)
-        if not (isinstance(x, list) and len(x) == 2 and all(isinstance(e, (int, float)) and math.isfinite(e)
-                                                         for e in x) and x[0] <= x[1]):
-            raise v.fail(f"expected a [min, max] pair of finite numbers, got {x!r}", f"{v.path}.{k}")
-    v.str_("unit")
-    return dict(v.data)
+def _score(m: Any) -> Score:
+    return Score(**{k: _nan(getattr(m, k)) for k in SCORE_NAMES}, diverged=m.diverged)
 
 
-def _matrix(r: Reader, key: str, rows: int, cols: int) -> tuple[tuple[float, ...], ...]:
-    """A rows x cols list of lists of finite numbers at ``key``; errors name ``key[i][j]``."""
-    m = r.child(key)
-    if not isinstance(m.data, list) or len(m.data) != rows:
-        raise r.fail(f"expected a {rows}x{cols} matrix (list of {rows} rows)", m.path)
-    return tuple(_row(m, i, row, cols) for i, row in enumerate(m.data))
+def _feasibility(m: Any) -> FeasibilitySummary:
+    return FeasibilitySummary(holds=m.holds, margin=m.margin, rho_max=math.inf if m.rho_max is None else m.rho_max,
+                              worst_corner=tuple(m.worst_corner), worst_trajectory=m.worst_trajectory,
+                              worst_t=m.worst_t, n_points=m.n_points, rho_adaptive_max=_nan(m.rho_adaptive_max),
+                              rho_any_estimate_max=_nan(m.rho_any_estimate_max))
 
 
-def _row(m: Reader, i: int, row: Any, cols: int) -> tuple[float, ...]:
-    p = f"{m.path}[{i}]"
-    if not isinstance(row, list) or len(row) != cols:
-        raise m.fail(f"expected a list of {cols} numbers", p)
-    for j, x in enumerate(row):
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-            raise m.fail(f"expected a finite number, got {x!r}", f"{p}[{j}]")
-    return tuple(float(x) for x in row)
-
-
-def _checked_list(r: Reader, key: str, ok: Callable[[Any], bool], what: str) -> tuple:
-    """An optional list whose every item passes ``ok`` (``what`` names the item type); absent: empty."""
-    if not r.has(key):
-        return ()
-    m = r.child(key)
-    if not isinstance(m.data, list):
-        raise r.fail(f"expected a list of {what}s", m.path)
-    for i, v in enumerate(m.data):
-        if not ok(v):
-            raise r.fail(f"expected a {what}, got {v!r}", f"{m.path}[{i}]")
-    return tuple(m.data)
-
-
-def _int_list(r: Reader, key: str) -> tuple[int, ...]:
-    """An optional list of non-negative integers; absent: empty."""
-    return _checked_list(r, key, lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0,
-                         "non-negative integer")
-
-
-def _bool_list(r: Reader, key: str) -> tuple[bool, ...]:
-    """An optional list of booleans; absent: empty."""
-    return _checked_list(r, key, lambda v: isinstance(v, bool), "boolean")
-
-
-def _nullable_list(r: Reader, key: str) -> tuple[float, ...]:
-    """An optional list of numbers where null stands for NaN (a diverged candidate); absent: empty."""
-    if not r.has(key):
-        return ()
-    m = r.child(key)
-    if not isinstance(m.data, list):
-        raise r.fail("expected a list of numbers", m.path)
-    out = []
-    for i, v in enumerate(m.data):
-        if v is None:
-            out.append(math.nan)
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise r.fail(f"expected a number or null, got {v!r}", f"{m.path}[{i}]")
-        else:
-            out.append(float(v))
-    return tuple(out)
+def _floats(v: list | None) -> tuple[float, ...]:
+    """A list where null stands for NaN (a candidate not simulated); absent: empty."""
+    return () if v is None else tuple(math.nan if x is None else float(x) for x in v)
 
 
 def _nan(x: float | None) -> float:

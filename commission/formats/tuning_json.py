@@ -1,0 +1,228 @@
+"""``tuning.json``, the tuning artifact (``commission tune``): its one table of fields.
+
+Every field :class:`commission.tuning.Tuning` reads is one
+:class:`~commission.formats.json_table.Field` row of :data:`TUNING_FIELDS`; :data:`TuningJson`
+is the strict model built from them, and docs/interface.md §3 and
+docs/schemas/tuning.schema.json are generated from them (``python -m commission.formats``).
+
+This module imports no simulation code: the names of the plant vector and of the controllers'
+gains are written here, and tests/test_formats_tuning_json.py checks them against
+:mod:`commission.controllers` (``PLANT_NAMES``, ``ArcGains``, ``PidGains``).  The embedded
+``spec`` is checked by spec.toml's table and ``identification`` by ident.json's; ``margins``,
+``box_robustness`` and ``pid_yardstick`` by the records of :mod:`commission.robustness` and
+:mod:`commission.tune.baseline`.  A gain stored as ``null`` is infinite (a term switched off, no cap).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from commission.formats.json_table import Field, build_json_model, is_finite_number
+from commission.formats.spec_toml import SPEC_KEYS
+
+TUNING_KIND = "tuning"
+#: Version of tuning.json and of docs/schemas/tuning.schema.json.
+TUNING_SCHEMA_VERSION = 1
+#: The plant vector of :mod:`commission.controllers.plant`, in its order; the first 9 are required
+#: (the modes and delay were added later: absent means a rigid, delay-free plant).
+PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple_pitch", "mode_hz",
+               "mode_damping", "mode_ratio", "mode_load_side", "delay", "mode2_hz", "mode2_damping",
+               "mode2_ratio", "mode2_load_side")
+N_REQUIRED_PLANT = 9
+#: Section-4.2 indexes of a score (SI units), null when the run diverged.
+SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
+_SCORE_UNITS = {"e_M": "q", "e_F": "q", "e_rms": "q", "u_rms": "u", "du_rms": "u", "c_u": "", "u_peak": "u"}
+#: ArcGains fields (:class:`commission.controllers.arc.ArcGains`): name, unit, may be null (infinite).
+ARC_GAINS = (("Ts", "s", False), ("k1", "1/s", False), ("k2", "1/s^2", False), ("w1", "", False),
+             ("w2", "", False), ("g1", "", False), ("g2", "", False), ("eps11", "", True), ("eps12", "", True),
+             ("eps21", "", True), ("eps22", "", True))
+ARC_VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
+ARC_TAIL = (("fric_level", "u", False), ("fric_slope", "s/q", False), ("k1s_max", "", True),
+            ("k2s_max", "", True), ("u_max", "u", True))
+#: The runtime guards: set by validate, absent (off) in tuning.json unless given.
+ARC_GUARDS = (("dy_max", "q"), ("dy_fault", "q"), ("n_reject_max", "samples"), ("e_max", "q"),
+              ("freeze_on_saturation", ""), ("accel_max", "q/s^2"), ("y_err", "q"), ("n_frozen_max", "samples"),
+              ("u_free", "u"))
+PID_GAINS = (("Ts", "s", False), ("M_hat", "u s^2/q", False), ("B_hat", "u s/q", False), ("Kp", "u/q", False),
+             ("Ki", "u/(q s)", False), ("Kd", "u s/q", False), ("fric_level", "u", False),
+             ("fric_slope", "s/q", False), ("u_max", "u", True))
+
+_QUANT = next(k for k in SPEC_KEYS if (k.section, k.name) == ("controller", "quantization"))
+
+
+def _object(v: Any) -> None:
+    if not isinstance(v, dict):
+        raise ValueError(("", f"expected an object, got {type(v).__name__}"))
+
+
+def _list(v: Any) -> None:
+    if not isinstance(v, list):
+        raise ValueError(("", "expected a list"))
+
+
+def _matrix(rows: int, cols: int):
+    def check(m: Any) -> None:
+        if not isinstance(m, list) or len(m) != rows:
+            raise ValueError(("", f"expected a {rows}x{cols} matrix (list of {rows} rows)"))
+        for i, row in enumerate(m):
+            if not isinstance(row, list) or len(row) != cols:
+                raise ValueError((f"[{i}]", f"expected a list of {cols} numbers"))
+            for j, x in enumerate(row):
+                if not is_finite_number(x):
+                    raise ValueError((f"[{i}][{j}]", f"expected a finite number, got {x!r}"))
+    return check
+
+
+def _list_of(ok, what: str):
+    def check(v: Any) -> None:
+        if not isinstance(v, list):
+            raise ValueError(("", f"expected a list of {what}s"))
+        for i, x in enumerate(v):
+            if not ok(x):
+                raise ValueError((f"[{i}]", f"expected a {what}, got {x!r}"))
+    return check
+
+
+def _nullable_numbers(v: Any) -> None:
+    if not isinstance(v, list):
+        raise ValueError(("", "expected a list of numbers"))
+    for i, x in enumerate(v):
+        if x is not None and not is_finite_number(x):
+            raise ValueError((f"[{i}]", f"expected a number or null, got {x!r}"))
+
+
+def _pair(x: Any) -> bool:
+    return isinstance(x, list) and len(x) == 2 and all(is_finite_number(e) for e in x) and x[0] <= x[1]
+
+
+def _validity(v: Any) -> None:
+    _object(v)
+    for k in ("payload_range", "mass_range"):
+        if not _pair(v.get(k)):
+            raise ValueError((f".{k}", f"expected a [min, max] pair of finite numbers, got {v.get(k)!r}"))
+    if not isinstance(v.get("unit"), str):
+        raise ValueError((".unit", "missing required field" if v.get("unit") is None
+                          else f"expected a string, got {v['unit']!r}"))
+
+
+_NONNEG_INT = _list_of(lambda x: isinstance(x, int) and not isinstance(x, bool) and x >= 0, "non-negative integer")
+_BOOLS = _list_of(lambda x: isinstance(x, bool), "boolean")
+
+
+def _score_rows(prefix: str) -> list[Field]:
+    rows = [Field(prefix, "object", "", f"the {prefix.rsplit('.', 1)[-1].upper()} loop's score", required=True)]
+    rows += [Field(f"{prefix}.{n}", "number", _SCORE_UNITS[n], f"index {n} (null: diverged)") for n in SCORE_NAMES]
+    return rows + [Field(f"{prefix}.diverged", "boolean", "", "the run diverged", required=True)]
+
+
+def _feasibility_rows(prefix: str) -> list[Field]:
+    return [
+        Field(prefix, "object", "", f"discrete feasibility of the {prefix[-3:].upper()} loop", required=True),
+        Field(f"{prefix}.holds", "boolean", "", "every spectral radius < 1 - margin", required=True),
+        Field(f"{prefix}.margin", "number", "", "the required margin", required=True, sign="positive"),
+        Field(f"{prefix}.rho_max", "number", "", "largest spectral radius, estimates frozen (null: a nominal "
+              "run blew up)"),
+        Field(f"{prefix}.worst_corner", "numbers", "[q/(u s^2), 1/s, q/s^2]", "theta corner of rho_max",
+              required=True, length=3),
+        Field(f"{prefix}.worst_trajectory", "string", "", "trajectory there (case1, case2)", required=True),
+        Field(f"{prefix}.worst_t", "number", "s", "time of that linearisation point", required=True, sign="nonneg"),
+        Field(f"{prefix}.n_points", "integer", "", "points checked", required=True),
+        Field(f"{prefix}.rho_adaptive_max", "number", "", "largest radius with the theta3 adaptation in the loop"),
+        Field(f"{prefix}.rho_any_estimate_max", "number", "", "informational: estimates at any box corner"),
+    ]
+
+
+TUNING_FIELDS: tuple[Field, ...] = (
+    Field("kind", "string", "", f'"{TUNING_KIND}"', required=True),
+    Field("schema_version", "integer", "", f"1..{TUNING_SCHEMA_VERSION}: the version of this layout",
+          required=True),
+    Field("provenance", "object", "", "where the tuning came from", required=True),
+    Field("provenance.ident_sha256", "sha256", "", "sha256 of the ident.json bytes", required=True),
+    Field("provenance.log_sha256", "sha256", "", "sha256 of the excitation log, when ident.json records one"),
+    Field("provenance.tool_version", "string", "", "commission.__version__", required=True),
+    Field("provenance.created_utc", "string", "", "ISO-8601 UTC time of the run", required=True),
+    Field("provenance.seed", "integer", "", "seed of the search's generator", required=True),
+    Field("provenance.ident_path", "string", "", "ident.json as given on the command line", required=True),
+    Field("spec", "any", "", "the resolved spec (spec.toml's layout; checked by its table, §6)", required=True,
+          check=_object),
+    Field("identification", "any", "", "ident.json's content verbatim (checked by its table, §2)",
+          required=True, check=_object),
+    Field("plant", "object", "", "the identified plant the simulation used", required=True),
+    *(Field(f"plant.{n}", "number", "", f"plant vector entry {n} (commission.controllers.plant)",
+            required=i < N_REQUIRED_PLANT) for i, n in enumerate(PLANT_NAMES)),
+    Field("plant.quantization", "number", _QUANT.unit, "encoder step simulated", required=True,
+          range=_QUANT.range),
+    Field("arc", "object", "", "the tuned discrete ARC (every ArcGains field)", required=True, closed=True),
+    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
+            nullable=inf) for n, u, inf in ARC_GAINS),
+    *(Field(f"arc.{n}", "numbers", "", f"ArcGains.{n}", required=True, length=3) for n in ARC_VECTORS),
+    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
+            nullable=inf) for n, u, inf in ARC_TAIL),
+    *(Field(f"arc.{n}", "boolean" if n == "freeze_on_saturation" else "number", u,
+            f"runtime guard {n}, set by validate (absent or null: off)")
+      for n, u in ARC_GUARDS),
+    Field("pid", "object", "", "the PID baseline (every PidGains field, pole and design mass)", required=True,
+          closed=True),
+    *(Field(f"pid.{n}", "number", u, f"PidGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
+            nullable=inf) for n, u, inf in PID_GAINS),
+    Field("pid.pole", "number", "rad/s", "triple pole the baseline runs at", required=True, sign="positive"),
+    Field("pid.design_mass", "number", "u s^2/q", "M_min = 1/theta_max[0] of the identification", required=True,
+          sign="positive"),
+    Field("observer", "object", "", "the observer the controller runs (eq. 11)", required=True),
+    Field("observer.pole", "number", "rad/s", "observer pole", required=True, sign="positive"),
+    Field("observer.k1", "number", "1/s", "gain k1 (= arc.k1)", required=True, sign="positive"),
+    Field("observer.k2", "number", "1/s^2", "gain k2 (= arc.k2)", required=True, sign="positive"),
+    Field("observer.P", "any", "", "2x2 Lyapunov matrix P (eq. 11)", required=True, check=_matrix(2, 2)),
+    Field("observer.P_eigenvalues", "numbers", "", "eigenvalues of P", required=True, length=2),
+    Field("observer.lyapunov_residual", "number", "", "residual of the Lyapunov equation", required=True,
+          sign="nonneg"),
+    Field("observer.discrete_pole", "number", "", "the discrete pole the controller runs (null: not recorded)"),
+    Field("theorem1", "object", "", "Theorem 1's conditions", required=True),
+    Field("theorem1.holds", "boolean", "", "every ratio >= 1", required=True),
+    Field("theorem1.ratios", "any", "", "2x3 ratios", required=True, check=_matrix(2, 3)),
+    Field("theorem1.min_ratio", "number", "", "smallest ratio (null: infinite)"),
+    Field("feasibility", "object", "", "discrete feasibility of both loops", required=True),
+    *_feasibility_rows("feasibility.arc"),
+    *_feasibility_rows("feasibility.pid"),
+    Field("guarantees", "map", "", "name -> which guarantee of the paper holds as tuned", required=True),
+    Field("guarantees.*", "object", "", "one guarantee", required=True),
+    Field("guarantees.*.holds", "boolean", "", "it holds", required=True),
+    Field("guarantees.*.detail", "string", "", "why, or what was traded", required=True),
+    Field("scores", "map", "", "scenario -> the scores of both loops", required=True),
+    Field("scores.*", "object", "", "one scenario", required=True),
+    *_score_rows("scores.*.arc"),
+    *_score_rows("scores.*.pid"),
+    Field("search", "object", "", "the gain search", required=True),
+    Field("search.n_evaluations", "integer", "", "candidates evaluated", required=True),
+    Field("search.budget", "integer", "", "requested budget (spec tune.budget)", required=True),
+    Field("search.seed", "integer", "", "seed", required=True),
+    Field("search.cost_initial", "number", "", "objective of the starting point (null: not simulated)"),
+    Field("search.cost_best", "number", "", "objective of the chosen gains (null: not simulated)"),
+    Field("search.free", "number map", "", "the free gains as chosen (name -> value)", required=True),
+    Field("search.history", "any", "", "objective of every candidate, evaluation order (null: not simulated)",
+          check=_nullable_numbers),
+    Field("search.holdout_plants", "integer", "", "Monte-Carlo plants of the hold-out selection (0: not run)"),
+    Field("search.holdout_failures", "any", "", "default-gate failures of each feasible finalist, best first",
+          check=_NONNEG_INT),
+    Field("search.optimiser", "string", "", "the optimiser and its constraint handling"),
+    Field("search.generations", "integer", "", "generations run"),
+    Field("search.n_feasible", "integer", "", "candidates that met every constraint"),
+    Field("search.violations", "any", "", "each candidate's constraint violation (0: met)",
+          check=_nullable_numbers),
+    Field("search.levels", "any", "", "each candidate's level: 0 met, 1 gate missed, 2 stability missed",
+          check=_NONNEG_INT),
+    Field("search.chosen_level", "integer", "", "the chosen gains' level"),
+    Field("search.chosen_violation", "number", "", "the chosen gains' violation"),
+    Field("search.screened", "any", "", "each candidate was simulated on the screening scenarios only",
+          check=_BOOLS),
+    Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)",
+          check=_list),
+    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)",
+          check=_object),
+    Field("validity", "any", "", "tune narrowed a defaulted payload range: payload_range, mass_range [min, max] "
+          "in unit, default_payload_range, reason", check=_validity),
+    Field("pid_yardstick", "any", "", "how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)"),
+)
+
+#: The strict model of tuning.json (pydantic, built from :data:`TUNING_FIELDS`).
+TuningJson = build_json_model("TuningJson", TUNING_FIELDS, "tuning.json: the tuning (commission tune).")
