@@ -496,8 +496,10 @@ class Tuning:
                               chosen_violation=_nan(se.num("chosen_violation", optional=True))
                               if se.has("chosen_violation") else 0.0,
                               screened=_bool_list(se, "screened") if se.has("screened") else ())
-        if not math.isclose(pidr.num("design_mass", positive=True), 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[arg-type]
-            raise pidr.fail("does not equal 1/theta_max[0] of the identification", f"{pidr.path}.design_mass")
+        dm = pidr.num("design_mass", positive=True)
+        if not any(math.isclose(dm, m, rel_tol=1e-9) for m in (1.0 / ident.theta.max[0], ident.value("M"))):  # type: ignore[arg-type]
+            raise pidr.fail("equals neither 1/theta_max[0] (the paper's M_min) nor the identified M",
+                            f"{pidr.path}.design_mass")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
             if not math.isclose(getattr(observer, k), getattr(arc, k), rel_tol=1e-9):
                 raise obr.fail(f"{getattr(observer, k):.12g} does not equal arc.{k} = {getattr(arc, k):.12g}",
