@@ -93,19 +93,27 @@ SIGMA_MAX = 1.0
 OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
 
 #: Directions of :meth:`Problem.matched_starts`: (observer factor, K2 cap / K1 cap as multiples of
-#: the base's); a factor other than 1 only when the observer pole is free.
-MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
+#: the base's); a factor other than 1 only when the observer pole is free.  The cap ratio spans
+#: what the PID's own loop shape asks for: the ARC's position gain is K1 / theta1min, so on an
+#: axis whose theta box is wide (a heavy payload range) its rest loop ties the PID's only with a
+#: K2 cap many times the K1 cap (ratios 1 and 2 alone left such axes no matched start, and the
+#: search began from unstable paper gains).
+MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0), (1.0, 4.0), (1.0, 8.0), (1.0, 16.0), (1.0, 32.0))
 
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
 MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 25))
 
 #: Factors on the base theta3 adaptation rate tried in turn by :meth:`Problem._integral_matched`
-#: (up to the first that breaks a linear constraint).
-MATCH_G3 = (2.0, 4.0, 8.0, 16.0, 32.0)
+#: (up to the first that breaks a linear constraint): doubling up to the search box's bound on G3
+#: (:data:`commission.tune.gains.FREE_BOUNDS`).  A fixed stop at 32 left the ARC's integral
+#: action far below the PID's where the linear constraints allowed much more, and the ARC lost to
+#: the yardstick at low speed (Case 2), where friction and constant forces dominate.
+MATCH_G3 = tuple(2.0 ** k for k in range(1, 14))
 
-#: Matched starts injected into the first generation besides the one that becomes its mean.
-MATCH_INJECTED = 2
+#: Matched starts injected into the first generation besides the one that becomes its mean
+#: (with the paper's and the two extra starts, the first generation is all structured starts).
+MATCH_INJECTED = 4
 
 #: The best matched start becomes CMA-ES's mean (else the carried-over paper gains stay the mean
 #: and the matched starts are injected only).
