@@ -93,12 +93,17 @@ SIGMA_MAX = 1.0
 OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
 
 #: Directions of :meth:`Problem.matched_starts`: (observer factor, K2 cap / K1 cap as multiples of
-#: the base's); a factor other than 1 only when the observer pole is free.  The cap ratio spans
-#: what the PID's own loop shape asks for: the ARC's position gain is K1 / theta1min, so on an
-#: axis whose theta box is wide (a heavy payload range) its rest loop ties the PID's only with a
-#: K2 cap many times the K1 cap (ratios 1 and 2 alone left such axes no matched start, and the
-#: search began from unstable paper gains).
-MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0), (1.0, 4.0), (1.0, 8.0), (1.0, 16.0), (1.0, 32.0))
+#: the base's); a factor other than 1 only when the observer pole is free.
+MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
+
+#: Further K2/K1 cap ratios tried by :meth:`Problem.matched_starts` when no direction of
+#: :data:`MATCH_DIRECTIONS` gives a start.  The ARC's position gain is K1 / theta1min: on an axis
+#: whose theta box is wide (a heavy axis with its default payload range) its rest loop ties the
+#: PID's only with a K2 cap many times the K1 cap, and ratios 1 and 2 alone left such an axis no
+#: matched start (the search then began from the unstable paper gains, and returned an ARC 10 x
+#: worse than the yardstick).  A fallback, so that an axis the first directions serve keeps the
+#: same start and pays nothing.
+MATCH_WIDE_RATIOS = (4.0, 8.0, 16.0, 32.0)
 
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
@@ -304,7 +309,10 @@ class Problem:
             return []
         found: list[tuple[float, np.ndarray]] = []
         free_obs = N_FREE in self.active
-        for f, ratio in MATCH_DIRECTIONS:
+        wide = tuple((1.0, r) for r in MATCH_WIDE_RATIOS)
+        for n_dir, (f, ratio) in enumerate((*MATCH_DIRECTIONS, *wide)):
+            if n_dir >= len(MATCH_DIRECTIONS) and found:
+                break  # the first directions gave a start: no fallback
             if f != 1.0 and not free_obs:
                 continue
             memo: dict[int, tuple[list[float], np.ndarray, ArcGains, float]] = {}
@@ -598,6 +606,6 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 __all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
            "HoldoutChoice", "MATCH_AS_MEAN", "MATCH_CROSSOVER_ROOM", "MATCH_DIRECTIONS", "MATCH_G3",
-           "MATCH_INJECTED", "MATCH_SCALES", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
+           "MATCH_INJECTED", "MATCH_SCALES", "MATCH_WIDE_RATIOS", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
            "SCREEN_EXCESS", "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
