@@ -110,3 +110,29 @@ def test_gate_excess_holds_the_arc_to_the_yardstick_where_the_yardstick_misses_a
     worse = [s(13e-6), s(11e-6)]  # worse than the PID on the first, over the limit on the second
     assert gate_excess(gate, worse, pid, margin=0.95, yardstick_reach=True) == pytest.approx(
         math.log(13 / 12) + math.log(11 / 9.5))
+
+
+def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_directions_give_none(monkeypatch):
+    """Where no direction of MATCH_DIRECTIONS gives a start (here: none to try), the wide K2/K1 cap
+    ratios of MATCH_WIDE_RATIOS do, each start keeping every linear constraint (checked again through
+    the public classes) within the crossover room; where the first directions serve (the reference
+    plant), no wide ratio is tried and the starts are theirs alone."""
+    import commission.tune.optimiser as opt
+    ident0, spec0, _ = _problem(None)
+    pid = pid_candidates(ident0, spec0, [0.1 * spec0.sample_rate])[0].margins.crossover_hz
+    ident, spec, prob = _problem(pid)
+    served = prob.matched_starts()
+    assert served and all(np.exp(z[1] - z[0]) <= 2.0 + 1e-9 for z in served)  # K2/K1 multiples of the first directions
+    monkeypatch.setattr(opt, "MATCH_DIRECTIONS", ())
+    wide = prob.matched_starts()
+    assert wide, "no wide-ratio start on the reference plant"
+    floors = MarginFloors.from_spec(spec)
+    pm, box = IdentifiedPlantArcMargins(ident, spec), BoxArcCheck(ident, spec)
+    for z in wide:
+        _, _, g = prob.gains(z)
+        assert g.k2s_max / g.k1s_max >= 4.0 * (prob.base.g2 / prob.base.g1) * (1 - 1e-9) or np.isclose(
+            z[1], prob.hi[1])  # a wide ratio, unless the K2 cap sits on its bound
+        rows = pm(g)
+        assert max(r.margins.crossover_hz for r in rows) <= MATCH_CROSSOVER_ROOM * pid
+        assert margin_violation(rows, floors) == 0.0
+        assert box_violation(box(g), floors) == 0.0

@@ -96,6 +96,15 @@ OBSERVER_FACTOR_BOUNDS = (0.6, 1.25)
 #: the base's); a factor other than 1 only when the observer pole is free.
 MATCH_DIRECTIONS = ((1.0, 1.0), (1.0, 2.0), (1.25, 1.0))
 
+#: Further K2/K1 cap ratios tried by :meth:`Problem.matched_starts` when no direction of
+#: :data:`MATCH_DIRECTIONS` gives a start.  The ARC's position gain is K1 / theta1min: on an axis
+#: whose theta box is wide (a heavy axis with its default payload range) its rest loop ties the
+#: PID's only with a K2 cap many times the K1 cap, and ratios 1 and 2 alone left such an axis no
+#: matched start (the search then began from the unstable paper gains, and returned an ARC 10 x
+#: worse than the yardstick).  A fallback, so that an axis the first directions serve keeps the
+#: same start and pays nothing.
+MATCH_WIDE_RATIOS = (4.0, 8.0, 16.0, 32.0)
+
 #: Cap scales tried by :meth:`Problem.matched_starts`, largest (fastest loop) first, relative to
 #: the base gains' caps (inside :data:`commission.tune.gains.FREE_BOUNDS`).
 MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 25))
@@ -104,8 +113,17 @@ MATCH_SCALES = tuple(float(v) for v in np.geomspace(4.0, CAP_LOW, 25))
 #: (up to the first that breaks a linear constraint).
 MATCH_G3 = (2.0, 4.0, 8.0, 16.0, 32.0)
 
-#: Matched starts injected into the first generation besides the one that becomes its mean.
-MATCH_INJECTED = 2
+#: The same along the fallback ratios (:data:`MATCH_WIDE_RATIOS`): doubling up to the search
+#: box's bound on G3 (:data:`commission.tune.gains.FREE_BOUNDS`).  On a wide box the matched
+#: caps leave the ARC's integral action far below the PID's at x32 while the linear constraints
+#: allow much more, and the ARC lost to the yardstick in Case 2 (dev axis 13: 3.1 um at x32,
+#: 1.0 um at x256, PID 0.57 um).  Not along the first directions: there it changed the start of
+#: axes that worked (dev axis 2: ARC/PID 0.67 -> 0.92 on the true plant, still working).
+MATCH_G3_WIDE = tuple(2.0 ** k for k in range(1, 14))
+
+#: Matched starts injected into the first generation besides the one that becomes its mean
+#: (with the paper's and the two extra starts, the first generation is all structured starts).
+MATCH_INJECTED = 4
 
 #: The best matched start becomes CMA-ES's mean (else the carried-over paper gains stay the mean
 #: and the matched starts are injected only).
@@ -296,7 +314,10 @@ class Problem:
             return []
         found: list[tuple[float, np.ndarray]] = []
         free_obs = N_FREE in self.active
-        for f, ratio in MATCH_DIRECTIONS:
+        wide = tuple((1.0, r) for r in MATCH_WIDE_RATIOS)
+        for n_dir, (f, ratio) in enumerate((*MATCH_DIRECTIONS, *wide)):
+            if n_dir == len(MATCH_DIRECTIONS) and found:
+                break  # the first directions gave a start: no fallback
             if f != 1.0 and not free_obs:
                 continue
             memo: dict[int, tuple[list[float], np.ndarray, ArcGains, float]] = {}
@@ -328,7 +349,8 @@ class Problem:
             for k in range(hi if at(lo)[3] > MATCH_CROSSOVER_ROOM * target else lo, len(MATCH_SCALES)):
                 x, z, g, xo = at(k)
                 if xo <= MATCH_CROSSOVER_ROOM * target and self.stability_violation(g) == 0.0:
-                    z, xo = self._integral_matched(x, f, z, xo, target)
+                    z, xo = self._integral_matched(x, f, z, xo, target,
+                                                   MATCH_G3 if n_dir < len(MATCH_DIRECTIONS) else MATCH_G3_WIDE)
                     found.append((abs(math.log(xo / target)), z))
                     break
         found.sort(key=lambda t: t[0])
@@ -339,8 +361,9 @@ class Problem:
         return out
 
     def _integral_matched(self, x: list[float], f: float, z: np.ndarray, xo: float,
-                          target: float) -> tuple[np.ndarray, float]:
-        """The fastest theta3 adaptation (the ARC's integral action) along :data:`MATCH_G3` that keeps
+                          target: float, factors: Sequence[float] = MATCH_G3) -> tuple[np.ndarray, float]:
+        """The fastest theta3 adaptation (the ARC's integral action) along ``factors`` (:data:`MATCH_G3`,
+        or :data:`MATCH_G3_WIDE` along the fallback ratios) that keeps
         every linear constraint at the matched caps ``x``: ``(search vector, crossover Hz)``.
 
         The PID's integral term holds its low-frequency loop gain far above the ARC's at the base
@@ -349,7 +372,7 @@ class Problem:
         box (its crossover lowest) loses its margins.
         """
         i_g3 = next(k for k, b in enumerate(FREE_BOUNDS) if b[0] == "G3")
-        for m in MATCH_G3:
+        for m in factors:
             y = list(x)
             y[i_g3] = x[i_g3] * m
             zz = self.z_of(y, f)
@@ -589,7 +612,7 @@ def work_scaled_budget(spec: Spec, ident: Identification, given: bool) -> tuple[
 
 
 __all__ = ["ARC_STEP_WORK", "Candidate", "FEASIBLE", "GATE_MISSED", "HOLDOUT_CANDIDATES",
-           "HoldoutChoice", "MATCH_AS_MEAN", "MATCH_CROSSOVER_ROOM", "MATCH_DIRECTIONS", "MATCH_G3",
-           "MATCH_INJECTED", "MATCH_SCALES", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
+           "HoldoutChoice", "MATCH_AS_MEAN", "MATCH_CROSSOVER_ROOM", "MATCH_DIRECTIONS", "MATCH_G3", "MATCH_G3_WIDE",
+           "MATCH_INJECTED", "MATCH_SCALES", "MATCH_WIDE_RATIOS", "MIN_BUDGET", "OBSERVER_FACTOR_BOUNDS", "POP", "Problem", "SIGMA_FRACTION",
            "SCREEN_EXCESS", "SCREEN_OFFSET", "SIGMA_MAX", "STABILITY_MISSED", "SearchResult", "WORK_CAP", "candidate_work", "search",
            "select_on_holdout", "work_scale", "work_scaled_budget"]
