@@ -302,7 +302,7 @@ def identify_log(
     val_err = _validation_error(val_logs, fit, selection, rich_chosen)
     tb = _bounds_step(fit, bounds) if has_mass else None
     comp = friction_compensation(fit)
-    # What the rigid model lacks: the measured response u -> q against M, B (identify/frf.py).
+    # What the rigid model lacks: the measured response u -> q against M, B (identify/frf/).
     freq, noise = None, None
     if has_mass:
         freq, noise, plan_path = _frequency_step(logs, inp.paths, fit, checks.quantization_step, max_modes=max_modes,
