@@ -4,7 +4,7 @@ Target: at most 5 s (median) on 2 cores for the default path (friction ladder
 present, ``friction="stribeck"``, with a ripple pitch).  Also prints the Coulomb
 fit and, for information, the whole-log Stribeck fallback (``use_steady=False``),
 the frequency response of that log (no broadband content) and of a short log
-with a broadband injection and a mode (``identify/frf.py``), and what reading an HDF5 log in the isolated child process costs against reading
+with a broadband injection and a mode (``identify/frf/``), and what reading an HDF5 log in the isolated child process costs against reading
 it in this process (the same 10^6-sample log written to a temporary .h5).
 
 Run: ``python benchmarks/bench_identify.py [--runs 3]``

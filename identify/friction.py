@@ -111,6 +111,25 @@ ColumnFn = Callable[[float, float], np.ndarray]
 JacobianFn = Callable[[float, float], tuple[np.ndarray, np.ndarray]]
 
 
+def _grid_start(cost: Callable[[np.ndarray], float], lo: np.ndarray, hi: np.ndarray, n_grid_vs: int,
+                xi_grid: tuple[float, ...], xi_bounds: tuple[float, float]) -> np.ndarray:
+    """The start of :func:`fit_separable`: the grid point ``(log vs, xi)`` of least ``cost``, in the box.
+
+    ``n_grid_vs`` values of ``log vs`` evenly over ``[lo[0], hi[0]]`` times the values of
+    ``xi_grid`` within ``xi_bounds``; the first of equal costs is kept.
+    """
+    best = (math.inf, None)
+    for lv in np.linspace(lo[0], hi[0], n_grid_vs):
+        for xi in xi_grid:
+            if not xi_bounds[0] <= xi <= xi_bounds[1]:
+                continue
+            z = np.array([lv, xi])
+            c = cost(z)
+            if c < best[0]:
+                best = (c, z)
+    return np.clip(best[1], lo, hi)
+
+
 def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, jacobian: JacobianFn, y: np.ndarray, *,
                   vs_bounds: tuple[float, float], xi_bounds: tuple[float, float] = XI_BOUNDS,
                   grid_column: ColumnFn | None = None,
@@ -173,16 +192,8 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
         theta, *_ = np.linalg.lstsq(Phi, y, rcond=None)
         return theta, y - Phi @ theta, s
 
-    best = (math.inf, None)
-    for lv in np.linspace(lo[0], hi[0], n_grid_vs):
-        for xi in xi_grid:
-            if not xi_bounds[0] <= xi <= xi_bounds[1]:
-                continue
-            z = np.array([lv, xi])
-            c = float(np.sum(projected_residual(z, grid_column or column) ** 2))
-            if c < best[0]:
-                best = (c, z)
-    z0 = np.clip(best[1], lo, hi)
+    z0 = _grid_start(lambda z: float(np.sum(projected_residual(z, grid_column or column) ** 2)), lo, hi,
+                     n_grid_vs, xi_grid, xi_bounds)
     # x is (log vs, xi): a relative step of 1e-7 is far below their standard deviations.
     opts = dict(bounds=(lo, hi), x_scale=np.array([1.0, 1.0]), xtol=1e-7, ftol=1e-10, gtol=1e-10)
     if grid_column is not None:

@@ -150,7 +150,8 @@ def fake_loader(monkeypatch):
     def load(path, **kw):
         return legs[path]
 
-    monkeypatch.setattr("commission.identification.load_log", load)
+    monkeypatch.setattr("commission.identification.legs.load_log", load)  # identify_legs
+    monkeypatch.setattr("commission.identification.files.load_log", load)  # identify_files
     return legs
 
 

@@ -170,7 +170,7 @@ def test_terms_none_keeps_the_earlier_auto_fit(truth_h5):
 def test_a_disagreeing_frequency_response_delay_is_warned():
     from types import SimpleNamespace
 
-    from commission.identification import _delay_agreement
+    from commission.identification.fitting import _delay_agreement
 
     rf = RichModel([truth_log(delay=1.0, seed=3, duration=12.0)]).fit(("delay",))
     assert abs(rf.delay_samples - 1.0) <= 0.2

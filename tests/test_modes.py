@@ -20,7 +20,8 @@ from commission.cli.main import app
 from commission.controllers.linear import structural_modes
 from commission.controllers.plant import P_MODE2_DAMPING, P_MODE2_HZ, P_MODE_DAMPING, P_MODE_HZ
 from commission.identification import identify_log
-from commission.identify.frf import BAND_GAIN_TOL, ExtraMode, _factor, departures
+from commission.identify.frf import BAND_GAIN_TOL, ExtraMode, departures
+from commission.identify.frf.model import _factor
 from commission.scenarios import identified_plant, robustness_scenarios, scenario_matrix
 from commission.spec import default_spec, spec_from_mapping
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5

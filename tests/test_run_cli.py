@@ -127,7 +127,7 @@ def test_run_tunes_the_same_inputs_as_identify_then_tune(tmp_path, monkeypatch):
     import datetime
     from types import SimpleNamespace
 
-    from commission import identification as identification_mod
+    from commission.identification import record as identification_record
     from commission import tune as tune_mod
 
     class _Frozen(datetime.datetime):
@@ -135,7 +135,7 @@ def test_run_tunes_the_same_inputs_as_identify_then_tune(tmp_path, monkeypatch):
         def now(cls, tz=None):
             return datetime.datetime(2026, 1, 1, tzinfo=datetime.timezone.utc)
 
-    monkeypatch.setattr(identification_mod, "_dt", SimpleNamespace(datetime=_Frozen, timezone=datetime.timezone))
+    monkeypatch.setattr(identification_record, "_dt", SimpleNamespace(datetime=_Frozen, timezone=datetime.timezone))
 
     seen = []
 

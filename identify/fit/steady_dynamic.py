@@ -1,0 +1,91 @@
+"""The steady+dynamic method: friction from the legs, mass from the dynamics, alternated (steps 1-3)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from commission.identify.errors import MassNotIdentifiableError
+from commission.identify.ls import FrictionModel, ripple_pitches, solve
+from commission.identify.signals import Preprocessed
+from commission.identify.steady import SteadySegments
+from commission.identify.units import unit
+from commission.identify.fit.checks import _check_mass
+from commission.identify.fit.friction_map import _map_fit, _stribeck_knee
+from commission.identify.fit.result import _friction_force, _ripple_params
+
+
+#: Alternations of the friction-map / mass steps.
+N_ALTERNATIONS = 3
+
+
+def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
+                ripple_pitch: float | tuple[float, ...] | None,
+                reversal_speed: float | None, warnings: list[str],
+                mass: float | None = None) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
+    """Friction from the legs, mass (and ripple) from the dynamics; ``mass`` given: M is known, not fitted."""
+    M = 0.0 if mass is None else mass  # the legs' mean acceleration is ~0; the first map fit needs no mass
+    pitches = ripple_pitches(ripple_pitch)
+    n_r = 2 * len(pitches)  # ripple coefficients: (sin, cos) per pitch
+    ripple_ab = np.zeros(max(n_r, 2))
+    if pitches:
+        sc = [f(2.0 * np.pi * pp.q / pitch) for pitch in pitches for f in (np.sin, np.cos)]
+        seg_sc = np.column_stack([segs.mean_over(c) for c in sc])
+        X_rip = pp.decimate(np.column_stack([pp.qdd, *sc]))
+    else:
+        seg_sc = np.zeros((len(segs), 2))
+        X_rip = pp.decimate(pp.qdd[:, None])
+    n_m = 1 if mass is None else 0  # columns of X_rip before the ripple's
+    if mass is not None:
+        X_rip = X_rip[:, 1:]
+    y_u = pp.decimate(pp.u)
+    speed = np.abs(pp.qd)
+    reach = 4 * pp.decimation + 1
+
+    def usable_rows(v_ex: float) -> np.ndarray:
+        # A row is unusable if any sample within the anti-alias filter's reach was slow.
+        low = ndimage.maximum_filter1d((speed < v_ex).astype(np.uint8), reach, mode="nearest").astype(bool)
+        rows = ~pp.decimate_mask(low)
+        n_rows = int(rows.sum())
+        if n_rows < 10 * X_rip.shape[1]:
+            raise MassNotIdentifiableError(
+                f"M: only {n_rows} decimated rows move faster than {v_ex:.3g} {unit('v')} away from reversals "
+                "(need dynamic motion at speed for the mass)")
+        return rows
+
+    # Pass 0 fits a Coulomb line (robust, never refused) to get provisional M and ripple:
+    # a requested Stribeck fit needs the ripple removed from the slow legs first, which
+    # sit on a short stretch of travel where the ripple does not average out.
+    # Passes 1..N fit the requested model.
+    for it in range(N_ALTERNATIONS + 1):
+        F = segs.command - M * segs.acceleration - seg_sc @ ripple_ab
+        model: FrictionModel = "coulomb" if it == 0 else friction
+        # Keep the warnings of the last pass only: the earlier ones saw a provisional M.
+        fr = _map_fit(segs.velocity, F, model, warnings if it == N_ALTERNATIONS else [])
+        p = {k: v[0] for k, v in fr.items()}
+        if it <= 1:
+            v_ex = reversal_speed
+            if v_ex is None:
+                if "vs" in p:
+                    v_ex = 3.0 * p["vs"]
+                else:
+                    knee = _stribeck_knee(segs.velocity, F)
+                    v_ex = knee if knee is not None else 0.05 * float(np.max(np.abs(segs.velocity)))
+            rows = usable_rows(v_ex)
+            reversal = float(v_ex)
+        y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
+        if X_rip.shape[1] == 0:  # known mass, no ripple: nothing to regress
+            continue
+        res = solve(X_rip[rows], y[rows])
+        if mass is None:
+            M = float(res.theta[0])
+            _check_mass(M, float(res.std[0]), res.condition_number)
+        if pitches:
+            ripple_ab = np.asarray(res.theta[n_m:n_m + n_r])
+    params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0])) if mass is None else (mass, 0.0)}
+    params.update(fr)
+    for k in range(len(pitches)):
+        i = n_m + 2 * k
+        params.update(_ripple_params(ripple_ab[2 * k], ripple_ab[2 * k + 1], np.asarray(res.cov)[i:i + 2, i:i + 2], k))
+    # The map points as the final friction fit saw them.
+    return params, np.column_stack([segs.velocity, F]), reversal

@@ -1,0 +1,139 @@
+"""The measured response: broadband segments, the H1 estimate with coherence, the band the data back.
+
+Steps 1-3 of the method (:mod:`commission.identify.frf`): where the command carries a broadband
+injection (:func:`broadband_segments`), the Welch estimate ``H1 = P_uq / P_uu`` over those
+ranges (:func:`estimate`), and the band in which the measured response agrees with the rigid
+model (:func:`backed_band`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, BAND_PHASE_TOL_DEG, BLOCK_S,
+                                              BROADBAND_FACTOR, BROADBAND_FRACTION, FIT_COHERENCE, MIN_SEGMENT_S)
+
+
+def _weighted_rms(H: np.ndarray, Hm: np.ndarray | None, coh: np.ndarray) -> float | None:
+    if Hm is None:
+        return None
+    w = np.where(coh >= FIT_COHERENCE, coh, 0.0)
+    if not np.any(w > 0):
+        return None
+    e = np.abs(np.log(H / Hm))
+    return float(np.sqrt(np.sum(w * e**2) / np.sum(w)))
+
+
+def broadband_segments(u: np.ndarray, fs: float) -> list[tuple[int, int]]:
+    """Sample ranges ``[i0, i1)`` of the log where the command carries a broadband injection.
+
+    Parameters
+    ----------
+    u : ndarray
+        Command, u-unit.
+    fs : float
+        Sample rate, Hz.
+    """
+    nb = max(int(round(BLOCK_S * fs)), 8)
+    n_blocks = u.size // nb
+    if n_blocks < 3 or u.size < 64:
+        return []
+    sos = signal.butter(4, fs / 10.0, "highpass", fs=fs, output="sos")
+    u_hp = signal.sosfiltfilt(sos, u)
+    blocks_hp = u_hp[: n_blocks * nb].reshape(n_blocks, nb)
+    blocks = u[: n_blocks * nb].reshape(n_blocks, nb)
+    rms = np.sqrt(np.mean(blocks_hp**2, axis=1))
+    var = np.var(signal.detrend(blocks, axis=1), axis=1)
+    moving = rms > 0
+    if not np.any(moving):
+        return []
+    background = float(np.median(rms[moving]))
+    flag = (rms >= BROADBAND_FACTOR * background) & (rms**2 >= BROADBAND_FRACTION * np.maximum(var, 1e-300))
+    segs = []
+    i = 0
+    min_blocks = int(math.ceil(MIN_SEGMENT_S / BLOCK_S))
+    while i < n_blocks:
+        if not flag[i]:
+            i += 1
+            continue
+        j = i
+        while j < n_blocks and flag[j]:
+            j += 1
+        if j - i >= min_blocks:
+            # Leave out the edge blocks: the injection may start or stop inside them.
+            a, b = i + 1, j - 1
+            if b - a >= max(min_blocks - 2, 1):
+                segs.append((a * nb, b * nb))
+        i = j
+    return segs
+
+
+def estimate(q: np.ndarray, u: np.ndarray, fs: float, ranges: list[tuple[int, int]],
+             nperseg: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Welch H1 estimate of u -> q averaged over the sample ranges.
+
+    Returns
+    -------
+    f : ndarray
+        Hz, without DC and Nyquist.
+    H : ndarray, complex
+        m per u-unit.
+    coherence : ndarray
+    n_averages : int
+    """
+    step = nperseg - nperseg // 2
+    Puu = Pqq = 0.0
+    Puq: Any = 0.0
+    n_avg = 0
+    f = None
+    for i0, i1 in ranges:
+        L = i1 - i0
+        if L < nperseg:
+            continue
+        k = 1 + (L - nperseg) // step
+        kw = dict(fs=fs, window="hann", nperseg=nperseg, noverlap=nperseg // 2, detrend="linear")
+        f, puu = signal.welch(u[i0:i1], **kw)
+        _, pqq = signal.welch(q[i0:i1], **kw)
+        _, puq = signal.csd(u[i0:i1], q[i0:i1], **kw)
+        Puu = Puu + k * puu
+        Pqq = Pqq + k * pqq
+        Puq = Puq + k * puq
+        n_avg += k
+    if f is None:
+        raise ValueError("estimate: no range holds one window")
+    keep = (f > 0) & (f < fs / 2.0)
+    Puu, Pqq, Puq = np.asarray(Puu)[keep], np.asarray(Pqq)[keep], np.asarray(Puq)[keep]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = Puq / Puu
+        coh = np.abs(Puq) ** 2 / (Puu * Pqq)
+    coh = np.nan_to_num(np.clip(coh, 0.0, 1.0))
+    H = np.where(np.isfinite(H), H, 0.0)
+    return f[keep], H, coh, n_avg
+
+
+def backed_band(f: np.ndarray, R: np.ndarray, coh: np.ndarray) -> tuple[float, float] | None:
+    """Band in which the coherent data agree with the rigid model (module docstring, step 3), Hz."""
+    coherent = np.flatnonzero(coh >= BAND_COHERENCE)
+    if coherent.size == 0:
+        return None
+    ok = ((np.abs(np.log(np.abs(R) + 1e-300)) <= math.log(BAND_GAIN_TOL))
+          & (np.abs(np.degrees(np.angle(R))) <= BAND_PHASE_TOL_DEG))
+    agree = [i for i in coherent if ok[i]]
+    if not agree:
+        return None
+    low = agree[0]
+    high = low
+    misses = 0
+    for i in coherent[coherent >= low]:
+        if ok[i]:
+            high = i
+            misses = 0
+        else:
+            misses += 1
+            if misses >= 2:
+                break
+    return round(float(f[low]), 6), round(float(f[high]), 6)  # Hz; drops the round-off of 1 / median(dt)
