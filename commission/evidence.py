@@ -75,7 +75,8 @@ from commission.controllers.plant import P_B, P_M
 from commission.identify.frf import BAND_COHERENCE
 from commission.spec import Spec
 
-#: The lowest unseen mode is taken at this factor times the top of the band the log backs.
+#: The lowest unseen mode is taken at this factor times the top of the band the log backs, where
+#: the log's coherent data end with the band (nothing measured above it).
 EVIDENCE_FACTOR = 10.0
 #: Least damping of the unseen mode (dimensionless).
 ZETA_W = 0.05
@@ -124,6 +125,13 @@ class Evidence:
     damping : float
         The least damping of that mode.
     measured : MeasuredResponse or None
+    coherent_up_to_hz : float
+        Highest coherent bin of the log's response, Hz (nan: not recorded).  Above the band's top
+        it means the log's own data contradict the model there (:func:`departs_above_band`).
+    factor_basis : str
+        Why :attr:`factor` is what it is: ``"default"`` (:data:`EVIDENCE_FACTOR`),
+        ``"departure"`` (the data depart from the model at the band's top,
+        :func:`departure_factor`) or ``"spec"`` (``[evidence] first_mode_hz``).
     """
 
     source: str
@@ -131,6 +139,8 @@ class Evidence:
     factor: float = EVIDENCE_FACTOR
     damping: float = ZETA_W
     measured: MeasuredResponse | None = None
+    coherent_up_to_hz: float = math.nan
+    factor_basis: str = "default"
 
     @property
     def applies(self) -> bool:
@@ -176,8 +186,37 @@ class Evidence:
                            "form": "|W| = x^2 / sqrt((1 - x^2)^2 + (2 damping x)^2), x = f / mode_hz, "
                                    "up to its peak w_inf, then w_inf"},
                 "measured_bins": int(self.measured.f_hz.size) if self.measured is not None else 0,
+                "coherent_up_to_hz": self.coherent_up_to_hz if math.isfinite(self.coherent_up_to_hz) else None,
+                "factor_basis": self.factor_basis,
                 "units": {"band_hz": "Hz", "mode_hz": "Hz", "unity_hz": "Hz", "factor": "1", "damping": "1",
-                          "w_inf": "1"}}
+                          "w_inf": "1", "coherent_up_to_hz": "Hz"}}
+
+
+def departure_factor(damping: float) -> float:
+    """``sqrt(2 - 4 zeta^2)``: the factor that puts ``|W| = 1`` at the band's top (about 1.41).
+
+    Used where the log's coherent data go on above the backed band and disagree with the model
+    there (:func:`departs_above_band`): the log itself shows the model failing at the top, so the
+    unseen dynamics are taken to start there -- the relative error reaches 100 % where the data
+    first contradict the model -- and not a decade above it.
+    """
+    return math.sqrt(2.0 - 4.0 * damping * damping)
+
+
+def departs_above_band(band_hz: tuple[float, float] | None, coherent_up_to_hz: float,
+                       resolution_hz: float | None) -> bool:
+    """The log's coherent data reach above the backed band's top (by more than one bin and a half).
+
+    :func:`commission.identify.frf.backed_band` ends the band at the first two consecutive
+    coherent bins that disagree with the model, so coherent bins above the top are bins where the
+    data contradict it (a mode the model lacks, or the closed loop's own bias where the encoder
+    noise's feedback dominates the command): either way the log does not back the model there, and
+    gives no reason to believe the plant's first unseen mode lies a decade higher.
+    """
+    if band_hz is None or not math.isfinite(coherent_up_to_hz):
+        return False
+    step = resolution_hz if resolution_hz is not None and resolution_hz > 0 else 0.01 * band_hz[1]
+    return bool(coherent_up_to_hz > band_hz[1] + 1.5 * step)
 
 
 def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
@@ -198,12 +237,18 @@ def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
         ph = np.radians(np.asarray(meas["phase_deg"], dtype=float))
         measured = MeasuredResponse(np.asarray(meas["frequency_hz"], dtype=float), mag * np.exp(1j * ph),
                                     np.asarray(meas["coherence"], dtype=float), max(int(fr.get("n_averages") or 1), 1))
-    factor, damping = EVIDENCE_FACTOR, ZETA_W
-    if spec is not None:
-        damping = spec.evidence_damping
-        if spec.evidence_first_mode_hz is not None and band_t is not None:
-            factor = spec.evidence_first_mode_hz / band_t[1]
-    return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, damping=damping, measured=measured)
+    coh = fr.get("coherent_up_to_hz")
+    coh_hz = float(coh) if isinstance(coh, (int, float)) and math.isfinite(coh) else math.nan
+    res = fr.get("resolution_hz")
+    res_hz = float(res) if isinstance(res, (int, float)) and math.isfinite(res) else None
+    damping = spec.evidence_damping if spec is not None else ZETA_W
+    factor, basis = EVIDENCE_FACTOR, "default"
+    if spec is not None and spec.evidence_first_mode_hz is not None and band_t is not None:
+        factor, basis = spec.evidence_first_mode_hz / band_t[1], "spec"
+    elif departs_above_band(band_t, coh_hz, res_hz):
+        factor, basis = departure_factor(damping), "departure"
+    return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, damping=damping, measured=measured,
+                    coherent_up_to_hz=coh_hz, factor_basis=basis)
 
 
 @dataclass(frozen=True)
@@ -408,8 +453,11 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
     what = ("a broadband segment: the measured response backs the fitted model (mode and delay)"
             if evidence.source == "broadband" else
             "no broadband segment: the reference's own content backs the rigid model")
+    why = {"departure": f"at the band's top: the log's coherent data, up to {evidence.coherent_up_to_hz:.4g} Hz, "
+                        f"depart from the model there; ",
+           "spec": "as spec [evidence] first_mode_hz states; "}.get(evidence.factor_basis, "")
     out = [f"evidence: {what} from {lo:.3g} to {hi:.3g} Hz; above {hi:.3g} Hz the plant is unknown, "
-           f"bounded as an unseen non-collocated mode at {evidence.mode_hz:.4g} Hz or above ({evidence.factor:.3g} x "
+           f"bounded as an unseen non-collocated mode at {evidence.mode_hz:.4g} Hz or above ({why}{evidence.factor:.3g} x "
            f"the band's top; spec [evidence] first_mode_hz) damped {evidence.damping:g} or more ([evidence] "
            f"damping): |W| = 1 at {evidence.unity_hz:.4g} Hz, {evidence.w_inf:.3g} from {evidence.mode_hz:.4g} Hz on"]
     for r in rows:
@@ -497,6 +545,6 @@ def raise_evidence_line(evidence: Evidence, spec: Spec, ident: Identification) -
             "then `commission run` on that log")
 
 
-__all__ = ["EVIDENCE_FACTOR", "ZETA_W", "Evidence", "EvidenceBound", "MeasuredResponse", "RobustStability", "SEARCH_ROOM",
+__all__ = ["departs_above_band", "departure_factor", "EVIDENCE_FACTOR", "ZETA_W", "Evidence", "EvidenceBound", "MeasuredResponse", "RobustStability", "SEARCH_ROOM",
            "W_INF", "evidence_checks", "evidence_lines", "evidence_of", "evidence_table", "excite_command", "limits_toml",
            "raise_evidence_line", "measured_margins", "weighted_peak", "evidence_limited_line", "ERROR_CRITERIA"]

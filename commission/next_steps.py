@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 #: Criteria a gate.toml sets, with how their suggested limit is written.
-ADJUSTABLE = ("e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90")
+ADJUSTABLE = ("e_F", "e_M", "e_rms", "c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90",
+              "arc_vs_pid_nominal")
 #: Allowance over the worst measured value for a suggested limit.
 ALLOWANCE = 1.05
 #: Fraction of the validated envelope's speed and acceleration for the first test on the machine.

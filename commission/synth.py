@@ -539,7 +539,24 @@ def record_random_axis_log(seed: int, path: str | os.PathLike[str], *, log: str 
     """
     if log not in LOG_KINDS:
         raise UsageError(f"log: {log!r} is not one of {', '.join(LOG_KINDS)}")
-    truth = random_axis(np.random.default_rng(seed))
+    return record_axis_log(random_axis(np.random.default_rng(seed)), path, seed=seed, log=log)
+
+
+def record_axis_log(truth: AxisTruth, path: str | os.PathLike[str], *, seed: int = 0,
+                    log: str = "excite") -> RandomAxisLog:
+    """Write the log of a given ``truth`` (HDF5) exactly as :func:`record_random_axis_log` records axis ``seed``.
+
+    The same recipe (limits from ``default_rng(seed + 2000)``, the plan played with
+    ``default_rng(seed + 1000)``, the shortened plan above :data:`EXCITE_MAX_SAMPLES`, the legacy
+    fallback), for a named development axis built by hand rather than drawn.
+
+    Raises
+    ------
+    UsageError
+        ``log`` is not one of :data:`LOG_KINDS`.
+    """
+    if log not in LOG_KINDS:
+        raise UsageError(f"log: {log!r} is not one of {', '.join(LOG_KINDS)}")
     note = ""
     if log == "excite":
         from commission.errors import SpecError

@@ -655,7 +655,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                           drive_u_max=u_sat, margins=margins, margin_floors=margin_floors)
     with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
         gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors,
-                              performance=performance_set(runs, tuning.identification))
+                              performance=performance_set(runs, tuning.identification), compare_nominal=True)
     # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
     box = BoxArcCheck(tuning.identification, spec)(arc)
     evidence, evidence_rows = evidence_table(arc, tuning.pid, tuning.identification, spec)

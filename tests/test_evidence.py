@@ -204,3 +204,39 @@ def test_a_refusal_on_error_limits_within_a_rigid_logs_band_is_for_want_of_evide
     for ev, verdict in ((broadband, _verdict_with(e_rms)), (Evidence(source="none", band_hz=None), _verdict_with(e_rms)),
                         (rigid, _verdict_with(c_u))):
         assert evidence_limited_line(SimpleNamespace(evidence=ev, verdict=verdict)) is None
+
+
+def test_where_the_logs_coherent_data_depart_from_the_model_the_unknown_starts_at_the_bands_top():
+    # Axis 26 of the issue-30 sweep (20 kHz, encoder noise ~1 count: no broadband segment found): the
+    # whole-log response is coherent up to 710 Hz, but backs the rigid model only to 380 Hz.
+    departing = {"source": "whole_log", "band_hz": [14.0, 380.0], "evidence_band_hz": [14.0, 380.0],
+                 "coherent_up_to_hz": 710.0, "resolution_hz": 2.0}
+    ev = evidence_of(_ident(departing), SPEC)
+    assert ev.factor_basis == "departure"
+    assert ev.factor == pytest.approx(math.sqrt(2.0 - 4.0 * ZETA_W ** 2))
+    # |W| reaches 1 where the data first contradict the model, W_inf just above
+    assert ev.unity_hz == pytest.approx(380.0)
+    assert ev.weight(np.array([380.0]))[0] == pytest.approx(1.0, rel=1e-9)
+    d = ev.to_dict()
+    assert d["factor_basis"] == "departure" and d["coherent_up_to_hz"] == 710.0
+    # coherence that ends with the band (nothing measured above it) keeps the default decade
+    ending = {**departing, "coherent_up_to_hz": 381.0}
+    ev = evidence_of(_ident(ending), SPEC)
+    assert ev.factor_basis == "default" and ev.mode_hz == pytest.approx(EVIDENCE_FACTOR * 380.0)
+    # the user's statement of the machine wins
+    stated = spec_from_mapping({"evidence": {"first_mode_hz": 5000.0}})
+    ev = evidence_of(_ident(departing), stated)
+    assert ev.factor_basis == "spec" and ev.mode_hz == pytest.approx(5000.0)
+    # an older ident.json without coherent_up_to_hz: the default
+    assert evidence_of(_ident(WHOLE_LOG), SPEC).factor_basis == "default"
+
+
+def test_a_departure_bound_refuses_the_loop_a_decade_would_have_let_through():
+    # the sample's rigid band, departing: the PID of the paper's family that holds the default
+    # decade (POLE) breaks the bound once the unknown starts at the band's top, 22 Hz
+    Kp, Ki, Kd = pid_place_poles(0.02, -POLE)
+    K = linearize_pid(pid_pack(dataclasses.replace(paper_pid_gains(), Kp=Kp, Ki=Ki, Kd=Kd)))
+    assert EvidenceBound(_ident(WHOLE_LOG), SPEC).row(K, "pid", "").holds
+    departing = EvidenceBound(_ident({**WHOLE_LOG, "coherent_up_to_hz": 400.0, "resolution_hz": 2.0}), SPEC)
+    assert departing.evidence.factor_basis == "departure"
+    assert not departing.row(K, "pid", "").holds

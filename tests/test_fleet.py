@@ -114,7 +114,8 @@ def _write_fleet(folder: Path) -> None:
     # the rigid log cannot show it) and a gate that lets the short search's command activity pass and does
     # not hold its gains to the PID yardstick: this test is about the fleet, not the search
     (folder / "fleet.toml").write_text("[tune]\nbudget = 8\n[evidence]\nfirst_mode_hz = 50000.0\n")
-    (folder / "gate.toml").write_text("[gate]\nc_u = 1.5\narc_vs_pid_median = 100.0\narc_vs_pid_p90 = 100.0\n")
+    (folder / "gate.toml").write_text("[gate]\nc_u = 1.5\narc_vs_pid_median = 100.0\narc_vs_pid_p90 = 100.0\n"
+                                       "arc_vs_pid_nominal = 100.0\n")
     text = "\n".join(lines) + "\n"
     (folder / "fleet.csv").write_text(text.replace("name,log", "name,log,spec,gate").replace(
         ".h5\n", ".h5,fleet.toml,gate.toml\n"))

@@ -32,7 +32,8 @@ SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"
 runner = CliRunner()
 #: A gate every sound or broken controller passes on its own criteria, so that only the floors decide.
 LOOSE_GATE = ('[gate]\ne_F = "1 m"\ne_M = "1 m"\ne_rms = "1 m"\nc_u = 1000.0\nu_max = 1e9\n'
-              'no_divergence = false\narc_vs_pid_e_rms = 1e6\narc_vs_pid_median = 1e6\narc_vs_pid_p90 = 1e6\n')
+              'no_divergence = false\narc_vs_pid_e_rms = 1e6\narc_vs_pid_median = 1e6\narc_vs_pid_p90 = 1e6\n'
+              'arc_vs_pid_nominal = 1e6\n')
 
 
 #: tuning.json of ``tune`` on the paper's axis with ``tune.budget = 8`` (tuning takes tens of seconds).

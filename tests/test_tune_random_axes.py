@@ -78,7 +78,7 @@ def validated(request, tmp_path_factory):
 #: Criteria of performance (what the gate asks beyond stability): a light axis on a coarse
 #: encoder may miss them -- both controllers then track within an encoder step and chatter --
 #: and is then refused, never emitted unstable.
-PERFORMANCE = {"c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90", "e_rms", "e_M", "e_F", "u_peak",
+PERFORMANCE = {"c_u", "arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal", "e_rms", "e_M", "e_F", "u_peak",
                "floor:u_peak"}
 
 #: Since issue 30 the ARC is judged against the PID yardstick (the fastest PID of (57) that keeps the margin

@@ -115,13 +115,13 @@ def test_lsb_limit_needs_an_encoder_resolution():
 
 def test_a_good_run_passes_every_criterion():
     lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0)
-    v = evaluate_gate(lim, [("case1/nominal", score(), score(e_rms=3e-6), NAN)])
+    v = evaluate_gate(lim, [("case1/nominal", score(), score(e_rms=3e-6), NAN)], compare_nominal=True)
     assert v.passed and not v.failures
     # every criterion of a scenario run; the margins are checked per loop (margin_checks), not per run;
     # by default the ARC-vs-PID comparison is judged by quantiles per group, scenario by scenario on request
     assert [c.criterion for c in v.checks] == [c for c in CRITERIA if c not in ("margins", "margins_box", "arc_vs_pid_e_rms")]
     every = resolve_gate(GateSpec(arc_vs_pid_e_rms=1.0), lsb=1e-6, travel=0.4, u_max=10.0)
-    v = evaluate_gate(every, [("case1/nominal", score(), score(e_rms=3e-6), NAN)])
+    v = evaluate_gate(every, [("case1/nominal", score(), score(e_rms=3e-6), NAN)], compare_nominal=True)
     assert [c.criterion for c in v.checks] == [c for c in CRITERIA if c not in ("margins", "margins_box")]
 
 
