@@ -129,7 +129,7 @@ def test_a_defaulted_payload_the_start_gains_cannot_hold_is_narrowed_and_recorde
 
 
 def test_validate_recognises_tunes_payload_narrowing_and_nothing_else():
-    from commission.validate import _undo_payload_narrowing
+    from commission.validate.provenance import _undo_payload_narrowing
     ident = axis(30 * M, defaulted=True)
     out, _ = narrow_default_payload(ident, SPEC)
     doc = json.loads(json.dumps(out.to_dict()))
@@ -219,7 +219,7 @@ def test_a_defaulted_payload_the_drive_cannot_move_is_narrowed_to_what_it_can_no
     from commission.robustness import narrowed_ident
     from commission.tune.box import fit_payload_to_drive
     from commission.tune.defaults import default_envelope
-    from commission.validate import _undo_payload_narrowing
+    from commission.validate.provenance import _undo_payload_narrowing
 
     spec = spec_from_mapping({"controller": {"u_max": 2.5}})
     ident = axis(30 * M, defaulted=True)

@@ -109,7 +109,7 @@ def test_a_defaulted_load_bound_the_drive_cannot_hold_is_narrowed_to_the_load_st
     # recorded as tune's theta3 narrowing: validate's provenance check undoes it exactly
     from types import SimpleNamespace
 
-    from commission.validate import _identification_as_identified
+    from commission.validate.provenance import _identification_as_identified
     assert _identification_as_identified(SimpleNamespace(identification=out)) == json.loads(json.dumps(ident.to_dict()))
 
 

@@ -95,7 +95,7 @@ def test_unwritable_outputs_are_refused_before_any_computation(tuned, ident_json
     import commission.cli.identify_cmd as identify_cmd
     import commission.pipeline as pipeline
     import commission.tune as tune_mod
-    import commission.validate as validate_mod
+    import commission.validate.outputs as validate_mod
 
     def boom(*a, **k):
         raise AssertionError("computation started before the output path was checked")
@@ -374,7 +374,7 @@ def test_a_signal_at_any_moment_leaves_nothing_or_a_complete_set(tuned, tmp_path
 def test_a_full_disk_under_validate_is_one_line_and_leaves_everything_as_it_was(tuned, tmp_path, monkeypatch):
     import errno
 
-    import commission.validate as validate
+    import commission.validate.outputs as validate
 
     out = tmp_path / "v"
     out.mkdir()
