@@ -36,7 +36,7 @@ def test_no_delay_asymmetry_or_position_on_a_symmetric_delay_free_axis(seed):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
 def test_no_delay_asymmetry_or_position_on_synth_random_axes(seed, tmp_path):
-    # commission/synth.py's rigid axes: symmetric Stribeck friction, ripple, no delay (development seeds;
+    # commission/synth/'s rigid axes: symmetric Stribeck friction, ripple, no delay (development seeds;
     # the widened generator of issue 30 draws delays, so its axes are not a no-delay truth).
     from commission.logs import load_log
     from commission.synth import write_random_axis_log

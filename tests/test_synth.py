@@ -15,7 +15,6 @@ from commission.errors import DataError, UsageError
 from commission.jsonio import sha256_file
 from commission.synth import (
     AxisTruth,
-    _closed_loop,
     ExcitationPlan,
     RANDOM_RATES,
     excitation_plan,
@@ -26,6 +25,7 @@ from commission.synth import (
     write_log_csv,
     write_log_h5,
 )
+from commission.synth.simulation import _closed_loop
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "sample_data"
 
@@ -579,14 +579,15 @@ def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_l
 
 def test_a_refused_excite_plan_falls_back_to_the_legacy_log_and_says_so(tmp_path, monkeypatch):
     import commission.synth as synth
+    import commission.synth.record as record
 
-    real = synth.random_axis_limits
+    real = record.random_axis_limits
 
     def too_short(truth, rng):
         d = real(truth, rng)
         return {**d, "limits": {**d["limits"], "travel": 0.0005}}
 
-    monkeypatch.setattr(synth, "random_axis_limits", too_short)
+    monkeypatch.setattr(record, "random_axis_limits", too_short)
     rec = synth.record_random_axis_log(27, tmp_path / "a.h5")
     assert rec.log == "legacy" and rec.requested == "excite" and rec.limits is None
     assert rec.note.startswith("excite refused, legacy log written: ") and "limits.travel" in rec.note

@@ -26,7 +26,7 @@ The plan is played, before anything is written, through the holding loop of
 ``mass`` divided and multiplied by ``plan.mass_range``; without a mass, the heaviest
 axis that still reaches ``a_max`` with ``u_max`` and that divided by ``5 mass_range``),
 friction and viscous damping from ``[axis]`` when given, no quantization.  The loop is
-the one of the synthetic logs (:func:`commission.synth._closed_loop`, a PID with the
+the one of the synthetic logs (:func:`commission.synth.simulation._closed_loop`, a PID with the
 derivative on the backward-difference velocity).  The command is not clipped in the
 pre-simulation, so that its peak is seen.  Peak ``|u|``, the position range, peak
 ``|v|`` (backward difference) and peak ``|a|`` (second difference) are checked against

@@ -14,7 +14,7 @@ from commission.excite.plan import Plan, design_plan, loop_gains_for, mass_brack
 
 
 def _model_truth(spec: ExciteSpec, M: float, *, lsb: float = 1e-12, u_max: float | None = None):
-    from commission.synth import AxisTruth
+    from commission.synth.truth import AxisTruth
 
     fc = spec.friction or 0.0
     return AxisTruth(M=M, B=spec.viscous or 0.0, fc=fc, fs=fc, vs=0.01, xi=2.0, lsb=lsb,
@@ -31,7 +31,7 @@ def play(plan: Plan, truth: Any, gains: tuple[float, float, float], rng: np.rand
         ``t`` (s), ``q`` (q, the encoder's reading), ``u`` (u: the whole command, clipped at
         ``truth.u_max``), ``q_ref`` (q): a CONTRACT §1 log.
     """
-    from commission.synth import _closed_loop
+    from commission.synth.simulation import _closed_loop
 
     n = plan.t.size
     noise = rng.normal(0.0, truth.noise_std, n) if (rng is not None and truth.noise_std > 0) else np.zeros(n)
