@@ -9,7 +9,7 @@ import json
 import re
 from pathlib import Path
 
-from commission.formats import gate_toml, ident_json, limits_toml, spec_toml, tuning_json
+from commission.formats import controller_json, gate_toml, ident_json, limits_toml, spec_toml, tuning_json
 from commission.formats.json_table import markdown_rows
 from commission.formats.table import json_schema, markdown_table
 
@@ -27,6 +27,8 @@ def schemas() -> dict[str, dict]:
                                               limits_toml.SCHEMA_VERSION),
             "ident.schema.json": json_schema(ident_json.IdentJson, "commission/ident.schema.json",
                                              ident_json.IDENT_SCHEMA_VERSION),
+            "controller.schema.json": json_schema(controller_json.ControllerJson, "commission/controller.schema.json",
+                                                  controller_json.CONTROLLER_SCHEMA_VERSION),
             "tuning.schema.json": json_schema(tuning_json.TuningJson, "commission/tuning.schema.json",
                                               tuning_json.TUNING_SCHEMA_VERSION)}
 
@@ -42,7 +44,8 @@ def tables() -> dict[str, str]:
             "gate.toml keys": markdown_table(gate_toml.GATE_KEYS),
             "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS),
             "ident.json fields": markdown_rows(ident_json.IDENT_FIELDS),
-            "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS)}
+            "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS),
+            "controller.json fields": markdown_rows(controller_json.CONTROLLER_FIELDS)}
 
 
 def fill_markdown(text: str, generated: dict[str, str]) -> str:
