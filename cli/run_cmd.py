@@ -9,6 +9,7 @@ from typing import List, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from commission.report import refusal_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
@@ -17,12 +18,18 @@ from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import SIGN_KEY_HELP, print_next_steps, print_summary
 from commission.controller_config import load_sign_key
+from commission.formats.gate_toml import gate_help
 from commission.tune import pid_pole_note
 from commission.pipeline import run_all
 from commission.validate import DEFAULT_MONTE_CARLO
 
 
-@app.command("run")
+RUN_HELP = f"""Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1.
+
+{escape(gate_help())}"""
+
+
+@app.command("run", help=RUN_HELP)
 @cli_errors
 def run_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
@@ -30,7 +37,7 @@ def run_command(
         "Several files, or a folder: logs of one axis fitted together, each file its own segment.")),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for ident.json, tuning.json, report.md, figures, controller.json."),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Tuning spec TOML (default: the paper's setting)."),
-    gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the documented defaults)."),
+    gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the table's defaults, below)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
     seed: int = typer.Option(0, "--seed", help="Seed of the tuning search and of the Monte-Carlo plants."),
     monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box."),
@@ -64,7 +71,7 @@ def run_command(
         "response is measured on the plan's injection windows (default: a plan.json beside the LOG, if it is "
         "the LOG's plan).")),
 ) -> None:
-    """Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1."""
+    """Identify, tune and validate (the command's help is :data:`RUN_HELP`)."""
     from commission.cli.plots import identification_plots
     from commission.cli.plots_validate import validation_plots
 

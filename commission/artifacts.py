@@ -4,8 +4,7 @@ The JSON keys of CONTRACT §2 are a stable external interface: fields may be
 added, never renamed or removed.  Saved with sorted keys via
 :func:`commission.jsonio.write_json_atomic`; loaded strictly through
 the model of its one table, :mod:`commission.formats.ident_json`, naming the JSON path of a bad
-field.  :func:`read_units` and :func:`read_sha256` remain for controller.json, whose reader is
-not yet on a table.
+field.
 """
 
 from __future__ import annotations
@@ -19,47 +18,11 @@ from commission.errors import SchemaError
 from commission.formats.ident_json import (IDENT_FIELDS, IDENT_KIND, IDENT_SCHEMA_VERSION, PARAMETER_NAMES,
                                            REQUIRED_PARAMETERS, UNIT_VOCABULARY_Q, UNIT_VOCABULARY_U, IdentJson)
 from commission.formats.json_table import check_header, json_error, sub_model
-from commission.jsonio import Reader, read_json
+from commission.jsonio import read_json
 from commission.units import mass_wording  # noqa: F401  (the wording lives in commission.units)
 
 __all__ = ["IDENT_KIND", "IDENT_SCHEMA_VERSION", "PARAMETER_NAMES", "UNIT_VOCABULARY_Q", "UNIT_VOCABULARY_U",
-           "Estimate", "Identification", "StructuralModel", "ThetaBox", "read_sha256", "read_units"]
-
-
-def read_units(r: Reader) -> dict[str, str]:
-    """``$.units`` of an artifact root, each unit checked against its fixed vocabulary.
-
-    Shared by ident.json, tuning.json (its embedded identification) and controller.json, so
-    that a unit the tool could not have written is refused wherever it is planted, with its
-    JSON path, before it can reach a report or generated code.
-
-    Raises
-    ------
-    SchemaError
-        ``ident.json: $.units.u: expected one of [...], got 'parsec'``, or an unknown key.
-    """
-    ur = r.obj("units")
-    for k in ur.keys():
-        if k not in ("u", "q"):
-            raise ur.fail("unknown field", f"{ur.path}.{k}")
-    return {"u": ur.str_("u", choices=UNIT_VOCABULARY_U),  # type: ignore[dict-item]
-            "q": ur.str_("q", choices=UNIT_VOCABULARY_Q)}
-
-
-def read_sha256(r: Reader, key: str, *, optional: bool = False) -> str | None:
-    """A sha256 field: 64 lowercase hex digits (what :mod:`hashlib` writes), or None when optional and absent.
-
-    A digest is whitelisted by its form because it is copied into provenance records and
-    generated files; free text there would be a channel for anything.
-    """
-    v = r.str_(key, optional=optional)
-    if v is not None and not _is_sha256(v):
-        raise r.fail(f"expected a sha256 (64 lowercase hex digits), got {v[:80]!r}", f"{r.path}.{key}")
-    return v
-
-
-def _is_sha256(v: object) -> bool:
-    return isinstance(v, str) and len(v) == 64 and all(c in "0123456789abcdef" for c in v)
+           "Estimate", "Identification", "StructuralModel", "ThetaBox"]
 
 
 @dataclass(frozen=True)

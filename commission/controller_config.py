@@ -73,15 +73,16 @@ import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from commission.artifacts import read_sha256, read_units
-from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
-from commission.errors import SchemaError, UsageError
-from commission.jsonio import Reader, canonical_json, read_json, sha256_json
-from commission.spec import RANGES
+from pydantic import ValidationError
 
-CONTROLLER_KIND = "controller"
-CONTROLLER_SCHEMA_VERSION = 1
-CONTROLLER_TYPE = "arc-output-feedback"
+from commission.controllers.arc import ArcGains
+from commission.errors import SchemaError, UsageError
+from commission.formats.controller_json import (CONTROLLER_FIELDS, CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION,
+                                                CONTROLLER_TYPE, FRICTION, INF_OK, LIMITS, RUNTIME_ADDED,
+                                                RUNTIME_FIELDS, SECTIONS, VECTORS, ControllerJson)
+from commission.formats.json_table import check_header, json_error
+from commission.jsonio import canonical_json, read_json, sha256_json
+from commission.spec import RANGES
 
 #: The law a controller.json parameterises, stated for the engineer who deploys it: the paper
 #: and its equations by number, the filter structure, and where the implementation departs
@@ -111,25 +112,9 @@ SIGN_KEY_ENV = "COMMISSION_SIGN_KEY"
 #: Shortest accepted key, bytes (HMAC-SHA256 keys should carry at least 128 bits).
 MIN_KEY_BYTES = 16
 
-#: ArcGains fields by section of controller.json (every field exactly once, Ts aside).
-SECTIONS: dict[str, tuple[str, ...]] = {
-    "observer": ("k1", "k2"),
-    "gains": ("w1", "w2", "g1", "g2", "eps11", "eps12", "eps21", "eps22", "C_phi1", "C_phi2", "C_theta2"),
-    "bounds": ("theta_min", "theta_max", "u_max", "k1s_max", "k2s_max"),
-    "adaptation": ("Gamma",),
-    "initial_estimates": ("theta0",),
-}
-_FRICTION = {"level": "fric_level", "slope": "fric_slope"}
-#: Optional section ``runtime``: the runtime guards of ArcGains (absent = all off).
-RUNTIME_FIELDS = RUNTIME_GUARDS
-#: Runtime keys added after the section existed (frozen-encoder and innovation guards): optional on
-#: load, each absent one off (ArcGains' default), so that older files load and keep their checksum.
-RUNTIME_ADDED = ("accel_max", "y_err", "n_frozen_max", "u_free")
-#: May be null (infinite): a robust term switched off, a runtime guard off.
-_INF_OK = ("eps11", "eps12", "eps21", "eps22", "dy_max", "dy_fault", "n_reject_max", "e_max")
-#: Limits that must be finite in a controller.json (null refused unless ``allow_unbounded``).
-LIMITS = ("u_max", "k1s_max", "k2s_max")
-_VECTORS = ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0")
+_FRICTION = FRICTION
+_INF_OK = INF_OK
+_VECTORS = VECTORS
 #: Allowed relative mismatch between sample_period and 1/sample_rate.
 _PERIOD_RTOL = 1e-9
 #: Physical plausibility of a loaded controller, (lowest, highest) inclusive: the spec's own
@@ -141,14 +126,19 @@ PLAUSIBLE: dict[str, tuple[tuple[str, str], str]] = {
 }
 
 
-def _plausible(r: Reader, key: str, value: float, unit: str | None = None) -> None:
-    """Refuse ``value`` at ``r.path + key`` outside its :data:`PLAUSIBLE` range, naming the field
+def _failer(source: str):
+    """``fail(msg, path)``: the SchemaError naming the file and the JSON path."""
+    return lambda msg, path: SchemaError(f"{source}: {path}: {msg}")
+
+
+def _plausible(fail, path: str, key: str, value: float, unit: str | None = None) -> None:
+    """Refuse ``value`` at ``path`` outside its :data:`PLAUSIBLE` range, naming the field
     (``unit``: the file's own unit of the value, when it has one)."""
     rng, default_unit = PLAUSIBLE[key]
     unit = unit or default_unit
     lo, hi = RANGES[rng]
     if not lo <= value <= hi:
-        raise r.fail(f"{value!r} {unit} is outside the plausible range [{lo:g}, {hi:g}] {unit}", f"{r.path}.{key}")
+        raise fail(f"{value!r} {unit} is outside the plausible range [{lo:g}, {hi:g}] {unit}", path)
 
 
 @dataclass(frozen=True)
@@ -268,102 +258,67 @@ class ControllerConfig:
             not match its checksum (edited or corrupted), or ``$.signature: ...``
             when a key is given and the file is unsigned or signed under another key.
         """
-        r = Reader(data, "$", source)
-        r.header(CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION)
-        ctype = r.str_("controller")
-        if ctype != CONTROLLER_TYPE:
-            raise r.fail(f"expected {CONTROLLER_TYPE!r}, got {ctype!r}", "$.controller")
-        if "control_law" in r.keys() and data["control_law"] != CONTROL_LAW:
-            raise r.fail("describes a control law this runtime does not implement (the statement "
-                         "differs from commission.controller_config.CONTROL_LAW)", "$.control_law")
-        known = {"kind", "schema_version", "controller", "control_law", "sample_rate", "sample_period", "units",
-                 "friction_compensation", "validated", "provenance", "checksum", "signature", "runtime",
-                 "validity", *SECTIONS}
-        for k in r.keys():
-            if k not in known:
-                raise r.fail("unknown field", f"$.{k}")
-        rate = r.num("sample_rate", positive=True)
-        Ts = r.num("sample_period", positive=True)
-        assert rate is not None and Ts is not None
+        check_header(data, CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION, source)
+        try:
+            ControllerJson.model_validate(data)
+        except ValidationError as exc:  # the checksum and signature: last, as before
+            msg = json_error(exc, CONTROLLER_FIELDS, source=source, later=("checksum", "signature"))
+            if msg is not None:
+                raise SchemaError(msg) from None
+        fail = _failer(source)
+        if data["controller"] != CONTROLLER_TYPE:
+            raise fail(f"expected {CONTROLLER_TYPE!r}, got {data['controller']!r}", "$.controller")
+        if "control_law" in data and data["control_law"] != CONTROL_LAW:
+            raise fail("describes a control law this runtime does not implement (the statement "
+                       "differs from commission.controller_config.CONTROL_LAW)", "$.control_law")
+        rate, Ts = float(data["sample_rate"]), float(data["sample_period"])
         if abs(Ts * rate - 1.0) > _PERIOD_RTOL:
-            raise r.fail(f"{Ts!r} s does not match sample_rate {rate!r} Hz", "$.sample_period")
-        _plausible(r, "sample_rate", rate)
-        units = read_units(r)
+            raise fail(f"{Ts!r} s does not match sample_rate {rate!r} Hz", "$.sample_period")
+        _plausible(fail, "$.sample_rate", "sample_rate", rate)
+        units = {"u": data["units"]["u"], "q": data["units"]["q"]}
         kw: dict[str, Any] = {"Ts": Ts}
         for section, names in SECTIONS.items():
-            sr = r.obj(section)
-            for k in sr.keys():
-                if k not in names:
-                    raise sr.fail("unknown field", f"{sr.path}.{k}")
             for n in names:
+                v = data[section][n]
                 if n in _VECTORS:
-                    kw[n] = sr.vec(n, 3)
-                elif n in _INF_OK and sr.child(n).data is None:
+                    kw[n] = tuple(float(x) for x in v)
+                elif v is None and (n in _INF_OK or (n in LIMITS and allow_unbounded)):
                     kw[n] = math.inf
-                elif n in LIMITS and allow_unbounded and sr.child(n).data is None:
-                    kw[n] = math.inf
-                elif n in LIMITS:
-                    v = sr.child(n).data
-                    if v is None:
-                        raise sr.fail(f"null: a controller without a finite {n} is refused (no limit)",
-                                      f"{sr.path}.{n}")
-                    kw[n] = sr.num(n, positive=True)
-                    if n == "u_max":
-                        _plausible(sr, n, kw[n], units["u"])
+                elif v is None:  # a limit (the table lets it be null so that a round trip may allow it)
+                    raise fail(f"null: a controller without a finite {n} is refused (no limit)", f"$.{section}.{n}")
                 else:
-                    kw[n] = sr.num(n)
-        fr = r.obj("friction_compensation")
+                    kw[n] = float(v)
+                    if n == "u_max":
+                        _plausible(fail, f"$.{section}.{n}", n, kw[n], units["u"])
         for k, attr in _FRICTION.items():
-            kw[attr] = fr.num(k, nonneg=True)
-        if r.has("runtime"):
-            rr = r.obj("runtime")
-            for k in rr.keys():
-                if k not in RUNTIME_FIELDS:
-                    raise rr.fail("unknown field", f"{rr.path}.{k}")
+            kw[attr] = float(data["friction_compensation"][k])
+        if data.get("runtime") is not None:
+            rt = data["runtime"]
             for n in RUNTIME_FIELDS:
-                if n in RUNTIME_ADDED and not rr.has(n):
+                if n in RUNTIME_ADDED and rt.get(n) is None:
                     continue  # optional: absent keeps ArcGains' default (that guard off)
                 if n == "freeze_on_saturation":
-                    kw[n] = rr.bool_(n)
-                elif rr.child(n).data is None:
-                    kw[n] = math.inf
+                    kw[n] = rt[n]
                 else:
-                    kw[n] = rr.num(n)
+                    kw[n] = math.inf if rt[n] is None else float(rt[n])
         try:
             gains = ArcGains(**kw)
         except ValueError as exc:
-            raise r.fail(str(exc), _gain_path(str(exc))) from None
-        validated = r.obj("validated").data
-        pr = r.obj("provenance")
-        prov = ControllerProvenance(
-            log_sha256=read_sha256(pr, "log_sha256", optional=True),
-            ident_sha256=read_sha256(pr, "ident_sha256"),  # type: ignore[arg-type]
-            tuning_sha256=read_sha256(pr, "tuning_sha256"),  # type: ignore[arg-type]
-            tool_version=pr.str_("tool_version"),  # type: ignore[arg-type]
-            created_utc=pr.str_("created_utc"),  # type: ignore[arg-type]
-        )
-        validity = _validity(r) if r.has("validity") else None
+            raise fail(str(exc), _gain_path(str(exc))) from None
+        pr = data["provenance"]
+        prov = ControllerProvenance(log_sha256=pr["log_sha256"], ident_sha256=pr["ident_sha256"],
+                                    tuning_sha256=pr["tuning_sha256"], tool_version=pr["tool_version"],
+                                    created_utc=pr["created_utc"])
+        validity = dict(data["validity"]) if data.get("validity") is not None else None
         verify_checksum(data, source)
         verify_signature(data, source, key)
-        return cls(gains=gains, sample_rate=rate, units=units, validated=validated, provenance=prov,
+        return cls(gains=gains, sample_rate=rate, units=units, validated=data["validated"], provenance=prov,
                    validity=validity)
 
     @classmethod
     def load(cls, path: str, key: bytes | None = None) -> "ControllerConfig":
         """Read and strictly validate ``controller.json`` (and its signature under ``key``, if given)."""
         return cls.from_dict(read_json(path), source=str(path), key=key)
-
-
-def _validity(r: Reader) -> dict[str, Any]:
-    """The optional ``validity`` record: ``payload_range`` and ``mass_range`` [min, max] pairs and their ``unit``."""
-    v = r.obj("validity")
-    for k in ("payload_range", "mass_range"):
-        x = v.child(k).data
-        if not (isinstance(x, list) and len(x) == 2 and all(isinstance(e, (int, float)) and not isinstance(e, bool)
-                                                         and math.isfinite(e) for e in x) and 0 <= x[0] <= x[1]):
-            raise v.fail(f"expected a [min, max] pair of finite numbers >= 0, got {x!r}", f"{v.path}.{k}")
-    v.str_("unit")
-    return dict(v.data)
 
 
 _RUNTIME_DEFAULTS = {f.name: f for f in dataclasses.fields(ArcGains) if f.name in RUNTIME_FIELDS}
@@ -399,27 +354,41 @@ def verify_checksum(data: Any, source: str = "controller.json") -> None:
     SchemaError
         Missing or malformed checksum, unknown algorithm, or a mismatch.
     """
-    r = Reader(data, "$", source)
-    cr = r.obj("checksum")
-    value = _digest_field(cr, CHECKSUM_ALGORITHM, "$.checksum")
+    fail = _failer(source)
+    value = _digest_field(_member(data, "checksum", "$", fail), CHECKSUM_ALGORITHM, "$.checksum", fail)
     body = {k: v for k, v in data.items() if k != "checksum"}
     try:
         actual = sha256_json(body)
     except ValueError as exc:  # NaN or inf smuggled into the file
-        raise r.fail(f"content is not canonical JSON ({exc})", "$") from None
+        raise fail(f"content is not canonical JSON ({exc})", "$") from None
     if actual != value:
-        raise cr.fail(f"mismatch: the file says {value!s:.16}..., its content hashes to {actual[:16]}...; "
+        raise fail(f"mismatch: the file says {value!s:.16}..., its content hashes to {actual[:16]}...; "
                       f"the file was edited or corrupted after validation", "$.checksum")
 
 
-def _digest_field(r: Reader, algorithm: str, path: str) -> str:
+def _member(obj: Any, key: str, path: str, fail) -> dict[str, Any]:
+    """The object ``obj[key]`` (``path`` is ``obj``'s JSON path)."""
+    if not isinstance(obj, dict):
+        raise fail(f"expected an object, got {type(obj).__name__}", path)
+    if obj.get(key) is None:
+        raise fail("missing required field", f"{path}.{key}")
+    if not isinstance(obj[key], dict):
+        raise fail(f"expected an object, got {type(obj[key]).__name__}", f"{path}.{key}")
+    return obj[key]
+
+
+def _digest_field(obj: Mapping[str, Any], algorithm: str, path: str, fail) -> str:
     """The ``value`` of a ``{"algorithm", "value"}`` object: ``algorithm`` and 64 lowercase hex digits."""
-    algo = r.str_("algorithm")
+    for k in ("algorithm", "value"):
+        if obj.get(k) is None:
+            raise fail("missing required field", f"{path}.{k}")
+        if not isinstance(obj[k], str):
+            raise fail(f"expected a string, got {obj[k]!r}", f"{path}.{k}")
+    algo, value = obj["algorithm"], obj["value"]
     if algo != algorithm:
-        raise r.fail(f"unsupported algorithm {algo!r} (expected {algorithm!r})", f"{path}.algorithm")
-    value = r.str_("value")
-    if not isinstance(value, str) or len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
-        raise r.fail(f"expected 64 lowercase hex digits, got {value!r}", f"{path}.value")
+        raise fail(f"unsupported algorithm {algo!r} (expected {algorithm!r})", f"{path}.algorithm")
+    if len(value) != 64 or any(ch not in "0123456789abcdef" for ch in value):
+        raise fail(f"expected 64 lowercase hex digits, got {value!r}", f"{path}.value")
     return value
 
 
@@ -438,24 +407,26 @@ def verify_signature(data: Any, source: str = "controller.json", key: bytes | No
         A malformed signature; with a key: no signature (unsigned), or one that
         does not match (signed under another key, or edited after signing).
     """
-    r = Reader(data, "$", source)
-    if "signature" not in r.keys():
+    fail = _failer(source)
+    if not isinstance(data, dict):
+        raise fail(f"expected an object, got {type(data).__name__}", "$")
+    if "signature" not in data:
         if key is not None:
-            raise r.fail("missing: the file is not signed, and a signing key was given", "$.signature")
+            raise fail("missing: the file is not signed, and a signing key was given", "$.signature")
         return
-    sr = r.obj("signature")
-    for k in sr.keys():
+    sr = _member(data, "signature", "$", fail)
+    for k in sr:
         if k not in ("algorithm", "value"):
-            raise sr.fail("unknown field", f"$.signature.{k}")
-    value = _digest_field(sr, SIGNATURE_ALGORITHM, "$.signature")
+            raise fail("unknown field", f"$.signature.{k}")
+    value = _digest_field(sr, SIGNATURE_ALGORITHM, "$.signature", fail)
     if key is None:
         return
     try:
         expected = _hmac(key, data)
     except ValueError as exc:  # NaN or inf smuggled into the file
-        raise r.fail(f"content is not canonical JSON ({exc})", "$") from None
+        raise fail(f"content is not canonical JSON ({exc})", "$") from None
     if not hmac.compare_digest(expected, value):
-        raise sr.fail("does not match the signing key: signed under another key, or edited after signing",
+        raise fail("does not match the signing key: signed under another key, or edited after signing",
                       "$.signature")
 
 

@@ -8,24 +8,11 @@ baseline enters only through the comparison criteria.  A criterion that fails is
 its scenario, its value and its limit; all failures are listed, not only the
 first.
 
-``gate.toml`` (every key optional; an absent key takes its default)::
-
-    [gate]
-    e_F   = "20 um"      # final accuracy: max |e| over the last 2 s
-    e_M   = 8e-4         # transient: max |e| over the whole run (a bare number is metres)
-    e_rms = "15 lsb"     # average: rms of e
-    c_u   = 1.0          # chattering: ||du||_rms / ||u||_rms
-    u_max = 10.0         # peak |u|, u-unit
-    no_divergence = true # no scenario may abort (non-finite, |q - q_d| > travel, |u| > 1e6)
-    arc_vs_pid_e_rms = 1.0  # when given: ARC e_rms <= this factor x PID e_rms + arc_vs_pid_slack, scenario by scenario
-    arc_vs_pid_slack = "0.2887 lsb"  # a length, as the error limits
-    arc_vs_pid_median = 1.0  # median of the per-scenario factor f (fixed; Monte-Carlo), arc_vs_pid_quantile_checks
-    arc_vs_pid_p90 = 1.2     # its 90th percentile
-    arc_vs_pid_nominal = 1.0 # per case, ARC e_rms / PID e_rms summed over <case>/nominal and <case>/delay+1 (< it; no slack)
-    gain_margin_db = 6.0        # stability margins of the ARC on the identified plant (mode and delay
-    phase_margin_deg = 30.0     # included), both linearisation points; default: the tuning spec's
-    delay_margin_samples = 1.0  # [margins], which are also floors: a lower value here does not lower them
-    modulus_margin = 0.5
+``gate.toml``: one table ``[gate]``, every key optional.  Its keys, their defaults, ranges and
+units are the rows of :data:`commission.formats.gate_toml.GATE_KEYS` (``validate --help``,
+docs/interface.md §6 and docs/schemas/gate.schema.json are generated from them); this module
+validates through that table (:func:`gate_from_mapping`) and resolves the defaults from it
+(:func:`resolve_gate`).
 
 What each scenario certifies
 ----------------------------
@@ -75,39 +62,26 @@ tuning's quantization) or ``%travel`` (percent of the envelope's
 
 Defaults (LSB = encoder resolution, travel = the spec's envelope stroke)
 -------------------------------------------------------------------------
-``e_F``    max(:data:`DEFAULT_E_F_LSB` LSB, :data:`DEFAULT_E_F_TRAVEL` x travel)
-           = max(30 LSB, 0.01 % travel): 40 um for the paper's envelope (0.4 m);
-           the paper's ARC reached 6.3-6.9 um, its PID 15-21 um (Table 1).
-``e_M``    max(:data:`DEFAULT_E_M_LSB` LSB, :data:`DEFAULT_E_M_TRAVEL` x travel)
-           = max(200 LSB, 0.2 % travel): 800 um (paper: ARC 14-113 um, PID 51-156 um).
-           e_M is the start-up transient of a plant at a corner of the theta box
-           (heavy payload, large offset) that the estimates have not yet learnt.
-``e_rms``  max(:data:`DEFAULT_E_RMS_LSB` LSB, :data:`DEFAULT_E_RMS_TRAVEL` x travel)
-           = max(15 LSB, 0.005 % travel): 20 um (paper: ARC 1.9-4.3 um, PID 3-8 um).
-A DEFAULTED error limit (gate.toml leaves it out) also depends on the axis's PID yardstick
-(:func:`absolute_mode`, :func:`scenario_error_limit`): where the yardstick is the fastest PID the
-margin floors admit, the limit on a scenario is at least that PID's own value there (a trajectory
-asking more than the floors allow any fixed-gain loop on this axis does not refuse the ARC; the
-comparison criteria judge it against the yardstick); where no PID keeps the floors, the error limits
-are reported, not gated.  Safety criteria and the floors never move; a limit gate.toml gives never
-moves.
-``c_u``    :data:`DEFAULT_C_U` = 1.0: input increments as large as the input
-           itself mean a chattering command (paper: 0.11-0.32).
-``u_max``  the tuning spec's ``controller.u_max``.  A command that *reaches*
-           the limit counts as a violation: the controller then relied on
-           clipping, i.e. its demand exceeded the actuator.
-``no_divergence``     true.
-``arc_vs_pid_e_rms``  off by default; when given, the ARC must be no worse than
-           factor x the PID baseline (the yardstick, :func:`commission.tune.baseline.pid_yardstick`)
-           on every scenario ...
-``arc_vs_pid_slack``  ... up to the rms of the encoder's quantization noise,
-           LSB / sqrt(12) (:data:`DEFAULT_ARC_VS_PID_SLACK_LSB` LSB): the check is
-           ``ARC e_rms <= factor x PID e_rms + slack``.  Errors are measured on the
-           encoder, whose quantization alone gives e_rms = LSB / sqrt(12) to an
-           error-free loop; when both controllers track within a fraction of an
-           encoder step (a fine axis on a coarse encoder: 0.3-0.4 um on 0.8 um),
-           which one is "better" by less than that noise is not observable on the
-           machine.  Set it to 0 for the strict comparison.
+The rows of :data:`~commission.formats.gate_toml.GATE_KEYS` state them; what they mean:
+
+* ``e_F``, ``e_M``, ``e_rms``: max(k LSB, f x travel, 4 x the spec's ``[targets]`` value where it has
+  one) (:class:`~commission.formats.gate_toml.ErrorDefault`).  A DEFAULTED error limit also depends
+  on the axis's PID yardstick (:func:`absolute_mode`, :func:`scenario_error_limit`): where the
+  yardstick is the fastest PID the margin floors admit, the limit on a scenario is at least that
+  PID's own value there (a trajectory asking more than the floors allow any fixed-gain loop on this
+  axis does not refuse the ARC; the comparison criteria judge it against the yardstick); where no
+  PID keeps the floors, the error limits are reported, not gated.  Safety criteria and the floors
+  never move; a limit gate.toml gives never moves.
+* ``c_u`` 1: input increments as large as the input itself mean a chattering command.
+* ``u_max``: the tuning spec's ``controller.u_max``.  A command that *reaches* the limit counts as
+  a violation: the controller then relied on clipping, i.e. its demand exceeded the actuator.
+* ``arc_vs_pid_e_rms``: off by default; when given, the ARC must be no worse than factor x the PID
+  baseline (the yardstick, :func:`commission.tune.baseline.pid_yardstick`) on every scenario, up to
+  ``arc_vs_pid_slack``: by default the rms of the encoder's quantization noise, LSB / sqrt(12).
+  Errors are measured on the encoder, whose quantization alone gives e_rms = LSB / sqrt(12) to an
+  error-free loop; when both controllers track within a fraction of an encoder step, which one is
+  "better" by less than that noise is not observable on the machine.  Set it to 0 for the strict
+  comparison.
 
 Why these: the quantization floor of any encoder-fed loop is a few LSB, so
 each error limit allows a fixed number of encoder steps; and the tracking
@@ -139,33 +113,35 @@ from typing import Any, Callable, Collection, Mapping, Sequence
 
 from commission.errors import SpecError
 from commission.files import read_toml
+from commission.formats.gate_toml import (ARC_VS_PID_AIM, ERROR_KEYS, GATE, MARGIN_KEYS, QUANTIZATION_RMS_LSB,
+                                          read_gate)
+from commission.formats.table import Length
 from commission.tuning import Score
 from commission.units import unit
 
-DEFAULT_E_F_LSB = 30.0
-DEFAULT_E_F_TRAVEL = 1e-4
-DEFAULT_E_M_LSB = 200.0
-DEFAULT_E_M_TRAVEL = 2e-3
-DEFAULT_E_RMS_LSB = 15.0
-DEFAULT_E_RMS_TRAVEL = 5e-5
-DEFAULT_C_U = 1.0
-DEFAULT_ARC_VS_PID = 1.0
+#: The defaults below are the table's (:data:`commission.formats.gate_toml.GATE_KEYS`), named here for
+#: the code that reads them.
+_E_F, _E_M, _E_RMS = (GATE[k].rule for k in ("e_F", "e_M", "e_rms"))
+DEFAULT_E_F_LSB, DEFAULT_E_F_TRAVEL = _E_F.lsb, _E_F.travel
+DEFAULT_E_M_LSB, DEFAULT_E_M_TRAVEL = _E_M.lsb, _E_M.travel
+DEFAULT_E_RMS_LSB, DEFAULT_E_RMS_TRAVEL = _E_RMS.lsb, _E_RMS.travel
+DEFAULT_C_U = GATE["c_u"].default
+DEFAULT_ARC_VS_PID = ARC_VS_PID_AIM
 #: Default limits of the ARC-vs-PID judgement by quantiles (:func:`arc_vs_pid_quantile_checks`): the
 #: median and the 90th percentile of the per-scenario factor, in each group (fixed, Monte-Carlo).
-DEFAULT_ARC_VS_PID_MEDIAN = 1.0
-DEFAULT_ARC_VS_PID_P90 = 1.2
+DEFAULT_ARC_VS_PID_MEDIAN = GATE["arc_vs_pid_median"].default
+DEFAULT_ARC_VS_PID_P90 = GATE["arc_vs_pid_p90"].default
 #: The quantiles judged, criterion name -> quantile.
 ARC_VS_PID_QUANTILES = {"arc_vs_pid_median": 0.5, "arc_vs_pid_p90": 0.9}
 #: Default limit of the ARC-vs-PID judgement on the identified plant (:func:`arc_vs_pid_nominal_checks`).
-DEFAULT_ARC_VS_PID_NOMINAL = 1.0
+DEFAULT_ARC_VS_PID_NOMINAL = GATE["arc_vs_pid_nominal"].default
 #: The fixed-matrix variants that are the identified plant: as logged, and with the one more sample of
 #: input delay a drive may add (the true-plant judgement's four runs, :mod:`commission.true_axis`).
 NOMINAL_COMPARISON_VARIANTS = ("nominal", "delay+1")
 #: A default error limit is also at least this many times the spec's ``[targets]`` value (e_rms,
 #: e_f): the paper's targets 5 um and 10 um give the 20 um and 40 um of its 0.4 m envelope, so a user
 #: who states looser targets gets limits that follow them instead of a constant.
-TARGET_FACTOR = 4.0
-_TARGET_OF = {"e_rms": "e_rms", "e_F": "e_f"}
+TARGET_FACTOR = _E_RMS.factor
 #: How a defaulted absolute error limit applies on a scenario (:func:`scenario_error_limit`): as
 #: resolved (the search's strict reading, and a validation without a yardstick record) ...
 ABSOLUTE_FIXED = "fixed"
@@ -174,21 +150,14 @@ ABSOLUTE_YARDSTICK = "yardstick"
 #: ... or reported only, the safety criteria staying (no PID keeps the margin floors on this axis).
 ABSOLUTE_REPORTED = "reported"
 #: Default slack of the ARC-vs-PID comparison: the rms of uniform quantization noise, 1/sqrt(12) LSB.
-DEFAULT_ARC_VS_PID_SLACK_LSB = 1.0 / math.sqrt(12.0)
+DEFAULT_ARC_VS_PID_SLACK_LSB = QUANTIZATION_RMS_LSB
 #: Relative tolerance below u_max at which a command counts as having reached the limit.
 SATURATION_TOL = 1e-9
 
 #: Criterion names, in report order.
 CRITERIA = ("divergence", "e_F", "e_M", "e_rms", "c_u", "u_peak", "arc_vs_pid_e_rms", "arc_vs_pid_median",
             "arc_vs_pid_p90", "arc_vs_pid_nominal", "margins", "margins_box")
-_ERROR_KEYS = ("e_F", "e_M", "e_rms")
-#: The margin keys of gate.toml and their :class:`commission.robustness.MarginFloors` attributes.
-MARGIN_KEYS = {"gain_margin_db": "gain_db", "phase_margin_deg": "phase_deg",
-               "delay_margin_samples": "delay_samples", "modulus_margin": "modulus"}
-_KEYS = ("e_F", "e_M", "e_rms", "c_u", "u_max", "no_divergence", "arc_vs_pid_e_rms", "arc_vs_pid_slack",
-         "arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal", *MARGIN_KEYS)
-_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
-_LIMIT_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|um|µm|nm|lsb|%travel)\s*$")
+_ERROR_KEYS = ERROR_KEYS
 
 
 @dataclass(frozen=True)
@@ -325,43 +294,20 @@ class GateLimits:
                 "travel": self.travel, "absolute_limits": self.absolute, "defaulted_limits": list(self.defaulted)}
 
 
-def _fail(source: str, key: str, msg: str) -> SpecError:
-    return SpecError(f"{source}: gate.{key}{msg}")
-
-
-def _parse_error_limit(source: str, key: str, raw: Any, allow_zero: bool = False) -> ErrorLimit:
-    sign = "non-negative" if allow_zero else "positive"
-
-    def ok(v: float) -> bool:
-        return math.isfinite(v) and (v >= 0 if allow_zero else v > 0)
-
-    if isinstance(raw, bool):
-        raise _fail(source, key, f" = {raw!r}: expected a length (metres, or a string like \"20 um\", \"30 lsb\", \"0.01 %travel\")")
-    if isinstance(raw, (int, float)):
-        if not ok(raw):
-            raise _fail(source, key, f" = {raw!r}: must be a {sign} finite length in m")
-        return ErrorLimit(float(raw), "m", repr(raw))
+def _error_limit(raw: Any) -> ErrorLimit:
+    """A length the table accepted: metres, or a value in encoder steps or percent of the travel."""
     if isinstance(raw, str):
-        m = _LIMIT_RE.match(raw)
-        if not m:
-            raise _fail(source, key, f" = {raw!r}: expected \"<number> <unit>\" with unit m, mm, um, nm, lsb or %travel")
+        m = re.match(Length.PATTERN, raw)
+        assert m is not None  # the table's pattern accepted it
         val, unit = float(m.group(1)), m.group(2)
-        if not ok(val):
-            raise _fail(source, key, f" = {raw!r}: must be {sign}")
-        if unit in _UNITS:
-            return ErrorLimit(val * _UNITS[unit], "m", raw.strip())
+        if unit in Length.UNITS:
+            return ErrorLimit(val * Length.UNITS[unit], "m", raw.strip())
         return ErrorLimit(val, unit, raw.strip())
-    raise _fail(source, key, f" = {raw!r}: expected a number (m) or a string like \"20 um\"")
-
-
-def _positive(source: str, key: str, raw: Any, unit: str = "") -> float:
-    if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw) or not raw > 0:
-        raise _fail(source, key, f" = {raw!r}: expected a positive finite number{(' in ' + unit) if unit else ''}")
-    return float(raw)
+    return ErrorLimit(float(raw), "m", repr(raw))
 
 
 def gate_from_mapping(data: Mapping[str, Any], source: str = "gate.toml") -> GateSpec:
-    """Validate a parsed gate TOML.
+    """Validate a parsed gate TOML through its table (:func:`commission.formats.gate_toml.read_gate`).
 
     Parameters
     ----------
@@ -380,34 +326,14 @@ def gate_from_mapping(data: Mapping[str, Any], source: str = "gate.toml") -> Gat
         Naming the key (``gate.toml: gate.e_F = -1: ...``): an unknown section
         or key, a wrong type, a non-positive limit or an unknown unit.
     """
-    if not isinstance(data, Mapping):
-        raise SpecError(f"{source}: expected a table, got {type(data).__name__}")
-    for section in data:
-        if section != "gate":
-            raise SpecError(f"{source}: {section}: unknown section (expected only [gate])")
-    table = data.get("gate", {})
-    if not isinstance(table, Mapping):
-        raise SpecError(f"{source}: gate: expected a table, got {table!r}")
-    for key in table:
-        if key not in _KEYS:
-            raise _fail(source, key, f": unknown key (known: {', '.join(_KEYS)})")
+    given = read_gate(data, source)
     kw: dict[str, Any] = {"source": source}
-    for key in (*_ERROR_KEYS, "arc_vs_pid_slack"):
-        if key in table:
-            kw[key] = _parse_error_limit(source, key, table[key], allow_zero=key == "arc_vs_pid_slack")
-    if "c_u" in table:
-        kw["c_u"] = _positive(source, "c_u", table["c_u"])
-    if "u_max" in table:
-        kw["u_max"] = _positive(source, "u_max", table["u_max"], "u-unit")
-    if "no_divergence" in table:
-        v = table["no_divergence"]
-        if not isinstance(v, bool):
-            raise _fail(source, "no_divergence", f" = {v!r}: expected true or false")
-        kw["no_divergence"] = v
-    for key in ("arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal"):
-        if key in table:
-            kw[key] = _positive(source, key, table[key])
-    kw["margins"] = {k: _positive(source, k, table[k]) for k in MARGIN_KEYS if k in table}
+    for key, raw in given.items():
+        kind = GATE[key].type
+        if key in MARGIN_KEYS:
+            continue
+        kw[key] = _error_limit(raw) if kind is Length else raw if kind is bool else float(raw)
+    kw["margins"] = {k: float(given[k]) for k in MARGIN_KEYS if k in given}
     return GateSpec(**kw)
 
 
@@ -425,13 +351,6 @@ def load_gate(path: str | os.PathLike[str] | None) -> GateSpec:
         return GateSpec()
     name = os.fspath(path)
     return gate_from_mapping(read_toml(name), name)
-
-
-_DEFAULT_ERR = {
-    "e_F": (DEFAULT_E_F_LSB, DEFAULT_E_F_TRAVEL),
-    "e_M": (DEFAULT_E_M_LSB, DEFAULT_E_M_TRAVEL),
-    "e_rms": (DEFAULT_E_RMS_LSB, DEFAULT_E_RMS_TRAVEL),
-}
 
 
 def absolute_mode(yardstick: Mapping[str, Any] | None) -> str:
@@ -494,14 +413,13 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
     for key in _ERROR_KEYS:
         given: ErrorLimit | None = getattr(gate, key)
         if given is None:
-            k_lsb, k_tr = _DEFAULT_ERR[key]
-            limits[key] = max(k_lsb * lsb, k_tr * travel)
-            basis[key] = f"default: max({k_lsb:g} LSB, {k_tr * 100:g} % travel)"
-            tgt = (targets or {}).get(_TARGET_OF.get(key, ""))
-            if tgt is not None and math.isfinite(tgt) and tgt > 0:
-                limits[key] = max(limits[key], TARGET_FACTOR * tgt)
-                basis[key] = (f"default: max({k_lsb:g} LSB, {k_tr * 100:g} % travel, {TARGET_FACTOR:g} x "
-                              f"targets.{_TARGET_OF[key]})")
+            rule = GATE[key].rule
+            limits[key] = max(rule.lsb * lsb, rule.travel * travel)
+            tgt = (targets or {}).get(rule.target or "")
+            with_target = tgt is not None and math.isfinite(tgt) and tgt > 0
+            if with_target:
+                limits[key] = max(limits[key], rule.factor * tgt)
+            basis[key] = f"default: {rule.formula(with_target)}"
         else:
             if given.unit == "lsb" and lsb <= 0:
                 raise SpecError(f"{gate.source}: gate.{key} = {given.text!r}: the tuning has no encoder "

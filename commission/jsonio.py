@@ -1,9 +1,11 @@
 """Schema-versioned JSON for the artifacts, with strict loading.
 
 Artifacts are frozen dataclasses.  They are saved with sorted keys and an
-explicit ``kind`` and ``schema_version`` (never pickle).  Loading is strict:
-a missing or mistyped field raises :class:`SchemaError` naming its JSON path,
-e.g. ``ident.json: $.parameters.M.value: expected a number, got 'abc'``.
+explicit ``kind`` and ``schema_version`` (never pickle).  Reading is strict
+(:func:`read_json`); each artifact's fields are then checked by the model of
+its one table (:mod:`commission.formats`), a missing or mistyped field raising
+:class:`SchemaError` naming its JSON path, e.g.
+``ident.json: $.parameters.M.value: expected a finite number, got 'abc'``.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable
 
 from commission.errors import SchemaError, UsageError
 from commission.files import MAX_JSON_BYTES, read_input_bytes
@@ -211,116 +213,3 @@ def read_json(path: str | os.PathLike[str]) -> Any:
         if where is not None:
             raise SchemaError(f"{p}: {where[0]}: {where[1]}")
     return tree
-
-
-class Reader:
-    """Strict accessor over a parsed JSON tree that tracks the JSON path.
-
-    Parameters
-    ----------
-    data : object
-        The parsed JSON value at this node.
-    path : str
-        Its JSON path, ``$`` for the root.
-    source : str
-        File name used as the prefix of every error message.
-    """
-
-    def __init__(self, data: Any, path: str = "$", source: str = "<json>") -> None:
-        self.data = data
-        self.path = path
-        self.source = source
-
-    def fail(self, msg: str, path: str | None = None) -> SchemaError:
-        return SchemaError(f"{self.source}: {path or self.path}: {msg}")
-
-    def _obj(self) -> Mapping[str, Any]:
-        if not isinstance(self.data, dict):
-            raise self.fail(f"expected an object, got {type(self.data).__name__}")
-        return self.data
-
-    def has(self, key: str) -> bool:
-        return key in self._obj() and self._obj()[key] is not None
-
-    def child(self, key: str) -> "Reader":
-        obj = self._obj()
-        if key not in obj:
-            raise self.fail("missing required field", f"{self.path}.{key}")
-        return Reader(obj[key], f"{self.path}.{key}", self.source)
-
-    def obj(self, key: str) -> "Reader":
-        r = self.child(key)
-        r._obj()
-        return r
-
-    def keys(self) -> list[str]:
-        return list(self._obj().keys())
-
-    def num(self, key: str, *, optional: bool = False, positive: bool = False,
-            nonneg: bool = False) -> float | None:
-        obj = self._obj()
-        if key not in obj or obj[key] is None:
-            if optional:
-                return None
-            raise self.fail("missing required field", f"{self.path}.{key}")
-        v = obj[key]
-        p = f"{self.path}.{key}"
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise self.fail(f"expected a finite number, got {v!r}", p)
-        if positive and not v > 0:
-            raise self.fail(f"expected a positive number, got {v!r}", p)
-        if nonneg and v < 0:
-            raise self.fail(f"expected a non-negative number, got {v!r}", p)
-        return float(v)
-
-    def int_(self, key: str) -> int:
-        v = self.child(key).data
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise self.fail(f"expected an integer, got {v!r}", f"{self.path}.{key}")
-        return int(v)
-
-    def str_(self, key: str, *, optional: bool = False, choices: Sequence[str] | None = None) -> str | None:
-        obj = self._obj()
-        if key not in obj or obj[key] is None:
-            if optional:
-                return None
-            raise self.fail("missing required field", f"{self.path}.{key}")
-        v = obj[key]
-        p = f"{self.path}.{key}"
-        if not isinstance(v, str):
-            raise self.fail(f"expected a string, got {v!r}", p)
-        if choices is not None and v not in choices:
-            raise self.fail(f"expected one of {list(choices)}, got {v!r}", p)
-        return v
-
-    def bool_(self, key: str) -> bool:
-        v = self.child(key).data
-        if not isinstance(v, bool):
-            raise self.fail(f"expected true or false, got {v!r}", f"{self.path}.{key}")
-        return v
-
-    def vec(self, key: str, n: int | None = None) -> tuple[float, ...]:
-        v = self.child(key).data
-        p = f"{self.path}.{key}"
-        if not isinstance(v, list):
-            raise self.fail(f"expected a list of numbers, got {type(v).__name__}", p)
-        if n is not None and len(v) != n:
-            raise self.fail(f"expected {n} numbers, got {len(v)}", p)
-        out = []
-        for i, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-                raise self.fail(f"expected a finite number, got {x!r}", f"{p}[{i}]")
-            out.append(float(x))
-        return tuple(out)
-
-    def header(self, kind: str, schema_version: int) -> None:
-        """Check ``kind`` and ``schema_version`` of an artifact root."""
-        k = self.str_("kind")
-        if k != kind:
-            raise self.fail(f"expected kind {kind!r}, got {k!r}", f"{self.path}.kind")
-        v = self.int_("schema_version")
-        if v > schema_version or v < 1:
-            raise self.fail(
-                f"unsupported schema_version {v} (this tool reads 1..{schema_version})",
-                f"{self.path}.schema_version",
-            )

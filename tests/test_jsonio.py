@@ -2,8 +2,8 @@ import json
 
 import pytest
 
-from commission.errors import SchemaError, UsageError
-from commission.jsonio import Reader, read_json, write_json_atomic
+from commission.errors import UsageError
+from commission.jsonio import read_json, write_json_atomic
 
 
 def test_atomic_write_sorted_and_roundtrip(tmp_path):
@@ -30,17 +30,3 @@ def test_nan_is_refused_and_nothing_written(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize(
-    "doc, call, msg",
-    [
-        ({"p": {"M": {"value": "abc"}}}, lambda r: r.obj("p").obj("M").num("value"), r"\$\.p\.M\.value: expected a finite number"),
-        ({"p": {}}, lambda r: r.obj("p").num("x"), r"\$\.p\.x: missing required field"),
-        ({"v": [1, "x", 3]}, lambda r: r.vec("v", 3), r"\$\.v\[1\]"),
-        ({"v": [1, 2]}, lambda r: r.vec("v", 3), r"\$\.v: expected 3 numbers"),
-        ({"kind": "tuning", "schema_version": 1}, lambda r: r.header("identification", 1), r"expected kind 'identification'"),
-        ({"kind": "identification", "schema_version": 9}, lambda r: r.header("identification", 1), r"unsupported schema_version 9"),
-    ],
-)
-def test_reader_names_json_path(doc, call, msg):
-    with pytest.raises(SchemaError, match=msg):
-        call(Reader(doc, source="x.json"))

@@ -9,7 +9,7 @@ import json
 import re
 from pathlib import Path
 
-from commission.formats import ident_json, limits_toml, spec_toml, tuning_json
+from commission.formats import controller_json, gate_toml, ident_json, limits_toml, spec_toml, tuning_json
 from commission.formats.json_table import markdown_rows
 from commission.formats.table import json_schema, markdown_table
 
@@ -21,10 +21,14 @@ def schemas() -> dict[str, dict]:
     """File name in docs/schemas/ -> its JSON Schema."""
     return {"spec.schema.json": json_schema(spec_toml.SpecToml, "commission/spec.schema.json",
                                             spec_toml.SCHEMA_VERSION),
+            "gate.schema.json": json_schema(gate_toml.GateToml, "commission/gate.schema.json",
+                                            gate_toml.SCHEMA_VERSION),
             "limits.schema.json": json_schema(limits_toml.LimitsToml, "commission/limits.schema.json",
                                               limits_toml.SCHEMA_VERSION),
             "ident.schema.json": json_schema(ident_json.IdentJson, "commission/ident.schema.json",
                                              ident_json.IDENT_SCHEMA_VERSION),
+            "controller.schema.json": json_schema(controller_json.ControllerJson, "commission/controller.schema.json",
+                                                  controller_json.CONTROLLER_SCHEMA_VERSION),
             "tuning.schema.json": json_schema(tuning_json.TuningJson, "commission/tuning.schema.json",
                                               tuning_json.TUNING_SCHEMA_VERSION)}
 
@@ -37,9 +41,11 @@ def schema_text(schema: dict) -> str:
 def tables() -> dict[str, str]:
     """Name of a generated Markdown table in docs/interface.md -> its text."""
     return {"spec.toml keys": markdown_table(spec_toml.SPEC_KEYS),
+            "gate.toml keys": markdown_table(gate_toml.GATE_KEYS),
             "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS),
             "ident.json fields": markdown_rows(ident_json.IDENT_FIELDS),
-            "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS)}
+            "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS),
+            "controller.json fields": markdown_rows(controller_json.CONTROLLER_FIELDS)}
 
 
 def fill_markdown(text: str, generated: dict[str, str]) -> str:

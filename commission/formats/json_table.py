@@ -249,13 +249,19 @@ def json_path(loc: Sequence[Any]) -> str:
     return "$" + "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc)
 
 
-def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, prefix: str = "$") -> str:
+def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, prefix: str = "$",
+               later: Sequence[str] = ()) -> str | None:
     """The one error line of a refused artifact: its first refused value, by JSON path.
 
     ``prefix`` anchors the paths (``$.identification`` for the identification tuning.json embeds).
+    ``later`` names top-level fields the loader checks after every other one (controller.json's
+    checksum): their errors are left to it, and None is returned when only they were refused.
     """
     rows = {f.path: f for f in fields}
-    e = exc.errors()[0]
+    errors = [e for e in exc.errors() if not (e["loc"] and e["loc"][0] in later)]
+    if not errors:
+        return None
+    e = errors[0]
     loc = [p for p in e["loc"]]
     v, kind = e["input"], e["type"]
     f = _row(rows, [p for p in loc if isinstance(p, str)])

@@ -34,10 +34,11 @@ and a value past either end "is outside the accepted range".
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
-from typing import Any, Annotated, Literal, Mapping, Sequence
+from typing import Any, Annotated, Literal, Mapping, Sequence, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, create_model
 from pydantic.json_schema import GenerateJsonSchema
 
 #: Strict: no coercion (bool is not a number, 2.5 is not an integer), no unknown key, no inf/nan.
@@ -55,6 +56,19 @@ class Scaled:
         return f"{self.fraction:g} x {self.of}"
 
 
+class Length:
+    """The type of a length key: a number (metres) or a string ``"<number> <unit>"`` (``"20 um"``, ``"30 lsb"``).
+
+    The model accepts a number within the key's range, or a string matching :attr:`PATTERN`
+    whose number is within that range; the unit words and their factors are :attr:`UNITS` (to
+    metres) and :attr:`RELATIVE` (resolved by the reader: encoder steps, percent of the travel).
+    """
+
+    UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
+    RELATIVE = ("lsb", "%travel")
+    PATTERN = r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|um|µm|nm|lsb|%travel)\s*$"
+
+
 @dataclass(frozen=True)
 class Key:
     """One key of an input file.
@@ -64,8 +78,8 @@ class Key:
     section, name : str
         TOML table and key: ``[section] name = ...``.
     type : type
-        ``float``, ``int``, ``str`` (with ``choices``: one of them) or ``list`` (an array of
-        tables); a key with ``checked_by`` is read by another reader.
+        ``float``, ``int``, ``bool``, ``str`` (with ``choices``: one of them), :class:`Length` or
+        ``list`` (an array of tables); a key with ``checked_by`` is read by another reader.
     default : object
         The value of an absent key; ``None`` when the default is derived (``rule``).
     range : (float, float) or None
@@ -74,9 +88,9 @@ class Key:
         Unit of the value ("" for a dimensionless one).
     doc : str
         One line: what the key is.
-    rule : Scaled or str or None
+    rule : Scaled or str or object or None
         A derived default: a :class:`Scaled` fraction of another key (resolved by the loader),
-        or a sentence (resolved where the data is, e.g. from ident.json); ``{default}`` in the
+        an object with a ``text()`` method that says the rule (its reader resolves it), or a sentence (resolved where the data is, e.g. from ident.json); ``{default}`` in the
         sentence is replaced by the formatted ``default``.
     choices : tuple of str
         Allowed values of a ``str`` key.
@@ -97,7 +111,7 @@ class Key:
     range: tuple[float, float] | None
     unit: str
     doc: str
-    rule: Scaled | str | None = None
+    rule: Any = None
     choices: tuple[str, ...] = ()
     attr: str | None = None
     checked_by: str | None = None
@@ -124,6 +138,8 @@ class Key:
             return "required"
         if isinstance(self.rule, Scaled):
             return self.rule.text() + unit
+        if self.rule is not None and not isinstance(self.rule, str):
+            return self.rule.text()
         value = "" if self.default is None else fmt(self.default) + unit
         if isinstance(self.rule, str):
             return self.rule.format(default=value)
@@ -141,13 +157,15 @@ class Key:
             return " | ".join(f'"{c}"' for c in self.choices)
         if self.type is list:
             return "array of tables" if self.checked_by else "list of numbers"
-        return {float: "number", int: "integer", str: "string"}[self.type]
+        return {float: "number", int: "integer", str: "string", bool: "boolean", Length: "length"}[self.type]
 
 
 def fmt(value: Any) -> str:
     """A default as written in help and docs (``2500``, ``1e-05``, ``"motor"``)."""
     if isinstance(value, str):
         return f'"{value}"'
+    if isinstance(value, bool):
+        return str(value).lower()
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}"
@@ -175,7 +193,24 @@ def _annotation(k: Key) -> Any:
             bounds["lt" if k.open[1] else "le"] = hi
     if k.type is list:  # a list of numbers, each within the range
         return list[Annotated[float, Field(**bounds)]]
+    if k.type is Length:  # a number (m) or "<number> <unit>" with that number within the range
+        return Union[Annotated[float, Field(**bounds)],
+                     Annotated[str, Field(pattern=Length.PATTERN), AfterValidator(_length_text(k))]]
     return Annotated[k.type, Field(**bounds)]
+
+
+def _length_text(k: Key) -> Any:
+    """The check of a length string's number against the key's range (the pattern checked the form)."""
+    lo, hi = k.range if k.range is not None else (-math.inf, math.inf)
+
+    def check(text: str) -> str:
+        m = re.match(Length.PATTERN, text)
+        v = float(m.group(1)) if m else math.nan
+        if not (math.isfinite(v) and (v > lo if k.open[0] else v >= lo) and (v < hi if k.open[1] else v <= hi)):
+            raise ValueError(f"{v!r} is outside {k.range_text()}")
+        return text
+
+    return check
 
 
 def _field(k: Key) -> Any:
