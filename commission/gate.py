@@ -88,16 +88,10 @@ each error limit allows a fixed number of encoder steps; and the tracking
 error of a sampled loop grows with the speed and acceleration demanded, which
 the envelope's stroke carries (the spec scales Case 1 and Case 2 to it), so
 each limit also allows a fixed fraction of the stroke.  The larger of the two
-applies.  The fractions sit 1.3-2.4x above the worst values that sound
-tunings reached over the whole matrix (12 fixed scenarios and 64
-Monte-Carlo plants, runs that neither diverged nor saturated) on the paper's
-axis, the bundled sample axis and a random axis of
-:func:`commission.synth.random_axis`, all on the 0.4 m default envelope:
-e_F <= 17 um, e_rms <= 15 um, e_M <= 470 um, c_u <= 0.65.  Broken
-controllers exceed them on the identified plant itself: a controller whose
-theta_1 bounds make it believe the axis 3-8x lighter by 3-13x in e_rms, and
-destabilised gains (x3, x10) or adaptation rates (x100), which limit-cycle at
-the input limit, by about 300x.
+applies.  The fractions sit above the worst values that sound tunings reach over
+the whole matrix, and broken controllers (wrong theta_1 bounds, destabilised gains or
+adaptation rates) exceed them on the identified plant itself; the measurements behind
+the fractions are in docs/robustness.md ("Why the default limits").
 """
 
 from __future__ import annotations
