@@ -416,9 +416,8 @@ class Tuning:
                               chosen_level=se.chosen_level or 0,
                               chosen_violation=0.0 if se.chosen_violation is None else se.chosen_violation,
                               screened=tuple(se.screened or ()))
-        if not any(math.isclose(m.pid.design_mass, dm, rel_tol=1e-9)  # type: ignore[union-attr]
-                   for dm in (1.0 / ident.theta.max[0], ident.value("M"))):
-            raise fail("$.pid.design_mass", "equals neither 1/theta_max[0] (the paper's M_min) nor the identified M")
+        if not math.isclose(m.pid.design_mass, 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[union-attr]
+            raise fail("$.pid.design_mass", "does not equal 1/theta_max[0] of the identification")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them
             if not math.isclose(getattr(observer, k), getattr(arc, k), rel_tol=1e-9):
                 raise fail(f"$.observer.{k}", f"{getattr(observer, k):.12g} does not equal arc.{k} = "

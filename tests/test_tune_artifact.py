@@ -106,8 +106,8 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     assert (ob["k1"], ob["k2"]) == (doc["arc"]["k1"], doc["arc"]["k2"])
     assert ob["k1"] == pytest.approx(2 * ob["pole"]) and ob["k2"] == pytest.approx(ob["pole"] ** 2)
     assert tune_mod.OBSERVER_FACTOR_BOUNDS[0] <= ob["pole"] / 200.0 <= tune_mod.OBSERVER_FACTOR_BOUNDS[1]
-    assert doc["pid"]["design_mass"] == pytest.approx(0.027)  # the identified M, not M_min = 1/50
-    # pid.pole defaulted: the PID is the yardstick, (57)'s triple pole of (56) at the identified M at the pole it chose
+    assert doc["pid"]["design_mass"] == pytest.approx(1 / 50.0)
+    # pid.pole defaulted: the PID is the yardstick, (57)'s triple pole of (56) at M_min at the pole it chose
     w, m = doc["pid"]["pole"], doc["pid"]["design_mass"]
     assert doc["pid_yardstick"]["method"] == "margin_search" and doc["pid_yardstick"]["pole"] == w
     assert doc["pid"]["Kp"] == pytest.approx(3 * w * w * m) and doc["pid"]["Ki"] == pytest.approx(w ** 3 * m)
@@ -169,7 +169,7 @@ def test_roundtrip_and_strict_loading(small):
         (lambda x: x["identification"]["theta"].pop("min"), r"\$\.identification\.theta\.min: missing"),
         (lambda x: x["observer"]["P"].__setitem__(1, [1.0]), r"\$\.observer\.P\[1\]: expected a list of 2"),
         (lambda x: x["scores"]["case1/nominal"]["arc"].__setitem__("diverged", 0), r"diverged: expected true or false"),
-        (lambda x: x["pid"].__setitem__("design_mass", 0.03), r"\$\.pid\.design_mass: equals neither"),
+        (lambda x: x["pid"].__setitem__("design_mass", 0.03), r"\$\.pid\.design_mass: does not equal"),
         (lambda x: x["observer"].__setitem__("k1", x["observer"]["k1"] * 1.1), r"\$\.observer\.k1: .* does not equal arc\.k1"),
     ]
     for mutate, msg in cases:

@@ -166,9 +166,8 @@ TUNING_FIELDS: tuple[Field, ...] = (
     *(Field(f"pid.{n}", "number", u, f"PidGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
             nullable=inf) for n, u, inf in PID_GAINS),
     Field("pid.pole", "number", "rad/s", "triple pole the baseline runs at", required=True, sign="positive"),
-    Field("pid.design_mass", "number", "u s^2/q",
-          "the mass the PID's poles are placed at: M_min = 1/theta_max[0] (the paper's (56)) or the identified M "
-          "(the yardstick)", required=True, sign="positive"),
+    Field("pid.design_mass", "number", "u s^2/q", "M_min = 1/theta_max[0] of the identification", required=True,
+          sign="positive"),
     Field("observer", "object", "", "the observer the controller runs (eq. 11)", required=True),
     Field("observer.pole", "number", "rad/s", "observer pole", required=True, sign="positive"),
     Field("observer.k1", "number", "1/s", "gain k1 (= arc.k1)", required=True, sign="positive"),

@@ -29,30 +29,16 @@ PID_POLE_STEP = 0.95
 PID_POLE_STEPS = 12
 
 
-def pid_baseline(ident: Identification, spec: Spec, *, design_mass: float | None = None) -> tuple[PidGains, float]:
+def pid_baseline(ident: Identification, spec: Spec) -> tuple[PidGains, float]:
     """The paper's PID (57): poles of (56) at ``-spec.pid_pole`` for M_min = 1/theta_max[0].
 
     Feedforward M_hat, B_hat = the identified M, B; friction compensation = the
-    identified one; output limit ``spec.u_max``.  Returns ``(gains, design mass)``.
-    ``design_mass`` (u-unit s^2/m) replaces M_min: the yardstick is placed at the identified
-    mass (:func:`yardstick_mass`).
+    identified one; output limit ``spec.u_max``.  Returns ``(gains, M_min)``.
     """
-    m_min = 1.0 / ident.theta.max[0] if design_mass is None else float(design_mass)
+    m_min = 1.0 / ident.theta.max[0]
     Kp, Ki, Kd = pid_place_poles(m_min, -spec.pid_pole)
     return PidGains(Ts=spec.period, M_hat=ident.value("M"), B_hat=max(ident.value("B"), 0.0), Kp=Kp, Ki=Ki,
                     Kd=Kd, fric_level=ident.fric_level, fric_slope=ident.fric_slope, u_max=spec.u_max), m_min
-
-
-def yardstick_mass(ident: Identification) -> float:
-    """The mass the yardstick's poles are placed at: the identified one, u-unit s^2/m.
-
-    A drive vendor's auto-tuner places its loop on the axis it measured, not on the lightest
-    plant of a payload box; the paper's (56) at M_min is the conservative choice of a PID that
-    must hold the whole box, which the yardstick (judged on the identified plant) is not asked to.
-    Placed at M_min, with M_min well below the identified mass (a wide box), the yardstick is a
-    detuned PID that an ARC can beat while losing to the PID the machine's own engineer would set.
-    """
-    return float(ident.value("M"))
 
 
 @dataclass(frozen=True)
@@ -134,7 +120,7 @@ def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec
     w = baseline.pole
     while w * EVIDENCE_POLE_STEP >= EVIDENCE_POLE_FLOOR * baseline.pole:
         w *= EVIDENCE_POLE_STEP
-        g = pid_baseline(ident, dataclasses.replace(spec, pid_pole=w), design_mass=baseline.design_mass)[0]
+        g = pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0]
         if bound.pid_row(g).holds:
             return PidBaseline(g, w, baseline.design_mass, ev.scores(KIND_PID, [pid_pack(g)])[0])
     return baseline
@@ -207,8 +193,7 @@ def pid_pole_note(tuning: Tuning) -> str | None:
 
 #: Poles the yardstick search tries, as fractions of the sample rate (rad/s per Hz): 0.02 f_s
 #: to 0.4 f_s, geometric (the paper's 300 rad/s at 2.5 kHz is 0.12 f_s; 0.5 f_s is the spec's
-#: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).  Continuing it below 0.02 f_s gave slow
-#: yardsticks whose matched starts led the search away from feasible gains (docs/robustness.md).
+#: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).
 YARDSTICK_POLE_FRACTIONS = tuple(float(x) for x in np.geomspace(0.02, 0.4, 33))
 #: Candidates simulated at once (fastest first) when looking for one within the gate's c_u: one,
 #: so that the search stops at the first that is (usually the fastest admissible pole; a batch of
@@ -304,8 +289,7 @@ class YardstickChoice:
                    violations=tuple(str(v) for v in d.get("violations", ())))
 
 
-def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float], *,
-                   design_mass: float | None = None) -> list[PidCandidate]:
+def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) -> list[PidCandidate]:
     """Check the PID of (57) at each pole on the identified plant and with one more sample of delay.
 
     The plant is :func:`commission.scenarios.identified_plant` (the identified mode and delay
@@ -327,7 +311,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float], *,
         f = frequency_grid(spec.period)
         resp = sp.frequency_response(f)
         for w in poles:
-            g, _ = pid_baseline(ident, dataclasses.replace(spec, pid_pole=float(w)), design_mass=design_mass)
+            g, _ = pid_baseline(ident, dataclasses.replace(spec, pid_pole=float(w)))
             lin = linearize_pid(pid_pack(g))
             m = loop_margins(lin, sp, f, resp)
             r1 = closed_loop_radius(lin, sp1)
@@ -354,8 +338,7 @@ def _within_evidence(cands: list[PidCandidate], ident: Identification, spec: Spe
     out = []
     for c in cands:
         if c.admissible:
-            row = bound.pid_row(pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole),
-                                             design_mass=yardstick_mass(ident))[0])
+            row = bound.pid_row(pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole))[0])
             if not row.holds:
                 c = dataclasses.replace(c, violations=c.violations + (
                     f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",))
@@ -391,8 +374,7 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
         return base, YardstickChoice("spec_pole", base.pole, 1, int(c.admissible), 1, c.margins,
                                      c.radius_plus_one, c.violations)
     poles = [fr * spec.sample_rate for fr in YARDSTICK_POLE_FRACTIONS]
-    m_y = yardstick_mass(ident)
-    cands = _within_evidence(pid_candidates(ident, spec, poles, design_mass=m_y), ident, spec)
+    cands = _within_evidence(pid_candidates(ident, spec, poles), ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
     if not ok:
         base = deployable_pid(ident, spec, ev, c_u_limit, True)
@@ -403,14 +385,14 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     def within(sc: Sequence[Score]) -> bool:
         return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in sc)
 
-    m_min = m_y
+    m_min = 1.0 / ident.theta.max[0]
     simulated = 0
     tried: list[tuple[PidCandidate, PidGains, list[Score]]] = []
     for b in range(YARDSTICK_BATCHES):
         batch = ok[b * YARDSTICK_BATCH:(b + 1) * YARDSTICK_BATCH]
         if not batch:
             break
-        gains = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole), design_mass=m_y)[0] for c in batch]
+        gains = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole))[0] for c in batch]
         scores = ev.scores(KIND_PID, [pid_pack(g) for g in gains])
         simulated += len(batch)
         for c, g, sc in zip(batch, gains, scores):
