@@ -8,14 +8,15 @@ from __future__ import annotations
 import os as _os
 
 
-def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth.",)) -> None:
+def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",)) -> None:
     """Remove numba's on-disk kernels when any source of this package changed.
 
     numba keys a cached kernel on the time stamp of the file that defines it, not on
     the jitted functions it inlines from other modules: after an edit of ``plant.py``,
     ``simulate.py``'s cached closed loop would still run the old plant.  A sha256 over
     every source of this package is kept beside the cache; when it differs, the cached
-    kernels of this package and of the modules that inline it (``commission.synth``)
+    kernels of this package and of the modules that inline it (``commission.synth``, a
+    module ``<name>.py`` or a package ``<name>/`` beside this one: ``dependants`` names them)
     are dropped and recompiled on first use.  Costs one read of the sources per
     import.  A read-only install (where numba cannot cache either) is left alone.
     """
@@ -35,12 +36,15 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth.",)
                     return
         except (OSError, UnicodeDecodeError):
             pass
-        caches = [os.path.join(here, "__pycache__"), os.path.join(os.path.dirname(here), "__pycache__")]
+        parent = os.path.dirname(here)
+        caches = [os.path.join(here, "__pycache__"), os.path.join(parent, "__pycache__"),
+                  *(os.path.join(parent, d, "__pycache__") for d in dependants)]
+        prefixes = tuple(f"{d}." for d in dependants)
         for cache in caches:
             if not os.path.isdir(cache):
                 continue
             for f in os.listdir(cache):
-                if f.endswith((".nbi", ".nbc")) and (cache == caches[0] or f.startswith(dependants)):
+                if f.endswith((".nbi", ".nbc")) and (cache != caches[1] or f.startswith(prefixes)):
                     try:
                         os.remove(os.path.join(cache, f))
                     except FileNotFoundError:

@@ -54,3 +54,17 @@ def test_a_stamp_that_cannot_be_written_does_not_stop_the_import(tmp_path):
     _cache_some(own, parent)
     drop_stale_kernel_cache(str(pkg))
     assert (own / "kernel-sources.sha256").is_dir()
+
+
+def test_a_dependant_package_beside_it_loses_its_kernels_too(tmp_path):
+    """``commission.synth`` is a package: its kernels (which inline the plant) sit in ``synth/__pycache__``."""
+    pkg, own, parent = _layout(tmp_path)
+    dep = tmp_path / "synth" / "__pycache__"
+    dep.mkdir(parents=True)
+    drop_stale_kernel_cache(str(pkg))
+    (dep / "simulation._closed_loop-19.py311.nbi").write_bytes(b"x")
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(dep) == ["simulation._closed_loop-19.py311.nbi"]
+    (pkg / "plant.py").write_text("def f(x):\n    return 3 * x\n")
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(dep) == []
