@@ -780,10 +780,10 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Scor
     (default 1).  Why: the quantiles (:func:`arc_vs_pid_quantile_checks`) judge the distribution over
     the uncertain plants, and their slack lets the ARC lose by up to the encoder's quantisation noise;
     on the plant the log identified, where the model is best, an ARC that does not beat the PID will
-    not beat a PID tuned on the machine either (dev axis 25 of issue 30: 1.05 and 1.20 here, 1.21 on
-    its true plant).  The sum over the nominal and +1-sample runs weighs the two by their errors, as
-    one figure per case, so a loss within the model's error in one of them (0.04 LSB on a 1.3 LSB
-    error) is not a refusal while a loss in the case as a whole is.
+    not beat a PID tuned on the machine either (docs/robustness.md has the axes this was measured
+    on).  The sum over the nominal and +1-sample runs weighs the two by their errors, as one figure
+    per case, so a loss within the model's error in one of them is not a refusal while a loss in the
+    case as a whole is.
 
     No slack, and strict: where both loops track within about one encoder step, e_rms is the
     encoder's quantisation (LSB / sqrt(12)) plus a fraction of a step, and which one is better is
