@@ -116,9 +116,9 @@ MATCH_G3 = (2.0, 4.0, 8.0, 16.0, 32.0)
 #: The same along the fallback ratios (:data:`MATCH_WIDE_RATIOS`): doubling up to the search
 #: box's bound on G3 (:data:`commission.tune.gains.FREE_BOUNDS`).  On a wide box the matched
 #: caps leave the ARC's integral action far below the PID's at x32 while the linear constraints
-#: allow much more, and the ARC lost to the yardstick in Case 2 (dev axis 13: 3.1 um at x32,
-#: 1.0 um at x256, PID 0.57 um).  Not along the first directions: there it changed the start of
-#: axes that worked (dev axis 2: ARC/PID 0.67 -> 0.92 on the true plant, still working).
+#: allow much more, and the ARC then loses to the yardstick in Case 2 for want of integral action.
+#: Not along the first directions: there it moves the start of axes those directions already
+#: serve (docs/robustness.md, "Where the search starts", has the measurements).
 MATCH_G3_WIDE = tuple(2.0 ** k for k in range(1, 14))
 
 #: Matched starts injected into the first generation besides the one that becomes its mean
