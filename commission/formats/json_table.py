@@ -130,7 +130,11 @@ def _bounds(f: Field) -> dict[str, float]:
 
 def _check(f: Field) -> Any:
     def run(v: Any) -> Any:
-        if v is not None and f.check is not None:
+        if v is None:
+            if f.required and not f.nullable:  # an ``any`` field admits null by its type, not by its row
+                raise ValueError(("", "expected a value, got null"))
+            return v
+        if f.check is not None:
             f.check(v)
         return v
     return AfterValidator(run)
