@@ -11,6 +11,29 @@ import numpy as np
 from commission.synth.truth import AxisTruth
 
 
+def _friction_and_encoder(rng: np.random.Generator, M: float) -> tuple[float, ...]:
+    """Viscous and friction terms scaled by the mass ``M`` (u-unit s^2/m), and the encoder step, in draw order.
+
+    Friction scales with the moving mass (bearing preload, cable chain): Coulomb deceleration
+    fc / M of 1-6 m/s^2, as on real stages (paper: 3.7).  Returns ``(B, fc, fs, vs, xi, offset,
+    ripple_amp, ripple_pitch, lsb)``.
+    """
+
+    def logu(lo: float, hi: float) -> float:
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    B = M * float(rng.uniform(3.0, 30.0))
+    fc = M * logu(1.0, 6.0)
+    fs = fc * float(rng.uniform(1.1, 1.6))
+    vs = logu(0.003, 0.03)
+    xi = float(rng.uniform(1.0, 2.5))
+    offset = fc * float(rng.uniform(-0.3, 0.3))
+    ripple_amp = fc * float(rng.uniform(0.0, 0.1))
+    ripple_pitch = float(rng.uniform(0.02, 0.06))
+    lsb = logu(0.05e-6, 1e-6)
+    return B, fc, fs, vs, xi, offset, ripple_amp, ripple_pitch, lsb
+
+
 def rigid_random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> AxisTruth:
     """Draw a rigid linear-motor axis (V units): the random axes of issues 4-20.
 
@@ -40,17 +63,7 @@ def rigid_random_axis(rng: np.random.Generator, sample_rate: float | None = None
         return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
     M = logu(0.01, 0.2)
-    B = M * float(rng.uniform(3.0, 30.0))
-    # Friction scales with the moving mass (bearing preload, cable chain):
-    # Coulomb deceleration fc / M of 1-6 m/s^2, as on real stages (paper: 3.7).
-    fc = M * logu(1.0, 6.0)
-    fs = fc * float(rng.uniform(1.1, 1.6))
-    vs = logu(0.003, 0.03)
-    xi = float(rng.uniform(1.0, 2.5))
-    offset = fc * float(rng.uniform(-0.3, 0.3))
-    ripple_amp = fc * float(rng.uniform(0.0, 0.1))
-    ripple_pitch = float(rng.uniform(0.02, 0.06))
-    lsb = logu(0.05e-6, 1e-6)
+    B, fc, fs, vs, xi, offset, ripple_amp, ripple_pitch, lsb = _friction_and_encoder(rng, M)
     noise_std = lsb * float(rng.uniform(0.0, 0.3))
     fs_choice = float(rng.choice(np.array([1000.0, 2000.0, 2500.0, 4000.0, 5000.0])))
     return AxisTruth(M=M, B=B, fc=fc, fs=fs, vs=vs, xi=xi, offset=offset,
@@ -118,15 +131,7 @@ def random_axis(rng: np.random.Generator, sample_rate: float | None = None) -> A
     gain = f_peak / 10.0 if in_volts else 1.0
     u_max = 10.0 if in_volts else f_peak
     M = m_kg / gain
-    B = M * float(rng.uniform(3.0, 30.0))
-    fc = M * logu(1.0, 6.0)
-    fs = fc * float(rng.uniform(1.1, 1.6))
-    vs = logu(0.003, 0.03)
-    xi = float(rng.uniform(1.0, 2.5))
-    offset = fc * float(rng.uniform(-0.3, 0.3))
-    ripple_amp = fc * float(rng.uniform(0.0, 0.1))
-    ripple_pitch = float(rng.uniform(0.02, 0.06))
-    lsb = logu(0.05e-6, 1e-6)
+    B, fc, fs, vs, xi, offset, ripple_amp, ripple_pitch, lsb = _friction_and_encoder(rng, M)
     noise_std = lsb * float(rng.uniform(0.0, 1.0))
     rate = float(rng.choice(np.array(RANDOM_RATES)))
     rate = rate if sample_rate is None else float(sample_rate)
