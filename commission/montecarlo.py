@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 #: Quantiles reported, as fractions (``p50`` ... ``p99`` and ``max``).
 QUANTILES = (0.5, 0.9, 0.99)
@@ -41,7 +41,7 @@ class MonteCarloSummary:
         self._div = {"arc": 0, "pid": 0}
         self._worst: list[tuple[float, int, str, float, float]] = []  # min-heap of (key, -order, name, e_rms, e_M)
 
-    def add(self, name: str, arc: Score, pid: Score) -> None:
+    def add(self, name: str, arc: Indexes, pid: Indexes) -> None:
         """One plant's ARC and PID scores (call in plant order)."""
         order = self.n
         self.n += 1

@@ -21,7 +21,7 @@ import numpy as np
 
 from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.controllers.arc import arc_pack, paper_gains_implementable
-from commission.controllers.metrics import Indexes
+from commission.controllers.metrics import INDEX_NAMES, INDEX_TABLE, Indexes, IndexRow
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.controllers.plant import plant_vector
 from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate, step_disturbance
@@ -32,7 +32,6 @@ SUBSTEPS = 10
 QUANT = 1e-6  # m
 SCENARIOS = ("set1", "set2", "set3", "case2")
 CONTROLLERS = ("PID", "ARC")
-INDEX_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u")
 
 #: Table 1 of the paper: errors in um, inputs in V (Sets 1-3; Case 2 has no table).
 PAPER_TABLE1: dict[str, dict[str, dict[str, float]]] = {
@@ -43,6 +42,16 @@ PAPER_TABLE1: dict[str, dict[str, dict[str, float]]] = {
     "set3": {"PID": {"e_M": 85.8, "e_F": 16.1, "e_rms": 4.35, "u_rms": 0.40, "du_rms": 0.04, "c_u": 0.11},
              "ARC": {"e_M": 55.9, "e_F": 6.30, "e_rms": 3.26, "u_rms": 0.42, "du_rms": 0.08, "c_u": 0.19}},
 }
+
+
+#: The rows of Table 1: the six indexes of :data:`commission.controllers.metrics.INDEX_TABLE`
+#: (errors in um, inputs in V, the reference plant's units).
+_ROWS = INDEX_TABLE[:len(INDEX_NAMES)]
+
+
+def _grid_fmt(row: IndexRow) -> str:
+    """An input is printed with two decimals, as the published table prints it."""
+    return "{:.2f}" if row.unit == "u" else row.fmt
 
 
 def reference_plant(M: float = 0.027, **dynamics: float) -> np.ndarray:
@@ -143,10 +152,9 @@ class TableCell:
         for k in INDEX_NAMES:
             out[k] = None
         if self.indexes is not None:
-            d = self.indexes.as_dict()
-            for k in INDEX_NAMES:
-                v = d[k] * (1e6 if k.startswith("e_") else 1.0)
-                out[k] = v if math.isfinite(v) else None
+            for row in _ROWS:
+                v = getattr(self.indexes, row.name) * row.scale
+                out[row.name] = v if math.isfinite(v) else None
         return out
 
 
@@ -199,11 +207,6 @@ def run_paper_table(*, scenarios: tuple[str, ...] = SCENARIOS, controllers: tupl
     return PaperTable(cells)
 
 
-_ROWS = (("e_M", "e_M (um)", 1e6, "{:.3g}"), ("e_F", "e_F (um)", 1e6, "{:.3g}"),
-         ("e_rms", "||e||rms (um)", 1e6, "{:.3g}"), ("u_rms", "||u||rms (V)", 1.0, "{:.2f}"),
-         ("du_rms", "||du||rms (V)", 1.0, "{:.2f}"), ("c_u", "c_u", 1.0, "{:.2f}"))
-
-
 def _fmt_grid(title: str, values: dict[str, dict[str, dict[str, float | None]]],
               scenarios: tuple[str, ...], controllers: tuple[str, ...]) -> str:
     labels = {"set1": "Set 1", "set2": "Set 2", "set3": "Set 3", "case2": "Case 2"}
@@ -211,11 +214,12 @@ def _fmt_grid(title: str, values: dict[str, dict[str, dict[str, float | None]]],
     head1 = f"{'Controller':<{w0}}" + "".join(f"{labels.get(s, s):^{w * len(controllers)}}" for s in scenarios)
     head2 = " " * w0 + "".join(f"{c:>{w}}" for _ in scenarios for c in controllers)
     lines = [title, head1, head2]
-    for key, label, _, fmt in _ROWS:
-        row = f"{label:<{w0}}"
+    for ix in _ROWS:
+        fmt = _grid_fmt(ix)
+        row = f"{ix.heading('um', 'V', ascii=True):<{w0}}"
         for s in scenarios:
             for c in controllers:
-                v = values.get(s, {}).get(c, {}).get(key)
+                v = values.get(s, {}).get(c, {}).get(ix.name)
                 row += f"{(fmt.format(v) if v is not None else '-'):>{w}}"
         lines.append(row)
     return "\n".join(lines)

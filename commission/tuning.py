@@ -22,12 +22,12 @@ from pydantic import ValidationError
 from commission.artifacts import Identification
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
+from commission.controllers.metrics import SCORE_NAMES, Indexes
 from commission.controllers.pid import PidGains
 from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.formats.json_table import check_header, json_error
-from commission.formats.tuning_json import (SCORE_NAMES, TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION,
-                                            TuningJson)
+from commission.formats.tuning_json import TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION, TuningJson
 from commission.jsonio import read_json, write_json_atomic
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 from commission.spec import RANGES, Spec, spec_from_mapping
@@ -66,26 +66,8 @@ class Provenance:
     ident_path: str
 
 
-@dataclass(frozen=True)
-class Score:
-    """Section-4.2 indexes of one controller on one scenario (SI units) plus the peak input.
-
-    Indexes are NaN when the run diverged.
-    """
-
-    e_M: float
-    e_F: float
-    e_rms: float
-    u_rms: float
-    du_rms: float
-    c_u: float
-    u_peak: float
-    diverged: bool
-
-    def to_dict(self) -> dict[str, Any]:
-        d: dict[str, Any] = {k: _num_or_null(getattr(self, k)) for k in SCORE_NAMES}
-        d["diverged"] = self.diverged
-        return d
+#: The one record of a run's indexes (:class:`commission.controllers.metrics.Indexes`).
+Score = Indexes  # alias kept until the callers are renamed
 
 
 @dataclass(frozen=True)
@@ -271,7 +253,7 @@ class Tuning:
     guarantees : dict
         name -> :class:`Guarantee`.
     scores : dict
-        scenario -> ``{"arc": Score, "pid": Score}``.
+        scenario -> ``{"arc": Indexes, "pid": Indexes}``.
     search : SearchRecord
     margins : tuple of LoopMargins
         Stability margins of both loops per plant (:mod:`commission.robustness`);
@@ -303,7 +285,7 @@ class Tuning:
     theorem1: Theorem1Check
     feasibility: Mapping[str, FeasibilitySummary]
     guarantees: Mapping[str, Guarantee]
-    scores: Mapping[str, Mapping[str, Score]]
+    scores: Mapping[str, Mapping[str, Indexes]]
     search: SearchRecord
     margins: tuple[LoopMargins, ...] = ()
     box: BoxRobustness | None = None
@@ -463,8 +445,8 @@ def _yardstick_record(d: Any) -> dict[str, Any]:
     return YardstickChoice.from_dict(d).to_dict()
 
 
-def _score(m: Any) -> Score:
-    return Score(**{k: _nan(getattr(m, k)) for k in SCORE_NAMES}, diverged=m.diverged)
+def _score(m: Any) -> Indexes:
+    return Indexes(**{k: _nan(getattr(m, k)) for k in SCORE_NAMES}, diverged=m.diverged)
 
 
 def _feasibility(m: Any) -> FeasibilitySummary:

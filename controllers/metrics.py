@@ -12,6 +12,12 @@ On a uniformly sampled record ``e_k, u_k`` (k = 0..N-1, period Ts):
 
 ``c_u`` is NaN when ``u_rms == 0`` (undefined); no paper scenario has that.
 The kernel is compiled so that the batch simulator can call it per scenario.
+
+This module holds the one definition of the indexes: :class:`Indexes`, the record of one run
+(the six indexes, the peak input and whether it diverged) that tune, validate, the gate, the
+report and the paper table share; :func:`batch_indexes`, the same records from a batch's
+columns; and :data:`INDEX_TABLE`, each index's name, label, unit and display scale, from which
+tables and file formats take their rows.
 """
 
 from __future__ import annotations
@@ -26,8 +32,75 @@ FINAL_WINDOW = 2.0  # s, the paper's e_F window
 
 
 @dataclass(frozen=True)
+class IndexRow:
+    """One row of :data:`INDEX_TABLE`: how an index is named, labelled, scaled and unit-ed.
+
+    Attributes
+    ----------
+    name : str
+        Field of :class:`Indexes` and key in tuning.json / validation.json.
+    label : str
+        Label as the paper prints it (Unicode), without its unit.
+    text : str
+        The same label in plain ASCII, for terminals.
+    unit : str
+        ``"q"`` (the axis position unit: m or rad), ``"u"`` (the command's unit) or ``""``
+        (dimensionless).
+    scale : float
+        Display scale: a ``"q"`` index is shown in micro-units (x 1e6), the rest as stored.
+    fmt : str
+        Display format of the scaled value.
+    doc : str
+        One-line meaning.
+    """
+
+    name: str
+    label: str
+    text: str
+    unit: str
+    scale: float
+    fmt: str
+    doc: str
+
+    def heading(self, q_unit: str, u_unit: str, *, ascii: bool = False) -> str:
+        """``label (unit)``: ``q_unit`` names the *scaled* position unit (e.g. ``um``), ``u_unit``
+        the command's; a dimensionless index has no unit."""
+        unit = {"q": q_unit, "u": u_unit}.get(self.unit, "")
+        name = self.text if ascii else self.label
+        return f"{name} ({unit})" if unit else name
+
+
+#: The one table of the indexes: the six of Section 4.2, then the peak input.  Its order is the
+#: field order of :class:`Indexes` and of the records in tuning.json and validation.json.
+INDEX_TABLE: tuple[IndexRow, ...] = (
+    IndexRow("e_M", "e_M", "e_M", "q", 1e6, "{:.3g}", "maximum |e| (transient)"),
+    IndexRow("e_F", "e_F", "e_F", "q", 1e6, "{:.3g}", "maximum |e| over the final window (final accuracy)"),
+    IndexRow("e_rms", "‖e‖rms", "||e||rms", "q", 1e6, "{:.3g}", "RMS tracking error"),
+    IndexRow("u_rms", "‖u‖rms", "||u||rms", "u", 1.0, "{:.3g}", "RMS input"),
+    IndexRow("du_rms", "‖Δu‖rms", "||du||rms", "u", 1.0, "{:.3g}", "RMS of the input increments (54)"),
+    IndexRow("c_u", "c_u", "c_u", "", 1.0, "{:.2f}", "chattering du_rms / u_rms"),
+    IndexRow("u_peak", "peak |u|", "peak |u|", "u", 1.0, "{:.3g}", "largest |u| over the recorded samples"),
+)
+#: Rows by name.
+INDEX_ROWS: dict[str, IndexRow] = {r.name: r for r in INDEX_TABLE}
+#: The six indexes of Section 4.2 (what :func:`indexes_kernel` returns, in its order).
+INDEX_NAMES: tuple[str, ...] = tuple(r.name for r in INDEX_TABLE[:6])
+#: The numbers of a run's record (the six indexes and ``u_peak``), as tuning.json stores them.
+SCORE_NAMES: tuple[str, ...] = tuple(r.name for r in INDEX_TABLE)
+
+
+def _num_or_null(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
 class Indexes:
-    """The Section-4.2 indexes of one run (SI units).
+    """The Section-4.2 indexes of one run (SI units), its peak input and whether it diverged.
+
+    The one record of a run's performance: tune scores candidates with it, validate records it
+    in validation.json, the gate judges it, tuning.json stores it (:meth:`to_dict`).  Indexes
+    are NaN when the run diverged.  :func:`indexes` fills only the six indexes (``u_peak``
+    NaN: not recorded); :meth:`of_run` and :func:`batch_indexes` give the whole record.
 
     Attributes
     ----------
@@ -43,6 +116,11 @@ class Indexes:
         RMS of the input increments (54), u-unit.
     c_u : float
         ``du_rms / u_rms``, dimensionless.
+    u_peak : float
+        Largest ``|u|`` over the recorded samples (also before an abort), u-unit; NaN if
+        not recorded.
+    diverged : bool
+        The run was aborted.
     """
 
     e_M: float
@@ -51,11 +129,40 @@ class Indexes:
     u_rms: float
     du_rms: float
     c_u: float
+    u_peak: float = math.nan
+    diverged: bool = False
 
-    def as_dict(self) -> dict[str, float]:
-        """The six indexes by name, SI units."""
-        return {"e_M": self.e_M, "e_F": self.e_F, "e_rms": self.e_rms,
-                "u_rms": self.u_rms, "du_rms": self.du_rms, "c_u": self.c_u}
+    def to_dict(self) -> dict[str, float | bool | None]:
+        """The record as tuning.json and validation.json store it: SI numbers, null for NaN or inf."""
+        d: dict[str, float | bool | None] = {k: _num_or_null(getattr(self, k)) for k in SCORE_NAMES}
+        d["diverged"] = self.diverged
+        return d
+
+    @classmethod
+    def of_run(cls, ix: "Indexes | None", u_peak: float) -> "Indexes":
+        """The record of one run from its six indexes (None: it diverged) and its peak input."""
+        if ix is None:
+            return cls(*(math.nan,) * len(INDEX_NAMES), u_peak=float(u_peak), diverged=True)
+        return cls(ix.e_M, ix.e_F, ix.e_rms, ix.u_rms, ix.du_rms, ix.c_u, float(u_peak), False)
+
+
+def batch_indexes(idx: np.ndarray, u_peak: np.ndarray, diverged: np.ndarray) -> list[Indexes]:
+    """The records of a batch of runs from its columns.
+
+    Parameters
+    ----------
+    idx : ndarray, shape (m, 6)
+        The six indexes per run in :data:`INDEX_NAMES` order (NaN where diverged).
+    u_peak : ndarray, shape (m,)
+        Peak input per run, u-unit.
+    diverged : ndarray of bool, shape (m,)
+
+    Returns
+    -------
+    list of Indexes
+        One per row, the same record :meth:`Indexes.of_run` makes of a single run.
+    """
+    return [Indexes(*(float(x) for x in idx[i]), float(u_peak[i]), bool(diverged[i])) for i in range(len(idx))]
 
 
 @njit(cache=True)

@@ -35,7 +35,7 @@ from numba import njit
 
 from commission.controllers.arc import P_TS as ARC_P_TS
 from commission.controllers.arc import S_THETA, arc_new_state, arc_reset, arc_step
-from commission.controllers.metrics import FINAL_WINDOW, Indexes, indexes_kernel
+from commission.controllers.metrics import FINAL_WINDOW, INDEX_NAMES, Indexes, batch_indexes, indexes_kernel
 from commission.controllers.pid import G_TS as PID_P_TS
 from commission.controllers.pid import pid_new_state, pid_reset, pid_step
 from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step, stribeck_cut
@@ -233,7 +233,8 @@ class SimResult:
 class BatchResult:
     """Many closed-loop runs on one trajectory.
 
-    Index arrays are NaN where ``diverged`` is True.
+    The columns of :class:`commission.controllers.metrics.Indexes`, one array per field;
+    :meth:`scores` gives the records.  Index arrays are NaN where ``diverged`` is True.
 
     Attributes
     ----------
@@ -278,6 +279,10 @@ class BatchResult:
             return None
         return Indexes(float(self.e_M[i]), float(self.e_F[i]), float(self.e_rms[i]),
                        float(self.u_rms[i]), float(self.du_rms[i]), float(self.c_u[i]))
+
+    def scores(self) -> list[Indexes]:
+        """Every run's whole record (NaN indexes when it diverged, ``u_peak``, ``diverged``), in row order."""
+        return batch_indexes(np.column_stack([getattr(self, k) for k in INDEX_NAMES]), self.u_peak, self.diverged)
 
 
 def _check_kind(kind: int) -> None:
