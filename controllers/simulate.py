@@ -228,6 +228,11 @@ class SimResult:
         """True tracking error ``q - q_d``, m."""
         return self.q - self.qd
 
+    def score(self) -> Indexes:
+        """The run's whole record: its indexes (NaN when it diverged), the peak ``|u|`` over the
+        recorded samples (NaN if none) and ``diverged``; the record :meth:`BatchResult.scores` gives."""
+        return Indexes.of_run(self.indexes, float(np.max(np.abs(self.u))) if self.n_steps > 0 else math.nan)
+
 
 @dataclass(frozen=True)
 class BatchResult:

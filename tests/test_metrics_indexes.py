@@ -60,6 +60,17 @@ def test_record_json_null_for_nan_and_inf():
         '"u_peak": 0.9, "u_rms": 0.2}')
 
 
+def test_a_diverged_run_records_its_peak_and_nan_indexes():
+    # Gains that blow up at once: the run aborts; its record keeps the peak |u| it reached.
+    traj = _sine(1e-3, 2.0, 0.5)
+    wild = pid_pack(PidGains(Ts=TS, M_hat=0.0, B_hat=0.0, Kp=-1e9, Ki=0.0, Kd=0.0))
+    r = simulate(reference_plant(0.027), KIND_PID, wild, traj)
+    b = simulate_batch(reference_plant(0.027)[None, :], KIND_PID, wild, traj).scores()[0]
+    assert r.diverged and r.score().diverged and b.diverged
+    assert r.score().u_peak == float(np.max(np.abs(r.u))) == b.u_peak
+    assert r.score().to_dict() == b.to_dict() and all(b.to_dict()[k] is None for k in INDEX_NAMES)
+
+
 def test_batch_rows_become_records():
     idx = np.array([[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], [np.nan] * 6])
     recs = batch_indexes(idx, np.array([7.0, 8.0]), np.array([False, True]))
@@ -86,7 +97,7 @@ def test_scalar_and_batched_paths_give_the_same_record_on_a_known_truth_run():
     kind_p, pid = paper_controller("PID", TS)
     assert kind_p == KIND_PID
     one = [simulate(plant, KIND_PID, c, traj) for c in (zero, pid)]
-    scalar = [Indexes.of_run(r.indexes, float(np.max(np.abs(r.u)))) for r in one]
+    scalar = [r.score() for r in one]
     batch = simulate_batch(np.stack([plant, plant]), KIND_PID, np.stack([zero, pid]), traj, workers=1).scores()
     assert not one[0].diverged and np.all(one[0].q == 0.0)
     truth = scalar[0]
