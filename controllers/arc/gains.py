@@ -65,6 +65,25 @@ def _vec3(name: str, v) -> tuple[float, float, float]:
     return t  # type: ignore[return-value]
 
 
+def _positive(v: float) -> bool:
+    return v > 0 and not math.isnan(v)
+
+
+#: The checks of ArcGains' scalar fields, in the order they run: (fields, admissible(value), what
+#: the message says a value must be).
+_SCALAR_RULES = (
+    (("Ts", "k1", "k2", "w1", "w2", "g1", "g2", "fric_level", "fric_slope"), math.isfinite, "finite"),
+    (("Ts", "k1", "k2", "w1", "w2", "g1", "g2"), lambda v: v > 0, "> 0"),
+    (("fric_level", "fric_slope"), lambda v: not v < 0, ">= 0"),
+    (("eps11", "eps12", "eps21", "eps22", "u_max"), _positive, "> 0 (inf allowed)"),
+    (("dy_max", "dy_fault", "e_max"), _positive, "> 0 m (inf allowed)"),
+    (("accel_max",), _positive, "> 0 m/s^2 (inf allowed)"),
+    (("y_err", "u_free"), lambda v: math.isfinite(v) and v >= 0, "finite and >= 0"),
+    (("n_reject_max", "n_frozen_max"), lambda n: not (math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n))),
+     "an integer >= 1 (inf allowed)"),
+)
+
+
 @dataclass(frozen=True)
 class ArcGains:
     """Every number the discrete output-feedback ARC needs.
@@ -181,34 +200,11 @@ class ArcGains:
     def __post_init__(self) -> None:
         for name in ("C_phi1", "C_phi2", "C_theta2", "Gamma", "theta_min", "theta_max", "theta0"):
             object.__setattr__(self, name, _vec3(name, getattr(self, name)))
-        for name in ("Ts", "k1", "k2", "w1", "w2", "g1", "g2", "fric_level", "fric_slope"):
-            val = getattr(self, name)
-            if not math.isfinite(val):
-                raise ArcGainsError(f"ArcGains.{name}: must be finite, got {val}")
-        for name in ("Ts", "k1", "k2", "w1", "w2", "g1", "g2"):
-            if not getattr(self, name) > 0:
-                raise ArcGainsError(f"ArcGains.{name}: must be > 0, got {getattr(self, name)}")
-        for name in ("fric_level", "fric_slope"):
-            if getattr(self, name) < 0:
-                raise ArcGainsError(f"ArcGains.{name}: must be >= 0, got {getattr(self, name)}")
-        for name in ("eps11", "eps12", "eps21", "eps22", "u_max"):
-            val = getattr(self, name)
-            if not val > 0 or math.isnan(val):
-                raise ArcGainsError(f"ArcGains.{name}: must be > 0 (inf allowed), got {val}")
-        for name in ("dy_max", "dy_fault", "e_max"):
-            val = getattr(self, name)
-            if not val > 0 or math.isnan(val):
-                raise ArcGainsError(f"ArcGains.{name}: must be > 0 m (inf allowed), got {val}")
-        if not self.accel_max > 0 or math.isnan(self.accel_max):
-            raise ArcGainsError(f"ArcGains.accel_max: must be > 0 m/s^2 (inf allowed), got {self.accel_max}")
-        for name in ("y_err", "u_free"):
-            val = getattr(self, name)
-            if not (math.isfinite(val) and val >= 0):
-                raise ArcGainsError(f"ArcGains.{name}: must be finite and >= 0, got {val}")
-        for name in ("n_reject_max", "n_frozen_max"):
-            n = getattr(self, name)
-            if math.isnan(n) or n < 1 or (math.isfinite(n) and n != int(n)):
-                raise ArcGainsError(f"ArcGains.{name}: must be an integer >= 1 (inf allowed), got {n}")
+        for names, admissible, what in _SCALAR_RULES:
+            for name in names:
+                val = getattr(self, name)
+                if not admissible(val):
+                    raise ArcGainsError(f"ArcGains.{name}: must be {what}, got {val}")
         if not isinstance(self.freeze_on_saturation, bool):
             raise ArcGainsError(f"ArcGains.freeze_on_saturation: must be a bool, got {self.freeze_on_saturation!r}")
         for name, floor in (("k1s_max", "g1"), ("k2s_max", "g2")):

@@ -124,3 +124,21 @@ def sample_grid(duration: float, Ts: float) -> np.ndarray:
     if n < 2:
         raise TrajectoryError(f"duration: {duration} s holds fewer than 2 samples of Ts={Ts} s")
     return np.arange(n) * Ts
+
+
+def require_positive_finite(**values: float) -> None:
+    """Refuse the first of ``values`` (name = value, in the order given) that is not a positive finite number."""
+    for name, val in values.items():
+        if not (val > 0 and math.isfinite(val)):
+            raise TrajectoryError(f"{name}: must be a positive finite number, got {val}")
+
+
+def grid_period(t: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> float:
+    """The period Ts (s) of the sample times ``t`` (s), checked uniform and starting at 0 s.
+
+    ``q, v, a`` are checked to be finite and as long as ``t`` (a generator's input columns).
+    """
+    Trajectory(t, q, v, a)  # validates shapes and the grid
+    if t[0] != 0.0:
+        raise TrajectoryError(f"t: must start at 0 s, got t[0]={t[0]}")
+    return t[1] - t[0]

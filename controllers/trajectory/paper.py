@@ -25,7 +25,8 @@ import math
 import numpy as np
 from numba import njit
 
-from commission.controllers.trajectory.core import Trajectory, TrajectoryError, expm_small, sample_grid
+from commission.controllers.trajectory.core import (Trajectory, TrajectoryError, expm_small, grid_period,
+    require_positive_finite, sample_grid)
 from commission.controllers.trajectory.schedules import AccelSchedule
 
 
@@ -67,10 +68,7 @@ def filter58(t: np.ndarray, qr: np.ndarray, dqr: np.ndarray, ddqr: np.ndarray, *
         raise TrajectoryError(f"beta1, beta2: must be > 0 for a stable filter, got {beta1}, {beta2}")
     t = np.asarray(t, dtype=np.float64)
     qr, dqr, ddqr = (np.asarray(a, dtype=np.float64) for a in (qr, dqr, ddqr))
-    Trajectory(t, qr, dqr, ddqr)  # validates shapes and the grid
-    if t[0] != 0.0:
-        raise TrajectoryError(f"t: must start at 0 s, got t[0]={t[0]}")
-    Ts = t[1] - t[0]
+    Ts = grid_period(t, qr, dqr, ddqr)
     A = np.array([[0.0, 1.0], [-beta2, -beta1]])
     Phi = expm_small(A * Ts)
     # q_d(0) = y0, dq_d(0) = 0
@@ -128,9 +126,7 @@ def trapezoid_moves(travel: float, v_max: float, a_max: float, dwell: float, n_m
     start : float
         Start position, m.
     """
-    for name, val in (("travel", travel), ("v_max", v_max), ("a_max", a_max)):
-        if not (val > 0 and math.isfinite(val)):
-            raise TrajectoryError(f"{name}: must be a positive finite number, got {val}")
+    require_positive_finite(travel=travel, v_max=v_max, a_max=a_max)
     if not (dwell >= 0 and math.isfinite(dwell)):
         raise TrajectoryError(f"dwell: must be >= 0 s, got {dwell}")
     if int(n_moves) != n_moves or n_moves < 1:
@@ -169,10 +165,7 @@ def smooth(schedule: AccelSchedule, t: np.ndarray, *, b1: float = 100.0,
         raise TrajectoryError(f"b1, b2: must be > 0 for a stable filter, got {b1}, {b2}")
     t = np.asarray(t, dtype=np.float64)
     n = t.shape[0]
-    Trajectory(t, t, t, t)  # validates the grid
-    if t[0] != 0.0:
-        raise TrajectoryError(f"t: must start at 0 s, got t[0]={t[0]}")
-    Ts = t[1] - t[0]
+    Ts = grid_period(t, t, t, t)
     # State z = [q_d, dq_d, q_r, dq_r, a]; a is the held reference acceleration.
     A = np.zeros((5, 5))
     A[0, 1] = 1.0

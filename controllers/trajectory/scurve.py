@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from commission.controllers.trajectory.core import Trajectory, TrajectoryError, sample_grid
+from commission.controllers.trajectory.core import Trajectory, TrajectoryError, require_positive_finite, sample_grid
 from commission.controllers.trajectory.schedules import AccelSchedule, JerkSchedule
 
 
@@ -50,9 +50,7 @@ def scurve_segments(distance: float, v_max: float, a_max: float,
     v_peak, a_peak : float
         Peak speed (m/s) and acceleration (m/s^2) reached.
     """
-    for name, val in (("v_max", v_max), ("a_max", a_max)):
-        if not (val > 0 and math.isfinite(val)):
-            raise TrajectoryError(f"{name}: must be a positive finite number, got {val}")
+    require_positive_finite(v_max=v_max, a_max=a_max)
     if not j_max > 0:
         raise TrajectoryError(f"j_max: must be positive (inf: unlimited), got {j_max}")
     D = abs(float(distance))
