@@ -87,9 +87,9 @@ class Trajectory:
 def expm_small(X):
     """Matrix exponential of a small dense matrix: scaling and squaring with Taylor(18).
 
-    Plain loops on purpose: LAPACK-based ``scipy.linalg.expm`` can take tens of
-    ms per call on a busy multi-threaded BLAS, and the smoother needs one
-    per switch instant.  After scaling, ``||X||_1 <= 1/2`` and the truncation
+    Plain loops on purpose: LAPACK-based ``scipy.linalg.expm`` wakes the BLAS
+    threads on every call, which is slow on a busy multi-threaded BLAS
+    (docs/scaling.md), and the smoother needs one per switch instant.  After scaling, ``||X||_1 <= 1/2`` and the truncation
     error is below 1e-21 (relative).
     """
     n = X.shape[0]
