@@ -14,21 +14,27 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",))
     numba keys a cached kernel on the time stamp of the file that defines it, not on
     the jitted functions it inlines from other modules: after an edit of ``plant.py``,
     ``simulate.py``'s cached closed loop would still run the old plant.  A sha256 over
-    every source of this package is kept beside the cache; when it differs, the cached
-    kernels of this package and of the modules that inline it (``commission.synth``, a
-    module ``<name>.py`` or a package ``<name>/`` beside this one: ``dependants`` names them)
-    are dropped and recompiled on first use.  Costs one read of the sources per
-    import.  A read-only install (where numba cannot cache either) is left alone.
+    every source of this package and of its subpackages (``arc/``, ...) is kept beside the
+    cache; when it differs, the cached kernels of this package, of its subpackages and of
+    the modules that inline it (``commission.synth``, a module ``<name>.py`` or a package
+    ``<name>/`` beside this one: ``dependants`` names them) are dropped and recompiled on
+    first use.  Costs one read of the sources per import.  A read-only install (where
+    numba cannot cache either) is left alone.
     """
     import hashlib
     import os
 
     try:
         digest = hashlib.sha256()
-        for name in sorted(os.listdir(here)):
-            if name.endswith(".py"):
-                with open(os.path.join(here, name), "rb") as fh:
-                    digest.update(name.encode() + b"\0" + fh.read() + b"\0")
+        folders = [here]  # this package and its subpackages, at any depth
+        for folder in folders:
+            for name in sorted(os.listdir(folder)):
+                path = os.path.join(folder, name)
+                if name.endswith(".py"):
+                    with open(path, "rb") as fh:
+                        digest.update(os.path.relpath(path, here).encode() + b"\0" + fh.read() + b"\0")
+                elif os.path.isfile(os.path.join(path, "__init__.py")):
+                    folders.append(path)
         stamp = os.path.join(here, "__pycache__", "kernel-sources.sha256")
         try:
             with open(stamp, encoding="ascii") as fh:
@@ -38,7 +44,8 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",))
             pass
         parent = os.path.dirname(here)
         caches = [os.path.join(here, "__pycache__"), os.path.join(parent, "__pycache__"),
-                  *(os.path.join(parent, d, "__pycache__") for d in dependants)]
+                  *(os.path.join(parent, d, "__pycache__") for d in dependants),
+                  *(os.path.join(f, "__pycache__") for f in folders[1:])]
         prefixes = tuple(f"{d}." for d in dependants)
         for cache in caches:
             if not os.path.isdir(cache):

@@ -1,4 +1,4 @@
-"""Discrete output-feedback ARC (controllers/arc.py) against independent references."""
+"""Discrete output-feedback ARC (controllers/arc/) against independent references."""
 
 from __future__ import annotations
 

@@ -68,3 +68,28 @@ def test_a_dependant_package_beside_it_loses_its_kernels_too(tmp_path):
     (pkg / "plant.py").write_text("def f(x):\n    return 3 * x\n")
     drop_stale_kernel_cache(str(pkg))
     assert _kernels(dep) == []
+
+
+def test_an_edit_in_a_subpackage_drops_its_kernels_and_the_package_s(tmp_path):
+    """``controllers/arc/`` is a subpackage: its step is inlined by ``simulate.py``'s kernels."""
+    pkg, own, parent = _layout(tmp_path)
+    sub = pkg / "arc"
+    (sub / "__pycache__").mkdir(parents=True)
+    (sub / "__init__.py").write_text("")
+    (sub / "step.py").write_text("def s(x):\n    return x\n")
+    (pkg / "notes").mkdir()  # a folder that is not a package is neither hashed nor cleaned
+    (pkg / "notes" / "scratch.py").write_text("x = 1\n")
+    drop_stale_kernel_cache(str(pkg))
+    _cache_some(own, parent)
+    (sub / "__pycache__" / "step.arc_step-9.py311.nbi").write_bytes(b"x")
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(sub / "__pycache__") == ["step.arc_step-9.py311.nbi"]
+    (pkg / "notes" / "scratch.py").write_text("x = 2\n")
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(sub / "__pycache__") == ["step.arc_step-9.py311.nbi"]
+
+    (sub / "step.py").write_text("def s(x):\n    return 2 * x\n")
+    drop_stale_kernel_cache(str(pkg))
+    assert _kernels(sub / "__pycache__") == []
+    assert _kernels(own) == []
+    assert _kernels(parent) == ["other.k-2.py311.nbi"]
