@@ -47,8 +47,9 @@ from commission.tuning import Score
 #: the code that reads them.
 DEFAULT_C_U = GATE["c_u"].default
 DEFAULT_ARC_VS_PID = ARC_VS_PID_AIM
-#: Default limits of the ARC-vs-PID judgement by quantiles (:func:`commission.gate.comparison.arc_vs_pid_quantile_checks`):
-#: the median and the 90th percentile of the per-scenario factor, in each group (fixed, Monte-Carlo).
+#: Default limits of the ARC-vs-PID judgement by quantiles
+#: (:func:`commission.gate.comparison.arc_vs_pid_quantile_checks`): the median and the 90th percentile
+#: of the per-scenario factor, in each group (fixed, Monte-Carlo).
 DEFAULT_ARC_VS_PID_MEDIAN = GATE["arc_vs_pid_median"].default
 DEFAULT_ARC_VS_PID_P90 = GATE["arc_vs_pid_p90"].default
 #: Default limit of the ARC-vs-PID judgement on the identified plant

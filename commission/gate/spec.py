@@ -1,11 +1,12 @@
 """What a ``gate.toml`` says: :class:`GateSpec`, read through the table of
 :data:`commission.formats.gate_toml.GATE_KEYS`.
 
-The table holds every key's type, default, range, unit and error line (:func:`commission.formats.gate_toml.read_gate`); this
-module only turns the values it accepted into a :class:`GateSpec`: error limits as
-:class:`ErrorLimit` (a number in metres, or ``"<number> <unit>"`` with unit ``m``, ``mm``, ``um``
-(or ``µm``), ``nm``, ``lsb`` (encoder steps of the tuning's quantization) or ``%travel`` (percent
-of the envelope's ``trajectory.travel``)), the margin keys as one mapping.  ``None`` marks a key
+The table holds every key's type, default, range, unit and error line
+(:func:`commission.formats.gate_toml.read_gate`); this module only turns the values it accepted
+into a :class:`GateSpec`: error limits as :class:`ErrorLimit` (a number in metres, or
+``"<number> <unit>"`` with unit ``m``, ``mm``, ``um`` (or ``µm``), ``nm``, ``lsb`` (encoder steps
+of the tuning's quantization) or ``%travel`` (percent of the envelope's ``trajectory.travel``)),
+the margin keys as one mapping.  ``None`` marks a key
 left at its default; :func:`commission.gate.limits.resolve_gate` resolves the defaults for an axis.
 """
 

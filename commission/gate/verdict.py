@@ -175,7 +175,8 @@ def performance_scenarios(names: Sequence[str], *, payload_stated: bool,
     -------
     frozenset of str
         Never a Monte-Carlo plant: the Monte-Carlo distribution certifies performance by the quantiles of
-        the ARC-vs-PID factor (:func:`commission.gate.comparison.arc_vs_pid_quantile_checks`), not by its single worst plant.
+        the ARC-vs-PID factor (:func:`commission.gate.comparison.arc_vs_pid_quantile_checks`), not by its
+        single worst plant.
     """
     out = set()
     for name in names:

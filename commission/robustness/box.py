@@ -120,10 +120,11 @@ def box_plants(ident: Identification, spec: Spec,
     """Every plant the box check covers: the four (theta1, theta2) corners x the identified dynamics.
 
     At each corner (mass ``1/theta1``, viscous ``theta2/theta1``, the box's corners as in
-    :func:`margin_plants`) the identified mode and delay and, with a mode, the mode's variants of
-    :func:`commission.scenarios.robustness_scenarios` (frequency x0.8 and x1.2, half its damping).
-    ``theta_min`` overrides the box's lower end (a narrowed payload range,
-    :func:`certified_payload`).  Names ``"<corner>"`` or ``"<corner>/<variant>"``.
+    :func:`commission.robustness.margins.margin_plants`) the identified mode and delay and, with a
+    mode, the mode's variants of :func:`commission.scenarios.robustness_scenarios` (frequency x0.8
+    and x1.2, half its damping).  ``theta_min`` overrides the box's lower end (a narrowed payload
+    range, :func:`commission.robustness.payload.certified_payload`).  Names ``"<corner>"`` or
+    ``"<corner>/<variant>"``.
     """
     from commission.scenarios import MODE_DAMPING_FACTOR, MODE_FREQUENCY_FACTORS
     from commission.controllers.plant import P_MODE_DAMPING, P_MODE_HZ
