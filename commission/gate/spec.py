@@ -54,28 +54,19 @@ class ErrorLimit:
 class GateSpec:
     """A parsed ``gate.toml``; ``None`` marks a key left at its default (:mod:`commission.gate.limits`).
 
+    One attribute per key of :data:`commission.formats.gate_toml.GATE_KEYS`, whose row states its
+    meaning, unit, range and default; the margin keys are gathered in ``margins``.
+
     Attributes
     ----------
-    e_F, e_M, e_rms : ErrorLimit or None
-        Error limits.
-    c_u : float or None
-        Chattering limit, dimensionless.
-    u_max : float or None
-        Input limit, u-unit (default: the tuning spec's).
+    e_F, e_M, e_rms, arc_vs_pid_slack : ErrorLimit or None
+        The lengths, as written.
+    c_u, u_max, arc_vs_pid_e_rms, arc_vs_pid_median, arc_vs_pid_p90, arc_vs_pid_nominal : float or None
+        The numbers (``arc_vs_pid_e_rms`` None: the scenario-by-scenario comparison is off).
     no_divergence : bool
-        Fail on any aborted scenario.
-    arc_vs_pid_e_rms : float or None
-        ARC e_rms <= factor x PID e_rms + slack in every scenario, when given (None: the
-        scenario-by-scenario check is off and the quantiles judge; tune still aims at 1.0).
-    arc_vs_pid_median, arc_vs_pid_p90 : float or None
-        Limits of the median and the 90th percentile of the per-scenario factor (None: defaults).
-    arc_vs_pid_nominal : float or None
-        Limit of the ARC/PID e_rms ratio on the identified plant, per case (None: default 1).
-    arc_vs_pid_slack : ErrorLimit or None
-        The slack (default: LSB / sqrt(12)).
     margins : mapping of str to float
-        The margin keys given (:data:`MARGIN_KEYS`: dB, deg, samples beyond the identified
-        delay, dimensionless); absent keys take the tuning spec's ``[margins]``.
+        The margin keys given (:data:`~commission.formats.gate_toml.MARGIN_KEYS`); absent keys take
+        the tuning spec's ``[margins]``.
     source : str
         File name (or ``"defaults"``).
     """
