@@ -41,6 +41,7 @@ TYPES = {
     "string map": "an object of name -> string",
     "number map": "an object of name -> finite number",
     "map": "an object of name -> an object of the fields below NAME.*",
+    "objects": "a list of objects of the fields below NAME.*",
     "any": "any JSON value (read by the code named in the doc)",
 }
 
@@ -186,7 +187,7 @@ def build_json_model(name: str, fields: Sequence[Field], doc: str, *, root_close
     by_parent: dict[str, list[Field]] = {}
     for f in fields:
         by_parent.setdefault(f.parent, []).append(f)
-    objects = {f.path: f for f in fields if f.type in ("object", "map")}
+    objects = {f.path: f for f in fields if f.type in ("object", "map", "objects")}
 
     def model(path: str, closed: bool) -> type[BaseModel]:
         cfg = ConfigDict(strict=True, allow_inf_nan=False, extra="forbid" if closed else "allow")
@@ -195,9 +196,10 @@ def build_json_model(name: str, fields: Sequence[Field], doc: str, *, root_close
             if f.name == "*":  # the value row of a map: built by the map's row
                 continue
             sub = model(f.path, f.closed) if f.type == "object" else None
-            if f.type == "map":
+            if f.type in ("map", "objects"):
                 star = objects[f.path + ".*"]
-                sub = dict[str, model(star.path, star.closed)]  # type: ignore[misc, assignment]
+                item = model(star.path, star.closed)
+                sub = dict[str, item] if f.type == "map" else list[item]  # type: ignore[misc, assignment, valid-type]
             members[f.name] = _annotation_and_default(f, sub)
         title = name + "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").replace("*", "item").split(".")
                                if p)
@@ -268,7 +270,7 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
     e = errors[0]
     loc = [p for p in e["loc"]]
     v, kind = e["input"], e["type"]
-    f = _row(rows, [p for p in loc if isinstance(p, str)])
+    f = _row(rows, loc)
     if kind == "value_error":
         err = e["ctx"]["error"]
         arg = err.args[0] if err.args else str(err)
@@ -278,12 +280,16 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
     return f"{path}: {_why(kind, v, f, e)}"
 
 
-def _row(rows: dict[str, Field], keys: list[str]) -> Field | None:
-    """The row of a location, a map's entry (``guarantees.stable``) standing for ``guarantees.*``."""
+def _row(rows: dict[str, Field], loc: Sequence[Any]) -> Field | None:
+    """The row of a location: a map's entry (``guarantees.stable``) or a list's element (``runs[3]``)
+    standing for ``guarantees.*`` / ``runs.*``; an element of a list of numbers for the list."""
     path = ""
-    for k in keys:
-        nxt = f"{path}.{k}" if path else k
+    for k in loc:
         star = f"{path}.*" if path else "*"
+        if isinstance(k, int):
+            path = star if star in rows else path
+            continue
+        nxt = f"{path}.{k}" if path else k
         path = star if nxt not in rows and star in rows else nxt
     return rows.get(path)
 
@@ -308,7 +314,7 @@ def _why(kind: str, v: Any, f: Field | None, e: Any) -> str:
     if kind == "string_pattern_mismatch":
         return f"expected a sha256 (64 lowercase hex digits), got {str(v)[:80]!r}"
     if kind == "list_type":
-        what = "strings" if f is not None and f.type == "strings" else "numbers"
+        what = {"strings": "strings", "objects": "objects"}.get(f.type if f is not None else "", "numbers")
         return f"expected a list of {what}, got {type(v).__name__}"
     if kind in ("too_short", "too_long"):
         return f"expected {f.length if f else '?'} numbers, got {len(v)}"

@@ -50,7 +50,7 @@ PID_GAINS = (("Ts", "s", False), ("M_hat", "u s^2/q", False), ("B_hat", "u s/q",
 _QUANT = next(k for k in SPEC_KEYS if (k.section, k.name) == ("controller", "quantization"))
 
 
-def _object(v: Any) -> None:
+def object_value(v: Any) -> None:
     if not isinstance(v, dict):
         raise ValueError(("", f"expected an object, got {type(v).__name__}"))
 
@@ -83,7 +83,7 @@ def _list_of(ok, what: str):
     return check
 
 
-def _nullable_numbers(v: Any) -> None:
+def nullable_numbers(v: Any) -> None:
     if not isinstance(v, list):
         raise ValueError(("", "expected a list of numbers"))
     for i, x in enumerate(v):
@@ -95,8 +95,8 @@ def _pair(x: Any) -> bool:
     return isinstance(x, list) and len(x) == 2 and all(is_finite_number(e) for e in x) and x[0] <= x[1]
 
 
-def _validity(v: Any) -> None:
-    _object(v)
+def validity_record(v: Any) -> None:
+    object_value(v)
     for k in ("payload_range", "mass_range"):
         if not _pair(v.get(k)):
             raise ValueError((f".{k}", f"expected a [min, max] pair of finite numbers, got {v.get(k)!r}"))
@@ -109,10 +109,16 @@ _NONNEG_INT = _list_of(lambda x: isinstance(x, int) and not isinstance(x, bool) 
 _BOOLS = _list_of(lambda x: isinstance(x, bool), "boolean")
 
 
-def _score_rows(prefix: str) -> list[Field]:
+def score_rows(prefix: str) -> list[Field]:
     rows = [Field(prefix, "object", "", f"the {prefix.rsplit('.', 1)[-1].upper()} loop's score", required=True)]
     rows += [Field(f"{prefix}.{n}", "number", _SCORE_UNITS[n], f"index {n} (null: diverged)") for n in SCORE_NAMES]
     return rows + [Field(f"{prefix}.diverged", "boolean", "", "the run diverged", required=True)]
+
+
+def _gain_rows(section: str, owner: str, gains: tuple[tuple[str, str, bool], ...]) -> list[Field]:
+    """The scalar gains of a controller (``(name, unit, may be null)`` rows of ``owner``), each required."""
+    return [Field(f"{section}.{n}", "number", u, f"{owner}.{n}" + (" (null: infinite)" if inf else ""),
+                  required=True, nullable=inf) for n, u, inf in gains]
 
 
 def _feasibility_rows(prefix: str) -> list[Field]:
@@ -144,27 +150,24 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("provenance.seed", "integer", "", "seed of the search's generator", required=True),
     Field("provenance.ident_path", "string", "", "ident.json as given on the command line", required=True),
     Field("spec", "any", "", "the resolved spec (spec.toml's layout; checked by its table, §6)", required=True,
-          check=_object),
+          check=object_value),
     Field("identification", "any", "", "ident.json's content verbatim (checked by its table, §2)",
-          required=True, check=_object),
+          required=True, check=object_value),
     Field("plant", "object", "", "the identified plant the simulation used", required=True),
     *(Field(f"plant.{n}", "number", "", f"plant vector entry {n} (commission.controllers.plant)",
             required=i < N_REQUIRED_PLANT) for i, n in enumerate(PLANT_NAMES)),
     Field("plant.quantization", "number", _QUANT.unit, "encoder step simulated", required=True,
           range=_QUANT.range),
     Field("arc", "object", "", "the tuned discrete ARC (every ArcGains field)", required=True, closed=True),
-    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in ARC_GAINS),
+    *_gain_rows("arc", "ArcGains", ARC_GAINS),
     *(Field(f"arc.{n}", "numbers", "", f"ArcGains.{n}", required=True, length=3) for n in ARC_VECTORS),
-    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in ARC_TAIL),
+    *_gain_rows("arc", "ArcGains", ARC_TAIL),
     *(Field(f"arc.{n}", "boolean" if n == "freeze_on_saturation" else "number", u,
             f"runtime guard {n}, set by validate (absent or null: off)")
       for n, u in ARC_GUARDS),
     Field("pid", "object", "", "the PID baseline (every PidGains field, pole and design mass)", required=True,
           closed=True),
-    *(Field(f"pid.{n}", "number", u, f"PidGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in PID_GAINS),
+    *_gain_rows("pid", "PidGains", PID_GAINS),
     Field("pid.pole", "number", "rad/s", "triple pole the baseline runs at", required=True, sign="positive"),
     Field("pid.design_mass", "number", "u s^2/q", "M_min = 1/theta_max[0] of the identification", required=True,
           sign="positive"),
@@ -190,8 +193,8 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("guarantees.*.detail", "string", "", "why, or what was traded", required=True),
     Field("scores", "map", "", "scenario -> the scores of both loops", required=True),
     Field("scores.*", "object", "", "one scenario", required=True),
-    *_score_rows("scores.*.arc"),
-    *_score_rows("scores.*.pid"),
+    *score_rows("scores.*.arc"),
+    *score_rows("scores.*.pid"),
     Field("search", "object", "", "the gain search", required=True),
     Field("search.n_evaluations", "integer", "", "candidates evaluated", required=True),
     Field("search.budget", "integer", "", "requested budget (spec tune.budget)", required=True),
@@ -200,7 +203,7 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("search.cost_best", "number", "", "objective of the chosen gains (null: not simulated)"),
     Field("search.free", "number map", "", "the free gains as chosen (name -> value)", required=True),
     Field("search.history", "any", "", "objective of every candidate, evaluation order (null: not simulated)",
-          check=_nullable_numbers),
+          check=nullable_numbers),
     Field("search.holdout_plants", "integer", "", "Monte-Carlo plants of the hold-out selection (0: not run)"),
     Field("search.holdout_failures", "any", "", "default-gate failures of each feasible finalist, best first",
           check=_NONNEG_INT),
@@ -208,7 +211,7 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("search.generations", "integer", "", "generations run"),
     Field("search.n_feasible", "integer", "", "candidates that met every constraint"),
     Field("search.violations", "any", "", "each candidate's constraint violation (0: met)",
-          check=_nullable_numbers),
+          check=nullable_numbers),
     Field("search.levels", "any", "", "each candidate's level: 0 met, 1 gate missed, 2 stability missed",
           check=_NONNEG_INT),
     Field("search.chosen_level", "integer", "", "the chosen gains' level"),
@@ -218,9 +221,9 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)",
           check=_list),
     Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)",
-          check=_object),
+          check=object_value),
     Field("validity", "any", "", "tune narrowed a defaulted payload range: payload_range, mass_range [min, max] "
-          "in unit, default_payload_range, reason", check=_validity),
+          "in unit, default_payload_range, reason", check=validity_record),
     Field("pid_yardstick", "any", "", "how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)"),
 )
 
