@@ -118,6 +118,49 @@ class Field:
         return ", ".join(parts)
 
 
+#: The flags of a text row (:func:`rows`) and the Field attribute each sets.
+_FLAGS = {"required": ("required", True), "nullable": ("nullable", True), "closed": ("closed", True),
+          "positive": ("sign", "positive"), "nonneg": ("sign", "nonneg")}
+
+
+def rows(text: str, extra: dict[str, dict[str, Any]] | None = None) -> list[Field]:
+    """Fields written as a text table, one row a line: ``path | type | unit | flags | doc``.
+
+    ``flags`` is a space-separated list of ``required``, ``nullable``, ``closed``, ``positive``,
+    ``nonneg`` and ``len=N`` (``-`` for none); an indented line continues the doc above it.
+    ``extra`` maps a path to the attributes that are not text (``choices``, ``range``, ``check``).
+    The table reads as the docs render it, and one table is one literal rather than a run of calls.
+    """
+    out: list[dict[str, Any]] = []
+    for line in text.strip("\n").splitlines():
+        if line[:1].isspace():
+            out[-1]["doc"] += " " + line.strip()
+            continue
+        path, typ, unit, flags, doc = (c.strip() for c in line.split("|", 4))
+        row: dict[str, Any] = {"path": path, "type": typ, "unit": unit, "doc": doc}
+        for flag in flags.split():
+            if flag.startswith("len="):
+                row["length"] = int(flag[4:])
+            elif flag != "-":
+                key, value = _FLAGS[flag]
+                row[key] = value
+        out.append(row)
+    extra = extra or {}
+    unknown = set(extra) - {r["path"] for r in out}
+    if unknown:
+        raise ValueError(f"extra attributes for rows the table does not hold: {sorted(unknown)}")
+    return [Field(**r, **extra.get(r["path"], {})) for r in out]
+
+
+def cells(text: str, columns: int = 3) -> dict[str, tuple[str, ...]]:
+    """A text table of ``name | cell | ...`` lines: name -> its other cells (stripped; the last may hold ``|``)."""
+    out = {}
+    for line in text.strip("\n").splitlines():
+        name, *rest = (c.strip() for c in line.split("|", columns - 1))
+        out[name] = tuple(rest)
+    return out
+
+
 def _bounds(f: Field) -> dict[str, float]:
     out: dict[str, float] = {}
     if f.sign == "positive":
@@ -248,6 +291,23 @@ def check_header(data: Any, kind: str, version: int, source: str, prefix: str = 
         raise fail(".schema_version", f"expected an integer, got {v!r}")
     if v > version or v < 1:
         raise fail(".schema_version", f"unsupported schema_version {v} (this tool reads 1..{version})")
+
+
+def check_json(data: Any, model: type[BaseModel], fields: Sequence[Field], kind: str, version: int,
+               source: str) -> Any:
+    """``data`` (a parsed artifact) checked strictly against its table's ``model``; returned as it is.
+
+    Raises
+    ------
+    SchemaError
+        One line naming the JSON path of the first refused value (the header first).
+    """
+    check_header(data, kind, version, source)
+    try:
+        model.model_validate(data)
+    except ValidationError as exc:
+        raise SchemaError(json_error(exc, fields, source=source)) from None
+    return data
 
 
 def json_path(loc: Sequence[Any]) -> str:

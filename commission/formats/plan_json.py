@@ -17,10 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import ValidationError
-
-from commission.errors import SchemaError
-from commission.formats.json_table import Field, build_json_model, check_header, json_error, is_finite_number
+from commission.formats.json_table import Field, build_json_model, check_json, is_finite_number, rows
 from commission.formats.limits_toml import Q_UNITS, U_UNITS
 from commission.formats.tuning_json import object_value
 
@@ -52,74 +49,85 @@ def _peak_rows(prefix: str) -> list[Field]:
 
 
 PLAN_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{PLAN_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{PLAN_SCHEMA_VERSION}: the version of this layout", required=True),
-    Field("units", "object", "", "the units of the plan's columns (plan.csv, plan.h5)"),
-    Field("units.t", "string", "", "time", choices=("s",)),
-    Field("units.q", "string", "", "position (q)", choices=Q_UNITS),
-    Field("units.u", "string", "", "command (u)", choices=U_UNITS),
-    Field("units.v", "string", "", "speed, q/s"),
-    Field("units.a", "string", "", "acceleration, q/s^2"),
-    Field("sample_rate", "number", "Hz", "drive rate: one plan row per sample (identify checks the log's)",
-          sign="positive"),
-    Field("samples", "integer", "samples", "rows of the plan", sign="nonneg"),
-    Field("duration_s", "number", "s", "length of the run", sign="positive"),
-    Field("limits", "object", "", "limits.toml's [limits] the plan keeps"),
-    Field("limits.travel", "number", "q", "the whole span, centred on the start position", required=True,
-          sign="positive"),
-    Field("limits.v_max", "number", "q/s", "peak speed", required=True, sign="positive"),
-    Field("limits.a_max", "number", "q/s^2", "peak acceleration", required=True, sign="positive"),
-    Field("limits.u_max", "number", "u", "peak command", required=True, sign="positive"),
-    Field("spec", "any", "", "the resolved limits.toml, every key (null: not given; its table, §10)",
-          check=object_value),
-    Field("segments", "objects", "", "the plan's segments in time order", required=True),
-    Field("segments.*", "object", "", "one segment [t_start, t_end)", required=True),
-    Field("segments.*.name", "string", "", "bump, approach, ladder, moves, injection, sine F, ...", required=True),
-    Field("segments.*.purpose", "string", "", "what it is for, one line", required=True),
-    Field("segments.*.t_start", "number", "s", "start", required=True),
-    Field("segments.*.t_end", "number", "s", "end", required=True),
-    Field("segments.*.duration", "number", "s", "t_end - t_start", sign="nonneg"),
-    Field("segments.*.windows_s", "any", "s", "injection and stepped sine: the cruise windows [start, end] that "
-          "carry the signal (identify reads the injection's)", check=_windows),
-    Field("segments.*.amplitude", "number", "u", "bump, injection, stepped sine: the peak added command"),
-    Field("segments.*.pulse_s", "number", "s", "bump: width of each pulse", sign="positive"),
-    Field("segments.*.speed", "number", "q/s", "ladder leg, moves, injection, stepped sine: the cruise speed"),
-    Field("segments.*.leg_length", "number", "q", "ladder leg: its length"),
-    Field("segments.*.acceleration", "number", "q/s^2", "moves: their acceleration"),
-    Field("segments.*.count", "integer", "", "moves: back-and-forth moves", sign="nonneg"),
-    Field("segments.*.kind", "string", "", "injection: its signal", choices=("prbs", "multisine")),
-    Field("segments.*.band_hz", "numbers", "Hz", "injection: the band [low, high] it covers", length=2),
-    Field("segments.*.shaping", "number", "", "injection: multisine line amplitude ~ f^shaping (0: prbs)"),
-    Field("segments.*.frequency_hz", "number", "Hz", "stepped sine: its frequency", sign="positive"),
-    Field("presimulation", "object", "", "the plan simulated on rigid models bracketing the mass"),
-    Field("presimulation.models", "any", "", "each model: label, M (u s^2/q), B (u s/q), fc (u) and the holding "
-          "loop's kp (u/q), kd (u s/q), ki (u/(q s))"),
+    *rows("""
+kind                    | string  |         | required          | "excitation_plan"
+schema_version          | integer |         | required          | 1..1: the version of this layout
+units                   | object  |         | -                 | the units of the plan's columns (plan.csv, plan.h5)
+units.t                 | string  |         | -                 | time
+units.q                 | string  |         | -                 | position (q)
+units.u                 | string  |         | -                 | command (u)
+units.v                 | string  |         | -                 | speed, q/s
+units.a                 | string  |         | -                 | acceleration, q/s^2
+sample_rate             | number  | Hz      | positive          | drive rate: one plan row per sample (identify checks
+                                                                  the log's)
+samples                 | integer | samples | nonneg            | rows of the plan
+duration_s              | number  | s       | positive          | length of the run
+limits                  | object  |         | -                 | limits.toml's [limits] the plan keeps
+limits.travel           | number  | q       | required positive | the whole span, centred on the start position
+limits.v_max            | number  | q/s     | required positive | peak speed
+limits.a_max            | number  | q/s^2   | required positive | peak acceleration
+limits.u_max            | number  | u       | required positive | peak command
+spec                    | any     |         | -                 | the resolved limits.toml, every key (null: not
+                                                                  given; its table, §10)
+segments                | objects |         | required          | the plan's segments in time order
+segments.*              | object  |         | required          | one segment [t_start, t_end)
+segments.*.name         | string  |         | required          | bump, approach, ladder, moves, injection, sine F,
+                                                                  ...
+segments.*.purpose      | string  |         | required          | what it is for, one line
+segments.*.t_start      | number  | s       | required          | start
+segments.*.t_end        | number  | s       | required          | end
+segments.*.duration     | number  | s       | nonneg            | t_end - t_start
+segments.*.windows_s    | any     | s       | -                 | injection and stepped sine: the cruise windows
+                                                                  [start, end] that carry the signal (identify reads
+                                                                  the injection's)
+segments.*.amplitude    | number  | u       | -                 | bump, injection, stepped sine: the peak added
+                                                                  command
+segments.*.pulse_s      | number  | s       | positive          | bump: width of each pulse
+segments.*.speed        | number  | q/s     | -                 | ladder leg, moves, injection, stepped sine: the
+                                                                  cruise speed
+segments.*.leg_length   | number  | q       | -                 | ladder leg: its length
+segments.*.acceleration | number  | q/s^2   | -                 | moves: their acceleration
+segments.*.count        | integer |         | nonneg            | moves: back-and-forth moves
+segments.*.kind         | string  |         | -                 | injection: its signal
+segments.*.band_hz      | numbers | Hz      | len=2             | injection: the band [low, high] it covers
+segments.*.shaping      | number  |         | -                 | injection: multisine line amplitude ~ f^shaping (0:
+                                                                  prbs)
+segments.*.frequency_hz | number  | Hz      | positive          | stepped sine: its frequency
+presimulation           | object  |         | -                 | the plan simulated on rigid models bracketing the
+                                                                  mass
+presimulation.models    | any     |         | -                 | each model: label, M (u s^2/q), B (u s/q), fc (u)
+                                                                  and the holding loop's kp (u/q), kd (u s/q), ki
+                                                                  (u/(q s))
+""", {"units.t": dict(choices=('s',)), "units.q": dict(choices=Q_UNITS), "units.u": dict(choices=U_UNITS), "spec": dict(check=object_value), "segments.*.windows_s": dict(check=_windows), "segments.*.kind": dict(choices=('prbs', 'multisine'))}),
     *_peak_rows("presimulation.peaks"),
-    Field("presimulation.injection_scale", "number", "", "fraction of the designed injection amplitude kept",
-          sign="nonneg"),
-    Field("presimulation.motion_scale", "number", "", "fraction of the designed top speed and acceleration kept",
-          sign="nonneg"),
-    Field("presimulation.note", "string", "", "what the models are"),
-    Field("predicted_band", "object", "", "the band identify is expected to back from a recording of this plan "
-          "(commission.excite.band.BandPrediction; null: not predicted)"),
-    Field("predicted_band.band_hz", "numbers", "Hz", "[low, high] (null: none)", length=2),
-    Field("predicted_band.target_hz", "number", "Hz", "the band the recording must back (null: none given)",
-          sign="positive"),
-    Field("predicted_band.target_source", "string", "", "\"evidence.target_hz\" or \"1.5 x evidence.first_mode_hz\" (null: no target)"),
-    Field("predicted_band.short", "boolean", "", "the predicted band falls short of the target"),
-    Field("predicted_band.n_averages", "integer", "", "Welch windows over the injection", sign="nonneg"),
-    Field("predicted_band.resolution_hz", "number", "Hz", "frequency resolution of identify's estimate",
-          sign="positive"),
-    Field("predicted_band.mass", "number", "u s^2/q", "the rigid model's mass the prediction used",
-          sign="positive"),
-    Field("predicted_band.encoder_step", "number", "q", "encoder step assumed or given", sign="nonneg"),
-    Field("predicted_band.encoder_noise", "number", "q", "encoder noise, rms, assumed or given", sign="nonneg"),
-    Field("predicted_band.encoder_step_assumed", "boolean", "", "limits.toml gave no axis.encoder_step"),
-    Field("predicted_band.encoder_noise_assumed", "boolean", "", "limits.toml gave no axis.encoder_noise"),
-    Field("predicted_band.floor_psd", "number", "q^2/Hz", "the measurement's noise floor", sign="nonneg"),
-    Field("predicted_band.remedies", "any", "", "when short: what would reach the target"),
-    Field("predicted_band.rule", "string", "", "the rule the band was predicted by"),
-    Field("predicted_band.units", "string map", "", "field -> its unit, in the plan's units"),
+    *rows("""
+presimulation.injection_scale        | number     |         | nonneg   | fraction of the designed injection amplitude
+                                                                         kept
+presimulation.motion_scale           | number     |         | nonneg   | fraction of the designed top speed and
+                                                                         acceleration kept
+presimulation.note                   | string     |         | -        | what the models are
+predicted_band                       | object     |         | -        | the band identify is expected to back from a
+                                                                         recording of this plan
+                                                                         (commission.excite.band.BandPrediction; null:
+                                                                         not predicted)
+predicted_band.band_hz               | numbers    | Hz      | len=2    | [low, high] (null: none)
+predicted_band.target_hz             | number     | Hz      | positive | the band the recording must back (null: none
+                                                                         given)
+predicted_band.target_source         | string     |         | -        | "evidence.target_hz" or "1.5 x
+                                                                         evidence.first_mode_hz" (null: no target)
+predicted_band.short                 | boolean    |         | -        | the predicted band falls short of the target
+predicted_band.n_averages            | integer    |         | nonneg   | Welch windows over the injection
+predicted_band.resolution_hz         | number     | Hz      | positive | frequency resolution of identify's estimate
+predicted_band.mass                  | number     | u s^2/q | positive | the rigid model's mass the prediction used
+predicted_band.encoder_step          | number     | q       | nonneg   | encoder step assumed or given
+predicted_band.encoder_noise         | number     | q       | nonneg   | encoder noise, rms, assumed or given
+predicted_band.encoder_step_assumed  | boolean    |         | -        | limits.toml gave no axis.encoder_step
+predicted_band.encoder_noise_assumed | boolean    |         | -        | limits.toml gave no axis.encoder_noise
+predicted_band.floor_psd             | number     | q^2/Hz  | nonneg   | the measurement's noise floor
+predicted_band.remedies              | any        |         | -        | when short: what would reach the target
+predicted_band.rule                  | string     |         | -        | the rule the band was predicted by
+predicted_band.units                 | string map |         | -        | field -> its unit, in the plan's units
+"""),
 )
 
 #: The strict model of plan.json (pydantic, built from :data:`PLAN_FIELDS`).
@@ -127,16 +135,5 @@ PlanJson = build_json_model("PlanJson", PLAN_FIELDS, "plan.json: the excitation 
 
 
 def check_plan(data: Any, source: str = "plan.json") -> dict[str, Any]:
-    """``data`` (a parsed plan.json) checked strictly against the table; returned as it is.
-
-    Raises
-    ------
-    SchemaError
-        One line naming the JSON path of the first refused value.
-    """
-    check_header(data, PLAN_KIND, PLAN_SCHEMA_VERSION, source)
-    try:
-        PlanJson.model_validate(data)
-    except ValidationError as exc:
-        raise SchemaError(json_error(exc, PLAN_FIELDS, source=source)) from None
-    return data
+    """A parsed plan.json checked against :data:`PLAN_FIELDS` (:func:`~commission.formats.json_table.check_json`)."""
+    return check_json(data, PlanJson, PLAN_FIELDS, PLAN_KIND, PLAN_SCHEMA_VERSION, source)

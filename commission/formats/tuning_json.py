@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from commission.formats.json_table import Field, build_json_model, is_finite_number
+from commission.formats.json_table import Field, build_json_model, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 
 TUNING_KIND = "tuning"
@@ -139,21 +139,20 @@ def _feasibility_rows(prefix: str) -> list[Field]:
 
 
 TUNING_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{TUNING_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{TUNING_SCHEMA_VERSION}: the version of this layout",
-          required=True),
-    Field("provenance", "object", "", "where the tuning came from", required=True),
-    Field("provenance.ident_sha256", "sha256", "", "sha256 of the ident.json bytes", required=True),
-    Field("provenance.log_sha256", "sha256", "", "sha256 of the excitation log, when ident.json records one"),
-    Field("provenance.tool_version", "string", "", "commission.__version__", required=True),
-    Field("provenance.created_utc", "string", "", "ISO-8601 UTC time of the run", required=True),
-    Field("provenance.seed", "integer", "", "seed of the search's generator", required=True),
-    Field("provenance.ident_path", "string", "", "ident.json as given on the command line", required=True),
-    Field("spec", "any", "", "the resolved spec (spec.toml's layout; checked by its table, §6)", required=True,
-          check=object_value),
-    Field("identification", "any", "", "ident.json's content verbatim (checked by its table, §2)",
-          required=True, check=object_value),
-    Field("plant", "object", "", "the identified plant the simulation used", required=True),
+    *rows("""
+kind                    | string  |  | required | "tuning"
+schema_version          | integer |  | required | 1..1: the version of this layout
+provenance              | object  |  | required | where the tuning came from
+provenance.ident_sha256 | sha256  |  | required | sha256 of the ident.json bytes
+provenance.log_sha256   | sha256  |  | -        | sha256 of the excitation log, when ident.json records one
+provenance.tool_version | string  |  | required | commission.__version__
+provenance.created_utc  | string  |  | required | ISO-8601 UTC time of the run
+provenance.seed         | integer |  | required | seed of the search's generator
+provenance.ident_path   | string  |  | required | ident.json as given on the command line
+spec                    | any     |  | required | the resolved spec (spec.toml's layout; checked by its table, §6)
+identification          | any     |  | required | ident.json's content verbatim (checked by its table, §2)
+plant                   | object  |  | required | the identified plant the simulation used
+""", {"spec": dict(check=object_value), "identification": dict(check=object_value)}),
     *(Field(f"plant.{n}", "number", "", f"plant vector entry {n} (commission.controllers.plant)",
             required=i < N_REQUIRED_PLANT) for i, n in enumerate(PLANT_NAMES)),
     Field("plant.quantization", "number", _QUANT.unit, "encoder step simulated", required=True,
@@ -168,63 +167,65 @@ TUNING_FIELDS: tuple[Field, ...] = (
     Field("pid", "object", "", "the PID baseline (every PidGains field, pole and design mass)", required=True,
           closed=True),
     *_gain_rows("pid", "PidGains", PID_GAINS),
-    Field("pid.pole", "number", "rad/s", "triple pole the baseline runs at", required=True, sign="positive"),
-    Field("pid.design_mass", "number", "u s^2/q", "M_min = 1/theta_max[0] of the identification", required=True,
-          sign="positive"),
-    Field("observer", "object", "", "the observer the controller runs (eq. 11)", required=True),
-    Field("observer.pole", "number", "rad/s", "observer pole", required=True, sign="positive"),
-    Field("observer.k1", "number", "1/s", "gain k1 (= arc.k1)", required=True, sign="positive"),
-    Field("observer.k2", "number", "1/s^2", "gain k2 (= arc.k2)", required=True, sign="positive"),
-    Field("observer.P", "any", "", "2x2 Lyapunov matrix P (eq. 11)", required=True, check=_matrix(2, 2)),
-    Field("observer.P_eigenvalues", "numbers", "", "eigenvalues of P", required=True, length=2),
-    Field("observer.lyapunov_residual", "number", "", "residual of the Lyapunov equation", required=True,
-          sign="nonneg"),
-    Field("observer.discrete_pole", "number", "", "the discrete pole the controller runs (null: not recorded)"),
-    Field("theorem1", "object", "", "Theorem 1's conditions", required=True),
-    Field("theorem1.holds", "boolean", "", "every ratio >= 1", required=True),
-    Field("theorem1.ratios", "any", "", "2x3 ratios", required=True, check=_matrix(2, 3)),
-    Field("theorem1.min_ratio", "number", "", "smallest ratio (null: infinite)"),
-    Field("feasibility", "object", "", "discrete feasibility of both loops", required=True),
+    *rows("""
+pid.pole                   | number  | rad/s   | required positive | triple pole the baseline runs at
+pid.design_mass            | number  | u s^2/q | required positive | M_min = 1/theta_max[0] of the identification
+observer                   | object  |         | required          | the observer the controller runs (eq. 11)
+observer.pole              | number  | rad/s   | required positive | observer pole
+observer.k1                | number  | 1/s     | required positive | gain k1 (= arc.k1)
+observer.k2                | number  | 1/s^2   | required positive | gain k2 (= arc.k2)
+observer.P                 | any     |         | required          | 2x2 Lyapunov matrix P (eq. 11)
+observer.P_eigenvalues     | numbers |         | required len=2    | eigenvalues of P
+observer.lyapunov_residual | number  |         | required nonneg   | residual of the Lyapunov equation
+observer.discrete_pole     | number  |         | -                 | the discrete pole the controller runs (null: not
+                                                                     recorded)
+theorem1                   | object  |         | required          | Theorem 1's conditions
+theorem1.holds             | boolean |         | required          | every ratio >= 1
+theorem1.ratios            | any     |         | required          | 2x3 ratios
+theorem1.min_ratio         | number  |         | -                 | smallest ratio (null: infinite)
+feasibility                | object  |         | required          | discrete feasibility of both loops
+""", {"observer.P": dict(check=_matrix(2, 2)), "theorem1.ratios": dict(check=_matrix(2, 3))}),
     *_feasibility_rows("feasibility.arc"),
     *_feasibility_rows("feasibility.pid"),
-    Field("guarantees", "map", "", "name -> which guarantee of the paper holds as tuned", required=True),
-    Field("guarantees.*", "object", "", "one guarantee", required=True),
-    Field("guarantees.*.holds", "boolean", "", "it holds", required=True),
-    Field("guarantees.*.detail", "string", "", "why, or what was traded", required=True),
-    Field("scores", "map", "", "scenario -> the scores of both loops", required=True),
-    Field("scores.*", "object", "", "one scenario", required=True),
+    *rows("""
+guarantees          | map     |  | required | name -> which guarantee of the paper holds as tuned
+guarantees.*        | object  |  | required | one guarantee
+guarantees.*.holds  | boolean |  | required | it holds
+guarantees.*.detail | string  |  | required | why, or what was traded
+scores              | map     |  | required | scenario -> the scores of both loops
+scores.*            | object  |  | required | one scenario
+"""),
     *score_rows("scores.*.arc"),
     *score_rows("scores.*.pid"),
-    Field("search", "object", "", "the gain search", required=True),
-    Field("search.n_evaluations", "integer", "", "candidates evaluated", required=True),
-    Field("search.budget", "integer", "", "requested budget (spec tune.budget)", required=True),
-    Field("search.seed", "integer", "", "seed", required=True),
-    Field("search.cost_initial", "number", "", "objective of the starting point (null: not simulated)"),
-    Field("search.cost_best", "number", "", "objective of the chosen gains (null: not simulated)"),
-    Field("search.free", "number map", "", "the free gains as chosen (name -> value)", required=True),
-    Field("search.history", "any", "", "objective of every candidate, evaluation order (null: not simulated)",
-          check=nullable_numbers),
-    Field("search.holdout_plants", "integer", "", "Monte-Carlo plants of the hold-out selection (0: not run)"),
-    Field("search.holdout_failures", "any", "", "default-gate failures of each feasible finalist, best first",
-          check=_NONNEG_INT),
-    Field("search.optimiser", "string", "", "the optimiser and its constraint handling"),
-    Field("search.generations", "integer", "", "generations run"),
-    Field("search.n_feasible", "integer", "", "candidates that met every constraint"),
-    Field("search.violations", "any", "", "each candidate's constraint violation (0: met)",
-          check=nullable_numbers),
-    Field("search.levels", "any", "", "each candidate's level: 0 met, 1 gate missed, 2 stability missed",
-          check=_NONNEG_INT),
-    Field("search.chosen_level", "integer", "", "the chosen gains' level"),
-    Field("search.chosen_violation", "number", "", "the chosen gains' violation"),
-    Field("search.screened", "any", "", "each candidate was simulated on the screening scenarios only",
-          check=_BOOLS),
-    Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)",
-          check=_list),
-    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)",
-          check=object_value),
-    Field("validity", "any", "", "tune narrowed a defaulted payload range: payload_range, mass_range [min, max] "
-          "in unit, default_payload_range, reason", check=validity_record),
-    Field("pid_yardstick", "any", "", "how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)"),
+    *rows("""
+search                  | object     |  | required | the gain search
+search.n_evaluations    | integer    |  | required | candidates evaluated
+search.budget           | integer    |  | required | requested budget (spec tune.budget)
+search.seed             | integer    |  | required | seed
+search.cost_initial     | number     |  | -        | objective of the starting point (null: not simulated)
+search.cost_best        | number     |  | -        | objective of the chosen gains (null: not simulated)
+search.free             | number map |  | required | the free gains as chosen (name -> value)
+search.history          | any        |  | -        | objective of every candidate, evaluation order (null: not
+                                                     simulated)
+search.holdout_plants   | integer    |  | -        | Monte-Carlo plants of the hold-out selection (0: not run)
+search.holdout_failures | any        |  | -        | default-gate failures of each feasible finalist, best first
+search.optimiser        | string     |  | -        | the optimiser and its constraint handling
+search.generations      | integer    |  | -        | generations run
+search.n_feasible       | integer    |  | -        | candidates that met every constraint
+search.violations       | any        |  | -        | each candidate's constraint violation (0: met)
+search.levels           | any        |  | -        | each candidate's level: 0 met, 1 gate missed, 2 stability missed
+search.chosen_level     | integer    |  | -        | the chosen gains' level
+search.chosen_violation | number     |  | -        | the chosen gains' violation
+search.screened         | any        |  | -        | each candidate was simulated on the screening scenarios only
+margins                 | any        |  | -        | stability margins of both loops per plant
+                                                     (commission.robustness.LoopMargins)
+box_robustness          | any        |  | -        | the ARC over the whole theta box
+                                                     (commission.robustness.BoxRobustness)
+validity                | any        |  | -        | tune narrowed a defaulted payload range: payload_range,
+                                                     mass_range [min, max] in unit, default_payload_range, reason
+pid_yardstick           | any        |  | -        | how the PID baseline was chosen
+                                                     (commission.tune.baseline.YardstickChoice)
+""", {"search.history": dict(check=nullable_numbers), "search.holdout_failures": dict(check=_NONNEG_INT), "search.violations": dict(check=nullable_numbers), "search.levels": dict(check=_NONNEG_INT), "search.screened": dict(check=_BOOLS), "margins": dict(check=_list), "box_robustness": dict(check=object_value), "validity": dict(check=validity_record)}),
 )
 
 #: The strict model of tuning.json (pydantic, built from :data:`TUNING_FIELDS`).

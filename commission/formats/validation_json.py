@@ -19,11 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import ValidationError
-
-from commission.errors import SchemaError
 from commission.formats.ident_json import UNIT_VOCABULARY_Q, UNIT_VOCABULARY_U
-from commission.formats.json_table import Field, build_json_model, check_header, json_error
+from commission.formats.json_table import Field, build_json_model, check_json, rows
 from commission.formats.tuning_json import nullable_numbers, object_value, score_rows, validity_record
 
 VALIDATION_KIND = "validation"
@@ -50,82 +47,101 @@ def _check_rows(prefix: str, what: str) -> list[Field]:
 
 
 VALIDATION_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{VALIDATION_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{VALIDATION_SCHEMA_VERSION}: the version of this layout",
-          required=True),
-    Field("passed", "boolean", "", "every check of the gate held (controller.json was written)", required=True),
-    Field("seed", "integer", "", "seed of the Monte-Carlo sample (--seed)", required=True, sign="nonneg"),
-    Field("monte_carlo", "integer", "", "Monte-Carlo plants simulated (--monte-carlo)", required=True,
-          sign="nonneg"),
-    Field("units", "object", "", "command and position units of the other fields", required=True, closed=True),
-    Field("units.u", "string", "", "command unit (\"u\")", required=True, choices=UNIT_VOCABULARY_U),
-    Field("units.q", "string", "", "position unit (\"q\")", required=True, choices=UNIT_VOCABULARY_Q),
-    Field("simulation", "object", "", "what every scenario was simulated with", required=True),
-    Field("simulation.substeps", "integer", "", "plant sub-steps per controller sample", required=True,
-          sign="positive"),
-    Field("simulation.quantization", "number", "q", "encoder step simulated", required=True, sign="nonneg"),
-    Field("simulation.e_abort", "number", "q", "a run aborts when |q - q_d| exceeds it (the travel)",
-          required=True, sign="positive"),
-    Field("simulation.u_sat", "number", "u", "actuator limit simulated (null: none)", required=True,
-          nullable=True, sign="positive"),
-    Field("simulation.sample_period", "number", "s", "controller sample period", required=True, sign="positive"),
-    Field("gate", "object", "", "the resolved gate every check used (commission.gate.GateLimits)", required=True),
-    Field("gate.e_M", "number", "q", "limit on the maximal tracking error"),
-    Field("gate.e_F", "number", "q", "limit on the final tracking error"),
-    Field("gate.e_rms", "number", "q", "limit on the rms tracking error"),
-    Field("gate.c_u", "number", "", "limit on the control-input chattering"),
-    Field("gate.u_max", "number", "u", "limit on the peak command"),
-    Field("gate.lsb", "number", "q", "encoder step the defaults were resolved with"),
-    Field("gate.travel", "number", "q", "travel the defaults were resolved with"),
-    Field("gate.basis", "string map", "", "limit -> where its value came from (gate.toml, a default's rule)"),
-    Field("gate.defaulted_limits", "strings", "", "the limits that took their default"),
-    Field("failures", "objects", "", "every check that failed, in the order checked (empty: passed)",
-          required=True),
+    *rows("""
+kind                     | string     |   | required                   | "validation"
+schema_version           | integer    |   | required                   | 1..1: the version of this layout
+passed                   | boolean    |   | required                   | every check of the gate held (controller.json
+                                                                         was written)
+seed                     | integer    |   | required nonneg            | seed of the Monte-Carlo sample (--seed)
+monte_carlo              | integer    |   | required nonneg            | Monte-Carlo plants simulated (--monte-carlo)
+units                    | object     |   | required closed            | command and position units of the other
+                                                                         fields
+units.u                  | string     |   | required                   | command unit ("u")
+units.q                  | string     |   | required                   | position unit ("q")
+simulation               | object     |   | required                   | what every scenario was simulated with
+simulation.substeps      | integer    |   | required positive          | plant sub-steps per controller sample
+simulation.quantization  | number     | q | required nonneg            | encoder step simulated
+simulation.e_abort       | number     | q | required positive          | a run aborts when |q - q_d| exceeds it (the
+                                                                         travel)
+simulation.u_sat         | number     | u | required nullable positive | actuator limit simulated (null: none)
+simulation.sample_period | number     | s | required positive          | controller sample period
+gate                     | object     |   | required                   | the resolved gate every check used
+                                                                         (commission.gate.GateLimits)
+gate.e_M                 | number     | q | -                          | limit on the maximal tracking error
+gate.e_F                 | number     | q | -                          | limit on the final tracking error
+gate.e_rms               | number     | q | -                          | limit on the rms tracking error
+gate.c_u                 | number     |   | -                          | limit on the control-input chattering
+gate.u_max               | number     | u | -                          | limit on the peak command
+gate.lsb                 | number     | q | -                          | encoder step the defaults were resolved with
+gate.travel              | number     | q | -                          | travel the defaults were resolved with
+gate.basis               | string map |   | -                          | limit -> where its value came from
+                                                                         (gate.toml, a default's rule)
+gate.defaulted_limits    | strings    |   | -                          | the limits that took their default
+failures                 | objects    |   | required                   | every check that failed, in the order checked
+                                                                         (empty: passed)
+""", {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),
     *_check_rows("failures.*", "one failed check"),
     Field("worst", "map", "", "criterion -> its worst check over every scenario", required=True),
     *_check_rows("worst.*", "the worst check of a criterion"),
-    Field("runs", "objects", "", "ARC and PID on every scenario, in scenario-matrix order (fixed, robustness, "
-          "mc/NNN)", required=True),
-    Field("runs.*", "object", "", "one scenario (commission.validate.RunRecord)", required=True),
-    Field("runs.*.name", "string", "", "the scenario (case1/nominal, mc/007, ...)", required=True),
-    Field("runs.*.tags", "strings", "", "its tags (nominal, monte_carlo, robustness, ...)", required=True),
+    *rows("""
+runs        | objects |  | required | ARC and PID on every scenario, in scenario-matrix order (fixed, robustness,
+                                      mc/NNN)
+runs.*      | object  |  | required | one scenario (commission.validate.RunRecord)
+runs.*.name | string  |  | required | the scenario (case1/nominal, mc/007, ...)
+runs.*.tags | strings |  | required | its tags (nominal, monte_carlo, robustness, ...)
+"""),
     *score_rows("runs.*.arc"),
     *score_rows("runs.*.pid"),
-    Field("runs.*.arc_t_abort", "number", "s", "time the ARC's run aborted (null: it completed)", required=True,
-          nullable=True),
-    Field("runs.*.pid_t_abort", "number", "s", "time the PID's run aborted (null: it completed)", required=True,
-          nullable=True),
-    Field("runs.*.theta_final", "any", "[q/(u s^2), 1/s, q/s^2]", "the ARC's estimates at the last sample "
-          "(null entries: not finite)", required=True, check=nullable_numbers),
-    Field("runs.*.theta_true", "numbers", "[q/(u s^2), 1/s, q/s^2]", "the scenario plant's [1/M, B/M, "
-          "-offset/M] (friction not included)", required=True, length=3),
-    Field("elapsed_s", "number", "s", "wall time of the simulations (varies from run to run)", required=True,
-          sign="nonneg"),
-    Field("monte_carlo_summary", "any", "", "quantiles and worst plants of the Monte-Carlo sample "
-          "(commission.montecarlo.MonteCarloSummary; null: no Monte-Carlo plant)"),
-    Field("robustness", "object", "", "the part of the verdict on the robustness scenarios and the margins "
-          "(null: not checked)"),
-    Field("robustness.passed", "boolean", "", "every check of that part held", required=True),
-    Field("robustness.required", "boolean", "", "the part is required like every other check", required=True),
-    Field("robustness.failures", "objects", "", "its failed checks", required=True),
+    *rows("""
+runs.*.arc_t_abort  | number  | s                       | required nullable | time the ARC's run aborted (null: it
+                                                                              completed)
+runs.*.pid_t_abort  | number  | s                       | required nullable | time the PID's run aborted (null: it
+                                                                              completed)
+runs.*.theta_final  | any     | [q/(u s^2), 1/s, q/s^2] | required          | the ARC's estimates at the last sample
+                                                                              (null entries: not finite)
+runs.*.theta_true   | numbers | [q/(u s^2), 1/s, q/s^2] | required len=3    | the scenario plant's [1/M, B/M,
+                                                                              -offset/M] (friction not included)
+elapsed_s           | number  | s                       | required nonneg   | wall time of the simulations (varies
+                                                                              from run to run)
+monte_carlo_summary | any     |                         | -                 | quantiles and worst plants of the
+                                                                              Monte-Carlo sample
+                                                                              (commission.montecarlo.MonteCarloSummary;
+                                                                              null: no Monte-Carlo plant)
+robustness          | object  |                         | -                 | the part of the verdict on the
+                                                                              robustness scenarios and the margins
+                                                                              (null: not checked)
+robustness.passed   | boolean |                         | required          | every check of that part held
+robustness.required | boolean |                         | required          | the part is required like every other
+                                                                              check
+robustness.failures | objects |                         | required          | its failed checks
+""", {"runs.*.theta_final": dict(check=nullable_numbers)}),
     *_check_rows("robustness.failures.*", "one failed check"),
-    Field("robustness.checks", "integer", "", "checks in that part", required=True, sign="nonneg"),
-    Field("margins", "object", "", "stability margins of both loops on the identified plant"),
-    Field("margins.floors", "object", "", "the spec's margin floors they are held against", required=True),
-    Field("margins.floors.gain_margin_db", "number", "dB", "gain-margin floor", required=True),
-    Field("margins.floors.phase_margin_deg", "number", "deg", "phase-margin floor", required=True),
-    Field("margins.floors.delay_margin_samples", "number", "samples", "delay-margin floor", required=True),
-    Field("margins.floors.modulus_margin", "number", "", "modulus-margin floor", required=True),
-    Field("margins.loops", "any", "", "each loop per plant (commission.robustness.LoopMargins)", required=True),
-    Field("margins.worst", "any", "", "controller -> its worst margins (null: no loop)", required=True,
-          check=object_value),
-    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness; "
-          "absent: not checked)", check=object_value),
-    Field("evidence", "any", "", "the band the log backs, the uncertainty weight above it and each loop's robust "
-          "stability (commission.evidence; null: none)"),
-    Field("validity", "any", "u s^2/q", "validate narrowed a defaulted payload range: payload_range, mass_range "
-          "[min, max] in unit, default_payload_range, narrowed_by, reason (absent: not narrowed)",
-          check=validity_record),
+    *rows("""
+robustness.checks                   | integer |         | required nonneg | checks in that part
+margins                             | object  |         | -               | stability margins of both loops on the
+                                                                            identified plant
+margins.floors                      | object  |         | required        | the spec's margin floors they are held
+                                                                            against
+margins.floors.gain_margin_db       | number  | dB      | required        | gain-margin floor
+margins.floors.phase_margin_deg     | number  | deg     | required        | phase-margin floor
+margins.floors.delay_margin_samples | number  | samples | required        | delay-margin floor
+margins.floors.modulus_margin       | number  |         | required        | modulus-margin floor
+margins.loops                       | any     |         | required        | each loop per plant
+                                                                            (commission.robustness.LoopMargins)
+margins.worst                       | any     |         | required        | controller -> its worst margins (null: no
+                                                                            loop)
+box_robustness                      | any     |         | -               | the ARC over the whole theta box
+                                                                            (commission.robustness.BoxRobustness;
+                                                                            absent: not checked)
+evidence                            | any     |         | -               | the band the log backs, the uncertainty
+                                                                            weight above it and each loop's robust
+                                                                            stability (commission.evidence; null:
+                                                                            none)
+validity                            | any     | u s^2/q | -               | validate narrowed a defaulted payload
+                                                                            range: payload_range, mass_range [min,
+                                                                            max] in unit, default_payload_range,
+                                                                            narrowed_by, reason (absent: not narrowed)
+""", {"margins.worst": dict(check=object_value), "box_robustness": dict(check=object_value), "validity": dict(check=validity_record)}),
 )
 
 #: The strict model of validation.json (pydantic, built from :data:`VALIDATION_FIELDS`).
@@ -136,16 +152,5 @@ RUN_KEYS: tuple[str, ...] = tuple(f.name for f in VALIDATION_FIELDS if f.parent 
 
 
 def check_validation(data: Any, source: str = "validation.json") -> dict[str, Any]:
-    """``data`` (a parsed validation.json) checked strictly against the table; returned as it is.
-
-    Raises
-    ------
-    SchemaError
-        One line naming the JSON path of the first refused value.
-    """
-    check_header(data, VALIDATION_KIND, VALIDATION_SCHEMA_VERSION, source)
-    try:
-        ValidationJson.model_validate(data)
-    except ValidationError as exc:
-        raise SchemaError(json_error(exc, VALIDATION_FIELDS, source=source)) from None
-    return data
+    """A parsed validation.json checked against :data:`VALIDATION_FIELDS` (:func:`~commission.formats.json_table.check_json`)."""
+    return check_json(data, ValidationJson, VALIDATION_FIELDS, VALIDATION_KIND, VALIDATION_SCHEMA_VERSION, source)
