@@ -310,6 +310,30 @@ def check_json(data: Any, model: type[BaseModel], fields: Sequence[Field], kind:
     return data
 
 
+def unnamed(data: Any, fields: Sequence[Field]) -> list[str]:
+    """The JSON paths of the keys in ``data`` that no row names (below ``object``, ``map`` and ``objects``
+    rows; an ``any`` row's value is its owner's).  Empty: the table describes every key the file holds."""
+    rows_ = {f.path: f for f in fields}
+    out: list[str] = []
+
+    def walk(value: Any, path: str, where: str) -> None:
+        if not isinstance(value, dict):
+            return
+        for k, v in value.items():
+            row = rows_.get(f"{path}.{k}" if path else k)
+            if row is None:
+                out.append(f"{where}.{k}")
+            elif row.type == "object":
+                walk(v, row.path, f"{where}.{k}")
+            elif row.type in ("map", "objects") and isinstance(v, (dict, list)):
+                items = v.items() if isinstance(v, dict) else ((f"[{i}]", x) for i, x in enumerate(v))
+                for name, x in items:
+                    walk(x, f"{row.path}.*", f"{where}.{k}" + (name if isinstance(v, list) else f".{name}"))
+
+    walk(data, "", "$")
+    return out
+
+
 def json_path(loc: Sequence[Any]) -> str:
     """``("theta", "min", 2)`` -> ``$.theta.min[2]``."""
     return "$" + "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc)

@@ -72,6 +72,18 @@ gate.e_F                 | number     | q | -                          | limit o
 gate.e_rms               | number     | q | -                          | limit on the rms tracking error
 gate.c_u                 | number     |   | -                          | limit on the control-input chattering
 gate.u_max               | number     | u | -                          | limit on the peak command
+gate.no_divergence       | boolean    |   | -                          | no run may diverge
+gate.arc_vs_pid_e_rms    | number     |   | -                          | ARC e_rms / PID e_rms on every run (null or
+                                                                         absent: off)
+gate.arc_vs_pid_slack    | number     | q | -                          | slack added to f x PID e_rms in the
+                                                                         comparisons
+gate.arc_vs_pid_every    | boolean    |   | -                          | arc_vs_pid_e_rms holds on every run
+gate.arc_vs_pid_median   | number     |   | -                          | limit on the median ARC/PID e_rms ratio
+                                                                         (Monte Carlo)
+gate.arc_vs_pid_p90      | number     |   | -                          | limit on the 90th percentile of that ratio
+gate.arc_vs_pid_nominal  | number     |   | -                          | limit on ARC/PID e_rms on the identified plant
+gate.absolute_limits     | string     |   | -                          | where the absolute error limits came from
+                                                                         ("fixed", "yardstick", "reported")
 gate.lsb                 | number     | q | -                          | encoder step the defaults were resolved with
 gate.travel              | number     | q | -                          | travel the defaults were resolved with
 gate.basis               | string map |   | -                          | limit -> where its value came from
