@@ -49,6 +49,16 @@ VALIDATION = {
 }
 
 
+def _with(doc: dict, path: str, value: object) -> dict:
+    """A copy of ``doc`` with the value at ``path`` (``runs[0].arc.e_rms``) replaced."""
+    doc = copy.deepcopy(doc)
+    node, parts = doc, re.findall(r"[^.\[\]]+", path)
+    for p in parts[:-1]:
+        node = node[int(p)] if p.isdigit() else node[p]
+    node[parts[-1]] = value
+    return doc
+
+
 def test_a_written_layout_loads_and_every_key_is_named():
     assert check_validation(copy.deepcopy(VALIDATION)) == VALIDATION
     assert unnamed(VALIDATION, VALIDATION_FIELDS) == []
@@ -71,13 +81,8 @@ def test_a_written_layout_loads_and_every_key_is_named():
     ("robustness.failures", [{"criterion": "c_u"}], "$.robustness.failures[0].scenario: missing required field"),
 ])
 def test_a_bad_validation_value_is_named_by_its_json_path(path, value, want):
-    doc = copy.deepcopy(VALIDATION)
-    node, parts = doc, re.findall(r"[^.\[\]]+", path)
-    for p in parts[:-1]:
-        node = node[int(p)] if p.isdigit() else node[p]
-    node[parts[-1]] = value
     with pytest.raises(SchemaError, match="^" + re.escape(f"v.json: {want}") + "$"):
-        check_validation(doc, "v.json")
+        check_validation(_with(VALIDATION, path, value), "v.json")
 
 
 @pytest.mark.parametrize("path, value, want", [
@@ -88,13 +93,8 @@ def test_a_bad_validation_value_is_named_by_its_json_path(path, value, want):
     ("presimulation.peaks.u.limit", True, "$.presimulation.peaks.u.limit: expected a finite number, got True"),
 ])
 def test_a_bad_plan_value_is_named_by_its_json_path(path, value, want):
-    doc = copy.deepcopy(PLAN)
-    node, parts = doc, re.findall(r"[^.\[\]]+", path)
-    for p in parts[:-1]:
-        node = node[int(p)] if p.isdigit() else node[p]
-    node[parts[-1]] = value
     with pytest.raises(SchemaError, match="^" + re.escape(f"p.json: {want}") + "$"):
-        check_plan(doc, "p.json")
+        check_plan(_with(PLAN, path, value), "p.json")
 
 
 def test_the_injection_windows_are_checked_pair_by_pair():
@@ -108,17 +108,24 @@ def test_the_injection_windows_are_checked_pair_by_pair():
 
 def test_the_text_tables_refuse_what_they_cannot_place():
     got = rows("""
-a     | object | -  | required closed | an object
-a.b   | number | Hz | nonneg len=2    | a number whose doc
-                                         goes on
+a     | object | -  | required closed
+    an object
+a.b   | number | Hz | nonneg len=2
+    a number whose doc
+    goes on
 """, {"a.b": {"range": (0.0, 5.0)}})
     assert [(f.path, f.required, f.closed, f.sign, f.length, f.range, f.doc) for f in got] == [
         ("a", True, True, None, None, None, "an object"), ("a.b", False, False, "nonneg", 2, (0.0, 5.0),
                                                            "a number whose doc goes on")]
     with pytest.raises(ValueError, match=r"rows the table does not hold: \['a\.c'\]"):
-        rows("a | object | - | - | x\n", {"a.c": {}})
+        rows("a | object | - | -\n    x\n", {"a.c": {}})
     with pytest.raises(KeyError):
-        rows("a | number | - | sometimes | x\n")
+        rows("a | number | - | sometimes\n    x\n")
+    # a unit that is another table's is written "*" and given by extra, and only then
+    assert rows("a | number | * | -\n    x\n", {"a": {"unit": "m"}})[0].unit == "m"
+    for text, extra in (("a | number | * | -\n", {}), ("a | number | s | -\n", {"a": {"unit": "m"}})):
+        with pytest.raises(ValueError, match=r"a unit is '\*' exactly when extra gives it: \['a'\]"):
+            rows(text, extra)
     k = keys("""
 s.n | integer | 8        | (0, inf) | - | -
     a count

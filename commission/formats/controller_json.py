@@ -19,7 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from commission.formats.ident_json import UNIT_VOCABULARY_Q, UNIT_VOCABULARY_U
-from commission.formats.json_table import Field, build_json_model, cells, is_finite_number, rows
+from commission.formats.json_table import Field, build_json_model, cells, header_rows, is_finite_number, rows
 
 CONTROLLER_KIND = "controller"
 #: Version of controller.json and of docs/schemas/controller.schema.json.
@@ -93,21 +93,25 @@ def _gain_rows(section: str) -> list[Field]:
 
 
 CONTROLLER_FIELDS: tuple[Field, ...] = (
+    *header_rows(CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION),
+    Field("controller", "string", "", f'"{CONTROLLER_TYPE}" (Xu & Yao 2001, sec. 3)', required=True),
     *rows("""
-kind           | string  |    | required          | "controller"
-schema_version | integer |    | required          | 1..1: the version of this layout
-controller     | string  |    | required          | "arc-output-feedback" (Xu & Yao 2001, sec. 3)
-control_law    | any     |    | -                 | the paper, its equations by number and the filter structure this
-                                                    file parameterises; must be
-                                                    commission.controller_config.CONTROL_LAW (optional)
-sample_rate    | number  | Hz | required positive | the nominal rate: the validated rate, or its round value when they
-                                                    differ only by the rounding of a rate estimated from time stamps
-                                                    (1e-10); within spec.toml's controller.sample_rate range
-sample_period  | number  | s  | required positive | the exact period validated; = 1/sample_rate
-units          | object  |    | required closed   | command and position units
-units.u        | string  |    | required          | command unit
-units.q        | string  |    | required          | position unit
-observer       | object  |    | required closed   | the observer of (10)
+control_law    | any     | -  | -
+    the paper, its equations by number and the filter structure this file parameterises; must be
+    commission.controller_config.CONTROL_LAW (optional)
+sample_rate    | number  | Hz | required positive
+    the nominal rate: the validated rate, or its round value when they differ only by the rounding of a rate
+    estimated from time stamps (1e-10); within spec.toml's controller.sample_rate range
+sample_period  | number  | s  | required positive
+    the exact period validated; = 1/sample_rate
+units          | object  | -  | required closed
+    command and position units
+units.u        | string  | -  | required
+    command unit
+units.q        | string  | -  | required
+    position unit
+observer       | object  | -  | required closed
+    the observer of (10)
 """, {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),
     *_gain_rows("observer"),
     Field("gains", "object", "", "the robust gains and weights", required=True, closed=True),
@@ -120,41 +124,55 @@ observer       | object  |    | required closed   | the observer of (10)
     Field("initial_estimates", "object", "", "theta_hat(0)", required=True, closed=True),
     *_gain_rows("initial_estimates"),
     *rows("""
-friction_compensation       | object |     | required closed | F_hat(v) = level (2/pi) atan(slope v) added to the
-                                                               output
-friction_compensation.level | number | u   | required nonneg | level of F_hat
-friction_compensation.slope | number | s/q | required nonneg | slope of F_hat
-runtime                     | object |     | closed          | the runtime guards of the compiled step (absent: every
-                                                               guard off)
+friction_compensation       | object | -   | required closed
+    F_hat(v) = level (2/pi) atan(slope v) added to the output
+friction_compensation.level | number | u   | required nonneg
+    level of F_hat
+friction_compensation.slope | number | s/q | required nonneg
+    slope of F_hat
+runtime                     | object | -   | closed
+    the runtime guards of the compiled step (absent: every guard off)
 """),
     *(Field(f"runtime.{n}", "boolean" if n == "freeze_on_saturation" else "number", _RUNTIME[n][0],
             _RUNTIME[n][1], required=n not in RUNTIME_ADDED, nullable=n != "freeze_on_saturation")
       for n in RUNTIME_FIELDS),
     *rows("""
-validated                | object |         | required          | what validate checked: the resolved gate, the worst
-                                                                  value per criterion, the metrics on the identified
-                                                                  plant, what was simulated (read by reports and
-                                                                  export)
-provenance               | object |         | required          | where the controller came from
-provenance.log_sha256    | sha256 |         | required nullable | sha256 of the excitation log (null: not recorded)
-provenance.ident_sha256  | sha256 |         | required          | sha256 of ident.json
-provenance.tuning_sha256 | sha256 |         | required          | sha256 of the tuning.json validated
-provenance.tool_version  | string |         | required          | commission.__version__ (its form checked by export)
-provenance.created_utc   | string |         | required          | ISO-8601 UTC time of the validation (its form
-                                                                  checked by export)
-validity                 | object |         | -                 | present only when tune or validate narrowed a
-                                                                  defaulted payload range to what the gains certify
-                                                                  (absent: the whole box of bounds)
-validity.payload_range   | any    | u s^2/q | required          | [min, max] payload certified
-validity.mass_range      | any    | u s^2/q | required          | [min, max] mass certified
-validity.unit            | string |         | required          | unit of the ranges
-checksum                 | object |         | required          | sha256 over every other field (canonical JSON)
-checksum.algorithm       | any    |         | required          | "sha256" (checked with the value)
-checksum.value           | any    |         | required          | 64 lowercase hex digits
-signature                | object |         | closed            | optional HMAC-SHA256 over every field but checksum
-                                                                  and signature (--sign-key)
-signature.algorithm      | any    |         | required          | "hmac-sha256"
-signature.value          | any    |         | required          | 64 lowercase hex digits
+validated                | object | -       | required
+    what validate checked: the resolved gate, the worst value per criterion, the metrics on the identified plant,
+    what was simulated (read by reports and export)
+provenance               | object | -       | required
+    where the controller came from
+provenance.log_sha256    | sha256 | -       | required nullable
+    sha256 of the excitation log (null: not recorded)
+provenance.ident_sha256  | sha256 | -       | required
+    sha256 of ident.json
+provenance.tuning_sha256 | sha256 | -       | required
+    sha256 of the tuning.json validated
+provenance.tool_version  | string | -       | required
+    commission.__version__ (its form checked by export)
+provenance.created_utc   | string | -       | required
+    ISO-8601 UTC time of the validation (its form checked by export)
+validity                 | object | -       | -
+    present only when tune or validate narrowed a defaulted payload range to what the gains certify (absent: the
+    whole box of bounds)
+validity.payload_range   | any    | u s^2/q | required
+    [min, max] payload certified
+validity.mass_range      | any    | u s^2/q | required
+    [min, max] mass certified
+validity.unit            | string | -       | required
+    unit of the ranges
+checksum                 | object | -       | required
+    sha256 over every other field (canonical JSON)
+checksum.algorithm       | any    | -       | required
+    "sha256" (checked with the value)
+checksum.value           | any    | -       | required
+    64 lowercase hex digits
+signature                | object | -       | closed
+    optional HMAC-SHA256 over every field but checksum and signature (--sign-key)
+signature.algorithm      | any    | -       | required
+    "hmac-sha256"
+signature.value          | any    | -       | required
+    64 lowercase hex digits
 """, {"validity.payload_range": dict(check=_pair), "validity.mass_range": dict(check=_pair)}),
 )
 

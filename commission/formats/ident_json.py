@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from commission.formats.json_table import Field, build_json_model, cells, is_finite_number, rows
+from commission.formats.json_table import Field, build_json_model, cells, header_rows, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 from commission.logs.model import U_UNITS
 
@@ -125,141 +125,180 @@ def _parameter_rows() -> list[Field]:
 
 
 IDENT_FIELDS: tuple[Field, ...] = (
+    *header_rows(IDENT_KIND, IDENT_SCHEMA_VERSION),
     *rows("""
-kind           | string  |  | required        | "identification"
-schema_version | integer |  | required        | 1..1: the version of this layout
-units          | object  |  | required closed | the units of every other field
-units.u        | string  |  | required        | command unit ("u" in the units below)
-units.q        | string  |  | required        | position unit ("q" below): m, or rad on a rotary axis
+units          | object  | - | required closed
+    the units of every other field
+units.u        | string  | - | required
+    command unit ("u" in the units below)
+units.q        | string  | - | required
+    position unit ("q" below): m, or rad on a rotary axis
 """, {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),
     *_parameter_rows(),
     *rows("""
-not_identified                           | string map |                         | -                 | parameter -> why the log carries no
-                                                                                                      information on it (that parameter is
-                                                                                                      null; with M null, theta and delta_d are
-                                                                                                      null and tune refuses the file)
-fit                                      | object     |                         | required          | the fit's quality
-fit.relative_error                       | number     |                         | required nonneg   | ||y - y_hat|| / ||y|| on the
-                                                                                                      identification data (a fraction, not %)
-fit.condition_number                     | number     |                         | required positive | of the column-scaled regressor
-fit.validation_relative_error            | number     |                         | nonneg            | the same on --validate-on LOG2, or null
-theta                                    | object     |                         | required nullable | theta = [1/M, B/M, d_n/M] and its
-                                                                                                      Assumption-1 box (null: M not
-                                                                                                      identified)
-theta.nominal                            | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3    | nominal theta
-theta.min                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3    | lower corner of the box (min[0] > 0)
-theta.max                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3    | upper corner of the box
-delta_d                                  | number     | q/s^2                   | nonneg            | bound on the lumped uncertain
-                                                                                                      disturbance |d - d_n|/M (the paper's
-                                                                                                      delta_d); required with theta, null
-                                                                                                      without
-friction_compensation                    | object     |                         | required          | F_hat(v) = level (2/pi) atan(slope v)
-friction_compensation.level              | number     | u                       | required nonneg   | level of F_hat
-friction_compensation.slope              | number     | s/q                     | required nonneg   | slope of F_hat
-friction_compensation_rms_error          | any        | u                       | -                 | rms of F_hat against the identified
-                                                                                                      curve over the data's speeds (report)
-log_sha256                               | sha256     |                         | -                 | sha256 of the excitation log (older
-                                                                                                      files; now source.sha256)
-quantization                             | number     | m                       | -                 | the older place of encoder.quantization
-encoder                                  | object     |                         | -                 | what the log says of the encoder
-encoder.quantization                     | number     | m                       | -                 | encoder step the tool uses (null: none
-                                                                                                      measured; tune then assumes the spec's
-                                                                                                      default)
-encoder.noise_std                        | number     | m                       | -                 | noise beyond quantization, rms (tune and
-                                                                                                      validate simulate it unless [plant]
-                                                                                                      noise_std says otherwise)
-encoder.apparent_resolution              | number     | q                       | nonneg            | smallest step seen in q
-encoder.noise_rms_total                  | any        | q                       | -                 | rms of the whole measurement error
-                                                                                                      (noise and quantization), from the
-                                                                                                      spectrum of q - P u over 0.35-0.48 of
-                                                                                                      the sample rate
-encoder.quantization_noise_rms           | any        | q                       | -                 | quantization / sqrt(12), the rounding's
-                                                                                                      share (null: the log is not on a grid)
-encoder.noise_band_hz                    | any        | Hz                      | -                 | [low, high]: the band the floor was read
-                                                                                                      in
-source                                   | object     |                         | -                 | the log(s) identified
-source.sample_rate                       | number     | Hz                      | positive          | sample rate as measured (tune's default
-                                                                                                      rate)
-source.n_samples                         | integer    | samples                 | nonneg            | samples in the log
-source.sha256                            | any        |                         | -                 | sha256 of the log, or a list of them for
-                                                                                                      several logs
-source.path                              | any        |                         | -                 | the log's path, or a list of them
-source.input_gain                        | any        |                         | -                 | --input-gain: u_equiv = input_gain u
-source.mapping                           | any        |                         | -                 | the log's column mapping
-source.q_unit                            | any        |                         | -                 | the file's position unit ("counts" under
-                                                                                                      --counts-per-rev)
-source.resampled_hz                      | any        | Hz                      | -                 | the uniform rate of --resample, or null
-source.conversion                        | any        |                         | -                 | with --counts-per-rev, --lead or --gear:
-                                                                                                      {from, to, counts_per_rev,
-                                                                                                      lead_m_per_rad,
-                                                                                                      gear_motor_rad_per_load_rad}
-validation_source                        | any        |                         | -                 | the --validate-on log(s), as source
-model                                    | object     |                         | -                 | how the fit was made (method,
-                                                                                                      decimation, cut-off, friction model,
-                                                                                                      fixed parameters, segments,
-                                                                                                      inverse_dynamics)
-model.ripple_pitch                       | number     | q                       | positive          | the first --ripple-pitch
-model.ripple_amp                         | any        | u                       | -                 | its amplitude amp sin(2 pi q/P + phase):
-                                                                                                      a number or {value, std}
-model.ripple_phase                       | any        | rad                     | -                 | its phase
-model.ripple_harmonics                   | any        |                         | -                 | every --ripple-pitch with its amp and
-                                                                                                      phase ({value, std})
-model.fixed                              | any        |                         | -                 | parameters given with --fix NAME=VALUE
-                                                                                                      (std 0)
-model.segments                           | any        | samples                 | -                 | several logs fitted together: the
-                                                                                                      samples of each file
-model.inverse_dynamics                   | any        |                         | -                 | identify --friction auto's richer model
-                                                                                                      (docs/interface.md §2)
-ripple                                   | object     |                         | -                 | the older place of the ripple
-ripple.pitch                             | number     | q                       | required positive | ripple pitch
-ripple.amplitude                         | number     | u                       | -                 | ripple amplitude
-ripple.amp                               | number     | u                       | -                 | ripple amplitude (older spelling)
-bounds                                   | object     |                         | -                 | what the theta box covers and how it was
-                                                                                                      set
-bounds.disturbance_bound                 | number     | u                       | nonneg            | load-force bound
-bounds.disturbance_bound_defaulted       | boolean    |                         | -                 | the load-force bound was defaulted
-bounds.disturbance_range                 | any        | u                       | -                 | [min, max] load force
-bounds.mass_range                        | any        | u s^2/q                 | -                 | [min, max] mass the box covers
-bounds.viscous_range                     | any        | u s/q                   | -                 | [min, max] viscous friction the box
-                                                                                                      covers
-bounds.payload_range                     | any        | u s^2/q                 | -                 | the payload range the mass range
-                                                                                                      includes
-bounds.payload_defaulted                 | any        |                         | -                 | --payload-max was defaulted (3 M)
-bounds.payload_narrowed_by_tune          | any        |                         | -                 | tuning.json only: the default payload
-                                                                                                      range tune narrowed
-bounds.viscous_clipped                   | any        | u s/q                   | -                 | the fit's negative viscous coefficient
-                                                                                                      clipped to the box: estimate, std,
-                                                                                                      clipped_to
-bounds.narrowed_by_tune                  | object     |                         | -                 | tune (or fit_force_to_drive) narrowed a
-                                                                                                      defaulted load-force bound
-bounds.narrowed_by_tune.theta3_min       | number     | q/s^2                   | required          | theta3's lower end before
-bounds.narrowed_by_tune.theta3_max       | number     | q/s^2                   | required          | theta3's upper end before
-bounds.narrowed_by_tune.u_max            | number     | u                       | positive          | the drive limit it was narrowed to
-warnings                                 | strings    |                         | -                 | plausibility warnings, one sentence each
-evidence                                 | any        |                         | -                 | only for a log without a broadband
-                                                                                                      segment: missing, excite_command,
-                                                                                                      limits_toml
-frequency_response                       | object     |                         | -                 | the measured response and the structural
-                                                                                                      model fitted to it
-frequency_response.model                 | object     |                         | -                 | the plant the simulator uses beyond the
-                                                                                                      rigid body (null: none)
-frequency_response.model.delay_s         | number     | s                       | required nonneg   | input delay beyond the zero-order hold
-frequency_response.model.mode_hz         | number     | Hz                      | positive          | structural mode (null: none)
-frequency_response.model.mode_damping    | number     |                         | nonneg            | its damping ratio (< 1)
-frequency_response.model.mode_ratio      | number     |                         | positive          | load fraction m2/M (< 1)
-frequency_response.model.mode_load_side  | boolean    |                         | -                 | the encoder reads the load side
-frequency_response.model.mode2_hz        | number     | Hz                      | positive          | second appendage (null: none)
-frequency_response.model.mode2_damping   | number     |                         | nonneg            | its damping ratio (< 1)
-frequency_response.model.mode2_ratio     | number     |                         | positive          | load fraction m3/M (mode_ratio +
-                                                                                                      mode2_ratio < 1)
-frequency_response.model.mode2_load_side | boolean    |                         | -                 | the encoder reads the second appendage
-friction_map                             | any        |                         | -                 | friction tests: velocity (q/s), force
-                                                                                                      (u), std (u), n (samples) per leg
-model_selection                          | any        |                         | -                 | identify --friction auto: the
-                                                                                                      cross-validated choice of terms
-position_simulation                      | any        | q                       | -                 | with --validate-on: open-loop simulation
-                                                                                                      rmse, reference_rmse
-""", {"quantization": dict(range=_QUANT.range), "encoder.quantization": dict(range=_QUANT.range), "encoder.noise_std": dict(range=_NOISE.range), "source.sha256": dict(check=_sha256_or_list), "model.ripple_amp": dict(check=_ripple_amp), "bounds.narrowed_by_tune": dict(check=_narrowed), "frequency_response.model": dict(check=_structural)}),
+not_identified                           | string map | -                       | -
+    parameter -> why the log carries no information on it (that parameter is null; with M null, theta and delta_d
+    are null and tune refuses the file)
+fit                                      | object     | -                       | required
+    the fit's quality
+fit.relative_error                       | number     | -                       | required nonneg
+    ||y - y_hat|| / ||y|| on the identification data (a fraction, not %)
+fit.condition_number                     | number     | -                       | required positive
+    of the column-scaled regressor
+fit.validation_relative_error            | number     | -                       | nonneg
+    the same on --validate-on LOG2, or null
+theta                                    | object     | -                       | required nullable
+    theta = [1/M, B/M, d_n/M] and its Assumption-1 box (null: M not identified)
+theta.nominal                            | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    nominal theta
+theta.min                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    lower corner of the box (min[0] > 0)
+theta.max                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    upper corner of the box
+delta_d                                  | number     | q/s^2                   | nonneg
+    bound on the lumped uncertain disturbance |d - d_n|/M (the paper's delta_d); required with theta, null without
+friction_compensation                    | object     | -                       | required
+    F_hat(v) = level (2/pi) atan(slope v)
+friction_compensation.level              | number     | u                       | required nonneg
+    level of F_hat
+friction_compensation.slope              | number     | s/q                     | required nonneg
+    slope of F_hat
+friction_compensation_rms_error          | any        | u                       | -
+    rms of F_hat against the identified curve over the data's speeds (report)
+log_sha256                               | sha256     | -                       | -
+    sha256 of the excitation log (older files; now source.sha256)
+quantization                             | number     | *                       | -
+    the older place of encoder.quantization
+encoder                                  | object     | -                       | -
+    what the log says of the encoder
+encoder.quantization                     | number     | *                       | -
+    encoder step the tool uses (null: none measured; tune then assumes the spec's default)
+encoder.noise_std                        | number     | *                       | -
+    noise beyond quantization, rms (tune and validate simulate it unless [plant] noise_std says otherwise)
+encoder.apparent_resolution              | number     | q                       | nonneg
+    smallest step seen in q
+encoder.noise_rms_total                  | any        | q                       | -
+    rms of the whole measurement error (noise and quantization), from the spectrum of q - P u over 0.35-0.48 of
+    the sample rate
+encoder.quantization_noise_rms           | any        | q                       | -
+    quantization / sqrt(12), the rounding's share (null: the log is not on a grid)
+encoder.noise_band_hz                    | any        | Hz                      | -
+    [low, high]: the band the floor was read in
+source                                   | object     | -                       | -
+    the log(s) identified
+source.sample_rate                       | number     | Hz                      | positive
+    sample rate as measured (tune's default rate)
+source.n_samples                         | integer    | samples                 | nonneg
+    samples in the log
+source.sha256                            | any        | -                       | -
+    sha256 of the log, or a list of them for several logs
+source.path                              | any        | -                       | -
+    the log's path, or a list of them
+source.input_gain                        | any        | -                       | -
+    --input-gain: u_equiv = input_gain u
+source.mapping                           | any        | -                       | -
+    the log's column mapping
+source.q_unit                            | any        | -                       | -
+    the file's position unit ("counts" under --counts-per-rev)
+source.resampled_hz                      | any        | Hz                      | -
+    the uniform rate of --resample, or null
+source.conversion                        | any        | -                       | -
+    with --counts-per-rev, --lead or --gear: {from, to, counts_per_rev, lead_m_per_rad,
+    gear_motor_rad_per_load_rad}
+validation_source                        | any        | -                       | -
+    the --validate-on log(s), as source
+model                                    | object     | -                       | -
+    how the fit was made (method, decimation, cut-off, friction model, fixed parameters, segments,
+    inverse_dynamics)
+model.ripple_pitch                       | number     | q                       | positive
+    the first --ripple-pitch
+model.ripple_amp                         | any        | u                       | -
+    its amplitude amp sin(2 pi q/P + phase): a number or {value, std}
+model.ripple_phase                       | any        | rad                     | -
+    its phase
+model.ripple_harmonics                   | any        | -                       | -
+    every --ripple-pitch with its amp and phase ({value, std})
+model.fixed                              | any        | -                       | -
+    parameters given with --fix NAME=VALUE (std 0)
+model.segments                           | any        | samples                 | -
+    several logs fitted together: the samples of each file
+model.inverse_dynamics                   | any        | -                       | -
+    identify --friction auto's richer model (docs/interface.md §2)
+ripple                                   | object     | -                       | -
+    the older place of the ripple
+ripple.pitch                             | number     | q                       | required positive
+    ripple pitch
+ripple.amplitude                         | number     | u                       | -
+    ripple amplitude
+ripple.amp                               | number     | u                       | -
+    ripple amplitude (older spelling)
+bounds                                   | object     | -                       | -
+    what the theta box covers and how it was set
+bounds.disturbance_bound                 | number     | u                       | nonneg
+    load-force bound
+bounds.disturbance_bound_defaulted       | boolean    | -                       | -
+    the load-force bound was defaulted
+bounds.disturbance_range                 | any        | u                       | -
+    [min, max] load force
+bounds.mass_range                        | any        | u s^2/q                 | -
+    [min, max] mass the box covers
+bounds.viscous_range                     | any        | u s/q                   | -
+    [min, max] viscous friction the box covers
+bounds.payload_range                     | any        | u s^2/q                 | -
+    the payload range the mass range includes
+bounds.payload_defaulted                 | any        | -                       | -
+    --payload-max was defaulted (3 M)
+bounds.payload_narrowed_by_tune          | any        | -                       | -
+    tuning.json only: the default payload range tune narrowed
+bounds.viscous_clipped                   | any        | u s/q                   | -
+    the fit's negative viscous coefficient clipped to the box: estimate, std, clipped_to
+bounds.narrowed_by_tune                  | object     | -                       | -
+    tune (or fit_force_to_drive) narrowed a defaulted load-force bound
+bounds.narrowed_by_tune.theta3_min       | number     | q/s^2                   | required
+    theta3's lower end before
+bounds.narrowed_by_tune.theta3_max       | number     | q/s^2                   | required
+    theta3's upper end before
+bounds.narrowed_by_tune.u_max            | number     | u                       | positive
+    the drive limit it was narrowed to
+warnings                                 | strings    | -                       | -
+    plausibility warnings, one sentence each
+evidence                                 | any        | -                       | -
+    only for a log without a broadband segment: missing, excite_command, limits_toml
+frequency_response                       | object     | -                       | -
+    the measured response and the structural model fitted to it
+frequency_response.model                 | object     | -                       | -
+    the plant the simulator uses beyond the rigid body (null: none)
+frequency_response.model.delay_s         | number     | s                       | required nonneg
+    input delay beyond the zero-order hold
+frequency_response.model.mode_hz         | number     | Hz                      | positive
+    structural mode (null: none)
+frequency_response.model.mode_damping    | number     | -                       | nonneg
+    its damping ratio (< 1)
+frequency_response.model.mode_ratio      | number     | -                       | positive
+    load fraction m2/M (< 1)
+frequency_response.model.mode_load_side  | boolean    | -                       | -
+    the encoder reads the load side
+frequency_response.model.mode2_hz        | number     | Hz                      | positive
+    second appendage (null: none)
+frequency_response.model.mode2_damping   | number     | -                       | nonneg
+    its damping ratio (< 1)
+frequency_response.model.mode2_ratio     | number     | -                       | positive
+    load fraction m3/M (mode_ratio + mode2_ratio < 1)
+frequency_response.model.mode2_load_side | boolean    | -                       | -
+    the encoder reads the second appendage
+friction_map                             | any        | -                       | -
+    friction tests: velocity (q/s), force (u), std (u), n (samples) per leg
+model_selection                          | any        | -                       | -
+    identify --friction auto: the cross-validated choice of terms
+position_simulation                      | any        | q                       | -
+    with --validate-on: open-loop simulation rmse, reference_rmse
+""", {"quantization": dict(unit=_QUANT.unit, range=_QUANT.range),
+      "encoder.quantization": dict(unit=_QUANT.unit, range=_QUANT.range),
+      "encoder.noise_std": dict(unit=_NOISE.unit, range=_NOISE.range),
+      "source.sha256": dict(check=_sha256_or_list),
+      "model.ripple_amp": dict(check=_ripple_amp),
+      "bounds.narrowed_by_tune": dict(check=_narrowed),
+      "frequency_response.model": dict(check=_structural)}),
 )
 
 #: The strict model of ident.json (pydantic, built from :data:`IDENT_FIELDS`).

@@ -124,20 +124,21 @@ _FLAGS = {"required": ("required", True), "nullable": ("nullable", True), "close
 
 
 def rows(text: str, extra: dict[str, dict[str, Any]] | None = None) -> list[Field]:
-    """Fields written as a text table, one row a line: ``path | type | unit | flags | doc``.
+    """Fields written as a text table: ``path | type | unit | flags``, its doc on the indented lines below.
 
-    ``flags`` is a space-separated list of ``required``, ``nullable``, ``closed``, ``positive``,
-    ``nonneg`` and ``len=N`` (``-`` for none); an indented line continues the doc above it.
-    ``extra`` maps a path to the attributes that are not text (``choices``, ``range``, ``check``).
-    The table reads as the docs render it, and one table is one literal rather than a run of calls.
+    ``unit`` is ``-`` for none and ``*`` where ``extra`` gives it (a unit that is another table's);
+    ``flags`` a space-separated list of ``required``, ``nullable``,
+    ``closed``, ``positive``, ``nonneg`` and ``len=N`` (``-`` for none).  ``extra`` maps a path to
+    the attributes that are not text (``choices``, ``range``, ``check``).  The table reads as the
+    docs render it, and one table is one literal rather than a run of calls.
     """
     out: list[dict[str, Any]] = []
     for line in text.strip("\n").splitlines():
         if line[:1].isspace():
-            out[-1]["doc"] += " " + line.strip()
+            out[-1]["doc"] = f"{out[-1]['doc']} {line.strip()}".strip()
             continue
-        path, typ, unit, flags, doc = (c.strip() for c in line.split("|", 4))
-        row: dict[str, Any] = {"path": path, "type": typ, "unit": unit, "doc": doc}
+        path, typ, unit, flags = (c.strip() for c in line.split("|"))
+        row: dict[str, Any] = {"path": path, "type": typ, "unit": {"-": "", "*": None}.get(unit, unit), "doc": ""}
         for flag in flags.split():
             if flag.startswith("len="):
                 row["length"] = int(flag[4:])
@@ -149,7 +150,17 @@ def rows(text: str, extra: dict[str, dict[str, Any]] | None = None) -> list[Fiel
     unknown = set(extra) - {r["path"] for r in out}
     if unknown:
         raise ValueError(f"extra attributes for rows the table does not hold: {sorted(unknown)}")
-    return [Field(**r, **extra.get(r["path"], {})) for r in out]
+    given = [r["path"] for r in out if (r["unit"] is None) != ("unit" in extra.get(r["path"], {}))]
+    if given:
+        raise ValueError(f"a unit is '*' exactly when extra gives it: {given}")
+    return [Field(**{**r, **extra.get(r["path"], {})}) for r in out]
+
+
+def header_rows(kind: str, version: int) -> list[Field]:
+    """The two rows every artifact opens with: its ``kind`` and its ``schema_version`` (checked first:
+    :func:`check_header`)."""
+    return [Field("kind", "string", "", f'"{kind}"', required=True),
+            Field("schema_version", "integer", "", f"1..{version}: the version of this layout", required=True)]
 
 
 def cells(text: str, columns: int = 3) -> dict[str, tuple[str, ...]]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from commission.formats.json_table import Field, build_json_model, is_finite_number, rows
+from commission.formats.json_table import Field, build_json_model, header_rows, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 
 TUNING_KIND = "tuning"
@@ -139,19 +139,28 @@ def _feasibility_rows(prefix: str) -> list[Field]:
 
 
 TUNING_FIELDS: tuple[Field, ...] = (
+    *header_rows(TUNING_KIND, TUNING_SCHEMA_VERSION),
     *rows("""
-kind                    | string  |  | required | "tuning"
-schema_version          | integer |  | required | 1..1: the version of this layout
-provenance              | object  |  | required | where the tuning came from
-provenance.ident_sha256 | sha256  |  | required | sha256 of the ident.json bytes
-provenance.log_sha256   | sha256  |  | -        | sha256 of the excitation log, when ident.json records one
-provenance.tool_version | string  |  | required | commission.__version__
-provenance.created_utc  | string  |  | required | ISO-8601 UTC time of the run
-provenance.seed         | integer |  | required | seed of the search's generator
-provenance.ident_path   | string  |  | required | ident.json as given on the command line
-spec                    | any     |  | required | the resolved spec (spec.toml's layout; checked by its table, §6)
-identification          | any     |  | required | ident.json's content verbatim (checked by its table, §2)
-plant                   | object  |  | required | the identified plant the simulation used
+provenance              | object  | - | required
+    where the tuning came from
+provenance.ident_sha256 | sha256  | - | required
+    sha256 of the ident.json bytes
+provenance.log_sha256   | sha256  | - | -
+    sha256 of the excitation log, when ident.json records one
+provenance.tool_version | string  | - | required
+    commission.__version__
+provenance.created_utc  | string  | - | required
+    ISO-8601 UTC time of the run
+provenance.seed         | integer | - | required
+    seed of the search's generator
+provenance.ident_path   | string  | - | required
+    ident.json as given on the command line
+spec                    | any     | - | required
+    the resolved spec (spec.toml's layout; checked by its table, §6)
+identification          | any     | - | required
+    ident.json's content verbatim (checked by its table, §2)
+plant                   | object  | - | required
+    the identified plant the simulation used
 """, {"spec": dict(check=object_value), "identification": dict(check=object_value)}),
     *(Field(f"plant.{n}", "number", "", f"plant vector entry {n} (commission.controllers.plant)",
             required=i < N_REQUIRED_PLANT) for i, n in enumerate(PLANT_NAMES)),
@@ -168,64 +177,109 @@ plant                   | object  |  | required | the identified plant the simul
           closed=True),
     *_gain_rows("pid", "PidGains", PID_GAINS),
     *rows("""
-pid.pole                   | number  | rad/s   | required positive | triple pole the baseline runs at
-pid.design_mass            | number  | u s^2/q | required positive | M_min = 1/theta_max[0] of the identification
-observer                   | object  |         | required          | the observer the controller runs (eq. 11)
-observer.pole              | number  | rad/s   | required positive | observer pole
-observer.k1                | number  | 1/s     | required positive | gain k1 (= arc.k1)
-observer.k2                | number  | 1/s^2   | required positive | gain k2 (= arc.k2)
-observer.P                 | any     |         | required          | 2x2 Lyapunov matrix P (eq. 11)
-observer.P_eigenvalues     | numbers |         | required len=2    | eigenvalues of P
-observer.lyapunov_residual | number  |         | required nonneg   | residual of the Lyapunov equation
-observer.discrete_pole     | number  |         | -                 | the discrete pole the controller runs (null: not
-                                                                     recorded)
-theorem1                   | object  |         | required          | Theorem 1's conditions
-theorem1.holds             | boolean |         | required          | every ratio >= 1
-theorem1.ratios            | any     |         | required          | 2x3 ratios
-theorem1.min_ratio         | number  |         | -                 | smallest ratio (null: infinite)
-feasibility                | object  |         | required          | discrete feasibility of both loops
+pid.pole                   | number  | rad/s   | required positive
+    triple pole the baseline runs at
+pid.design_mass            | number  | u s^2/q | required positive
+    M_min = 1/theta_max[0] of the identification
+observer                   | object  | -       | required
+    the observer the controller runs (eq. 11)
+observer.pole              | number  | rad/s   | required positive
+    observer pole
+observer.k1                | number  | 1/s     | required positive
+    gain k1 (= arc.k1)
+observer.k2                | number  | 1/s^2   | required positive
+    gain k2 (= arc.k2)
+observer.P                 | any     | -       | required
+    2x2 Lyapunov matrix P (eq. 11)
+observer.P_eigenvalues     | numbers | -       | required len=2
+    eigenvalues of P
+observer.lyapunov_residual | number  | -       | required nonneg
+    residual of the Lyapunov equation
+observer.discrete_pole     | number  | -       | -
+    the discrete pole the controller runs (null: not recorded)
+theorem1                   | object  | -       | required
+    Theorem 1's conditions
+theorem1.holds             | boolean | -       | required
+    every ratio >= 1
+theorem1.ratios            | any     | -       | required
+    2x3 ratios
+theorem1.min_ratio         | number  | -       | -
+    smallest ratio (null: infinite)
+feasibility                | object  | -       | required
+    discrete feasibility of both loops
 """, {"observer.P": dict(check=_matrix(2, 2)), "theorem1.ratios": dict(check=_matrix(2, 3))}),
     *_feasibility_rows("feasibility.arc"),
     *_feasibility_rows("feasibility.pid"),
     *rows("""
-guarantees          | map     |  | required | name -> which guarantee of the paper holds as tuned
-guarantees.*        | object  |  | required | one guarantee
-guarantees.*.holds  | boolean |  | required | it holds
-guarantees.*.detail | string  |  | required | why, or what was traded
-scores              | map     |  | required | scenario -> the scores of both loops
-scores.*            | object  |  | required | one scenario
+guarantees          | map     | - | required
+    name -> which guarantee of the paper holds as tuned
+guarantees.*        | object  | - | required
+    one guarantee
+guarantees.*.holds  | boolean | - | required
+    it holds
+guarantees.*.detail | string  | - | required
+    why, or what was traded
+scores              | map     | - | required
+    scenario -> the scores of both loops
+scores.*            | object  | - | required
+    one scenario
 """),
     *score_rows("scores.*.arc"),
     *score_rows("scores.*.pid"),
     *rows("""
-search                  | object     |  | required | the gain search
-search.n_evaluations    | integer    |  | required | candidates evaluated
-search.budget           | integer    |  | required | requested budget (spec tune.budget)
-search.seed             | integer    |  | required | seed
-search.cost_initial     | number     |  | -        | objective of the starting point (null: not simulated)
-search.cost_best        | number     |  | -        | objective of the chosen gains (null: not simulated)
-search.free             | number map |  | required | the free gains as chosen (name -> value)
-search.history          | any        |  | -        | objective of every candidate, evaluation order (null: not
-                                                     simulated)
-search.holdout_plants   | integer    |  | -        | Monte-Carlo plants of the hold-out selection (0: not run)
-search.holdout_failures | any        |  | -        | default-gate failures of each feasible finalist, best first
-search.optimiser        | string     |  | -        | the optimiser and its constraint handling
-search.generations      | integer    |  | -        | generations run
-search.n_feasible       | integer    |  | -        | candidates that met every constraint
-search.violations       | any        |  | -        | each candidate's constraint violation (0: met)
-search.levels           | any        |  | -        | each candidate's level: 0 met, 1 gate missed, 2 stability missed
-search.chosen_level     | integer    |  | -        | the chosen gains' level
-search.chosen_violation | number     |  | -        | the chosen gains' violation
-search.screened         | any        |  | -        | each candidate was simulated on the screening scenarios only
-margins                 | any        |  | -        | stability margins of both loops per plant
-                                                     (commission.robustness.LoopMargins)
-box_robustness          | any        |  | -        | the ARC over the whole theta box
-                                                     (commission.robustness.BoxRobustness)
-validity                | any        |  | -        | tune narrowed a defaulted payload range: payload_range,
-                                                     mass_range [min, max] in unit, default_payload_range, reason
-pid_yardstick           | any        |  | -        | how the PID baseline was chosen
-                                                     (commission.tune.baseline.YardstickChoice)
-""", {"search.history": dict(check=nullable_numbers), "search.holdout_failures": dict(check=_NONNEG_INT), "search.violations": dict(check=nullable_numbers), "search.levels": dict(check=_NONNEG_INT), "search.screened": dict(check=_BOOLS), "margins": dict(check=_list), "box_robustness": dict(check=object_value), "validity": dict(check=validity_record)}),
+search                  | object     | - | required
+    the gain search
+search.n_evaluations    | integer    | - | required
+    candidates evaluated
+search.budget           | integer    | - | required
+    requested budget (spec tune.budget)
+search.seed             | integer    | - | required
+    seed
+search.cost_initial     | number     | - | -
+    objective of the starting point (null: not simulated)
+search.cost_best        | number     | - | -
+    objective of the chosen gains (null: not simulated)
+search.free             | number map | - | required
+    the free gains as chosen (name -> value)
+search.history          | any        | - | -
+    objective of every candidate, evaluation order (null: not simulated)
+search.holdout_plants   | integer    | - | -
+    Monte-Carlo plants of the hold-out selection (0: not run)
+search.holdout_failures | any        | - | -
+    default-gate failures of each feasible finalist, best first
+search.optimiser        | string     | - | -
+    the optimiser and its constraint handling
+search.generations      | integer    | - | -
+    generations run
+search.n_feasible       | integer    | - | -
+    candidates that met every constraint
+search.violations       | any        | - | -
+    each candidate's constraint violation (0: met)
+search.levels           | any        | - | -
+    each candidate's level: 0 met, 1 gate missed, 2 stability missed
+search.chosen_level     | integer    | - | -
+    the chosen gains' level
+search.chosen_violation | number     | - | -
+    the chosen gains' violation
+search.screened         | any        | - | -
+    each candidate was simulated on the screening scenarios only
+margins                 | any        | - | -
+    stability margins of both loops per plant (commission.robustness.LoopMargins)
+box_robustness          | any        | - | -
+    the ARC over the whole theta box (commission.robustness.BoxRobustness)
+validity                | any        | - | -
+    tune narrowed a defaulted payload range: payload_range, mass_range [min, max] in unit, default_payload_range,
+    reason
+pid_yardstick           | any        | - | -
+    how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)
+""", {"search.history": dict(check=nullable_numbers),
+      "search.holdout_failures": dict(check=_NONNEG_INT),
+      "search.violations": dict(check=nullable_numbers),
+      "search.levels": dict(check=_NONNEG_INT),
+      "search.screened": dict(check=_BOOLS),
+      "margins": dict(check=_list),
+      "box_robustness": dict(check=object_value),
+      "validity": dict(check=validity_record)}),
 )
 
 #: The strict model of tuning.json (pydantic, built from :data:`TUNING_FIELDS`).
