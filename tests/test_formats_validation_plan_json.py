@@ -70,6 +70,14 @@ def test_a_written_layout_loads_and_every_key_is_named():
     assert check_validation(extra) and sorted(unnamed(extra, VALIDATION_FIELDS)) == ["$.later", "$.runs[0].note"]
 
 
+def test_the_stored_tuning_and_its_identification_hold_no_key_their_tables_do_not_name():
+    from commission.formats.ident_json import IDENT_FIELDS
+    from commission.formats.tuning_json import TUNING_FIELDS
+
+    doc = json.loads((ROOT / "tests" / "data" / "tuning_paper_budget8.json").read_text())
+    assert unnamed(doc, TUNING_FIELDS) == [] and unnamed(doc["identification"], IDENT_FIELDS) == []
+
+
 @pytest.mark.parametrize("path, value, want", [
     ("runs[0].arc.e_rms", "x", "$.runs[0].arc.e_rms: expected a finite number, got 'x'"),
     ("runs[0].theta_final", [1.0, "a", None], "$.runs[0].theta_final[1]: expected a number or null, got 'a'"),

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from commission.formats.controller_json import CONTROLLER_FIELDS
 from commission.formats.json_table import unnamed
 from commission.formats.validation_json import VALIDATION_FIELDS, check_validation
 from commission.cli.main import app
@@ -84,6 +85,7 @@ def test_passing_validation_writes_report_figures_and_controller(tuned, tmp_path
     assert check_validation(val) is val and unnamed(val, VALIDATION_FIELDS) == []
     tuning = Tuning.load(str(tpath))
     ctrl_doc = read_json(out / "controller.json")
+    assert unnamed(ctrl_doc, CONTROLLER_FIELDS) == []  # every key controller.json holds is a row of its table
     prov = ctrl_doc["provenance"]
     assert prov["tuning_sha256"] == sha256_file(tpath)
     assert prov["ident_sha256"] == tuning.provenance.ident_sha256 and prov["log_sha256"] == "2" * 64

@@ -140,6 +140,20 @@ runtime                     | object | -   | closed
 validated                | object | -       | required
     what validate checked: the resolved gate, the worst value per criterion, the metrics on the identified plant,
     what was simulated (read by reports and export)
+validated.gate           | any    | -       | -
+    the resolved gate (validation.json gate)
+validated.worst          | any    | -       | -
+    criterion -> its worst value, limit and scenario
+validated.nominal        | any    | -       | -
+    trajectory -> the ARC's indexes on the identified plant (q, u)
+validated.simulation     | any    | -       | -
+    what was simulated: substeps, quantization (q), e_abort (q), u_sat (u)
+validated.scenarios      | any    | -       | -
+    scenarios simulated
+validated.monte_carlo    | any    | -       | -
+    Monte-Carlo plants among them
+validated.seed           | any    | -       | -
+    seed of the Monte-Carlo sample
 provenance               | object | -       | required
     where the controller came from
 provenance.log_sha256    | sha256 | -       | required nullable

@@ -124,6 +124,15 @@ def _parameter_rows() -> list[Field]:
     return rows
 
 
+def _spread_rows() -> list[Field]:
+    """How well each mode of the structural model is known (both modes alike)."""
+    return [row for mode in ("mode", "mode2") for row in (
+        Field(f"frequency_response.model.{mode}_hz_std", "any", "Hz", f"one standard deviation of {mode}_hz"),
+        Field(f"frequency_response.model.{mode}_damping_std", "any", "", f"one standard deviation of {mode}_damping"),
+        Field(f"frequency_response.model.{mode}_ratio_identified", "any", "",
+              f"{mode}_ratio was identified (false: assumed)"))]
+
+
 IDENT_FIELDS: tuple[Field, ...] = (
     *header_rows(IDENT_KIND, IDENT_SCHEMA_VERSION),
     *rows("""
@@ -224,6 +233,24 @@ model.segments                           | any        | samples                 
     several logs fitted together: the samples of each file
 model.inverse_dynamics                   | any        | -                       | -
     identify --friction auto's richer model (docs/interface.md §2)
+model.method                             | any        | -                       | -
+    the fit: "steady+dynamic", "whole-log", ...
+model.friction                           | any        | -                       | -
+    the friction model fitted: coulomb or stribeck
+model.friction_requested                 | any        | -                       | -
+    --friction as given (auto, coulomb, stribeck)
+model.decimation                         | any        | -                       | -
+    samples per point of the dynamic fit
+model.cutoff_hz                          | any        | Hz                      | -
+    cut-off of the derivative filter
+model.residual_std                       | any        | u                       | -
+    standard deviation of the fit residual
+model.steady_points                      | any        | -                       | -
+    constant-speed points of the friction fit
+model.v_max                              | any        | q/s                     | -
+    largest speed in the data
+model.velocity_resolution                | any        | q/s                     | -
+    velocity step one encoder count makes at the sample rate
 ripple                                   | object     | -                       | -
     the older place of the ripple
 ripple.pitch                             | number     | q                       | required positive
@@ -252,6 +279,10 @@ bounds.payload_narrowed_by_tune          | any        | -                       
     tuning.json only: the default payload range tune narrowed
 bounds.viscous_clipped                   | any        | u s/q                   | -
     the fit's negative viscous coefficient clipped to the box: estimate, std, clipped_to
+bounds.k_sigma                           | any        | -                       | -
+    standard deviations the theta box spans about each estimate
+bounds.model_margin                      | any        | -                       | -
+    relative margin added to the box for what the model leaves out
 bounds.narrowed_by_tune                  | object     | -                       | -
     tune (or fit_force_to_drive) narrowed a defaulted load-force bound
 bounds.narrowed_by_tune.theta3_min       | number     | q/s^2                   | required
@@ -262,10 +293,44 @@ bounds.narrowed_by_tune.u_max            | number     | u                       
     the drive limit it was narrowed to
 warnings                                 | strings    | -                       | -
     plausibility warnings, one sentence each
+created_utc                              | any        | -                       | -
+    ISO-8601 UTC time of the identification
+tool                                     | any        | -                       | -
+    the tool that wrote the file: name, version
 evidence                                 | any        | -                       | -
     only for a log without a broadband segment: missing, excite_command, limits_toml
 frequency_response                       | object     | -                       | -
     the measured response and the structural model fitted to it
+frequency_response.source                | any        | -                       | -
+    the data measured: broadband, whole_log or none
+frequency_response.band_hz               | any        | Hz                      | -
+    [low, high] where the data back the rigid model
+frequency_response.evidence_band_hz      | any        | Hz                      | -
+    [low, high] the log backs for the model tune and validate use (null: none; docs/robustness.md)
+frequency_response.coherent_up_to_hz     | any        | Hz                      | -
+    highest frequency of coherent data
+frequency_response.resolution_hz         | any        | Hz                      | -
+    frequency resolution of the estimate
+frequency_response.n_averages            | any        | -                       | -
+    Welch windows averaged
+frequency_response.segments_s            | any        | s                       | -
+    the broadband segments, [start, end] each
+frequency_response.modes                 | any        | -                       | -
+    every mode the response holds: frequency_hz (Hz), damping, their std, depth, mode
+frequency_response.delay_samples         | any        | samples                 | -
+    input delay beyond the zero-order hold
+frequency_response.fit_quality           | any        | -                       | -
+    structure, model_rms_error, rigid_rms_error, n_modes, criterion
+frequency_response.departures            | any        | -                       | -
+    where the measured response departs from the fitted model beyond its uncertainty
+frequency_response.measured              | any        | -                       | -
+    the measured response thinned for reports: frequency, magnitude, phase, coherence (null: no broadband segment)
+frequency_response.units                 | any        | -                       | -
+    the unit of each of these fields
+frequency_response.plan                  | any        | -                       | -
+    the plan.json whose injection windows were used (absent: none)
+frequency_response.note                  | any        | -                       | -
+    a sentence on how the response was measured, or null
 frequency_response.model                 | object     | -                       | -
     the plant the simulator uses beyond the rigid body (null: none)
 frequency_response.model.delay_s         | number     | s                       | required nonneg
@@ -286,6 +351,14 @@ frequency_response.model.mode2_ratio     | number     | -                       
     load fraction m3/M (mode_ratio + mode2_ratio < 1)
 frequency_response.model.mode2_load_side | boolean    | -                       | -
     the encoder reads the second appendage
+frequency_response.model.n_modes         | any        | -                       | -
+    modes in the model
+frequency_response.model.delay_std_s     | any        | s                       | -
+    one standard deviation of delay_s
+frequency_response.model.mass_scale      | any        | -                       | -
+    the fitted mass over the identified M
+frequency_response.model.appendages      | any        | -                       | -
+    true when the two modes were refitted as two appendages on the rigid body (absent: not)
 friction_map                             | any        | -                       | -
     friction tests: velocity (q/s), force (u), std (u), n (samples) per leg
 model_selection                          | any        | -                       | -
@@ -299,6 +372,7 @@ position_simulation                      | any        | q                       
       "model.ripple_amp": dict(check=_ripple_amp),
       "bounds.narrowed_by_tune": dict(check=_narrowed),
       "frequency_response.model": dict(check=_structural)}),
+    *_spread_rows(),
 )
 
 #: The strict model of ident.json (pydantic, built from :data:`IDENT_FIELDS`).
