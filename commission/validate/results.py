@@ -1,5 +1,8 @@
 """The validation's result types: one run (:class:`RunRecord`), a kept trace (:class:`Trace`) and the
 whole result (:class:`ValidationResult`, written as validation.json), with the file names validate writes.
+
+validation.json's layout is one table, :mod:`commission.formats.validation_json` (a run's keys are its
+rows: :meth:`RunRecord.to_dict`).
 """
 
 from __future__ import annotations
