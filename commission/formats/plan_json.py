@@ -4,7 +4,7 @@ Every field :meth:`commission.excite.plan.Plan.to_dict` writes is one
 :class:`~commission.formats.json_table.Field` row of :data:`PLAN_FIELDS`; :data:`PlanJson` is the
 strict model built from them, :func:`check_plan` the strict reader (``identify --plan`` and a
 plan.json beside a log are read through it: :func:`commission.excite.load_plan_json`), and
-docs/interface.md §11 and docs/schemas/plan.schema.json are generated from them
+docs/interface.md §10 (after the outputs of `excite`) and docs/schemas/plan.schema.json are generated from them
 (``python -m commission.formats``).
 
 What identify reads back (the segments' times and names, the injection's windows, the rate and
