@@ -50,6 +50,7 @@ from typing import Any, Callable, Mapping, Sequence
 import commission
 from commission.errors import SchemaError, UsageError
 from commission.executor import Executor, LocalExecutor
+from commission.formats.validation_json import check_validation
 from commission.jsonio import read_json, sha256_file
 
 FLEET_KIND = "fleet"
@@ -250,7 +251,7 @@ def _units_of(ident: Mapping[str, Any]) -> dict[str, str]:
 def axis_row(entry: AxisEntry, out: Path, elapsed: float, inputs: str | None) -> dict[str, Any]:
     """The fleet row of an axis whose run finished: verdict, parameters with units, margins, e_rms."""
     ident = read_json(out / "ident.json")
-    val = read_json(out / "validation.json")
+    val = check_validation(read_json(out / "validation.json"), str(out / "validation.json"))
     units = _units_of(ident)
     params = {}
     for k in ROW_PARAMETERS:

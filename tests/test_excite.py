@@ -14,6 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+from commission.formats.json_table import unnamed
+from commission.formats.plan_json import PLAN_FIELDS
 from commission.cli.main import app
 from commission.errors import SpecError
 from commission.excite import (PlanRefused, excite_spec_from_mapping, load_excite_spec, load_plan_json, loop_gains_for, mass_bracket,
@@ -79,6 +81,7 @@ def test_cli_writes_plan_files(tmp_path):
     for key, chk in plan["presimulation"]["peaks"].items():
         assert chk["peak"] <= chk["limit"], key
     assert load_plan_json(out / "plan.json")["segments"] == plan["segments"]
+    assert unnamed(plan, PLAN_FIELDS) == []  # every key written is a row of plan.json's table
     # the band the plan will back is said before the run, and what was assumed for it (no encoder keys)
     pb = plan["predicted_band"]
     assert pb["encoder_step_assumed"] and pb["encoder_noise_assumed"] and pb["target_hz"] is None

@@ -15,6 +15,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from commission.formats.controller_json import CONTROLLER_FIELDS
+from commission.formats.json_table import unnamed
+from commission.formats.validation_json import VALIDATION_FIELDS, check_validation
 from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.simulate import KIND_ARC, simulate
@@ -78,8 +81,11 @@ def test_passing_validation_writes_report_figures_and_controller(tuned, tmp_path
 
     val = read_json(out / "validation.json")
     assert val["passed"] is True and len(val["runs"]) == 12 + 2 + MC and val["monte_carlo"] == MC
+    # the file is its table's: it loads strictly and holds no key the table does not name
+    assert check_validation(val) is val and unnamed(val, VALIDATION_FIELDS) == []
     tuning = Tuning.load(str(tpath))
     ctrl_doc = read_json(out / "controller.json")
+    assert unnamed(ctrl_doc, CONTROLLER_FIELDS) == []  # every key controller.json holds is a row of its table
     prov = ctrl_doc["provenance"]
     assert prov["tuning_sha256"] == sha256_file(tpath)
     assert prov["ident_sha256"] == tuning.provenance.ident_sha256 and prov["log_sha256"] == "2" * 64

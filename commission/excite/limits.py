@@ -20,9 +20,9 @@ from pydantic import ValidationError
 from commission.errors import SpecError
 from commission.files import read_toml
 from commission.formats.limits_toml import INJECTIONS, LIMITS_KEYS, Q_UNITS, U_UNITS, LimitsToml
+from commission.formats.plan_json import PLAN_SCHEMA_VERSION  # noqa: F401  (re-exported: plan.json's version)
 from commission.formats.table import Key, first_error
 
-PLAN_SCHEMA_VERSION = 1
 #: Pre-simulation: how often the injection is lowered before a plan is refused.
 MAX_INJECTION_RETRIES = 4
 #: Largest accepted 2 pi bandwidth_hz / sample_rate (Åström & Wittenmark's omega h <= 0.5, as spec.py).

@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import json
-import math
 import os
-from dataclasses import field
 from typing import Any, Mapping
 
 import numpy as np
 
 from commission.errors import SchemaError
-
-from commission.excite.limits import PLAN_SCHEMA_VERSION
 from commission.excite.plan import Plan
+from commission.formats.plan_json import check_plan
 
 PLAN_COLUMNS = ("t", "q_ref", "v_ref", "u_inject")
 
@@ -72,7 +69,8 @@ def injection_ranges(plan: Mapping[str, Any], t: np.ndarray, trim_s: float = 0.0
 
 
 def load_plan_json(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read plan.json strictly (for ``identify --plan``): kind, schema version, segments with times.
+    """Read plan.json strictly (for ``identify --plan``) through its table
+    (:func:`commission.formats.plan_json.check_plan`): kind, schema version, segments with times.
 
     Returns
     -------
@@ -90,19 +88,5 @@ def load_plan_json(path: str | os.PathLike[str]) -> dict[str, Any]:
             d = json.load(fh)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SchemaError(f"{name}: not a readable plan.json ({exc})") from None
-    if not isinstance(d, dict) or d.get("kind") != "excitation_plan":
-        raise SchemaError(f"{name}: $.kind: expected 'excitation_plan'")
-    if not isinstance(d.get("schema_version"), int) or d["schema_version"] > PLAN_SCHEMA_VERSION:
-        raise SchemaError(f"{name}: $.schema_version = {d.get('schema_version')!r}: expected an integer "
-                          f"<= {PLAN_SCHEMA_VERSION}")
-    segs = d.get("segments")
-    if not isinstance(segs, list):
-        raise SchemaError(f"{name}: $.segments: expected a list")
-    for i, g in enumerate(segs):
-        for key in ("t_start", "t_end"):
-            v = g.get(key) if isinstance(g, dict) else None
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise SchemaError(f"{name}: $.segments[{i}].{key} = {v!r}: expected a finite number (s)")
-        if not isinstance(g.get("name"), str) or not isinstance(g.get("purpose"), str):
-            raise SchemaError(f"{name}: $.segments[{i}]: expected string 'name' and 'purpose'")
-    return d
+    return check_plan(d, name)
+

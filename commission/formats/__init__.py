@@ -8,7 +8,11 @@ JSON Schema, the ``--help`` and Markdown renderings);
 :mod:`commission.formats.json_table` holds their machinery (a row per JSON path, nested strict
 models, error lines naming ``$.theta.min[2]``), :mod:`commission.formats.ident_json` is
 ``ident.json``'s table, :mod:`commission.formats.tuning_json` ``tuning.json``'s and
-:mod:`commission.formats.controller_json` ``controller.json``'s.  The generated
+:mod:`commission.formats.controller_json` ``controller.json``'s,
+:mod:`commission.formats.validation_json` ``validation.json``'s and :mod:`commission.formats.plan_json`
+``plan.json``'s (the excitation plan).  The JSON tables and limits.toml's are text tables, one row a line
+(:func:`commission.formats.json_table.rows`, :func:`commission.formats.table.keys`), with helpers
+for the rows that repeat (a score, a gate check, a controller's gains).  The generated
 files (docs/schemas/*.schema.json and the key tables of docs/interface.md) are
 rewritten by ``python -m commission.formats`` (:func:`commission.formats.generated.write_generated`) and
 compared with the tables by the tests.  This package imports no simulation code.

@@ -19,7 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from commission.formats.ident_json import UNIT_VOCABULARY_Q, UNIT_VOCABULARY_U
-from commission.formats.json_table import Field, build_json_model, is_finite_number
+from commission.formats.json_table import Field, build_json_model, cells, header_rows, is_finite_number, rows
 
 CONTROLLER_KIND = "controller"
 #: Version of controller.json and of docs/schemas/controller.schema.json.
@@ -62,15 +62,18 @@ _DOCS = {"k1": "A0 = [[-k1, 1], [-k2, 0]] of (10)", "k2": "A0 = [[-k1, 1], [-k2,
          "theta_max": "the Assumption-1 box: upper corner", "u_max": "symmetric output limit, finite",
          "k1s_max": "cap of the nonlinear gain K1, finite", "k2s_max": "cap of the nonlinear gain K2, finite",
          "Gamma": "diagonal adaptation rate of (19)", "theta0": "theta_hat(0)"}
-_RUNTIME = {"dy_max": ("q", "measurement plausibility: largest accepted change of y per sample (null: off)"),
-            "dy_fault": ("q", "jump fault: a change of y beyond it latches a fault (null: off)"),
-            "n_reject_max": ("samples", "implausible measurements in a row before a fault (null: off)"),
-            "e_max": ("q", "tracking watchdog: |y - q_d| beyond it latches a fault (null: off)"),
-            "freeze_on_saturation": ("", "adaptation frozen while the command is at +-u_max"),
-            "accel_max": ("q/s^2", "plausible acceleration of the measurement prediction (absent or null: off)"),
-            "y_err": ("q", "largest error of one reading (absent: 0)"),
-            "n_frozen_max": ("samples", "evidence of a frozen encoder that latches FAULT_FROZEN (absent or null: never)"),
-            "u_free": ("u", "largest command that may leave the axis at rest (absent: 0)")}
+#: Runtime guard | unit | doc.
+_RUNTIME = cells("""
+dy_max               | q       | measurement plausibility: largest accepted change of y per sample (null: off)
+dy_fault             | q       | jump fault: a change of y beyond it latches a fault (null: off)
+n_reject_max         | samples | implausible measurements in a row before a fault (null: off)
+e_max                | q       | tracking watchdog: |y - q_d| beyond it latches a fault (null: off)
+freeze_on_saturation |         | adaptation frozen while the command is at +-u_max
+accel_max            | q/s^2   | plausible acceleration of the measurement prediction (absent or null: off)
+y_err                | q       | largest error of one reading (absent: 0)
+n_frozen_max         | samples | evidence of a frozen encoder that latches FAULT_FROZEN (absent or null: never)
+u_free               | u       | largest command that may leave the axis at rest (absent: 0)
+""")
 
 
 def _pair(v: Any) -> None:
@@ -90,21 +93,26 @@ def _gain_rows(section: str) -> list[Field]:
 
 
 CONTROLLER_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{CONTROLLER_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{CONTROLLER_SCHEMA_VERSION}: the version of this layout",
-          required=True),
+    *header_rows(CONTROLLER_KIND, CONTROLLER_SCHEMA_VERSION),
     Field("controller", "string", "", f'"{CONTROLLER_TYPE}" (Xu & Yao 2001, sec. 3)', required=True),
-    Field("control_law", "any", "", "the paper, its equations by number and the filter structure this file "
-          "parameterises; must be commission.controller_config.CONTROL_LAW (optional)"),
-    Field("sample_rate", "number", "Hz", "the nominal rate: the validated rate, or its round value when they "
-          "differ only by the rounding of a rate estimated from time stamps (1e-10); within spec.toml's "
-          "controller.sample_rate range", required=True, sign="positive"),
-    Field("sample_period", "number", "s", "the exact period validated; = 1/sample_rate", required=True,
-          sign="positive"),
-    Field("units", "object", "", "command and position units", required=True, closed=True),
-    Field("units.u", "string", "", "command unit", required=True, choices=UNIT_VOCABULARY_U),
-    Field("units.q", "string", "", "position unit", required=True, choices=UNIT_VOCABULARY_Q),
-    Field("observer", "object", "", "the observer of (10)", required=True, closed=True),
+    *rows("""
+control_law    | any     | -  | -
+    the paper, its equations by number and the filter structure this file parameterises; must be
+    commission.controller_config.CONTROL_LAW (optional)
+sample_rate    | number  | Hz | required positive
+    the nominal rate: the validated rate, or its round value when they differ only by the rounding of a rate
+    estimated from time stamps (1e-10); within spec.toml's controller.sample_rate range
+sample_period  | number  | s  | required positive
+    the exact period validated; = 1/sample_rate
+units          | object  | -  | required closed
+    command and position units
+units.u        | string  | -  | required
+    command unit
+units.q        | string  | -  | required
+    position unit
+observer       | object  | -  | required closed
+    the observer of (10)
+""", {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),
     *_gain_rows("observer"),
     Field("gains", "object", "", "the robust gains and weights", required=True, closed=True),
     *_gain_rows("gains"),
@@ -115,38 +123,71 @@ CONTROLLER_FIELDS: tuple[Field, ...] = (
     *_gain_rows("adaptation"),
     Field("initial_estimates", "object", "", "theta_hat(0)", required=True, closed=True),
     *_gain_rows("initial_estimates"),
-    Field("friction_compensation", "object", "", "F_hat(v) = level (2/pi) atan(slope v) added to the output",
-          required=True, closed=True),
-    Field("friction_compensation.level", "number", "u", "level of F_hat", required=True, sign="nonneg"),
-    Field("friction_compensation.slope", "number", "s/q", "slope of F_hat", required=True, sign="nonneg"),
-    Field("runtime", "object", "", "the runtime guards of the compiled step (absent: every guard off)",
-          closed=True),
+    *rows("""
+friction_compensation       | object | -   | required closed
+    F_hat(v) = level (2/pi) atan(slope v) added to the output
+friction_compensation.level | number | u   | required nonneg
+    level of F_hat
+friction_compensation.slope | number | s/q | required nonneg
+    slope of F_hat
+runtime                     | object | -   | closed
+    the runtime guards of the compiled step (absent: every guard off)
+"""),
     *(Field(f"runtime.{n}", "boolean" if n == "freeze_on_saturation" else "number", _RUNTIME[n][0],
             _RUNTIME[n][1], required=n not in RUNTIME_ADDED, nullable=n != "freeze_on_saturation")
       for n in RUNTIME_FIELDS),
-    Field("validated", "object", "", "what validate checked: the resolved gate, the worst value per criterion, "
-          "the metrics on the identified plant, what was simulated (read by reports and export)", required=True),
-    Field("provenance", "object", "", "where the controller came from", required=True),
-    Field("provenance.log_sha256", "sha256", "", "sha256 of the excitation log (null: not recorded)",
-          required=True, nullable=True),
-    Field("provenance.ident_sha256", "sha256", "", "sha256 of ident.json", required=True),
-    Field("provenance.tuning_sha256", "sha256", "", "sha256 of the tuning.json validated", required=True),
-    Field("provenance.tool_version", "string", "", "commission.__version__ (its form checked by export)",
-          required=True),
-    Field("provenance.created_utc", "string", "", "ISO-8601 UTC time of the validation (its form checked by "
-          "export)", required=True),
-    Field("validity", "object", "", "present only when tune or validate narrowed a defaulted payload range to "
-          "what the gains certify (absent: the whole box of bounds)"),
-    Field("validity.payload_range", "any", "u s^2/q", "[min, max] payload certified", required=True, check=_pair),
-    Field("validity.mass_range", "any", "u s^2/q", "[min, max] mass certified", required=True, check=_pair),
-    Field("validity.unit", "string", "", "unit of the ranges", required=True),
-    Field("checksum", "object", "", "sha256 over every other field (canonical JSON)", required=True),
-    Field("checksum.algorithm", "any", "", '"sha256" (checked with the value)', required=True),
-    Field("checksum.value", "any", "", "64 lowercase hex digits", required=True),
-    Field("signature", "object", "", "optional HMAC-SHA256 over every field but checksum and signature "
-          "(--sign-key)", closed=True),
-    Field("signature.algorithm", "any", "", '"hmac-sha256"', required=True),
-    Field("signature.value", "any", "", "64 lowercase hex digits", required=True),
+    *rows("""
+validated                | object | -       | required
+    what validate checked: the resolved gate, the worst value per criterion, the metrics on the identified plant,
+    what was simulated (read by reports and export)
+validated.gate           | any    | -       | -
+    the resolved gate (validation.json gate)
+validated.worst          | any    | -       | -
+    criterion -> its worst value, limit and scenario
+validated.nominal        | any    | -       | -
+    trajectory -> the ARC's indexes on the identified plant (q, u)
+validated.simulation     | any    | -       | -
+    what was simulated: substeps, quantization (q), e_abort (q), u_sat (u)
+validated.scenarios      | any    | -       | -
+    scenarios simulated
+validated.monte_carlo    | any    | -       | -
+    Monte-Carlo plants among them
+validated.seed           | any    | -       | -
+    seed of the Monte-Carlo sample
+provenance               | object | -       | required
+    where the controller came from
+provenance.log_sha256    | sha256 | -       | required nullable
+    sha256 of the excitation log (null: not recorded)
+provenance.ident_sha256  | sha256 | -       | required
+    sha256 of ident.json
+provenance.tuning_sha256 | sha256 | -       | required
+    sha256 of the tuning.json validated
+provenance.tool_version  | string | -       | required
+    commission.__version__ (its form checked by export)
+provenance.created_utc   | string | -       | required
+    ISO-8601 UTC time of the validation (its form checked by export)
+validity                 | object | -       | -
+    present only when tune or validate narrowed a defaulted payload range to what the gains certify (absent: the
+    whole box of bounds)
+validity.payload_range   | any    | u s^2/q | required
+    [min, max] payload certified
+validity.mass_range      | any    | u s^2/q | required
+    [min, max] mass certified
+validity.unit            | string | -       | required
+    unit of the ranges
+checksum                 | object | -       | required
+    sha256 over every other field (canonical JSON)
+checksum.algorithm       | any    | -       | required
+    "sha256" (checked with the value)
+checksum.value           | any    | -       | required
+    64 lowercase hex digits
+signature                | object | -       | closed
+    optional HMAC-SHA256 over every field but checksum and signature (--sign-key)
+signature.algorithm      | any    | -       | required
+    "hmac-sha256"
+signature.value          | any    | -       | required
+    64 lowercase hex digits
+""", {"validity.payload_range": dict(check=_pair), "validity.mass_range": dict(check=_pair)}),
 )
 
 #: The strict model of controller.json (pydantic, built from :data:`CONTROLLER_FIELDS`).

@@ -9,7 +9,8 @@ import json
 import re
 from pathlib import Path
 
-from commission.formats import controller_json, gate_toml, ident_json, limits_toml, spec_toml, tuning_json
+from commission.formats import (controller_json, gate_toml, ident_json, limits_toml, plan_json, spec_toml, tuning_json,
+                                validation_json)
 from commission.formats.json_table import markdown_rows
 from commission.formats.table import json_schema, markdown_table
 
@@ -30,7 +31,11 @@ def schemas() -> dict[str, dict]:
             "controller.schema.json": json_schema(controller_json.ControllerJson, "commission/controller.schema.json",
                                                   controller_json.CONTROLLER_SCHEMA_VERSION),
             "tuning.schema.json": json_schema(tuning_json.TuningJson, "commission/tuning.schema.json",
-                                              tuning_json.TUNING_SCHEMA_VERSION)}
+                                              tuning_json.TUNING_SCHEMA_VERSION),
+            "validation.schema.json": json_schema(validation_json.ValidationJson, "commission/validation.schema.json",
+                                                  validation_json.VALIDATION_SCHEMA_VERSION),
+            "plan.schema.json": json_schema(plan_json.PlanJson, "commission/plan.schema.json",
+                                            plan_json.PLAN_SCHEMA_VERSION)}
 
 
 def schema_text(schema: dict) -> str:
@@ -45,7 +50,9 @@ def tables() -> dict[str, str]:
             "limits.toml keys": markdown_table(limits_toml.LIMITS_KEYS),
             "ident.json fields": markdown_rows(ident_json.IDENT_FIELDS),
             "tuning.json fields": markdown_rows(tuning_json.TUNING_FIELDS),
-            "controller.json fields": markdown_rows(controller_json.CONTROLLER_FIELDS)}
+            "controller.json fields": markdown_rows(controller_json.CONTROLLER_FIELDS),
+            "validation.json fields": markdown_rows(validation_json.VALIDATION_FIELDS),
+            "plan.json fields": markdown_rows(plan_json.PLAN_FIELDS)}
 
 
 def fill_markdown(text: str, generated: dict[str, str]) -> str:

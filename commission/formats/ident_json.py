@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from commission.formats.json_table import Field, build_json_model, is_finite_number
+from commission.formats.json_table import Field, build_json_model, cells, header_rows, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 from commission.logs.model import U_UNITS
 
@@ -72,38 +72,40 @@ def _narrowed(m: Any) -> None:
         raise ValueError(("", f"theta3_min {m.theta3_min!r} exceeds theta3_max {m.theta3_max!r}"))
 
 
+def _mode(m: Any, mode: str) -> bool:
+    """A mode's entries (``mode`` or ``mode2``) come together and its damping is below 1; False: no such mode."""
+    if getattr(m, f"{mode}_hz") is None:
+        return False
+    for k in (f"{mode}_damping", f"{mode}_ratio", f"{mode}_load_side"):
+        if getattr(m, k) is None:
+            raise ValueError((f".{k}", "missing required field"))
+    if not getattr(m, f"{mode}_damping") < 1:
+        damping = getattr(m, f"{mode}_damping")
+        raise ValueError((f".{mode}_damping", f"expected a damping ratio below 1, got {damping!r}"))
+    return True
+
+
 def _structural(m: Any) -> None:
     """``frequency_response.model``: a mode's entries come together; damping and load fractions below 1."""
-    if m.mode_hz is None:
+    if not _mode(m, "mode"):
         return
-    for k in ("mode_damping", "mode_ratio", "mode_load_side"):
-        if getattr(m, k) is None:
-            raise ValueError((f".{k}", "missing required field"))
-    if not m.mode_damping < 1:
-        raise ValueError((".mode_damping", f"expected a damping ratio below 1, got {m.mode_damping!r}"))
     if not m.mode_ratio < 1:
         raise ValueError((".mode_ratio", f"expected a load fraction below 1, got {m.mode_ratio!r}"))
-    if m.mode2_hz is None:
-        return
-    for k in ("mode2_damping", "mode2_ratio", "mode2_load_side"):
-        if getattr(m, k) is None:
-            raise ValueError((f".{k}", "missing required field"))
-    if not m.mode2_damping < 1:
-        raise ValueError((".mode2_damping", f"expected a damping ratio below 1, got {m.mode2_damping!r}"))
-    if not m.mode_ratio + m.mode2_ratio < 1:
+    if _mode(m, "mode2") and not m.mode_ratio + m.mode2_ratio < 1:
         raise ValueError((".mode2_ratio", f"expected mode_ratio + mode2_ratio below 1, got "
                                           f"{m.mode_ratio!r} + {m.mode2_ratio!r}"))
 
 
-_PARAM_DOC = {
-    "M": ("u s^2/q", "mass M (on a rotary axis the inertia J)"),
-    "B": ("u s/q", "viscous friction"),
-    "fc": ("u", "Coulomb friction level"),
-    "fs": ("u", "static (Stribeck peak) friction level; null for the Coulomb model"),
-    "vs": ("q/s", "Stribeck velocity; null for the Coulomb model"),
-    "xi": ("", "Stribeck exponent; null for the Coulomb model"),
-    "offset": ("u", "command offset (d_n = -offset)"),
-}
+#: Parameter | unit | doc.
+_PARAM_DOC = cells("""
+M      | u s^2/q | mass M (on a rotary axis the inertia J)
+B      | u s/q   | viscous friction
+fc     | u       | Coulomb friction level
+fs     | u       | static (Stribeck peak) friction level; null for the Coulomb model
+vs     | q/s     | Stribeck velocity; null for the Coulomb model
+xi     |         | Stribeck exponent; null for the Coulomb model
+offset | u       | command offset (d_n = -offset)
+""")
 
 
 def _parameter_rows() -> list[Field]:
@@ -122,113 +124,255 @@ def _parameter_rows() -> list[Field]:
     return rows
 
 
+def _spread_rows() -> list[Field]:
+    """How well each mode of the structural model is known (both modes alike)."""
+    return [row for mode in ("mode", "mode2") for row in (
+        Field(f"frequency_response.model.{mode}_hz_std", "any", "Hz", f"one standard deviation of {mode}_hz"),
+        Field(f"frequency_response.model.{mode}_damping_std", "any", "", f"one standard deviation of {mode}_damping"),
+        Field(f"frequency_response.model.{mode}_ratio_identified", "any", "",
+              f"{mode}_ratio was identified (false: assumed)"))]
+
+
 IDENT_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{IDENT_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{IDENT_SCHEMA_VERSION}: the version of this layout", required=True),
-    Field("units", "object", "", "the units of every other field", required=True, closed=True),
-    Field("units.u", "string", "", "command unit (\"u\" in the units below)", required=True,
-          choices=UNIT_VOCABULARY_U),
-    Field("units.q", "string", "", "position unit (\"q\" below): m, or rad on a rotary axis", required=True,
-          choices=UNIT_VOCABULARY_Q),
+    *header_rows(IDENT_KIND, IDENT_SCHEMA_VERSION),
+    *rows("""
+units          | object  | - | required closed
+    the units of every other field
+units.u        | string  | - | required
+    command unit ("u" in the units below)
+units.q        | string  | - | required
+    position unit ("q" below): m, or rad on a rotary axis
+""", {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),
     *_parameter_rows(),
-    Field("not_identified", "string map", "", "parameter -> why the log carries no information on it "
-          "(that parameter is null; with M null, theta and delta_d are null and tune refuses the file)"),
-    Field("fit", "object", "", "the fit's quality", required=True),
-    Field("fit.relative_error", "number", "", "||y - y_hat|| / ||y|| on the identification data (a fraction, "
-          "not %)", required=True, sign="nonneg"),
-    Field("fit.condition_number", "number", "", "of the column-scaled regressor", required=True, sign="positive"),
-    Field("fit.validation_relative_error", "number", "", "the same on --validate-on LOG2, or null", sign="nonneg"),
-    Field("theta", "object", "", "theta = [1/M, B/M, d_n/M] and its Assumption-1 box (null: M not identified)",
-          required=True, nullable=True),
-    Field("theta.nominal", "numbers", "[q/(u s^2), 1/s, q/s^2]", "nominal theta", required=True, length=3),
-    Field("theta.min", "numbers", "[q/(u s^2), 1/s, q/s^2]", "lower corner of the box (min[0] > 0)",
-          required=True, length=3),
-    Field("theta.max", "numbers", "[q/(u s^2), 1/s, q/s^2]", "upper corner of the box", required=True, length=3),
-    Field("delta_d", "number", "q/s^2", "bound on the lumped uncertain disturbance |d - d_n|/M (the paper's "
-          "delta_d); required with theta, null without", sign="nonneg"),
-    Field("friction_compensation", "object", "", "F_hat(v) = level (2/pi) atan(slope v)", required=True),
-    Field("friction_compensation.level", "number", "u", "level of F_hat", required=True, sign="nonneg"),
-    Field("friction_compensation.slope", "number", "s/q", "slope of F_hat", required=True, sign="nonneg"),
-    Field("friction_compensation_rms_error", "any", "u", "rms of F_hat against the identified curve over the "
-          "data's speeds (report)"),
-    Field("log_sha256", "sha256", "", "sha256 of the excitation log (older files; now source.sha256)"),
-    Field("quantization", "number", _QUANT.unit, "the older place of encoder.quantization", range=_QUANT.range),
-    Field("encoder", "object", "", "what the log says of the encoder"),
-    Field("encoder.quantization", "number", _QUANT.unit, "encoder step the tool uses (null: none measured; tune then "
-          "assumes the spec's default)", range=_QUANT.range),
-    Field("encoder.noise_std", "number", _NOISE.unit, "noise beyond quantization, rms (tune and validate simulate it "
-          "unless [plant] noise_std says otherwise)", range=_NOISE.range),
-    Field("encoder.apparent_resolution", "number", "q", "smallest step seen in q", sign="nonneg"),
-    Field("encoder.noise_rms_total", "any", "q", "rms of the whole measurement error (noise and quantization), "
-          "from the spectrum of q - P u over 0.35-0.48 of the sample rate"),
-    Field("encoder.quantization_noise_rms", "any", "q", "quantization / sqrt(12), the rounding's share (null: "
-          "the log is not on a grid)"),
-    Field("encoder.noise_band_hz", "any", "Hz", "[low, high]: the band the floor was read in"),
-    Field("source", "object", "", "the log(s) identified"),
-    Field("source.sample_rate", "number", "Hz", "sample rate as measured (tune's default rate)", sign="positive"),
-    Field("source.n_samples", "integer", "samples", "samples in the log", sign="nonneg"),
-    Field("source.sha256", "any", "", "sha256 of the log, or a list of them for several logs",
-          check=_sha256_or_list),
-    Field("source.path", "any", "", "the log's path, or a list of them"),
-    Field("source.input_gain", "any", "", "--input-gain: u_equiv = input_gain u"),
-    Field("source.mapping", "any", "", "the log's column mapping"),
-    Field("source.q_unit", "any", "", "the file's position unit (\"counts\" under --counts-per-rev)"),
-    Field("source.resampled_hz", "any", "Hz", "the uniform rate of --resample, or null"),
-    Field("source.conversion", "any", "", "with --counts-per-rev, --lead or --gear: {from, to, counts_per_rev, "
-          "lead_m_per_rad, gear_motor_rad_per_load_rad}"),
-    Field("validation_source", "any", "", "the --validate-on log(s), as source"),
-    Field("model", "object", "", "how the fit was made (method, decimation, cut-off, friction model, fixed "
-          "parameters, segments, inverse_dynamics)"),
-    Field("model.ripple_pitch", "number", "q", "the first --ripple-pitch", sign="positive"),
-    Field("model.ripple_amp", "any", "u", "its amplitude amp sin(2 pi q/P + phase): a number or {value, std}",
-          check=_ripple_amp),
-    Field("model.ripple_phase", "any", "rad", "its phase"),
-    Field("model.ripple_harmonics", "any", "", "every --ripple-pitch with its amp and phase ({value, std})"),
-    Field("model.fixed", "any", "", "parameters given with --fix NAME=VALUE (std 0)"),
-    Field("model.segments", "any", "samples", "several logs fitted together: the samples of each file"),
-    Field("model.inverse_dynamics", "any", "", "identify --friction auto's richer model (docs/interface.md §2)"),
-    Field("ripple", "object", "", "the older place of the ripple"),
-    Field("ripple.pitch", "number", "q", "ripple pitch", required=True, sign="positive"),
-    Field("ripple.amplitude", "number", "u", "ripple amplitude"),
-    Field("ripple.amp", "number", "u", "ripple amplitude (older spelling)"),
-    Field("bounds", "object", "", "what the theta box covers and how it was set"),
-    Field("bounds.disturbance_bound", "number", "u", "load-force bound", sign="nonneg"),
-    Field("bounds.disturbance_bound_defaulted", "boolean", "", "the load-force bound was defaulted"),
-    Field("bounds.disturbance_range", "any", "u", "[min, max] load force"),
-    Field("bounds.mass_range", "any", "u s^2/q", "[min, max] mass the box covers"),
-    Field("bounds.viscous_range", "any", "u s/q", "[min, max] viscous friction the box covers"),
-    Field("bounds.payload_range", "any", "u s^2/q", "the payload range the mass range includes"),
-    Field("bounds.payload_defaulted", "any", "", "--payload-max was defaulted (3 M)"),
-    Field("bounds.payload_narrowed_by_tune", "any", "", "tuning.json only: the default payload range tune "
-          "narrowed"),
-    Field("bounds.viscous_clipped", "any", "u s/q", "the fit's negative viscous coefficient clipped to the "
-          "box: estimate, std, clipped_to"),
-    Field("bounds.narrowed_by_tune", "object", "", "tune (or fit_force_to_drive) narrowed a defaulted "
-          "load-force bound", check=_narrowed),
-    Field("bounds.narrowed_by_tune.theta3_min", "number", "q/s^2", "theta3's lower end before", required=True),
-    Field("bounds.narrowed_by_tune.theta3_max", "number", "q/s^2", "theta3's upper end before", required=True),
-    Field("bounds.narrowed_by_tune.u_max", "number", "u", "the drive limit it was narrowed to", sign="positive"),
-    Field("warnings", "strings", "", "plausibility warnings, one sentence each"),
-    Field("evidence", "any", "", "only for a log without a broadband segment: missing, excite_command, "
-          "limits_toml"),
-    Field("frequency_response", "object", "", "the measured response and the structural model fitted to it"),
-    Field("frequency_response.model", "object", "", "the plant the simulator uses beyond the rigid body "
-          "(null: none)", check=_structural),
-    Field("frequency_response.model.delay_s", "number", "s", "input delay beyond the zero-order hold",
-          required=True, sign="nonneg"),
-    Field("frequency_response.model.mode_hz", "number", "Hz", "structural mode (null: none)", sign="positive"),
-    Field("frequency_response.model.mode_damping", "number", "", "its damping ratio (< 1)", sign="nonneg"),
-    Field("frequency_response.model.mode_ratio", "number", "", "load fraction m2/M (< 1)", sign="positive"),
-    Field("frequency_response.model.mode_load_side", "boolean", "", "the encoder reads the load side"),
-    Field("frequency_response.model.mode2_hz", "number", "Hz", "second appendage (null: none)",
-          sign="positive"),
-    Field("frequency_response.model.mode2_damping", "number", "", "its damping ratio (< 1)", sign="nonneg"),
-    Field("frequency_response.model.mode2_ratio", "number", "", "load fraction m3/M (mode_ratio + mode2_ratio "
-          "< 1)", sign="positive"),
-    Field("frequency_response.model.mode2_load_side", "boolean", "", "the encoder reads the second appendage"),
-    Field("friction_map", "any", "", "friction tests: velocity (q/s), force (u), std (u), n (samples) per leg"),
-    Field("model_selection", "any", "", "identify --friction auto: the cross-validated choice of terms"),
-    Field("position_simulation", "any", "q", "with --validate-on: open-loop simulation rmse, reference_rmse"),
+    *rows("""
+not_identified                           | string map | -                       | -
+    parameter -> why the log carries no information on it (that parameter is null; with M null, theta and delta_d
+    are null and tune refuses the file)
+fit                                      | object     | -                       | required
+    the fit's quality
+fit.relative_error                       | number     | -                       | required nonneg
+    ||y - y_hat|| / ||y|| on the identification data (a fraction, not %)
+fit.condition_number                     | number     | -                       | required positive
+    of the column-scaled regressor
+fit.validation_relative_error            | number     | -                       | nonneg
+    the same on --validate-on LOG2, or null
+theta                                    | object     | -                       | required nullable
+    theta = [1/M, B/M, d_n/M] and its Assumption-1 box (null: M not identified)
+theta.nominal                            | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    nominal theta
+theta.min                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    lower corner of the box (min[0] > 0)
+theta.max                                | numbers    | [q/(u s^2), 1/s, q/s^2] | required len=3
+    upper corner of the box
+delta_d                                  | number     | q/s^2                   | nonneg
+    bound on the lumped uncertain disturbance |d - d_n|/M (the paper's delta_d); required with theta, null without
+friction_compensation                    | object     | -                       | required
+    F_hat(v) = level (2/pi) atan(slope v)
+friction_compensation.level              | number     | u                       | required nonneg
+    level of F_hat
+friction_compensation.slope              | number     | s/q                     | required nonneg
+    slope of F_hat
+friction_compensation_rms_error          | any        | u                       | -
+    rms of F_hat against the identified curve over the data's speeds (report)
+log_sha256                               | sha256     | -                       | -
+    sha256 of the excitation log (older files; now source.sha256)
+quantization                             | number     | *                       | -
+    the older place of encoder.quantization
+encoder                                  | object     | -                       | -
+    what the log says of the encoder
+encoder.quantization                     | number     | *                       | -
+    encoder step the tool uses (null: none measured; tune then assumes the spec's default)
+encoder.noise_std                        | number     | *                       | -
+    noise beyond quantization, rms (tune and validate simulate it unless [plant] noise_std says otherwise)
+encoder.apparent_resolution              | number     | q                       | nonneg
+    smallest step seen in q
+encoder.noise_rms_total                  | any        | q                       | -
+    rms of the whole measurement error (noise and quantization), from the spectrum of q - P u over 0.35-0.48 of
+    the sample rate
+encoder.quantization_noise_rms           | any        | q                       | -
+    quantization / sqrt(12), the rounding's share (null: the log is not on a grid)
+encoder.noise_band_hz                    | any        | Hz                      | -
+    [low, high]: the band the floor was read in
+source                                   | object     | -                       | -
+    the log(s) identified
+source.sample_rate                       | number     | Hz                      | positive
+    sample rate as measured (tune's default rate)
+source.n_samples                         | integer    | samples                 | nonneg
+    samples in the log
+source.sha256                            | any        | -                       | -
+    sha256 of the log, or a list of them for several logs
+source.path                              | any        | -                       | -
+    the log's path, or a list of them
+source.input_gain                        | any        | -                       | -
+    --input-gain: u_equiv = input_gain u
+source.mapping                           | any        | -                       | -
+    the log's column mapping
+source.q_unit                            | any        | -                       | -
+    the file's position unit ("counts" under --counts-per-rev)
+source.resampled_hz                      | any        | Hz                      | -
+    the uniform rate of --resample, or null
+source.conversion                        | any        | -                       | -
+    with --counts-per-rev, --lead or --gear: {from, to, counts_per_rev, lead_m_per_rad,
+    gear_motor_rad_per_load_rad}
+validation_source                        | any        | -                       | -
+    the --validate-on log(s), as source
+model                                    | object     | -                       | -
+    how the fit was made (method, decimation, cut-off, friction model, fixed parameters, segments,
+    inverse_dynamics)
+model.ripple_pitch                       | number     | q                       | positive
+    the first --ripple-pitch
+model.ripple_amp                         | any        | u                       | -
+    its amplitude amp sin(2 pi q/P + phase): a number or {value, std}
+model.ripple_phase                       | any        | rad                     | -
+    its phase
+model.ripple_harmonics                   | any        | -                       | -
+    every --ripple-pitch with its amp and phase ({value, std})
+model.fixed                              | any        | -                       | -
+    parameters given with --fix NAME=VALUE (std 0)
+model.segments                           | any        | samples                 | -
+    several logs fitted together: the samples of each file
+model.inverse_dynamics                   | any        | -                       | -
+    identify --friction auto's richer model (docs/interface.md §2)
+model.method                             | any        | -                       | -
+    the fit: "steady+dynamic", "whole-log", ...
+model.friction                           | any        | -                       | -
+    the friction model fitted: coulomb or stribeck
+model.friction_requested                 | any        | -                       | -
+    --friction as given (auto, coulomb, stribeck)
+model.decimation                         | any        | -                       | -
+    samples per point of the dynamic fit
+model.cutoff_hz                          | any        | Hz                      | -
+    cut-off of the derivative filter
+model.residual_std                       | any        | u                       | -
+    standard deviation of the fit residual
+model.steady_points                      | any        | -                       | -
+    constant-speed points of the friction fit
+model.v_max                              | any        | q/s                     | -
+    largest speed in the data
+model.velocity_resolution                | any        | q/s                     | -
+    velocity step one encoder count makes at the sample rate
+ripple                                   | object     | -                       | -
+    the older place of the ripple
+ripple.pitch                             | number     | q                       | required positive
+    ripple pitch
+ripple.amplitude                         | number     | u                       | -
+    ripple amplitude
+ripple.amp                               | number     | u                       | -
+    ripple amplitude (older spelling)
+bounds                                   | object     | -                       | -
+    what the theta box covers and how it was set
+bounds.disturbance_bound                 | number     | u                       | nonneg
+    load-force bound
+bounds.disturbance_bound_defaulted       | boolean    | -                       | -
+    the load-force bound was defaulted
+bounds.disturbance_range                 | any        | u                       | -
+    [min, max] load force
+bounds.mass_range                        | any        | u s^2/q                 | -
+    [min, max] mass the box covers
+bounds.viscous_range                     | any        | u s/q                   | -
+    [min, max] viscous friction the box covers
+bounds.payload_range                     | any        | u s^2/q                 | -
+    the payload range the mass range includes
+bounds.payload_defaulted                 | any        | -                       | -
+    --payload-max was defaulted (3 M)
+bounds.payload_narrowed_by_tune          | any        | -                       | -
+    tuning.json only: the default payload range tune narrowed
+bounds.viscous_clipped                   | any        | u s/q                   | -
+    the fit's negative viscous coefficient clipped to the box: estimate, std, clipped_to
+bounds.k_sigma                           | any        | -                       | -
+    standard deviations the theta box spans about each estimate
+bounds.model_margin                      | any        | -                       | -
+    relative margin added to the box for what the model leaves out
+bounds.narrowed_by_tune                  | object     | -                       | -
+    tune (or fit_force_to_drive) narrowed a defaulted load-force bound
+bounds.narrowed_by_tune.theta3_min       | number     | q/s^2                   | required
+    theta3's lower end before
+bounds.narrowed_by_tune.theta3_max       | number     | q/s^2                   | required
+    theta3's upper end before
+bounds.narrowed_by_tune.u_max            | number     | u                       | positive
+    the drive limit it was narrowed to
+warnings                                 | strings    | -                       | -
+    plausibility warnings, one sentence each
+created_utc                              | any        | -                       | -
+    ISO-8601 UTC time of the identification
+tool                                     | any        | -                       | -
+    the tool that wrote the file: name, version
+evidence                                 | any        | -                       | -
+    only for a log without a broadband segment: missing, excite_command, limits_toml
+frequency_response                       | object     | -                       | -
+    the measured response and the structural model fitted to it
+frequency_response.source                | any        | -                       | -
+    the data measured: broadband, whole_log or none
+frequency_response.band_hz               | any        | Hz                      | -
+    [low, high] where the data back the rigid model
+frequency_response.evidence_band_hz      | any        | Hz                      | -
+    [low, high] the log backs for the model tune and validate use (null: none; docs/robustness.md)
+frequency_response.coherent_up_to_hz     | any        | Hz                      | -
+    highest frequency of coherent data
+frequency_response.resolution_hz         | any        | Hz                      | -
+    frequency resolution of the estimate
+frequency_response.n_averages            | any        | -                       | -
+    Welch windows averaged
+frequency_response.segments_s            | any        | s                       | -
+    the broadband segments, [start, end] each
+frequency_response.modes                 | any        | -                       | -
+    every mode the response holds: frequency_hz (Hz), damping, their std, depth, mode
+frequency_response.delay_samples         | any        | samples                 | -
+    input delay beyond the zero-order hold
+frequency_response.fit_quality           | any        | -                       | -
+    structure, model_rms_error, rigid_rms_error, n_modes, criterion
+frequency_response.departures            | any        | -                       | -
+    where the measured response departs from the fitted model beyond its uncertainty
+frequency_response.measured              | any        | -                       | -
+    the measured response thinned for reports: frequency, magnitude, phase, coherence (null: no broadband segment)
+frequency_response.units                 | any        | -                       | -
+    the unit of each of these fields
+frequency_response.plan                  | any        | -                       | -
+    the plan.json whose injection windows were used (absent: none)
+frequency_response.note                  | any        | -                       | -
+    a sentence on how the response was measured, or null
+frequency_response.model                 | object     | -                       | -
+    the plant the simulator uses beyond the rigid body (null: none)
+frequency_response.model.delay_s         | number     | s                       | required nonneg
+    input delay beyond the zero-order hold
+frequency_response.model.mode_hz         | number     | Hz                      | positive
+    structural mode (null: none)
+frequency_response.model.mode_damping    | number     | -                       | nonneg
+    its damping ratio (< 1)
+frequency_response.model.mode_ratio      | number     | -                       | positive
+    load fraction m2/M (< 1)
+frequency_response.model.mode_load_side  | boolean    | -                       | -
+    the encoder reads the load side
+frequency_response.model.mode2_hz        | number     | Hz                      | positive
+    second appendage (null: none)
+frequency_response.model.mode2_damping   | number     | -                       | nonneg
+    its damping ratio (< 1)
+frequency_response.model.mode2_ratio     | number     | -                       | positive
+    load fraction m3/M (mode_ratio + mode2_ratio < 1)
+frequency_response.model.mode2_load_side | boolean    | -                       | -
+    the encoder reads the second appendage
+frequency_response.model.n_modes         | any        | -                       | -
+    modes in the model
+frequency_response.model.delay_std_s     | any        | s                       | -
+    one standard deviation of delay_s
+frequency_response.model.mass_scale      | any        | -                       | -
+    the fitted mass over the identified M
+frequency_response.model.appendages      | any        | -                       | -
+    true when the two modes were refitted as two appendages on the rigid body (absent: not)
+friction_map                             | any        | -                       | -
+    friction tests: velocity (q/s), force (u), std (u), n (samples) per leg
+model_selection                          | any        | -                       | -
+    identify --friction auto: the cross-validated choice of terms
+position_simulation                      | any        | q                       | -
+    with --validate-on: open-loop simulation rmse, reference_rmse
+""", {"quantization": dict(unit=_QUANT.unit, range=_QUANT.range),
+      "encoder.quantization": dict(unit=_QUANT.unit, range=_QUANT.range),
+      "encoder.noise_std": dict(unit=_NOISE.unit, range=_NOISE.range),
+      "source.sha256": dict(check=_sha256_or_list),
+      "model.ripple_amp": dict(check=_ripple_amp),
+      "bounds.narrowed_by_tune": dict(check=_narrowed),
+      "frequency_response.model": dict(check=_structural)}),
+    *_spread_rows(),
 )
 
 #: The strict model of ident.json (pydantic, built from :data:`IDENT_FIELDS`).

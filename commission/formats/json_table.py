@@ -41,6 +41,7 @@ TYPES = {
     "string map": "an object of name -> string",
     "number map": "an object of name -> finite number",
     "map": "an object of name -> an object of the fields below NAME.*",
+    "objects": "a list of objects of the fields below NAME.*",
     "any": "any JSON value (read by the code named in the doc)",
 }
 
@@ -117,6 +118,60 @@ class Field:
         return ", ".join(parts)
 
 
+#: The flags of a text row (:func:`rows`) and the Field attribute each sets.
+_FLAGS = {"required": ("required", True), "nullable": ("nullable", True), "closed": ("closed", True),
+          "positive": ("sign", "positive"), "nonneg": ("sign", "nonneg")}
+
+
+def rows(text: str, extra: dict[str, dict[str, Any]] | None = None) -> list[Field]:
+    """Fields written as a text table: ``path | type | unit | flags``, its doc on the indented lines below.
+
+    ``unit`` is ``-`` for none and ``*`` where ``extra`` gives it (a unit that is another table's);
+    ``flags`` a space-separated list of ``required``, ``nullable``,
+    ``closed``, ``positive``, ``nonneg`` and ``len=N`` (``-`` for none).  ``extra`` maps a path to
+    the attributes that are not text (``choices``, ``range``, ``check``).  The table reads as the
+    docs render it, and one table is one literal rather than a run of calls.
+    """
+    out: list[dict[str, Any]] = []
+    for line in text.strip("\n").splitlines():
+        if line[:1].isspace():
+            out[-1]["doc"] = f"{out[-1]['doc']} {line.strip()}".strip()
+            continue
+        path, typ, unit, flags = (c.strip() for c in line.split("|"))
+        row: dict[str, Any] = {"path": path, "type": typ, "unit": {"-": "", "*": None}.get(unit, unit), "doc": ""}
+        for flag in flags.split():
+            if flag.startswith("len="):
+                row["length"] = int(flag[4:])
+            elif flag != "-":
+                key, value = _FLAGS[flag]
+                row[key] = value
+        out.append(row)
+    extra = extra or {}
+    unknown = set(extra) - {r["path"] for r in out}
+    if unknown:
+        raise ValueError(f"extra attributes for rows the table does not hold: {sorted(unknown)}")
+    given = [r["path"] for r in out if (r["unit"] is None) != ("unit" in extra.get(r["path"], {}))]
+    if given:
+        raise ValueError(f"a unit is '*' exactly when extra gives it: {given}")
+    return [Field(**{**r, **extra.get(r["path"], {})}) for r in out]
+
+
+def header_rows(kind: str, version: int) -> list[Field]:
+    """The two rows every artifact opens with: its ``kind`` and its ``schema_version`` (checked first:
+    :func:`check_header`)."""
+    return [Field("kind", "string", "", f'"{kind}"', required=True),
+            Field("schema_version", "integer", "", f"1..{version}: the version of this layout", required=True)]
+
+
+def cells(text: str, columns: int = 3) -> dict[str, tuple[str, ...]]:
+    """A text table of ``name | cell | ...`` lines: name -> its other cells (stripped; the last may hold ``|``)."""
+    out = {}
+    for line in text.strip("\n").splitlines():
+        name, *rest = (c.strip() for c in line.split("|", columns - 1))
+        out[name] = tuple(rest)
+    return out
+
+
 def _bounds(f: Field) -> dict[str, float]:
     out: dict[str, float] = {}
     if f.sign == "positive":
@@ -186,7 +241,7 @@ def build_json_model(name: str, fields: Sequence[Field], doc: str, *, root_close
     by_parent: dict[str, list[Field]] = {}
     for f in fields:
         by_parent.setdefault(f.parent, []).append(f)
-    objects = {f.path: f for f in fields if f.type in ("object", "map")}
+    objects = {f.path: f for f in fields if f.type in ("object", "map", "objects")}
 
     def model(path: str, closed: bool) -> type[BaseModel]:
         cfg = ConfigDict(strict=True, allow_inf_nan=False, extra="forbid" if closed else "allow")
@@ -195,9 +250,10 @@ def build_json_model(name: str, fields: Sequence[Field], doc: str, *, root_close
             if f.name == "*":  # the value row of a map: built by the map's row
                 continue
             sub = model(f.path, f.closed) if f.type == "object" else None
-            if f.type == "map":
+            if f.type in ("map", "objects"):
                 star = objects[f.path + ".*"]
-                sub = dict[str, model(star.path, star.closed)]  # type: ignore[misc, assignment]
+                item = model(star.path, star.closed)
+                sub = dict[str, item] if f.type == "map" else list[item]  # type: ignore[misc, assignment, valid-type]
             members[f.name] = _annotation_and_default(f, sub)
         title = name + "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").replace("*", "item").split(".")
                                if p)
@@ -248,6 +304,47 @@ def check_header(data: Any, kind: str, version: int, source: str, prefix: str = 
         raise fail(".schema_version", f"unsupported schema_version {v} (this tool reads 1..{version})")
 
 
+def check_json(data: Any, model: type[BaseModel], fields: Sequence[Field], kind: str, version: int,
+               source: str) -> Any:
+    """``data`` (a parsed artifact) checked strictly against its table's ``model``; returned as it is.
+
+    Raises
+    ------
+    SchemaError
+        One line naming the JSON path of the first refused value (the header first).
+    """
+    check_header(data, kind, version, source)
+    try:
+        model.model_validate(data)
+    except ValidationError as exc:
+        raise SchemaError(json_error(exc, fields, source=source)) from None
+    return data
+
+
+def unnamed(data: Any, fields: Sequence[Field]) -> list[str]:
+    """The JSON paths of the keys in ``data`` that no row names (below ``object``, ``map`` and ``objects``
+    rows; an ``any`` row's value is its owner's).  Empty: the table describes every key the file holds."""
+    rows_ = {f.path: f for f in fields}
+    out: list[str] = []
+
+    def walk(value: Any, path: str, where: str) -> None:
+        if not isinstance(value, dict):
+            return
+        for k, v in value.items():
+            row = rows_.get(f"{path}.{k}" if path else k)
+            if row is None:
+                out.append(f"{where}.{k}")
+            elif row.type == "object":
+                walk(v, row.path, f"{where}.{k}")
+            elif row.type in ("map", "objects") and isinstance(v, (dict, list)):
+                items = v.items() if isinstance(v, dict) else ((f"[{i}]", x) for i, x in enumerate(v))
+                for name, x in items:
+                    walk(x, f"{row.path}.*", f"{where}.{k}" + (name if isinstance(v, list) else f".{name}"))
+
+    walk(data, "", "$")
+    return out
+
+
 def json_path(loc: Sequence[Any]) -> str:
     """``("theta", "min", 2)`` -> ``$.theta.min[2]``."""
     return "$" + "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc)
@@ -268,7 +365,7 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
     e = errors[0]
     loc = [p for p in e["loc"]]
     v, kind = e["input"], e["type"]
-    f = _row(rows, [p for p in loc if isinstance(p, str)])
+    f = _row(rows, loc)
     if kind == "value_error":
         err = e["ctx"]["error"]
         arg = err.args[0] if err.args else str(err)
@@ -278,12 +375,16 @@ def json_error(exc: ValidationError, fields: Sequence[Field], *, source: str, pr
     return f"{path}: {_why(kind, v, f, e)}"
 
 
-def _row(rows: dict[str, Field], keys: list[str]) -> Field | None:
-    """The row of a location, a map's entry (``guarantees.stable``) standing for ``guarantees.*``."""
+def _row(rows: dict[str, Field], loc: Sequence[Any]) -> Field | None:
+    """The row of a location: a map's entry (``guarantees.stable``) or a list's element (``runs[3]``)
+    standing for ``guarantees.*`` / ``runs.*``; an element of a list of numbers for the list."""
     path = ""
-    for k in keys:
-        nxt = f"{path}.{k}" if path else k
+    for k in loc:
         star = f"{path}.*" if path else "*"
+        if isinstance(k, int):
+            path = star if star in rows else path
+            continue
+        nxt = f"{path}.{k}" if path else k
         path = star if nxt not in rows and star in rows else nxt
     return rows.get(path)
 
@@ -308,7 +409,7 @@ def _why(kind: str, v: Any, f: Field | None, e: Any) -> str:
     if kind == "string_pattern_mismatch":
         return f"expected a sha256 (64 lowercase hex digits), got {str(v)[:80]!r}"
     if kind == "list_type":
-        what = "strings" if f is not None and f.type == "strings" else "numbers"
+        what = {"strings": "strings", "objects": "objects"}.get(f.type if f is not None else "", "numbers")
         return f"expected a list of {what}, got {type(v).__name__}"
     if kind in ("too_short", "too_long"):
         return f"expected {f.length if f else '?'} numbers, got {len(v)}"

@@ -160,6 +160,49 @@ class Key:
         return {float: "number", int: "integer", str: "string", bool: "boolean", Length: "length"}[self.type]
 
 
+#: The type words of a text table (:func:`keys`).
+_TYPE_WORDS = {"number": float, "integer": int, "string": str, "boolean": bool, "list": list}
+
+
+def _range_of(text: str) -> tuple[tuple[float, float] | None, tuple[bool, bool]]:
+    """``(0, inf)`` -> ((0, inf), (True, False)): a bracket excludes a finite end (as :meth:`Key.range_text`)."""
+    if text == "-":
+        return None, (False, False)
+    lo, hi = (float(v) for v in text[1:-1].split(","))
+    return (lo, hi), (text[0] == "(" and math.isfinite(lo), text[-1] == ")" and math.isfinite(hi))
+
+
+def keys(text: str, extra: Mapping[str, Mapping[str, Any]] | None = None) -> tuple[Key, ...]:
+    """Keys written as a text table: ``section.name | type | default | range | unit | rule``, its doc below.
+
+    ``type`` is number, integer, string, boolean or list; ``default`` a Python literal, ``required``
+    or ``-`` (none); ``range`` as :meth:`Key.range_text` writes it (a bracket includes a finite end,
+    a parenthesis excludes it) or ``-``; ``unit`` and ``rule`` ``-`` for none; the indented lines
+    below a key are its doc.  ``extra`` maps a key's path to the attributes that are not text
+    (``choices``).  The table reads as the docs render it, one literal rather than a run of calls.
+    """
+    import ast
+
+    out: list[dict[str, Any]] = []
+    for line in text.strip("\n").splitlines():
+        if line[:1].isspace():
+            out[-1]["doc"] = f"{out[-1]['doc']} {line.strip()}".strip()
+            continue
+        path, typ, default, rng, unit, rule = (c.strip() for c in line.split("|"))
+        section, name = path.split(".")
+        row: dict[str, Any] = {"section": section, "name": name, "type": _TYPE_WORDS[typ], "doc": "",
+                               "default": None if default in ("-", "required") else ast.literal_eval(default),
+                               "required": default == "required", "unit": "" if unit == "-" else unit,
+                               "rule": None if rule == "-" else rule}
+        row["range"], row["open"] = _range_of(rng)
+        out.append(row)
+    extra = extra or {}
+    unknown = set(extra) - {f"{r['section']}.{r['name']}" for r in out}
+    if unknown:
+        raise ValueError(f"extra attributes for keys the table does not hold: {sorted(unknown)}")
+    return tuple(Key(**r, **extra.get(f"{r['section']}.{r['name']}", {})) for r in out)
+
+
 def fmt(value: Any) -> str:
     """A default as written in help and docs (``2500``, ``1e-05``, ``"motor"``)."""
     if isinstance(value, str):

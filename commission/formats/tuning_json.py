@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from commission.formats.json_table import Field, build_json_model, is_finite_number
+from commission.formats.json_table import Field, build_json_model, header_rows, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 
 TUNING_KIND = "tuning"
@@ -50,7 +50,7 @@ PID_GAINS = (("Ts", "s", False), ("M_hat", "u s^2/q", False), ("B_hat", "u s/q",
 _QUANT = next(k for k in SPEC_KEYS if (k.section, k.name) == ("controller", "quantization"))
 
 
-def _object(v: Any) -> None:
+def object_value(v: Any) -> None:
     if not isinstance(v, dict):
         raise ValueError(("", f"expected an object, got {type(v).__name__}"))
 
@@ -83,7 +83,7 @@ def _list_of(ok, what: str):
     return check
 
 
-def _nullable_numbers(v: Any) -> None:
+def nullable_numbers(v: Any) -> None:
     if not isinstance(v, list):
         raise ValueError(("", "expected a list of numbers"))
     for i, x in enumerate(v):
@@ -95,8 +95,8 @@ def _pair(x: Any) -> bool:
     return isinstance(x, list) and len(x) == 2 and all(is_finite_number(e) for e in x) and x[0] <= x[1]
 
 
-def _validity(v: Any) -> None:
-    _object(v)
+def validity_record(v: Any) -> None:
+    object_value(v)
     for k in ("payload_range", "mass_range"):
         if not _pair(v.get(k)):
             raise ValueError((f".{k}", f"expected a [min, max] pair of finite numbers, got {v.get(k)!r}"))
@@ -109,10 +109,16 @@ _NONNEG_INT = _list_of(lambda x: isinstance(x, int) and not isinstance(x, bool) 
 _BOOLS = _list_of(lambda x: isinstance(x, bool), "boolean")
 
 
-def _score_rows(prefix: str) -> list[Field]:
+def score_rows(prefix: str) -> list[Field]:
     rows = [Field(prefix, "object", "", f"the {prefix.rsplit('.', 1)[-1].upper()} loop's score", required=True)]
     rows += [Field(f"{prefix}.{n}", "number", _SCORE_UNITS[n], f"index {n} (null: diverged)") for n in SCORE_NAMES]
     return rows + [Field(f"{prefix}.diverged", "boolean", "", "the run diverged", required=True)]
+
+
+def _gain_rows(section: str, owner: str, gains: tuple[tuple[str, str, bool], ...]) -> list[Field]:
+    """The scalar gains of a controller (``(name, unit, may be null)`` rows of ``owner``), each required."""
+    return [Field(f"{section}.{n}", "number", u, f"{owner}.{n}" + (" (null: infinite)" if inf else ""),
+                  required=True, nullable=inf) for n, u, inf in gains]
 
 
 def _feasibility_rows(prefix: str) -> list[Field]:
@@ -133,95 +139,147 @@ def _feasibility_rows(prefix: str) -> list[Field]:
 
 
 TUNING_FIELDS: tuple[Field, ...] = (
-    Field("kind", "string", "", f'"{TUNING_KIND}"', required=True),
-    Field("schema_version", "integer", "", f"1..{TUNING_SCHEMA_VERSION}: the version of this layout",
-          required=True),
-    Field("provenance", "object", "", "where the tuning came from", required=True),
-    Field("provenance.ident_sha256", "sha256", "", "sha256 of the ident.json bytes", required=True),
-    Field("provenance.log_sha256", "sha256", "", "sha256 of the excitation log, when ident.json records one"),
-    Field("provenance.tool_version", "string", "", "commission.__version__", required=True),
-    Field("provenance.created_utc", "string", "", "ISO-8601 UTC time of the run", required=True),
-    Field("provenance.seed", "integer", "", "seed of the search's generator", required=True),
-    Field("provenance.ident_path", "string", "", "ident.json as given on the command line", required=True),
-    Field("spec", "any", "", "the resolved spec (spec.toml's layout; checked by its table, §6)", required=True,
-          check=_object),
-    Field("identification", "any", "", "ident.json's content verbatim (checked by its table, §2)",
-          required=True, check=_object),
-    Field("plant", "object", "", "the identified plant the simulation used", required=True),
+    *header_rows(TUNING_KIND, TUNING_SCHEMA_VERSION),
+    *rows("""
+provenance              | object  | - | required
+    where the tuning came from
+provenance.ident_sha256 | sha256  | - | required
+    sha256 of the ident.json bytes
+provenance.log_sha256   | sha256  | - | -
+    sha256 of the excitation log, when ident.json records one
+provenance.tool_version | string  | - | required
+    commission.__version__
+provenance.created_utc  | string  | - | required
+    ISO-8601 UTC time of the run
+provenance.seed         | integer | - | required
+    seed of the search's generator
+provenance.ident_path   | string  | - | required
+    ident.json as given on the command line
+spec                    | any     | - | required
+    the resolved spec (spec.toml's layout; checked by its table, §6)
+identification          | any     | - | required
+    ident.json's content verbatim (checked by its table, §2)
+plant                   | object  | - | required
+    the identified plant the simulation used
+""", {"spec": dict(check=object_value), "identification": dict(check=object_value)}),
     *(Field(f"plant.{n}", "number", "", f"plant vector entry {n} (commission.controllers.plant)",
             required=i < N_REQUIRED_PLANT) for i, n in enumerate(PLANT_NAMES)),
     Field("plant.quantization", "number", _QUANT.unit, "encoder step simulated", required=True,
           range=_QUANT.range),
     Field("arc", "object", "", "the tuned discrete ARC (every ArcGains field)", required=True, closed=True),
-    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in ARC_GAINS),
+    *_gain_rows("arc", "ArcGains", ARC_GAINS),
     *(Field(f"arc.{n}", "numbers", "", f"ArcGains.{n}", required=True, length=3) for n in ARC_VECTORS),
-    *(Field(f"arc.{n}", "number", u, f"ArcGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in ARC_TAIL),
+    *_gain_rows("arc", "ArcGains", ARC_TAIL),
     *(Field(f"arc.{n}", "boolean" if n == "freeze_on_saturation" else "number", u,
             f"runtime guard {n}, set by validate (absent or null: off)")
       for n, u in ARC_GUARDS),
     Field("pid", "object", "", "the PID baseline (every PidGains field, pole and design mass)", required=True,
           closed=True),
-    *(Field(f"pid.{n}", "number", u, f"PidGains.{n}" + (" (null: infinite)" if inf else ""), required=True,
-            nullable=inf) for n, u, inf in PID_GAINS),
-    Field("pid.pole", "number", "rad/s", "triple pole the baseline runs at", required=True, sign="positive"),
-    Field("pid.design_mass", "number", "u s^2/q", "M_min = 1/theta_max[0] of the identification", required=True,
-          sign="positive"),
-    Field("observer", "object", "", "the observer the controller runs (eq. 11)", required=True),
-    Field("observer.pole", "number", "rad/s", "observer pole", required=True, sign="positive"),
-    Field("observer.k1", "number", "1/s", "gain k1 (= arc.k1)", required=True, sign="positive"),
-    Field("observer.k2", "number", "1/s^2", "gain k2 (= arc.k2)", required=True, sign="positive"),
-    Field("observer.P", "any", "", "2x2 Lyapunov matrix P (eq. 11)", required=True, check=_matrix(2, 2)),
-    Field("observer.P_eigenvalues", "numbers", "", "eigenvalues of P", required=True, length=2),
-    Field("observer.lyapunov_residual", "number", "", "residual of the Lyapunov equation", required=True,
-          sign="nonneg"),
-    Field("observer.discrete_pole", "number", "", "the discrete pole the controller runs (null: not recorded)"),
-    Field("theorem1", "object", "", "Theorem 1's conditions", required=True),
-    Field("theorem1.holds", "boolean", "", "every ratio >= 1", required=True),
-    Field("theorem1.ratios", "any", "", "2x3 ratios", required=True, check=_matrix(2, 3)),
-    Field("theorem1.min_ratio", "number", "", "smallest ratio (null: infinite)"),
-    Field("feasibility", "object", "", "discrete feasibility of both loops", required=True),
+    *_gain_rows("pid", "PidGains", PID_GAINS),
+    *rows("""
+pid.pole                   | number  | rad/s   | required positive
+    triple pole the baseline runs at
+pid.design_mass            | number  | u s^2/q | required positive
+    M_min = 1/theta_max[0] of the identification
+observer                   | object  | -       | required
+    the observer the controller runs (eq. 11)
+observer.pole              | number  | rad/s   | required positive
+    observer pole
+observer.k1                | number  | 1/s     | required positive
+    gain k1 (= arc.k1)
+observer.k2                | number  | 1/s^2   | required positive
+    gain k2 (= arc.k2)
+observer.P                 | any     | -       | required
+    2x2 Lyapunov matrix P (eq. 11)
+observer.P_eigenvalues     | numbers | -       | required len=2
+    eigenvalues of P
+observer.lyapunov_residual | number  | -       | required nonneg
+    residual of the Lyapunov equation
+observer.discrete_pole     | number  | -       | -
+    the discrete pole the controller runs (null: not recorded)
+theorem1                   | object  | -       | required
+    Theorem 1's conditions
+theorem1.holds             | boolean | -       | required
+    every ratio >= 1
+theorem1.ratios            | any     | -       | required
+    2x3 ratios
+theorem1.min_ratio         | number  | -       | -
+    smallest ratio (null: infinite)
+feasibility                | object  | -       | required
+    discrete feasibility of both loops
+""", {"observer.P": dict(check=_matrix(2, 2)), "theorem1.ratios": dict(check=_matrix(2, 3))}),
     *_feasibility_rows("feasibility.arc"),
     *_feasibility_rows("feasibility.pid"),
-    Field("guarantees", "map", "", "name -> which guarantee of the paper holds as tuned", required=True),
-    Field("guarantees.*", "object", "", "one guarantee", required=True),
-    Field("guarantees.*.holds", "boolean", "", "it holds", required=True),
-    Field("guarantees.*.detail", "string", "", "why, or what was traded", required=True),
-    Field("scores", "map", "", "scenario -> the scores of both loops", required=True),
-    Field("scores.*", "object", "", "one scenario", required=True),
-    *_score_rows("scores.*.arc"),
-    *_score_rows("scores.*.pid"),
-    Field("search", "object", "", "the gain search", required=True),
-    Field("search.n_evaluations", "integer", "", "candidates evaluated", required=True),
-    Field("search.budget", "integer", "", "requested budget (spec tune.budget)", required=True),
-    Field("search.seed", "integer", "", "seed", required=True),
-    Field("search.cost_initial", "number", "", "objective of the starting point (null: not simulated)"),
-    Field("search.cost_best", "number", "", "objective of the chosen gains (null: not simulated)"),
-    Field("search.free", "number map", "", "the free gains as chosen (name -> value)", required=True),
-    Field("search.history", "any", "", "objective of every candidate, evaluation order (null: not simulated)",
-          check=_nullable_numbers),
-    Field("search.holdout_plants", "integer", "", "Monte-Carlo plants of the hold-out selection (0: not run)"),
-    Field("search.holdout_failures", "any", "", "default-gate failures of each feasible finalist, best first",
-          check=_NONNEG_INT),
-    Field("search.optimiser", "string", "", "the optimiser and its constraint handling"),
-    Field("search.generations", "integer", "", "generations run"),
-    Field("search.n_feasible", "integer", "", "candidates that met every constraint"),
-    Field("search.violations", "any", "", "each candidate's constraint violation (0: met)",
-          check=_nullable_numbers),
-    Field("search.levels", "any", "", "each candidate's level: 0 met, 1 gate missed, 2 stability missed",
-          check=_NONNEG_INT),
-    Field("search.chosen_level", "integer", "", "the chosen gains' level"),
-    Field("search.chosen_violation", "number", "", "the chosen gains' violation"),
-    Field("search.screened", "any", "", "each candidate was simulated on the screening scenarios only",
-          check=_BOOLS),
-    Field("margins", "any", "", "stability margins of both loops per plant (commission.robustness.LoopMargins)",
-          check=_list),
-    Field("box_robustness", "any", "", "the ARC over the whole theta box (commission.robustness.BoxRobustness)",
-          check=_object),
-    Field("validity", "any", "", "tune narrowed a defaulted payload range: payload_range, mass_range [min, max] "
-          "in unit, default_payload_range, reason", check=_validity),
-    Field("pid_yardstick", "any", "", "how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)"),
+    *rows("""
+guarantees          | map     | - | required
+    name -> which guarantee of the paper holds as tuned
+guarantees.*        | object  | - | required
+    one guarantee
+guarantees.*.holds  | boolean | - | required
+    it holds
+guarantees.*.detail | string  | - | required
+    why, or what was traded
+scores              | map     | - | required
+    scenario -> the scores of both loops
+scores.*            | object  | - | required
+    one scenario
+"""),
+    *score_rows("scores.*.arc"),
+    *score_rows("scores.*.pid"),
+    *rows("""
+search                  | object     | - | required
+    the gain search
+search.n_evaluations    | integer    | - | required
+    candidates evaluated
+search.budget           | integer    | - | required
+    requested budget (spec tune.budget)
+search.seed             | integer    | - | required
+    seed
+search.cost_initial     | number     | - | -
+    objective of the starting point (null: not simulated)
+search.cost_best        | number     | - | -
+    objective of the chosen gains (null: not simulated)
+search.free             | number map | - | required
+    the free gains as chosen (name -> value)
+search.history          | any        | - | -
+    objective of every candidate, evaluation order (null: not simulated)
+search.holdout_plants   | integer    | - | -
+    Monte-Carlo plants of the hold-out selection (0: not run)
+search.holdout_failures | any        | - | -
+    default-gate failures of each feasible finalist, best first
+search.optimiser        | string     | - | -
+    the optimiser and its constraint handling
+search.generations      | integer    | - | -
+    generations run
+search.n_feasible       | integer    | - | -
+    candidates that met every constraint
+search.violations       | any        | - | -
+    each candidate's constraint violation (0: met)
+search.levels           | any        | - | -
+    each candidate's level: 0 met, 1 gate missed, 2 stability missed
+search.chosen_level     | integer    | - | -
+    the chosen gains' level
+search.chosen_violation | number     | - | -
+    the chosen gains' violation
+search.screened         | any        | - | -
+    each candidate was simulated on the screening scenarios only
+margins                 | any        | - | -
+    stability margins of both loops per plant (commission.robustness.LoopMargins)
+box_robustness          | any        | - | -
+    the ARC over the whole theta box (commission.robustness.BoxRobustness)
+validity                | any        | - | -
+    tune narrowed a defaulted payload range: payload_range, mass_range [min, max] in unit, default_payload_range,
+    reason
+pid_yardstick           | any        | - | -
+    how the PID baseline was chosen (commission.tune.baseline.YardstickChoice)
+""", {"search.history": dict(check=nullable_numbers),
+      "search.holdout_failures": dict(check=_NONNEG_INT),
+      "search.violations": dict(check=nullable_numbers),
+      "search.levels": dict(check=_NONNEG_INT),
+      "search.screened": dict(check=_BOOLS),
+      "margins": dict(check=_list),
+      "box_robustness": dict(check=object_value),
+      "validity": dict(check=validity_record)}),
 )
 
 #: The strict model of tuning.json (pydantic, built from :data:`TUNING_FIELDS`).

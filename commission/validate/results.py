@@ -1,5 +1,8 @@
 """The validation's result types: one run (:class:`RunRecord`), a kept trace (:class:`Trace`) and the
 whole result (:class:`ValidationResult`, written as validation.json), with the file names validate writes.
+
+validation.json's layout is one table, :mod:`commission.formats.validation_json` (a run's keys are its
+rows: :meth:`RunRecord.to_dict`).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import numpy as np
 from commission.controllers.arc import ArcGains
 from commission.gate import GateVerdict
 from commission.evidence import Evidence, RobustStability
+from commission.formats.validation_json import RUN_KEYS, VALIDATION_KIND, VALIDATION_SCHEMA_VERSION
 from commission.robustness import CONTROLLERS, BoxRobustness, LoopMargins, MarginFloors, worst
 from commission.scenarios import plant_substeps
 from commission.tuning import Score
@@ -20,8 +24,6 @@ from commission.tuning import Score
 
 Progress = Callable[[int, int], None]
 
-VALIDATION_KIND = "validation"
-VALIDATION_SCHEMA_VERSION = 1
 #: Monte-Carlo plants by default.
 DEFAULT_MONTE_CARLO = 64
 
@@ -67,9 +69,8 @@ class RunRecord:
     theta_true: tuple[float, float, float]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "tags": list(self.tags), "arc": self.arc.to_dict(), "pid": self.pid.to_dict(),
-                "arc_t_abort": _nn(self.arc_t_abort), "pid_t_abort": _nn(self.pid_t_abort),
-                "theta_final": [_nn(x) for x in self.theta_final], "theta_true": list(self.theta_true)}
+        """validation.json's ``runs[i]``: the table's run keys (:data:`commission.formats.validation_json.RUN_KEYS`)."""
+        return {k: _json_value(getattr(self, k)) for k in RUN_KEYS}
 
 
 @dataclass(frozen=True)
@@ -230,3 +231,15 @@ class ValidationResult:
 
 def _nn(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
+
+
+def _json_value(v: Any) -> Any:
+    """A record's value as JSON holds it: a score as its dict, a tuple as a list, a number that is not
+    finite as null."""
+    if isinstance(v, Score):
+        return v.to_dict()
+    if isinstance(v, tuple):
+        return [_json_value(x) for x in v]
+    if isinstance(v, float):
+        return _nn(v)
+    return v
