@@ -72,8 +72,7 @@ def deployable_pid(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: 
     0.12 f_s, carries the paper's -300 rad/s at 2.5 kHz to other rates; the PID's
     backward-difference derivative turns each encoder step q into a velocity step q f_s, so
     on a coarse encoder at a high rate that PID chatters beyond validate's c_u limit by
-    itself (random axes 0 and 27 of :func:`commission.synth.random_axis`, 0.82-0.84 um at
-    4 kHz: c_u 1.12 and 1.17 at 480 rad/s, limit 1).  When the pole was defaulted
+    itself (docs/robustness.md, "Tune's defaults, measured").  When the pole was defaulted
     (``pole_free``) and that PID exceeds ``c_u_limit`` on a tuning scenario, the pole is
     lowered to the fastest of ``spec.pid_pole x settings.pid_pole_step**k`` (k = 1 ..
     ``settings.pid_pole_steps``) whose PID stays within it on every tuning scenario: the

@@ -286,9 +286,9 @@ def rate_scaled_envelope(spec: Spec, given: set[str],
     caps, the PID's poles), so the tracking error of a given trajectory grows as 1/r^2
     for the acceleration-driven part and 1/r for the velocity-driven part.  Below 2.5 kHz a
     defaulted a_max is therefore scaled by r^2 and v_max by r, which keeps the demand
-    relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2).  Without
-    it, 1 kHz axes of :func:`commission.synth.random_axis` miss the default gate's e_rms
-    limit (20 um) by 1.1-2x on their heavy plants, with the ARC still ahead of the PID.
+    relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2); without it,
+    slow axes miss the default gate's e_rms limit on their heavy plants (docs/robustness.md,
+    "Tune's defaults, measured").
     Keys the user set are kept; at or above 2.5 kHz nothing changes.  ``units`` (the
     identification's) only words the notes: rad/s on a rotary axis; default m.
     """

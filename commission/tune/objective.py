@@ -303,8 +303,8 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
     PID's value there instead (no worse than the yardstick).  The box-corner stand-ins for the
     Monte-Carlo sample are harsher than any plant validate draws; where no PID meets a limit
     there, every candidate missed the constraint, the search ranked them all by that excess
-    alone and the ARC-vs-PID objective never decided (the sample: e_M at the heavy corners,
-    ARC and PID 1.16 and 1.18 x the limit).  validate's gate is unchanged.
+    alone and the ARC-vs-PID objective never decided (docs/robustness.md, "Tune's defaults,
+    measured").  validate's gate is unchanged.
     """
     total = 0.0
     every = getattr(limits, "arc_vs_pid_every", True)
