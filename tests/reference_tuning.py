@@ -11,7 +11,7 @@ import numpy as np
 from commission.jsonio import sha256_json
 from commission.paper import reference_identification
 from commission.spec import spec_from_mapping
-from commission.tune import tune
+from commission.tune.api import tune
 from commission.tuning import Tuning
 
 

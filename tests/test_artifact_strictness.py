@@ -32,7 +32,8 @@ from commission.paper import reference_identification
 from commission.runtime import Controller, load_controller
 from commission.scenarios import resolve_quantization
 from commission.spec import DEFAULT_QUANTIZATION, RANGES, default_spec
-from commission.tune import base_arc_gains, log_sample_rate
+from commission.tune.defaults import log_sample_rate
+from commission.tune.gains import base_arc_gains
 from commission.tuning import Tuning
 from commission.validate import check_provenance
 

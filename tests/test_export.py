@@ -35,7 +35,8 @@ from commission.jsonio import write_json_atomic
 from commission.paper import reference_identification
 from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps, scenario_matrix
 from commission.spec import default_spec
-from commission.tune import base_arc_gains, pid_baseline
+from commission.tune.baseline import pid_baseline
+from commission.tune.gains import base_arc_gains
 from commission.validate import deployable_gains, guard_values
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "axis_excitation.csv"

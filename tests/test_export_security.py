@@ -49,7 +49,8 @@ from commission.gate import GateSpec, resolve_gate
 from commission.jsonio import sha256_json, write_json_atomic
 from commission.paper import reference_identification
 from commission.spec import default_spec
-from commission.tune import base_arc_gains, pid_baseline
+from commission.tune.baseline import pid_baseline
+from commission.tune.gains import base_arc_gains
 from commission.validate import deployable_gains, guard_values
 
 needs_cc = pytest.mark.skipif(find_cc() is None, reason="no C compiler (cc) on the PATH: the C export cannot be built")

@@ -16,7 +16,7 @@ from commission.formats.controller_json import (CONTROLLER_FIELDS, FRICTION, RUN
 from commission.jsonio import sha256_json
 from commission.paper import reference_identification
 from commission.spec import default_spec
-from commission.tune import base_arc_gains
+from commission.tune.gains import base_arc_gains
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA_FILE = ROOT / "docs" / "schemas" / "controller.schema.json"

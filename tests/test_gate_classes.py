@@ -134,7 +134,7 @@ def test_a_latched_runtime_fault_is_a_safety_failure_on_every_scenario():
     from commission.controllers.simulate import KIND_ARC, simulate
     from commission.scenarios import case1_trajectory, plant_substeps
     from commission.spec import default_spec
-    from commission.tune import base_arc_gains
+    from commission.tune.gains import base_arc_gains
     from commission.validate import deployable_gains, latched_fault_start
 
     spec = default_spec()

@@ -35,7 +35,7 @@ from commission.logs import load_log
 from commission.paper import reference_identification
 from commission.formats.spec_toml import SPEC_FIELDS
 from commission.spec import spec_from_mapping
-from commission.tune import resolve_spec
+from commission.tune.api import resolve_spec
 from commission.tuning import Tuning
 from commission.validate import deployable_gains
 

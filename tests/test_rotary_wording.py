@@ -463,7 +463,8 @@ import dataclasses  # noqa: E402
 
 def _tune_messages(ident) -> list[str]:
     """Every refusal and note of tune's spec defaulting (commission/tune/defaults.py) on ``ident``'s axis."""
-    from commission import tune as tune_mod
+    from commission.tune.api import resolve_spec
+    from commission.tune.defaults import check_spec_against_ident, rate_scaled_envelope
     from commission.errors import SpecError
     from commission.spec import spec_from_mapping
 
@@ -471,23 +472,23 @@ def _tune_messages(ident) -> list[str]:
 
     def refused(data) -> None:
         with pytest.raises(SpecError) as exc:
-            tune_mod.resolve_spec(data, "s.toml", ident)
+            resolve_spec(data, "s.toml", ident)
         out.append(str(exc.value))
 
     with pytest.raises(SpecError) as exc:  # Case 1's start-up: the hint lowers v_max and a_max
-        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
+        check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
     out.append(str(exc.value))
     refused({"controller": {"u_max": 3.0}, "trajectory": {"a_max": 30.0}})  # a set a_max the drive cannot make
     refused({"controller": {"u_max": 1.5}})  # the box's forces alone
     refused({"controller": {"u_max": 4.0}, "trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 30.0}]}})
-    out += tune_mod.resolve_spec({"controller": {"u_max": 3.0}}, "s.toml", ident).notes  # lowered envelope
-    out += tune_mod.resolve_spec({"trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 2.0}]}}, "s.toml",
-                                 ident).notes  # the moves' envelope, with their description
-    out += tune_mod.rate_scaled_envelope(spec_from_mapping({"controller": {"sample_rate": 1000.0}}), set(),
-                                         ident.units)[1]
+    out += resolve_spec({"controller": {"u_max": 3.0}}, "s.toml", ident).notes  # lowered envelope
+    out += resolve_spec({"trajectory": {"move": [{"to": 0.3, "v_max": 1.0, "a_max": 2.0}]}}, "s.toml",
+                        ident).notes  # the moves' envelope, with their description
+    out += rate_scaled_envelope(spec_from_mapping({"controller": {"sample_rate": 1000.0}}), set(),
+                                ident.units)[1]
     boxed = dataclasses.replace(ident, extra={**ident.extra, "bounds": {"disturbance_bound": 1.2,
                                                                         "disturbance_bound_defaulted": True}})
-    out += tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", boxed).notes  # theta3 narrowed
+    out += resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", boxed).notes  # theta3 narrowed
     return out
 
 
@@ -543,7 +544,7 @@ def _export_config():
     from commission.controller_config import ControllerConfig, ControllerProvenance
     from commission.paper import reference_identification
     from commission.spec import default_spec
-    from commission.tune import base_arc_gains
+    from commission.tune.gains import base_arc_gains
     from commission.validate import deployable_gains, guard_values
 
     spec, ident = default_spec(), reference_identification(delta_d=0.5)

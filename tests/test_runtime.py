@@ -19,7 +19,7 @@ from commission.jsonio import read_json, write_json_atomic
 from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.spec import default_spec
-from commission.tune import base_arc_gains
+from commission.tune.gains import base_arc_gains
 
 PLANT = plant_vector(0.027, 0.273, 0.10, 0.12, 0.01, 2.0, 0.0, 0.01, 0.03)
 

@@ -26,7 +26,7 @@ from commission.runtime import Controller
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps
 from commission.spec import default_spec
-from commission.tune import base_arc_gains
+from commission.tune.gains import base_arc_gains
 from commission.validate import deployable_gains, envelope_acceleration, guard_values, holding_force
 
 LSB = 1e-6

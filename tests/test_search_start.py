@@ -8,6 +8,7 @@ robustness classes, the quantiles by hand.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -19,8 +20,9 @@ from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, Margin
 from commission.spec import spec_from_mapping
 from commission.tune.baseline import pid_candidates
 from commission.tune.constraints import box_violation, margin_violation
-from commission.tune.objective import DIVERGED_EXCESS, quantile_excess
-from commission.tune.optimiser import MATCH_CROSSOVER_ROOM, Problem
+from commission.tune.objective import quantile_excess
+from commission.tune.optimiser import Problem
+from commission.tune.settings import DEFAULT_SETTINGS
 from commission.tuning import Score
 
 
@@ -29,13 +31,13 @@ class _NoScenarios:
     weights: list = []
 
 
-def _problem(target):
+def _problem(target, settings=DEFAULT_SETTINGS):
     ident = reference_identification(delta_d=0.5)
     spec = spec_from_mapping({}, "spec (defaults)")
     gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=spec.u_max, no_divergence=True,
                       arc_vs_pid_e_rms=1.0, basis={}, lsb=1e-6, travel=1.0)
     return ident, spec, Problem(_base(ident, spec), _NoScenarios(), spec, ident, [], gate, lambda g: None,
-                                observer_free=True, target_crossover_hz=target)
+                                observer_free=True, target_crossover_hz=target, settings=settings)
 
 
 def _base(ident, spec):
@@ -44,7 +46,7 @@ def _base(ident, spec):
 
 
 def test_matched_starts_tie_the_yardstick_bandwidth_within_every_linear_constraint():
-    """Each matched start crosses over at most MATCH_CROSSOVER_ROOM x the PID's crossover on the
+    """Each matched start crosses over at most match_crossover_room x the PID's crossover on the
     identified plant, keeps the margin floors there and over the whole box (checked again through
     the public classes), and the best match comes first."""
     ident0, spec0, _ = _problem(None)
@@ -59,7 +61,7 @@ def test_matched_starts_tie_the_yardstick_bandwidth_within_every_linear_constrai
         _, _, g = prob.gains(z)
         rows = pm(g)
         xo = max(r.margins.crossover_hz for r in rows)
-        assert xo <= MATCH_CROSSOVER_ROOM * pid
+        assert xo <= DEFAULT_SETTINGS.match_crossover_room * pid
         assert margin_violation(rows, floors) == 0.0
         assert box_violation(box(g), floors) == 0.0
         gaps.append(abs(math.log(xo / pid)))
@@ -74,7 +76,7 @@ def _s(e_rms: float, diverged: bool = False) -> Score:
 
 def test_quantile_excess_is_the_gates_quantiles_in_log_units():
     """Median and 90th percentile (numpy's "higher") of the gate's required factor, each counted
-    ln(q / (margin limit)) above its limit; a diverged ARC inside a quantile counts DIVERGED_EXCESS."""
+    ln(q / (margin limit)) above its limit; a diverged ARC inside a quantile counts diverged_excess."""
     gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=10.0, no_divergence=True, arc_vs_pid_e_rms=1.0,
                       basis={}, lsb=1e-6, travel=1.0, arc_vs_pid_slack=0.0, arc_vs_pid_median=1.0, arc_vs_pid_p90=1.2)
     pid = [_s(1e-6)] * 10
@@ -88,7 +90,7 @@ def test_quantile_excess_is_the_gates_quantiles_in_log_units():
     assert quantile_excess(gate, [_s(0.5e-6)] * 10, pid) == 0.0  # every factor within: nothing owed
     # one diverged run among ten lies above the median but inside the 90th percentile
     bad = [*arc[:9], _s(1e-6, diverged=True)]
-    assert quantile_excess(gate, bad, pid) == pytest.approx(math.log(med) + DIVERGED_EXCESS)
+    assert quantile_excess(gate, bad, pid) == pytest.approx(math.log(med) + DEFAULT_SETTINGS.diverged_excess)
     assert np.isfinite(quantile_excess(gate, [], []))
 
 
@@ -112,19 +114,18 @@ def test_gate_excess_holds_the_arc_to_the_yardstick_where_the_yardstick_misses_a
         math.log(13 / 12) + math.log(11 / 9.5))
 
 
-def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_directions_give_none(monkeypatch):
-    """Where no direction of MATCH_DIRECTIONS gives a start (here: none to try), the wide K2/K1 cap
-    ratios of MATCH_WIDE_RATIOS do, each start keeping every linear constraint (checked again through
-    the public classes) within the crossover room; where the first directions serve (the reference
-    plant), no wide ratio is tried and the starts are theirs alone."""
-    import commission.tune.optimiser as opt
+def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_directions_give_none():
+    """Where no direction of the settings' match_directions gives a start (here: none to try), the wide
+    K2/K1 cap ratios of match_wide_ratios do, each start keeping every linear constraint (checked again
+    through the public classes) within the crossover room; where the first directions serve (the
+    reference plant), no wide ratio is tried and the starts are theirs alone."""
     ident0, spec0, _ = _problem(None)
     pid = pid_candidates(ident0, spec0, [0.1 * spec0.sample_rate])[0].margins.crossover_hz
     ident, spec, prob = _problem(pid)
     served = prob.matched_starts()
     assert served and all(np.exp(z[1] - z[0]) <= 2.0 + 1e-9 for z in served)  # K2/K1 multiples of the first directions
-    monkeypatch.setattr(opt, "MATCH_DIRECTIONS", ())
-    wide = prob.matched_starts()
+    _, _, no_directions = _problem(pid, dataclasses.replace(DEFAULT_SETTINGS, match_directions=()))
+    wide = no_directions.matched_starts()
     assert wide, "no wide-ratio start on the reference plant"
     floors = MarginFloors.from_spec(spec)
     pm, box = IdentifiedPlantArcMargins(ident, spec), BoxArcCheck(ident, spec)
@@ -133,6 +134,6 @@ def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_direct
         assert g.k2s_max / g.k1s_max >= 4.0 * (prob.base.g2 / prob.base.g1) * (1 - 1e-9) or np.isclose(
             z[1], prob.hi[1])  # a wide ratio, unless the K2 cap sits on its bound
         rows = pm(g)
-        assert max(r.margins.crossover_hz for r in rows) <= MATCH_CROSSOVER_ROOM * pid
+        assert max(r.margins.crossover_hz for r in rows) <= DEFAULT_SETTINGS.match_crossover_room * pid
         assert margin_violation(rows, floors) == 0.0
         assert box_violation(box(g), floors) == 0.0

@@ -9,7 +9,9 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from commission import tune as tune_mod
+from commission.tune.api import resolve_spec
+from commission.tune.defaults import check_spec_against_ident, drive_need
+from commission.tune.settings import DEFAULT_SETTINGS
 from commission.artifacts import Estimate, Identification, ThetaBox
 from commission.cli.main import app
 from commission.errors import InputFileError, SpecError
@@ -167,7 +169,7 @@ def test_cli_rejects_negative_seed_and_missing_ident(tmp_path, no_simulation):
 
 
 def _resolved(spec_data, name, ident):
-    rs = tune_mod.resolve_spec(spec_data, name, ident)
+    rs = resolve_spec(spec_data, name, ident)
     assert rs.ident is ident  # the paper's box fits these drives: never narrowed
     return rs.spec, rs.notes
 
@@ -177,16 +179,16 @@ def test_u_max_check_uses_the_most_demanding_plant():
     # B = max(theta2_max / theta1_max = 0.35, 1.2 * 0.273); friction 1.2 * 0.12; force max(50/50, 0 + 0.5).
     ident = Identification.from_dict(ref_ident_doc())
     need = 20.0 / 8.3 + 0.35 * 1.0 + 1.2 * 0.12 + 1.0
-    d = tune_mod.drive_need(ident)
+    d = drive_need(ident)
     assert d.need(1.0, 12.0, 100.0) == pytest.approx(need, rel=1e-12)
-    tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": need * 1.001}}), ident)
+    check_spec_against_ident(spec_from_mapping({"controller": {"u_max": need * 1.001}}), ident)
     # Case 1's start-up (20 m/s^2) exceeds any a_max the limit leaves: the hint must lower v_max too,
     # and following it must pass.
     with pytest.raises(SpecError, match=r"controller\.u_max = 3\.8 V is below .*trajectory\.a_max = 12 .*"
                                         r"set trajectory\.v_max <= ([0-9.]+) m/s with trajectory\.a_max <= ") as exc:
-        tune_mod.check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
+        check_spec_against_ident(spec_from_mapping({"controller": {"u_max": 3.8}}), ident)
     m = re.search(r"v_max <= ([0-9.e-]+) m/s with trajectory\.a_max <= ([0-9.e-]+) m/s\^2", str(exc.value))
-    tune_mod.check_spec_against_ident(spec_from_mapping(
+    check_spec_against_ident(spec_from_mapping(
         {"controller": {"u_max": 3.8}, "trajectory": {"v_max": float(m.group(1)), "a_max": float(m.group(2))}}), ident)
     assert math.isclose(need, 3.9036, rel_tol=1e-4)
 
@@ -199,18 +201,18 @@ def test_defaulted_envelope_is_lowered_to_the_drive_and_set_keys_are_kept():
     assert (spec.v_max, spec.a_max, notes) == (1.0, 12.0, ())
     # a 3 V drive: the defaulted a_max (and v_max) are lowered so that the worst plant needs <= 0.7 u_max
     spec, notes = _resolved({"controller": {"u_max": 3.0}}, "s.toml", ident)
-    d = tune_mod.drive_need(ident)
+    d = drive_need(ident)
     assert spec.a_max < 12.0 and spec.v_max < 1.0 and len(notes) == 2
-    assert d.need(spec.v_max, spec.a_max, spec.beta1) <= tune_mod.DRIVE_HEADROOM * 3.0 * (1 + 1e-12)
+    assert d.need(spec.v_max, spec.a_max, spec.beta1) <= DEFAULT_SETTINGS.drive_headroom * 3.0 * (1 + 1e-12)
     assert spec.v_max ** 2 / spec.a_max <= spec.travel
     assert all(n.startswith("trajectory.") and "instead of" in n for n in notes)
     # a key the user set is never changed: the check names it instead
     with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 3 V is below .* trajectory\.a_max = 12 "):
-        tune_mod.resolve_spec({"controller": {"u_max": 3.0}, "trajectory": {"a_max": 12.0, "v_max": 1.0}},
+        resolve_spec({"controller": {"u_max": 3.0}, "trajectory": {"a_max": 12.0, "v_max": 1.0}},
                               "s.toml", ident)
     # a drive that cannot even hold the box's forces with headroom is refused, naming u_max
     with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 1\.5 V is too small for this theta box"):
-        tune_mod.resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)
+        resolve_spec({"controller": {"u_max": 1.5}}, "s.toml", ident)
 
 
 def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
@@ -219,17 +221,18 @@ def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
     doc = ref_ident_doc()
     doc["bounds"] = {"disturbance_bound": 1.2, "disturbance_bound_defaulted": True}
     ident = Identification.from_dict(doc)
-    rs = tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", ident)
-    budget = tune_mod.DRIVE_HEADROOM * 2.0
-    # closed form: the load force may take DISTURBANCE_SHARE of the budget minus the friction, about d_n = 0,
+    rs = resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", ident)
+    budget = DEFAULT_SETTINGS.drive_headroom * 2.0
+    # closed form: the load force may take the settings' disturbance_share of the budget minus the friction,
+    # about d_n = 0,
     # and theta3 binds at the lightest mass 1/50
-    reach = tune_mod.DISTURBANCE_SHARE * budget - 1.2 * 0.12
+    reach = DEFAULT_SETTINGS.disturbance_share * budget - 1.2 * 0.12
     assert rs.ident.theta.min[2] == pytest.approx(-reach * 50.0, rel=1e-12)
     assert rs.ident.theta.max[2] == pytest.approx(reach * 50.0, rel=1e-12)
     assert rs.ident.theta.min[:2] == ident.theta.min[:2] and rs.ident.theta.max[:2] == ident.theta.max[:2]
-    assert tune_mod.drive_need(rs.ident).const == pytest.approx(tune_mod.DISTURBANCE_SHARE * budget, rel=1e-12)
+    assert drive_need(rs.ident).const == pytest.approx(DEFAULT_SETTINGS.disturbance_share * budget, rel=1e-12)
     assert rs.ident.extra["bounds"]["narrowed_by_tune"]["theta3_max"] == 50.0
-    assert tune_mod.drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
+    assert drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
     assert rs.notes[0].startswith("theta3 box narrowed from [-50, 50] to [-27.8, 27.8] m/s^2")
     # plus v_max and a_max lowered (and the budget, which the slower envelope shrinks: see test_tune_artifact)
     assert "--disturbance-bound" in rs.notes[0] and len([n for n in rs.notes if "tune.budget" not in n]) == 3
@@ -238,23 +241,23 @@ def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
     # a bound the user gave is never narrowed: refused as before, naming u_max
     doc["bounds"]["disturbance_bound_defaulted"] = False
     with pytest.raises(SpecError, match=r"s\.toml: controller\.u_max = 2 V is too small for this theta box"):
-        tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
+        resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
     # nor is one that fits the drive at its default
     doc["bounds"]["disturbance_bound_defaulted"] = True
-    assert tune_mod.resolve_spec({}, "s.toml", Identification.from_dict(doc)).notes == ()
+    assert resolve_spec({}, "s.toml", Identification.from_dict(doc)).notes == ()
     # friction above the share (0.6 V of 1.4 V): the share rule declines, and the range is narrowed to the
     # load step delta_d M about d_n instead of a refusal (issue 30, commission.tune.box.fit_force_to_drive)
     doc["parameters"]["fs"]["value"] = 0.5
     idn = Identification.from_dict(doc)
-    rs = tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", idn)
+    rs = resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", idn)
     step = idn.delta_d * idn.value("M")
     assert rs.ident.theta.max[2] == pytest.approx(step * 50.0, rel=1e-12)  # theta3 binds at the lightest mass
     assert "certified for that load range only" in rs.notes[0]
-    assert tune_mod.drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
+    assert drive_need(rs.ident).need(rs.spec.v_max, rs.spec.a_max, rs.spec.beta1) <= budget * (1 + 1e-12)
     # friction alone above the budget: still refused, naming u_max
     doc["parameters"]["fs"]["value"] = 1.2
     with pytest.raises(SpecError, match=r"controller\.u_max = 2 V is too small"):
-        tune_mod.resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
+        resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
 
 
 def test_defaulted_envelope_scales_with_a_sample_rate_below_the_papers():

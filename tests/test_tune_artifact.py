@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from commission import tune as tune_mod
 from commission.cli.main import app
 from commission.controllers.arc import RUNTIME_GUARDS, ArcGains, arc_pack
 from commission.controllers.pid import G_KD, PidGains, pid_pack
@@ -24,37 +23,15 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID
 from commission.scenarios import (case1_trajectory, case2_trajectory, plant_substeps, scenario_matrix,
                                   screening_indices, tuning_scenarios)
 from commission.spec import default_spec, spec_from_mapping
-from commission.tune.optimiser import SCREEN_EXCESS
-from commission.tune import (
-    FEASIBLE,
-    GATE_MARGIN,
-    GATE_MISSED,
-    HOLDOUT_PLANTS,
-    PID_POLE_STEP,
-    PID_POLE_STEPS,
-    STABILITY_MISSED,
-    WORK_CAP,
-    Candidate,
-    Evaluator,
-    HoldoutGate,
-    Problem,
-    SearchResult,
-    PID_MARGIN,
-    W_CHATTER,
-    W_STEP,
-    apply_free,
-    base_arc_gains,
-    cost,
-    deployable_pid,
-    gate_excess,
-    load_tune_inputs,
-    margin_violation,
-    pid_baseline,
-    pid_pole_note,
-    search,
-    select_on_holdout,
-    tune,
-)
+from commission.tune.api import load_tune_inputs, resolve_spec, tune
+from commission.tune.baseline import PidChatter, deployable_pid, pid_baseline, pid_chatter, pid_pole_note
+from commission.tune.budget import candidate_work, work_scale
+from commission.tune.candidate import FEASIBLE, GATE_MISSED, STABILITY_MISSED, Candidate, SearchResult
+from commission.tune.constraints import margin_violation
+from commission.tune.gains import apply_free, base_arc_gains
+from commission.tune.objective import Evaluator, HoldoutGate, cost, gate_excess
+from commission.tune.optimiser import Problem, search, select_on_holdout
+from commission.tune.settings import DEFAULT_SETTINGS
 from commission.robustness import LoopMargins, MarginFloors
 from commission.controllers.margins import Margins
 from commission.tuning import Score, Tuning
@@ -81,12 +58,12 @@ def small(tmp_path_factory):
 def test_pid_chatter_names_the_scenarios_where_the_baseline_exceeds_the_gate(small):
     d, _ = small
     t = Tuning.from_dict(json.loads((d / "tuning.json").read_text()))
-    assert tune_mod.pid_chatter(t) is None  # the paper's axis: the PID's c_u is far below 1
+    assert pid_chatter(t) is None  # the paper's axis: the PID's c_u is far below 1
     scores = dict(t.scores)
     for name, c_u in (("case1/nominal", 1.3), ("case1/friction_low", 1.7)):
         scores[name] = {"arc": scores[name]["arc"], "pid": dataclasses.replace(scores[name]["pid"], c_u=c_u)}
-    ch = tune_mod.pid_chatter(dataclasses.replace(t, scores=scores))
-    assert ch == tune_mod.PidChatter(limit=1.0, count=2, worst=1.7, scenario="case1/friction_low")
+    ch = pid_chatter(dataclasses.replace(t, scores=scores))
+    assert ch == PidChatter(limit=1.0, count=2, worst=1.7, scenario="case1/friction_low")
 
 
 def test_cli_writes_a_schema_versioned_tuning(small):
@@ -101,11 +78,12 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     assert set(doc["arc"]) == {f.name for f in dataclasses.fields(ArcGains)} - set(RUNTIME_GUARDS)
     assert set(doc["pid"]) == {f.name for f in dataclasses.fields(PidGains)} | {"pole", "design_mass"}
     # the observer the controller runs: the defaulted pole (the paper's 200 rad/s: k1 = 400, k2 = 4e4)
-    # is a coordinate of the search, within OBSERVER_FACTOR_BOUNDS
+    # is a coordinate of the search, within DEFAULT_SETTINGS.observer_factor_bounds
     ob = doc["observer"]
     assert (ob["k1"], ob["k2"]) == (doc["arc"]["k1"], doc["arc"]["k2"])
     assert ob["k1"] == pytest.approx(2 * ob["pole"]) and ob["k2"] == pytest.approx(ob["pole"] ** 2)
-    assert tune_mod.OBSERVER_FACTOR_BOUNDS[0] <= ob["pole"] / 200.0 <= tune_mod.OBSERVER_FACTOR_BOUNDS[1]
+    lo, hi = DEFAULT_SETTINGS.observer_factor_bounds
+    assert lo <= ob["pole"] / 200.0 <= hi
     assert doc["pid"]["design_mass"] == pytest.approx(1 / 50.0)
     # pid.pole defaulted: the PID is the yardstick, (57)'s triple pole of (56) at M_min at the pole it chose
     w, m = doc["pid"]["pole"], doc["pid"]["design_mass"]
@@ -129,14 +107,15 @@ def test_cli_writes_a_schema_versioned_tuning(small):
     assert se["n_feasible"] == se["levels"].count(0)
     # the winner was chosen by the default gate on fresh Monte-Carlo plants among the feasible candidates
     if se["n_feasible"]:
-        assert se["holdout_plants"] == HOLDOUT_PLANTS and se["chosen_level"] == 0
+        assert se["holdout_plants"] == DEFAULT_SETTINGS.holdout_plants and se["chosen_level"] == 0
         fails = se["holdout_failures"]
         assert 1 <= len(fails) <= 3 and all(isinstance(f, int) and f >= 0 for f in fails)
         assert "fresh plants" in output and "default gate, hold-out" in output
     else:
         # the finalists are then the candidates that kept the margins but missed the gate (judged on the
         # hold-out plants), else none (select_on_holdout)
-        assert se["holdout_plants"] in (0, HOLDOUT_PLANTS) and se["chosen_level"] > 0 and se["chosen_violation"] > 0
+        assert se["holdout_plants"] in (0, DEFAULT_SETTINGS.holdout_plants)
+        assert se["chosen_level"] > 0 and se["chosen_violation"] > 0
         assert "no candidate of the search met every constraint" in output
     assert "Chosen gains" in output and "case1/nominal" in output
     # stability margins per plant: the identified one and the four (theta1, theta2) box corners;
@@ -224,22 +203,23 @@ def test_default_budgets_shrink_with_the_work_of_a_candidate():
     slow = spec_from_mapping({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}})
     n1 = round(case1_trajectory(slow).duration * 4000.0)
     n2 = round(case2_trajectory(slow).duration * 4000.0)
-    work = 20 * (n1 + n2) * (tune_mod.ARC_STEP_WORK + plant_substeps(4000.0))
-    assert tune_mod.candidate_work(ident, slow) == pytest.approx(work, rel=1e-12)
-    scale = tune_mod.WORK_CAP / work
-    assert 0.3 < scale < 1.0 and tune_mod.work_scale(ident, slow) == pytest.approx(scale, rel=1e-12)
+    work = 20 * (n1 + n2) * (DEFAULT_SETTINGS.arc_step_work + plant_substeps(4000.0))
+    assert candidate_work(ident, slow) == pytest.approx(work, rel=1e-12)
+    scale = DEFAULT_SETTINGS.work_cap / work
+    assert 0.3 < scale < 1.0 and work_scale(ident, slow) == pytest.approx(scale, rel=1e-12)
     # a defaulted budget shrinks to whole generations, with a note naming the key; a given one is kept
-    rs = tune_mod.resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}},
-                               "s.toml", ident)
+    rs = resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}},
+                      "s.toml", ident)
     n0 = default_spec().budget
-    assert rs.spec.budget == tune_mod.POP * round(n0 * scale / tune_mod.POP) < n0
+    pop = DEFAULT_SETTINGS.population
+    assert rs.spec.budget == pop * round(n0 * scale / pop) < n0
     assert any(n.startswith(f"tune.budget defaulted to {rs.spec.budget} instead of {n0}") for n in rs.notes)
-    kept = tune_mod.resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0},
-                                  "tune": {"budget": n0}}, "s.toml", ident)
+    kept = resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0},
+                         "tune": {"budget": n0}}, "s.toml", ident)
     assert kept.spec.budget == n0 and not any("tune.budget" in n for n in kept.notes)
     # the paper's axis on the default envelope is within the cap: nothing changes
-    rs = tune_mod.resolve_spec({}, "s.toml", ident)
-    assert tune_mod.work_scale(ident, rs.spec) == 1.0 and rs.spec.budget == n0
+    rs = resolve_spec({}, "s.toml", ident)
+    assert work_scale(ident, rs.spec) == 1.0 and rs.spec.budget == n0
 
 
 @pytest.mark.slow  # a whole tune (tens of seconds): in `pytest -m slow`
@@ -280,13 +260,11 @@ def test_observer_pole_is_free_for_the_search_only_when_defaulted(tmp_path):
 
 def test_theorem1_holds_anywhere_in_the_search_box():
     from commission.controllers.design import theorem1_check
-    from commission.tune import FREE_BOUNDS, apply_free
 
     base = base_arc_gains(ref_ident(), spec_from_mapping({}))
     rng = np.random.default_rng(0)
-    lo = np.log([b[1] for b in FREE_BOUNDS])
-    hi = np.log([b[2] for b in FREE_BOUNDS])
-    for x in [lo, hi, *(lo + (hi - lo) * rng.random((50, len(FREE_BOUNDS))))]:
+    lo, hi = DEFAULT_SETTINGS.free_log_lo, DEFAULT_SETTINGS.free_log_hi
+    for x in [lo, hi, *(lo + (hi - lo) * rng.random((50, len(DEFAULT_SETTINGS.free_bounds))))]:
         g = apply_free(base, np.exp(x))
         assert theorem1_check(g.w1, g.w2, g.C_phi1, g.C_phi2, g.C_theta2).min_ratio >= 5.0 - 1e-9
         assert g.g1 <= g.k1s_max and g.g2 <= g.k2s_max
@@ -329,13 +307,14 @@ def test_holdout_selection_prefers_fewer_gate_failures(holdout_setup):
     res = SearchResult([_candidate(base, x[0], scores[0], 0.0), _candidate(base, x[1], scores[1], 1.0), infeasible],
                        1)
     ch = select_on_holdout(res, hg)
-    assert ch.n_plants == HOLDOUT_PLANTS and len(ch.failures) == 2
+    assert ch.n_plants == DEFAULT_SETTINGS.holdout_plants and len(ch.failures) == 2
     assert ch.failures[0] > ch.failures[1]
     assert ch.chosen is res.candidates[1]
     # nothing feasible: the fully simulated gate-missed candidates are the finalists, judged the same way
     bad_missed = _candidate(base, x[0], scores[0], -20.0, GATE_MISSED)
     ch2 = select_on_holdout(SearchResult([bad_missed, infeasible], 1), hg)
-    assert ch2.n_plants == HOLDOUT_PLANTS and ch2.failures[0] > ch2.failures[1] and ch2.chosen is infeasible
+    assert ch2.n_plants == DEFAULT_SETTINGS.holdout_plants
+    assert ch2.failures[0] > ch2.failures[1] and ch2.chosen is infeasible
     # nothing simulated on every scenario: the least violation is returned, unjudged
     unsimulated = dataclasses.replace(infeasible, scores=None)
     assert select_on_holdout(SearchResult([unsimulated], 1), hg) == type(ch)(unsimulated, 0, ())
@@ -433,8 +412,8 @@ def test_screening_scenarios_are_validates_fixed_and_robustness_ones(holdout_set
 
 def test_a_candidate_that_misses_the_gate_on_the_screen_is_not_simulated_on_the_rest(holdout_setup):
     """A gain set far off validate's gate on the screening scenarios (feedback x0.05 misses accuracy there
-    by more than SCREEN_EXCESS) is simulated on those only, records their excess as its violation, and
-    ranks after any fully simulated candidate that missed the gate."""
+    by more than the settings' screen_excess) is simulated on those only, records their excess as its
+    violation, and ranks after any fully simulated candidate that missed the gate."""
     ident, spec, base, ev, hg = holdout_setup
     calls: list[tuple[int, int]] = []
 
@@ -457,8 +436,9 @@ def test_a_candidate_that_misses_the_gate_on_the_screen_is_not_simulated_on_the_
     assert c.level == GATE_MISSED and c.screened and c.scores is None and math.isnan(c.objective)
     screen_scores = ev.scores(KIND_ARC, [arc_pack(c.gains)], screening_indices(ev.scenarios))[0]
     ref = [pid_scores[i] for i in screening_indices(ev.scenarios)]
-    assert c.violation == pytest.approx(gate_excess(hg.limits, screen_scores, ref, margin=GATE_MARGIN))
-    assert c.violation > SCREEN_EXCESS
+    assert c.violation == pytest.approx(gate_excess(hg.limits, screen_scores, ref,
+                                                    margin=DEFAULT_SETTINGS.gate_margin))
+    assert c.violation > DEFAULT_SETTINGS.screen_excess
     full = dataclasses.replace(c, screened=False, violation=c.violation * 100.0)
     assert sorted([c, full], key=Candidate.rank_key)[0] is full
     assert full.fitness() < c.fitness() < Candidate(c.x, 1.0, c.gains, STABILITY_MISSED, 0.0, math.nan, None,
@@ -484,11 +464,12 @@ def test_deployable_pid_takes_the_fastest_grid_pole_within_the_c_u_limit():
     _, m_min = pid_baseline(ident, spec)
     w0 = spec.pid_pole
     c = 1.0 / (1.2 * 3.0 * m_min * 0.8 * w0)  # the worst scenario reaches the limit 1 at 0.8 w0
-    k = next(k for k in range(1, PID_POLE_STEPS + 1) if PID_POLE_STEP ** k <= 0.8 * (1 - 1e-12))
+    step = DEFAULT_SETTINGS.pid_pole_step
+    k = next(k for k in range(1, DEFAULT_SETTINGS.pid_pole_steps + 1) if step ** k <= 0.8 * (1 - 1e-12))
     out = deployable_pid(ident, spec, _kd_chatter_evaluator(c), 1.0, pole_free=True)
-    assert out.pole == pytest.approx(w0 * PID_POLE_STEP ** k) and k == 5  # 0.95^5 = 0.774
+    assert out.pole == pytest.approx(w0 * step ** k) and k == 5  # 0.95^5 = 0.774
     assert out.gains.Kd == pytest.approx(3.0 * m_min * out.pole)
-    assert max(s.c_u for s in out.scores) <= 1.0 < 1.2 * c * 3.0 * m_min * w0 * PID_POLE_STEP ** (k - 1)
+    assert max(s.c_u for s in out.scores) <= 1.0 < 1.2 * c * 3.0 * m_min * w0 * step ** (k - 1)
     # a pole set in the spec is kept, and so is the default when no grid pole meets the limit
     kept = deployable_pid(ident, spec, _kd_chatter_evaluator(c), 1.0, pole_free=False)
     assert kept.pole == w0 and max(s.c_u for s in kept.scores) > 1.0
@@ -519,10 +500,11 @@ def test_pid_pole_note_only_when_the_baseline_moved(small):
 def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
     """Closed form of the two ARC-vs-PID terms of :func:`cost` on one scenario (no gate, all
     other terms zero: e_rms at its target, e_F and c_u below theirs, u below u_max):
-    e_M above the PID's costs W_STEP + W_CHATTER ln(e_M / e_M_pid), e_rms above PID_MARGIN x
-    the PID's costs W_STEP + W_CHATTER ln(e_rms / (m e_rms_pid)); the minimax term is
+    e_M above the PID's costs w_step + w_chatter ln(e_M / e_M_pid), e_rms above pid_margin x
+    the PID's costs w_step + w_chatter ln(e_rms / (m e_rms_pid)) (the default settings); the minimax term is
     ln(e_rms / e_rms_pid).  Session 11's soft tuning lost the reference axis's start-up to the
     PID (e_M 34 against 15 um) because only the second term existed."""
+    st = DEFAULT_SETTINGS
     spec = default_spec()
 
     def score(e_M: float, e_rms: float) -> Score:
@@ -534,10 +516,10 @@ def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
     assert cost([score(10e-6, spec.e_rms)], spec, pid) == pytest.approx(minimax)
     assert cost([score(20e-6, spec.e_rms)], spec, pid) == pytest.approx(minimax)  # a tie is no loss
     assert cost([score(50e-6, spec.e_rms)], spec, pid) == pytest.approx(
-        minimax + W_STEP + W_CHATTER * math.log(2.5))
+        minimax + st.w_step + st.w_chatter * math.log(2.5))
     worse = 1.5 * 2 * spec.e_rms
     assert cost([score(10e-6, worse)], spec, pid) == pytest.approx(
-        math.log(worse / spec.e_rms) + W_STEP + W_CHATTER * math.log(worse / (PID_MARGIN * 2 * spec.e_rms))
+        math.log(worse / spec.e_rms) + st.w_step + st.w_chatter * math.log(worse / (st.pid_margin * 2 * spec.e_rms))
         + math.log(1.5))
     # without a reference there is nothing to lose to
     assert cost([score(50e-6, spec.e_rms)], spec) == pytest.approx(0.0)

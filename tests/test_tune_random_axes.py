@@ -48,7 +48,7 @@ from commission.gate import GateSpec
 from commission.identification import identify_log
 from commission.jsonio import write_json_atomic
 from commission.synth import write_random_axis_log
-from commission.tune import run_tune
+from commission.tune.api import run_tune
 from commission.validate import validate
 
 pytestmark = pytest.mark.slow

@@ -42,10 +42,10 @@ from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
 from commission.identification import BoundsOptions, identify_log
 from commission.jsonio import write_json_atomic
-from commission.tune import OBSERVER_FACTOR_BOUNDS
+from commission.tune.settings import DEFAULT_SETTINGS
 from commission.excite import load_excite_spec, plan_run, simulate_plan
 from commission.synth import AxisTruth, write_log_h5
-from commission.tune import run_tune
+from commission.tune.api import run_tune
 
 #: Issue 30 (open).  The log is recorded as the tool tells users to record it: the plan `commission
 #: excite` makes from sample_data/limits.toml (friction ladder, moves, broadband injection), played on
@@ -110,7 +110,7 @@ def test_identified_reference_is_close_to_the_truth(tuned):
 
 def test_design_checks_hold(tuned):
     # the defaulted observer pole (200 rad/s) is a coordinate of the search, within its bounds
-    lo, hi = OBSERVER_FACTOR_BOUNDS
+    lo, hi = DEFAULT_SETTINGS.observer_factor_bounds
     assert 200.0 * lo <= tuned.observer.pole <= 200.0 * hi
     assert tuned.observer.k1 == pytest.approx(2 * tuned.observer.pole)
     assert tuned.observer.k2 == pytest.approx(tuned.observer.pole ** 2)

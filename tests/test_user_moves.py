@@ -15,7 +15,7 @@ from commission.paper import reference_identification
 from commission.scenarios import (CASE2_TAIL, case1_trajectory, case2_trajectory, check_run_length, scenario_matrix,
                                   tuning_scenarios)
 from commission.spec import MAX_TRAJECTORY_SAMPLES, spec_from_mapping
-from commission.tune import resolve_spec
+from commission.tune.api import resolve_spec
 from commission.validate import guard_values
 
 TS = 1e-4

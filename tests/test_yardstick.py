@@ -18,8 +18,11 @@ from commission.paper import reference_identification
 from commission.robustness import MarginFloors
 from commission.scenarios import identified_plant
 from commission.spec import spec_from_mapping
-from commission.tune.baseline import (YARDSTICK_POLE_FRACTIONS, YardstickChoice, pid_baseline, pid_candidates,
-                                      pid_yardstick)
+from commission.tune.baseline import YardstickChoice, pid_baseline, pid_candidates, pid_yardstick
+from commission.tune.settings import DEFAULT_SETTINGS
+
+#: The yardstick's pole grid of the default settings, as fractions of the sample rate.
+FRACTIONS = DEFAULT_SETTINGS.yardstick_pole_fractions
 from commission.tuning import Score
 
 
@@ -62,7 +65,7 @@ def test_yardstick_keeps_the_floors_and_plus_one_sample_where_eq57_is_unstable()
     assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
     assert m.delay_margin_samples >= floors.delay_samples and m.modulus_margin >= floors.modulus
     # the fastest admissible pole of the grid: the next one up misses a floor
-    grid = [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS]
+    grid = [f * spec.sample_rate for f in FRACTIONS]
     i = min(range(len(grid)), key=lambda k: abs(grid[k] - base.pole))
     assert not pid_candidates(ident, spec, [grid[i + 1]])[0].admissible
 
@@ -72,7 +75,7 @@ def test_yardstick_on_the_rigid_reference_is_the_fastest_admissible_pole_within_
     a c_u limit that the fastest admissible PIDs exceed moves the choice down the list."""
     ident = reference_identification(delta_d=0.5)
     spec = spec_from_mapping({})
-    cands = pid_candidates(ident, spec, [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS])
+    cands = pid_candidates(ident, spec, [f * spec.sample_rate for f in FRACTIONS])
     ok = [c for c in cands if c.admissible]
     assert 0 < len(ok) < len(cands)
     assert all(c.margins.stable and c.radius_plus_one < 1.0 for c in ok)
@@ -114,7 +117,7 @@ def test_the_recorded_yardstick_is_the_final_pid_where_the_evidence_bounds_the_l
     spec = spec_from_mapping({})
     bound = EvidenceBound(ident, spec)
     assert bound.evidence.applies
-    margin_only = [c for c in pid_candidates(ident, spec, [f * spec.sample_rate for f in YARDSTICK_POLE_FRACTIONS])
+    margin_only = [c for c in pid_candidates(ident, spec, [f * spec.sample_rate for f in FRACTIONS])
                    if c.admissible]
     fastest = max(c.pole for c in margin_only)
     assert not bound.pid_row(pid_baseline(ident, spec.__class__(**{**spec.__dict__, "pid_pole": fastest}))[0]).holds

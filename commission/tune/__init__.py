@@ -1,13 +1,26 @@
 """The ``commission tune`` pipeline: ident.json + spec -> tuning.json.
 
-One module per part: :mod:`~commission.tune.defaults` (spec defaulting against the
-axis), :mod:`~commission.tune.gains` (the base gains and the search's coordinates),
-:mod:`~commission.tune.baseline` (the PID of eq. (57)), :mod:`~commission.tune.objective`
-(the evaluator, the cost and the hold-out gate), :mod:`~commission.tune.optimiser`
-(the search and the hold-out choice), :mod:`~commission.tune.constraints`,
-:mod:`~commission.tune.guarantees`
-and :mod:`~commission.tune.api` (the entry points).  Dependencies point one way:
-defaults <- gains, objective <- baseline, optimiser <- api.
+One module per part:
+
+- :mod:`~commission.tune.settings`: every knob, :class:`~commission.tune.settings.TuneSettings`
+  (frozen, each field documented with its unit) and its default instance ``DEFAULT_SETTINGS``;
+- :mod:`~commission.tune.defaults`: spec defaulting against the axis (envelope, load force);
+- :mod:`~commission.tune.box`: the payload and force ranges fitted to the drive and the box's
+  guarantees;
+- :mod:`~commission.tune.gains`: the base gains and the search's coordinates;
+- :mod:`~commission.tune.baseline`: the PID of eq. (57) and its yardstick;
+- :mod:`~commission.tune.objective`: the evaluator, the cost and the hold-out gate;
+- :mod:`~commission.tune.constraints`: the search's constraints as violations;
+- :mod:`~commission.tune.candidate`: the evaluated candidates and their feasibility-first order;
+- :mod:`~commission.tune.budget`: the budget sized to one candidate's simulation work;
+- :mod:`~commission.tune.optimiser`: the CMA-ES search and the hold-out choice;
+- :mod:`~commission.tune.guarantees`: the statements tuning.json records;
+- :mod:`~commission.tune.api`: the entry points (:func:`tune`, :func:`resolve_spec`,
+  :func:`load_tune_inputs`, :func:`run_tune`, ...).
+
+Dependencies point one way: settings <- defaults <- gains, objective <- baseline, candidate <-
+optimiser <- api.  This package exports only what the rest of the code (``commission``, ``cli``,
+``benchmarks``) uses; everything else is imported from the module that defines it.
 
 Steps (all numerics in :mod:`commission.controllers`; this module only
 orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
@@ -35,7 +48,7 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
 4. Free gains (:class:`FreeGains`), searched in log scale: the caps k1s_max, k2s_max on
    the total nonlinear gains that make (37)/(47) implementable, g1, g2 as fractions of the
    caps, the three entries of Gamma, the weight w2, the initial estimate theta_hat1(0)
-   (between :data:`THETA1_0_LOW` and 1 x the identified nominal; a start below the nominal is
+   (between ``theta1_0_low`` of the settings and 1 x the identified nominal; a start below the nominal is
    what the paper did, 30 for 37) and, when the spec left it at its default, the observer
    pole.  (The eps terms stay at the carried-over paper values.)
 5. **One constrained optimisation** (:mod:`~commission.tune.optimiser`, CMA-ES by pycma's
@@ -49,7 +62,7 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
    (:func:`commission.scenarios.tuning_scenarios`) are validate's 12 fixed scenarios, the
    robustness ones, the 16 box corners, the 4 largest-force plants and 6 interior payloads.
    The winner is the feasible finalist with the fewest gate failures on
-   :data:`HOLDOUT_PLANTS` fresh Monte-Carlo plants (:func:`select_on_holdout`).  The PID
+   ``holdout_plants`` fresh Monte-Carlo plants (:func:`select_on_holdout`).  The PID
    baseline (poles of (56) at M_min = 1/theta_max[0]) runs at the spec's pole or, when that was
    defaulted and its PID exceeds validate's c_u limit on a tuning scenario, at the fastest
    lower pole that does not (:func:`deployable_pid`), so that the ARC is compared with a PID a
@@ -60,200 +73,21 @@ orchestrates, checks inputs and builds the :class:`~commission.tuning.Tuning`):
 
 from __future__ import annotations
 
-from commission.tune.defaults import (
-    PAPER_THETA1,
-    PAPER_RATE,
-    DRIVE_HEADROOM,
-    MIN_DEFAULT_V_MAX,
-    MIN_DEFAULT_A_MAX,
-    DriveNeed,
-    drive_need,
-    check_spec_against_ident,
-    check_moves_against_drive,
-    DISTURBANCE_SHARE,
-    fit_disturbance_to_drive,
-    rate_scaled_envelope,
-    default_envelope,
-    reference_envelope,
-    default_gate_limits,
-    log_sample_rate,
-)
-from commission.tune.gains import (
-    THETA1_0_LOW,
-    PAPER_THETA1_0,
-    EXTRA_STARTS,
-    paper_implementable_start,
-    FreeGains,
-    FREE_BOUNDS,
-    FREE_START,
-    N_FREE,
-    I_THETA1_0,
-    FREE_LOG_LO,
-    FREE_LOG_HI,
-    base_arc_gains,
-    apply_free,
-    free_gains,
-)
-from commission.tune.objective import (
-    Progress,
-    W_TARGET,
-    W_CHATTER,
-    W_STEP,
-    W_SATURATION,
-    W_DIVERGED,
-    PID_MARGIN,
-    W_WORST,
-    CORNER_WEIGHT,
-    HOLDOUT_PLANTS,
-    DIVERGED_EXCESS,
-    Evaluator,
-    cost,
-    meets_targets,
-    HoldoutGate,
-    gate_excess,
-)
-from commission.tune.constraints import (
-    GATE_MARGIN,
-    feasibility_violation,
-    margin_violation,
-)
-from commission.tune.baseline import (
-    PID_POLE_STEP,
-    PID_POLE_STEPS,
-    pid_baseline,
-    PidBaseline,
-    deployable_pid,
-    pid_yardstick,
-    pid_candidates,
-    PidCandidate,
-    YardstickChoice,
-    YARDSTICK_POLE_FRACTIONS,
-    PidChatter,
-    pid_chatter,
-    pid_pole_note,
-)
-from commission.tune.optimiser import (
-    POP,
-    OBSERVER_FACTOR_BOUNDS,
-    WORK_CAP,
-    ARC_STEP_WORK,
-    MIN_BUDGET,
-    HOLDOUT_CANDIDATES,
-    FEASIBLE,
-    GATE_MISSED,
-    STABILITY_MISSED,
-    Candidate,
-    Problem,
-    SearchResult,
-    search,
-    HoldoutChoice,
-    select_on_holdout,
-    candidate_work,
-    work_scale,
-    work_scaled_budget,
-)
-from commission.tune.guarantees import (
-    guarantees,
-)
-from commission.tune.api import (
-    tune,
-    TuneInputs,
-    ResolvedSpec,
-    resolve_spec,
-    load_tune_inputs,
-    tune_inputs,
-    tune_from,
-    run_tune,
-)
+from commission.tune.api import load_tune_inputs, resolve_spec, run_tune, tune, tune_from, tune_inputs
+from commission.tune.baseline import pid_baseline, pid_chatter, pid_pole_note
+from commission.tune.gains import base_arc_gains
+from commission.tune.objective import Evaluator
 
 __all__ = [
-    "PAPER_THETA1",
-    "PAPER_RATE",
-    "DRIVE_HEADROOM",
-    "MIN_DEFAULT_V_MAX",
-    "MIN_DEFAULT_A_MAX",
-    "DriveNeed",
-    "drive_need",
-    "check_spec_against_ident",
-    "check_moves_against_drive",
-    "reference_envelope",
-    "DISTURBANCE_SHARE",
-    "fit_disturbance_to_drive",
-    "rate_scaled_envelope",
-    "default_envelope",
-    "default_gate_limits",
-    "log_sample_rate",
-    "THETA1_0_LOW",
-    "PAPER_THETA1_0",
-    "EXTRA_STARTS",
-    "paper_implementable_start",
-    "FreeGains",
-    "FREE_BOUNDS",
-    "FREE_START",
-    "N_FREE",
-    "I_THETA1_0",
-    "FREE_LOG_LO",
-    "FREE_LOG_HI",
-    "base_arc_gains",
-    "apply_free",
-    "free_gains",
-    "Progress",
-    "W_TARGET",
-    "W_CHATTER",
-    "W_STEP",
-    "W_SATURATION",
-    "W_DIVERGED",
-    "PID_MARGIN",
-    "W_WORST",
-    "CORNER_WEIGHT",
-    "HOLDOUT_PLANTS",
-    "DIVERGED_EXCESS",
     "Evaluator",
-    "cost",
-    "meets_targets",
-    "HoldoutGate",
-    "gate_excess",
-    "GATE_MARGIN",
-    "feasibility_violation",
-    "margin_violation",
-    "PID_POLE_STEP",
-    "PID_POLE_STEPS",
+    "base_arc_gains",
+    "load_tune_inputs",
     "pid_baseline",
-    "PidBaseline",
-    "deployable_pid",
-    "pid_yardstick",
-    "pid_candidates",
-    "PidCandidate",
-    "YardstickChoice",
-    "YARDSTICK_POLE_FRACTIONS",
-    "PidChatter",
     "pid_chatter",
     "pid_pole_note",
-    "POP",
-    "OBSERVER_FACTOR_BOUNDS",
-    "WORK_CAP",
-    "ARC_STEP_WORK",
-    "MIN_BUDGET",
-    "HOLDOUT_CANDIDATES",
-    "FEASIBLE",
-    "GATE_MISSED",
-    "STABILITY_MISSED",
-    "Candidate",
-    "Problem",
-    "SearchResult",
-    "search",
-    "HoldoutChoice",
-    "select_on_holdout",
-    "candidate_work",
-    "work_scale",
-    "work_scaled_budget",
-    "guarantees",
-    "tune",
-    "TuneInputs",
-    "ResolvedSpec",
     "resolve_spec",
-    "load_tune_inputs",
-    "tune_inputs",
-    "tune_from",
     "run_tune",
+    "tune",
+    "tune_from",
+    "tune_inputs",
 ]

@@ -4,7 +4,6 @@ write tuning.json (:func:`run_tune`)."""
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
 import os
 from dataclasses import dataclass
@@ -52,17 +51,50 @@ from commission.tune.defaults import (
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import pid_candidates, pid_within_evidence, pid_yardstick
-from commission.tune.optimiser import Problem, search, select_on_holdout, work_scaled_budget
+from commission.tune.budget import work_scaled_budget
+from commission.tune.candidate import SearchResult
+from commission.tune.optimiser import HoldoutChoice, Problem, search, select_on_holdout
+from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, fit_force_to_drive, fit_payload_to_drive, narrow_default_payload, validity_of
 from commission.blas import on_one_blas_thread
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """The runs discrete feasibility is checked on: the paper's Case 1 and Case 2 and the machine's
+    moves when given (:func:`commission.scenarios.trajectories`), over the theta box."""
+
+    ident: Identification
+    spec: Spec
+    names: list[str]
+    trajs: list[Any]
+
+    @classmethod
+    def of(cls, ident: Identification, spec: Spec) -> "_Runs":
+        named = trajectories(spec)
+        return cls(ident, spec, [name for name, _ in named], [tr.render(spec.period) for _, tr in named])
+
+    def feasibility(self, kind: int, pack: np.ndarray, *, estimate_corners: bool = False) -> FeasibilityReport:
+        """:func:`commission.controllers.design.discrete_feasibility` of a packed controller on these runs."""
+        return discrete_feasibility(kind, pack, self.ident.theta.min, self.ident.theta.max, self.trajs,
+                                    margin=self.spec.margin, estimate_corners=estimate_corners)
+
+    def arc(self, g: ArcGains) -> FeasibilityReport:
+        """The search's discrete-feasibility constraint: the ARC with frozen estimates."""
+        return self.feasibility(KIND_ARC, arc_pack(g))
+
+
+def _report(progress: Progress | None, done: int, total: int) -> None:
+    if progress is not None:
+        progress(done, total)
 
 
 @on_one_blas_thread
 def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: int, ident_sha256: str,
          ident_path: str = "ident.json", log_sha256: str | None = None, progress: Progress | None = None,
          workers: int | None = None, created_utc: str | None = None, observer_free: bool = False,
-         pid_free: bool = False) -> Tuning:
+         pid_free: bool = False, settings: TuneSettings = DEFAULT_SETTINGS) -> Tuning:
     """Tune the ARC (and the PID baseline) for an identified axis.
 
     Parameters
@@ -87,88 +119,92 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     created_utc : str, optional
         Time stamp (default: now).
     observer_free : bool
-        ``spec.observer_pole`` was defaulted, not given: the search may move it
-        (:data:`commission.tune.optimiser.OBSERVER_FACTOR_BOUNDS`).  The pole used is the one
-        recorded in ``observer``.
+        ``spec.observer_pole`` was defaulted, not given: the search may move it (within the
+        settings' ``observer_factor_bounds``).  The pole used is the one recorded in ``observer``.
     pid_free : bool
         ``spec.pid_pole`` was defaulted: the PID baseline is the yardstick of
         :func:`commission.tune.baseline.pid_yardstick` (the fastest PID of (57) that keeps the
         margin floors on the identified plant), its pole recorded in ``pid_pole`` and how it was
         chosen in ``pid_yardstick``.
+    settings : TuneSettings
+        The knobs of the search, its objective and the baseline
+        (:data:`commission.tune.settings.DEFAULT_SETTINGS`).
 
     Returns
     -------
     Tuning
     """
-    check_spec_against_ident(spec, ident)
-    scen = tuning_scenarios(ident, spec, rng=rng)
-    ev = Evaluator(scen, spec, workers=workers)
-    base = base_arc_gains(ident, spec)
+    check_spec_against_ident(spec, ident, settings=settings)
+    ev = Evaluator(tuning_scenarios(ident, spec, rng=rng), spec, workers=workers, settings=settings)
     total = spec.budget + 3  # the search's candidates, the hold-out choice, two reports
     gate = default_gate_limits(ident, spec)
-    baseline, yardstick = pid_yardstick(ident, spec, ev, gate.c_u, pid_free)
-    baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free)
-    pid, m_min, pid_scores = baseline.gains, baseline.design_mass, baseline.scores
-    named = trajectories(spec)  # Case 1, Case 2 and the machine's moves when given
-    traj_names = [name for name, _ in named]
-    trajs = [tr.render(spec.period) for _, tr in named]
-
-    def feasible(g: ArcGains) -> FeasibilityReport:
-        return discrete_feasibility(KIND_ARC, arc_pack(g), ident.theta.min, ident.theta.max, trajs,
-                                    margin=spec.margin)
-
-    problem = Problem(base, ev, spec, ident, pid_scores, gate, feasible, observer_free=observer_free,
+    baseline, yardstick = pid_yardstick(ident, spec, ev, gate.c_u, pid_free, settings)
+    baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free, settings)
+    pid, pid_scores = baseline.gains, baseline.scores
+    runs = _Runs.of(ident, spec)
+    problem = Problem(base_arc_gains(ident, spec), ev, spec, ident, pid_scores, gate, runs.arc,
+                      observer_free=observer_free, settings=settings,
                       target_crossover_hz=pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz)
-    res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total)
-    hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers)
-    choice = select_on_holdout(res, hg)
+    res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total, settings)
+    hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers, settings=settings)
+    choice = select_on_holdout(res, hg, settings)
     best = choice.chosen
     chosen = best.gains
-    observer = observer_design(spec.observer_pole * best.observer_factor, spec.period)
     arc_scores = best.scores if best.scores is not None else ev.scores(KIND_ARC, [arc_pack(chosen)])[0]
-    chosen_rep = best.feasibility or feasible(chosen)
-    if progress is not None:
-        progress(spec.budget + 1, total)
-    pid_rep = discrete_feasibility(KIND_PID, pid_pack(pid), ident.theta.min, ident.theta.max, trajs,
-                                   margin=spec.margin)
-    if progress is not None:
-        progress(total - 1, total)
+    chosen_rep = best.feasibility or runs.arc(chosen)
+    _report(progress, spec.budget + 1, total)
+    pid_rep = runs.feasibility(KIND_PID, pid_pack(pid))
+    _report(progress, total - 1, total)
     t1 = theorem1_check(chosen.w1, chosen.w2, chosen.C_phi1, chosen.C_phi2, chosen.C_theta2)
-    robust = discrete_feasibility(KIND_ARC, arc_pack(chosen), ident.theta.min, ident.theta.max, trajs,
-                                  margin=spec.margin, estimate_corners=True)
-    feas = {"arc": _summary(chosen_rep, traj_names, robust), "pid": _summary(pid_rep, traj_names)}
-    scores = {name: {"arc": a, "pid": p} for name, a, p in zip(ev.names, arc_scores, pid_scores)}
-    prov = Provenance(ident_sha256=ident_sha256, log_sha256=log_sha256, tool_version=commission.__version__,
-                      created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-                      seed=int(seed), ident_path=ident_path)
-    first = res.candidates[0]
-    record = SearchRecord(n_evaluations=len(res.candidates), budget=spec.budget, seed=int(seed),
-                          cost_initial=first.objective,
-                          cost_best=best.objective if best.scores is not None else cost(
-                              arc_scores, spec, pid_scores, ev.weights, gate),
-                          free=free_gains(chosen).as_dict(),
-                          history=tuple(c.objective for c in res.candidates),
-                          holdout_plants=choice.n_plants, holdout_failures=choice.failures,
-                          optimiser=f"CMA-ES (pycma {cma.__version__}), feasibility-first ranking",
-                          generations=res.generations, n_feasible=res.n_feasible,
-                          violations=tuple(c.violation for c in res.candidates),
-                          levels=tuple(c.level for c in res.candidates),
-                          chosen_level=best.level, chosen_violation=best.violation,
-                          screened=tuple(c.screened for c in res.candidates))
+    robust = runs.feasibility(KIND_ARC, arc_pack(chosen), estimate_corners=True)
+    feas = {"arc": _summary(chosen_rep, runs.names, robust), "pid": _summary(pid_rep, runs.names)}
+    cost_best = best.objective if best.scores is not None else cost(arc_scores, spec, pid_scores, ev.weights, gate,
+                                                                     settings)
+    record = _search_record(res, choice, spec, seed, cost_best)
     # The whole box (a defaulted payload range was narrowed before the search, resolve_spec).
     box = BoxArcCheck(ident, spec)(chosen)
     validity = validity_of(ident)
-    out = Tuning(provenance=prov, spec=spec, identification=ident, plant=identified_plant(ident, spec),
+    out = Tuning(provenance=_provenance(ident_sha256, log_sha256, created_utc, seed, ident_path), spec=spec,
+                 identification=ident, plant=identified_plant(ident, spec),
                  quantization=resolve_quantization(ident, spec), arc=chosen, pid=pid, pid_pole=baseline.pole,
-                 pid_design_mass=m_min, observer=observer, theorem1=t1, feasibility=feas,
+                 pid_design_mass=baseline.design_mass,
+                 observer=observer_design(spec.observer_pole * best.observer_factor, spec.period), theorem1=t1,
+                 feasibility=feas,
                  guarantees={**guarantees(chosen, t1, feas["arc"]), **box_guarantees(box, spec, validity),
                              "search_feasible": _search_guarantee(record)},
-                 scores=scores, search=record,
-                 margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity,
+                 scores={name: {"arc": a, "pid": p} for name, a, p in zip(ev.names, arc_scores, pid_scores)},
+                 search=record, margins=margin_table(chosen, pid, ident, spec), box=box, validity=validity,
                  pid_yardstick=yardstick.to_dict())
-    if progress is not None:
-        progress(total, total)
+    _report(progress, total, total)
     return out
+
+
+def _provenance(ident_sha256: str, log_sha256: str | None, created_utc: str | None, seed: int,
+                ident_path: str) -> Provenance:
+    """tuning.json's ``provenance``: the inputs' hashes, this tool's version, the time (default: now), the seed."""
+    return Provenance(ident_sha256=ident_sha256, log_sha256=log_sha256, tool_version=commission.__version__,
+                      created_utc=created_utc or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                      seed=int(seed), ident_path=ident_path)
+
+
+def _search_record(res: SearchResult, choice: HoldoutChoice, spec: Spec, seed: int, cost_best: float) -> SearchRecord:
+    """tuning.json's ``search``: every candidate's objective, violation and level, and the choice.
+
+    ``cost_best`` is the chosen gains' objective (computed on their scores when the search did not
+    simulate them on every tuning scenario).
+    """
+    best = choice.chosen
+    return SearchRecord(n_evaluations=len(res.candidates), budget=spec.budget, seed=int(seed),
+                        cost_initial=res.candidates[0].objective, cost_best=cost_best,
+                        free=free_gains(best.gains).as_dict(),
+                        history=tuple(c.objective for c in res.candidates),
+                        holdout_plants=choice.n_plants, holdout_failures=choice.failures,
+                        optimiser=f"CMA-ES (pycma {cma.__version__}), feasibility-first ranking",
+                        generations=res.generations, n_feasible=res.n_feasible,
+                        violations=tuple(c.violation for c in res.candidates),
+                        levels=tuple(c.level for c in res.candidates),
+                        chosen_level=best.level, chosen_violation=best.violation,
+                        screened=tuple(c.screened for c in res.candidates))
 
 
 def _search_guarantee(record: SearchRecord) -> Guarantee:
@@ -237,7 +273,7 @@ class ResolvedSpec:
 
 
 def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
-                 ident_name: str = "ident.json") -> ResolvedSpec:
+                 ident_name: str = "ident.json", settings: TuneSettings = DEFAULT_SETTINGS) -> ResolvedSpec:
     """The spec ``tune`` runs with, for this identification; no simulation runs here.
 
     The sample rate defaults to the log's (:func:`log_sample_rate`), the envelope's
@@ -265,19 +301,19 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
         # Case 2 get theirs in reference_envelope).  Their length and force first: they name the moves.
         given |= {"v_max", "a_max", "travel"}
         check_user_length(spec, spec_name)
-        check_moves_against_drive(spec, ident, spec_name)
+        check_moves_against_drive(spec, ident, spec_name, settings=settings)
     spec, rate_notes = rate_scaled_envelope(spec, given, ident.units)
-    ident, box_notes = fit_disturbance_to_drive(spec, ident, given)
-    ident, force_notes = fit_force_to_drive(spec, ident, given, spec_name)
+    ident, box_notes = fit_disturbance_to_drive(spec, ident, given, settings=settings)
+    ident, force_notes = fit_force_to_drive(spec, ident, given, spec_name, settings=settings)
     box_notes = box_notes + force_notes
-    ident, drive_notes = fit_payload_to_drive(spec, ident, given, spec_name)
-    spec, notes = default_envelope(spec, ident, given, spec_name)
-    spec, ref_notes = reference_envelope(spec, ident, given, spec_name)
+    ident, drive_notes = fit_payload_to_drive(spec, ident, given, spec_name, settings=settings)
+    spec, notes = default_envelope(spec, ident, given, spec_name, settings=settings)
+    spec, ref_notes = reference_envelope(spec, ident, given, spec_name, settings=settings)
     notes = notes + ref_notes
     tune_keys = spec_data.get("tune")
     budget_given = isinstance(tune_keys, dict) and "budget" in tune_keys
-    spec, budget_notes = work_scaled_budget(spec, ident, budget_given)
-    check_spec_against_ident(spec, ident, spec_name)
+    spec, budget_notes = work_scaled_budget(spec, ident, budget_given, settings)
+    check_spec_against_ident(spec, ident, spec_name, settings=settings)
     check_run_length(spec, spec_name)  # the envelope may have been lowered, lengthening the runs
     try:
         observer_design(spec.observer_pole, spec.period)
@@ -288,7 +324,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     pid = spec_data.get("pid")
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
     # A defaulted payload range the search's start points cannot certify is narrowed to one they can.
-    ident, payload_notes = narrow_default_payload(ident, spec)
+    ident, payload_notes = narrow_default_payload(ident, spec, settings)
     return ResolvedSpec(spec, ident, rate_notes + box_notes + drive_notes + notes + budget_notes + horizon_notes(spec)
                         + payload_notes, observer_free, pid_free)
 

@@ -11,7 +11,6 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-import numpy as np
 from commission.artifacts import Identification
 from commission.controllers.design import KIND_PID
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
@@ -19,14 +18,7 @@ from commission.spec import Spec
 from commission.tuning import Score, Tuning
 from commission.tune.defaults import default_gate_limits
 from commission.tune.objective import Evaluator
-
-
-#: A *defaulted* PID pole whose baseline exceeds validate's default c_u limit on the tuning
-#: scenarios is lowered along ``pid_pole x PID_POLE_STEP**k``, k = 1 .. PID_POLE_STEPS (down to 0.54 x).
-PID_POLE_STEP = 0.95
-
-
-PID_POLE_STEPS = 12
+from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
 
 def pid_baseline(ident: Identification, spec: Spec) -> tuple[PidGains, float]:
@@ -39,6 +31,16 @@ def pid_baseline(ident: Identification, spec: Spec) -> tuple[PidGains, float]:
     Kp, Ki, Kd = pid_place_poles(m_min, -spec.pid_pole)
     return PidGains(Ts=spec.period, M_hat=ident.value("M"), B_hat=max(ident.value("B"), 0.0), Kp=Kp, Ki=Ki,
                     Kd=Kd, fric_level=ident.fric_level, fric_slope=ident.fric_slope, u_max=spec.u_max), m_min
+
+
+def _pid_at(ident: Identification, spec: Spec, pole: float) -> PidGains:
+    """The PID of (57) at ``pole`` (rad/s) instead of ``spec.pid_pole``."""
+    return pid_baseline(ident, dataclasses.replace(spec, pid_pole=float(pole)))[0]
+
+
+def _within_c_u(scores: Sequence[Score], c_u_limit: float) -> bool:
+    """Every run bounded and its c_u finite and at most ``c_u_limit``."""
+    return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in scores)
 
 
 @dataclass(frozen=True)
@@ -63,52 +65,41 @@ class PidBaseline:
 
 
 def deployable_pid(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: float,
-                   pole_free: bool) -> PidBaseline:
+                   pole_free: bool, settings: TuneSettings = DEFAULT_SETTINGS) -> PidBaseline:
     """The paper's PID (57) at ``spec.pid_pole``, or at the fastest pole the gate's c_u allows.
 
     The baseline the ARC must beat should be one a user could deploy.  The default pole,
     0.12 f_s, carries the paper's -300 rad/s at 2.5 kHz to other rates; the PID's
     backward-difference derivative turns each encoder step q into a velocity step q f_s, so
     on a coarse encoder at a high rate that PID chatters beyond validate's c_u limit by
-    itself (random axes 0 and 27 of :func:`commission.synth.random_axis`, 0.82-0.84 um at
-    4 kHz: c_u 1.12 and 1.17 at 480 rad/s, limit 1).  When the pole was defaulted
+    itself (docs/robustness.md, "Tune's defaults, measured").  When the pole was defaulted
     (``pole_free``) and that PID exceeds ``c_u_limit`` on a tuning scenario, the pole is
-    lowered to the fastest of ``spec.pid_pole x PID_POLE_STEP**k`` (k = 1 ..
-    :data:`PID_POLE_STEPS`) whose PID stays within it on every tuning scenario: the
+    lowered to the fastest of ``spec.pid_pole x settings.pid_pole_step**k`` (k = 1 ..
+    ``settings.pid_pole_steps``) whose PID stays within it on every tuning scenario: the
     strongest PID of the paper's family that the gate's chattering limit accepts.  The
     candidates are simulated in one batch.  When none does, or the pole was set in the
     spec, the spec's pole is kept (``tune`` then warns when its gate fails).
     """
     pid, m_min = pid_baseline(ident, spec)
     scores = ev.scores(KIND_PID, [pid_pack(pid)])[0]
-
-    def within(sc: Sequence[Score]) -> bool:
-        return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in sc)
-
-    if not pole_free or within(scores):
+    if not pole_free or _within_c_u(scores, c_u_limit):
         return PidBaseline(pid, spec.pid_pole, m_min, scores)
-    poles = [spec.pid_pole * PID_POLE_STEP ** k for k in range(1, PID_POLE_STEPS + 1)]
-    cands = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0] for w in poles]
+    poles = [spec.pid_pole * settings.pid_pole_step ** k for k in range(1, settings.pid_pole_steps + 1)]
+    cands = [_pid_at(ident, spec, w) for w in poles]
     for w, g, sc in zip(poles, cands, ev.scores(KIND_PID, [pid_pack(g) for g in cands])):
-        if within(sc):
+        if _within_c_u(sc, c_u_limit):
             return PidBaseline(g, w, m_min, sc)
     return PidBaseline(pid, spec.pid_pole, m_min, scores)
 
 
-#: Largest factor the PID's pole is lowered by to hold the evidence bound (:func:`pid_within_evidence`).
-EVIDENCE_POLE_FLOOR = 0.25
-#: Pole step of that lowering.
-EVIDENCE_POLE_STEP = 0.9
-
-
 def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec, ev: Evaluator,
-                        pole_free: bool) -> PidBaseline:
+                        pole_free: bool, settings: TuneSettings = DEFAULT_SETTINGS) -> PidBaseline:
     """The baseline, or the fastest PID of its family whose loop holds the evidence bound.
 
     A yardstick beyond the evidence certifies nothing (:mod:`commission.evidence`): when the pole
     was defaulted (``pole_free``) and the baseline's ``||W T||`` on the identified plant is 1 or
-    more, its pole is lowered along ``pole x EVIDENCE_POLE_STEP**k`` down to
-    ``EVIDENCE_POLE_FLOOR x pole`` to the first that holds it (checked on the linearised loop, no
+    more, its pole is lowered along ``pole x settings.evidence_pole_step**k`` down to
+    ``settings.evidence_pole_floor x pole`` to the first that holds it (checked on the linearised loop, no
     simulation), and that PID is simulated on the tuning scenarios.  When none holds, or the pole
     was set in the spec, the baseline is kept (validate's gate then names the evidence).
     """
@@ -118,9 +109,9 @@ def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec
     if not pole_free or not bound.evidence.applies or bound.pid_row(baseline.gains).holds:
         return baseline
     w = baseline.pole
-    while w * EVIDENCE_POLE_STEP >= EVIDENCE_POLE_FLOOR * baseline.pole:
-        w *= EVIDENCE_POLE_STEP
-        g = pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0]
+    while w * settings.evidence_pole_step >= settings.evidence_pole_floor * baseline.pole:
+        w *= settings.evidence_pole_step
+        g = _pid_at(ident, spec, w)
         if bound.pid_row(g).holds:
             return PidBaseline(g, w, baseline.design_mass, ev.scores(KIND_PID, [pid_pack(g)])[0])
     return baseline
@@ -190,20 +181,6 @@ def pid_pole_note(tuning: Tuning) -> str | None:
 
 
 # --------------------------------------------------------------------------- the PID yardstick
-
-#: Poles the yardstick search tries, as fractions of the sample rate (rad/s per Hz): 0.02 f_s
-#: to 0.4 f_s, geometric (the paper's 300 rad/s at 2.5 kHz is 0.12 f_s; 0.5 f_s is the spec's
-#: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).
-YARDSTICK_POLE_FRACTIONS = tuple(float(x) for x in np.geomspace(0.02, 0.4, 33))
-#: Candidates simulated at once (fastest first) when looking for one within the gate's c_u: one,
-#: so that the search stops at the first that is (usually the fastest admissible pole; a batch of
-#: four simulated three PIDs for nothing there, a sixth of ``run``'s simulations on the sample).
-#: Each candidate's scenarios run in parallel all the same.
-YARDSTICK_BATCH = 1
-#: Batches simulated at most before the yardstick falls back to the slowest pole that keeps the
-#: floors (eight candidates, as two batches of four before).
-YARDSTICK_BATCHES = 8
-
 
 @dataclass(frozen=True)
 class PidCandidate:
@@ -311,8 +288,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
         f = frequency_grid(spec.period)
         resp = sp.frequency_response(f)
         for w in poles:
-            g, _ = pid_baseline(ident, dataclasses.replace(spec, pid_pole=float(w)))
-            lin = linearize_pid(pid_pack(g))
+            lin = linearize_pid(pid_pack(_pid_at(ident, spec, w)))
             m = loop_margins(lin, sp, f, resp)
             r1 = closed_loop_radius(lin, sp1)
             v = floor_violations(m, floors)
@@ -338,7 +314,7 @@ def _within_evidence(cands: list[PidCandidate], ident: Identification, spec: Spe
     out = []
     for c in cands:
         if c.admissible:
-            row = bound.pid_row(pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole))[0])
+            row = bound.pid_row(_pid_at(ident, spec, c.pole))
             if not row.holds:
                 c = dataclasses.replace(c, violations=c.violations + (
                     f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",))
@@ -347,21 +323,21 @@ def _within_evidence(cands: list[PidCandidate], ident: Identification, spec: Spe
 
 
 def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: float,
-                  pole_free: bool) -> tuple[PidBaseline, YardstickChoice]:
+                  pole_free: bool, settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[PidBaseline, YardstickChoice]:
     """The PID the ARC is judged against: the best PID of (57) under the ARC's own margin floors.
 
     A drive vendor's auto-tuner delivers the fastest PID that keeps its margins on the
     identified plant; that, not a fixed pole, is what the ARC has to beat.  The family is the
     paper's (57) with the triple pole of (56) at M_min, its pole swept over
-    :data:`YARDSTICK_POLE_FRACTIONS` x f_s.  A pole is admissible when the PID keeps every floor
+    ``settings.yardstick_pole_fractions`` x f_s.  A pole is admissible when the PID keeps every floor
     of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
     is stable with one more sample of delay (:func:`pid_candidates`) and, where the log backs the
     model only up to a band, holds the evidence bound ``||W T|| < 1`` (:func:`_within_evidence`,
     the test :func:`pid_within_evidence` applies after the choice, so the two agree); a PID that
     is unstable on the identified model or with +1 sample is never the yardstick.  Of the admissible poles the
     fastest (the largest bandwidth) whose simulated PID stays within ``c_u_limit`` and bounded on
-    every tuning scenario is chosen (up to :data:`YARDSTICK_BATCHES` batches of
-    :data:`YARDSTICK_BATCH`, simulated together); when none of those does, the slowest of them.
+    every tuning scenario is chosen (up to ``settings.yardstick_batches`` batches of
+    ``settings.yardstick_batch``, simulated together); when none of those does, the slowest of them.
 
     With ``pole_free`` False (``[pid] pole`` given) the paper's PID at that pole is kept (today's
     behaviour, eq. (57)) and its margins are recorded; when no pole is admissible the previous
@@ -369,35 +345,32 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     yardstick (:attr:`YardstickChoice.is_yardstick`).
     """
     if not pole_free:
-        base = deployable_pid(ident, spec, ev, c_u_limit, False)
+        base = deployable_pid(ident, spec, ev, c_u_limit, False, settings)
         c = pid_candidates(ident, spec, [base.pole])[0]
         return base, YardstickChoice("spec_pole", base.pole, 1, int(c.admissible), 1, c.margins,
                                      c.radius_plus_one, c.violations)
-    poles = [fr * spec.sample_rate for fr in YARDSTICK_POLE_FRACTIONS]
+    poles = [fr * spec.sample_rate for fr in settings.yardstick_pole_fractions]
     cands = _within_evidence(pid_candidates(ident, spec, poles), ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
     if not ok:
-        base = deployable_pid(ident, spec, ev, c_u_limit, True)
+        base = deployable_pid(ident, spec, ev, c_u_limit, True, settings)
         c = pid_candidates(ident, spec, [base.pole])[0]
         return base, YardstickChoice("none_admissible", base.pole, len(cands), 0, 1, c.margins,
                                      c.radius_plus_one, c.violations)
-
-    def within(sc: Sequence[Score]) -> bool:
-        return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in sc)
-
     m_min = 1.0 / ident.theta.max[0]
     simulated = 0
     tried: list[tuple[PidCandidate, PidGains, list[Score]]] = []
-    for b in range(YARDSTICK_BATCHES):
-        batch = ok[b * YARDSTICK_BATCH:(b + 1) * YARDSTICK_BATCH]
+    n = settings.yardstick_batch
+    for b in range(settings.yardstick_batches):
+        batch = ok[b * n:(b + 1) * n]
         if not batch:
             break
-        gains = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=c.pole))[0] for c in batch]
+        gains = [_pid_at(ident, spec, c.pole) for c in batch]
         scores = ev.scores(KIND_PID, [pid_pack(g) for g in gains])
         simulated += len(batch)
         for c, g, sc in zip(batch, gains, scores):
             tried.append((c, g, list(sc)))
-            if within(sc):
+            if _within_c_u(sc, c_u_limit):
                 return (PidBaseline(g, c.pole, m_min, list(sc)),
                         YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins,
                                         c.radius_plus_one))

@@ -30,16 +30,19 @@ from commission.robustness import (BoxArcCheck, BoxRobustness, MarginFloors, cer
                                    narrowed_ident, payload_box)
 from commission.spec import Spec
 from commission.tuning import Guarantee
+from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
 
-def start_gains(ident: Identification, spec: Spec) -> list[ArcGains]:
+def start_gains(ident: Identification, spec: Spec, settings: TuneSettings = DEFAULT_SETTINGS) -> list[ArcGains]:
     """The search's start points on ``ident``'s box (:func:`commission.tune.optimiser.search`'s first generation)."""
-    from commission.tune.gains import EXTRA_STARTS, FREE_START, apply_free, base_arc_gains, paper_implementable_start
+    from commission.tune.gains import apply_free, base_arc_gains, paper_implementable_start
     base = base_arc_gains(ident, spec)
-    return [apply_free(base, x) for x in (FREE_START, paper_implementable_start(), *EXTRA_STARTS)]
+    return [apply_free(base, x) for x in (settings.free_start, paper_implementable_start(settings),
+                                          *settings.extra_starts)]
 
 
-def narrow_default_payload(ident: Identification, spec: Spec) -> tuple[Identification, tuple[str, ...]]:
+def narrow_default_payload(ident: Identification, spec: Spec,
+                           settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Identification, tuple[str, ...]]:
     """Narrow a *defaulted* payload range to the largest the search's start points certify (module docstring).
 
     Returns
@@ -54,11 +57,11 @@ def narrow_default_payload(ident: Identification, spec: Spec) -> tuple[Identific
         return ident, ()
     floors = MarginFloors.from_spec(spec)
     full = BoxArcCheck(ident, spec, delay_any_estimate=True)
-    starts = start_gains(ident, spec)
+    starts = start_gains(ident, spec, settings)
     checks = [full(g) for g in starts]
     if any(r.holds(floors) for r in checks):
         return ident, ()
-    got = certified_payload(lambda idn: start_gains(idn, spec), ident, spec, floors, delay_any_estimate=True)
+    got = certified_payload(lambda idn: start_gains(idn, spec, settings), ident, spec, floors, delay_any_estimate=True)
     if got is None:
         return ident, ()  # not even the empty axis: the search and the gate decide, naming the corner
     payload, _ = got
@@ -105,12 +108,8 @@ def _narrowed(ident: Identification, payload: float, why: str) -> tuple[Identifi
     return out, (note,)
 
 
-#: Bisection steps of :func:`fit_payload_to_drive` (the payload range to 2^-20 of the default's).
-DRIVE_BISECTIONS = 20
-
-
-def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
-                         source: str = "spec (defaults)") -> tuple[Identification, tuple[str, ...]]:
+def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str], source: str = "spec (defaults)", *,
+                         settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Identification, tuple[str, ...]]:
     """Narrow a *defaulted* payload range to what the drive can move, instead of refusing the axis.
 
     :func:`commission.tune.defaults.default_envelope` refuses a box whose heaviest plant leaves the
@@ -130,7 +129,7 @@ def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
 
     def moves(p: float) -> bool:
         try:
-            default_envelope(spec, narrowed_ident(ident, p), given, source)
+            default_envelope(spec, narrowed_ident(ident, p), given, source, settings=settings)
         except SpecError:
             return False
         return True
@@ -139,7 +138,7 @@ def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
     if moves(pmax) or not moves(pmin):
         return ident, ()
     lo, hi = pmin, pmax
-    for _ in range(DRIVE_BISECTIONS):
+    for _ in range(settings.drive_bisections):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if moves(mid) else (lo, mid)
     why = (f"the drive (controller.u_max = {spec.u_max:g} {ident.units.get('u', 'u-unit')}) cannot move the heavier "
@@ -148,7 +147,8 @@ def fit_payload_to_drive(spec: Spec, ident: Identification, given: set[str],
 
 
 def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
-                       source: str = "spec (defaults)") -> tuple[Identification, tuple[str, ...]]:
+                       source: str = "spec (defaults)", *,
+                       settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Identification, tuple[str, ...]]:
     """Narrow a *defaulted* load-force range to what the drive can hold, instead of refusing the axis.
 
     :func:`commission.tune.defaults.fit_disturbance_to_drive` narrows a defaulted load-force bound
@@ -181,7 +181,7 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
     def fits(idn: Identification) -> bool:
         idn2, _ = fit_payload_to_drive(spec, idn, given, source)
         try:
-            default_envelope(spec, idn2, given, source)
+            default_envelope(spec, idn2, given, source, settings=settings)
         except SpecError:
             return False
         return True

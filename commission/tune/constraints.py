@@ -13,7 +13,8 @@ Three kinds, in the order the optimiser evaluates them (cheapest first, see
    floors with theta_hat at each box plant's theta, stability with theta_hat anywhere.
 2. **Gate excess** (:func:`commission.tune.objective.gate_excess`): validate's default gate
    on the tuning scenarios, robustness scenarios and the stand-ins for validate's
-   Monte-Carlo sample included, each index measured against :data:`GATE_MARGIN` of its limit.
+   Monte-Carlo sample included, each index measured against
+   :attr:`~commission.tune.settings.TuneSettings.gate_margin` of its limit.
 3. **Discrete feasibility** (:func:`feasibility_violation`): the sampled loop over the corners
    of the theta box with frozen estimates (:func:`commission.controllers.design.discrete_feasibility`).
 """
@@ -26,45 +27,42 @@ from typing import Sequence
 from commission.controllers.design import FeasibilityReport
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
 
-#: Gate indexes are held to this fraction of their limits inside the search: room for the
-#: Monte-Carlo plants validate draws and the search never saw.
-GATE_MARGIN = 0.95
-
-#: Violation of an unstable loop, plus its spectral radius above 1 (dimensionless).
-UNSTABLE = 10.0
+from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
 
-def margin_violation(rows: Sequence[LoopMargins], floors: MarginFloors) -> float:
+def margin_violation(rows: Sequence[LoopMargins], floors: MarginFloors,
+                     settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """Summed relative shortfall of each loop's margins below ``floors`` (0: every floor met).
 
     Per loop: ``(GM_floor - GM)/GM_floor + (PM_floor - PM)/PM_floor + (DM_floor - DM) +
     (MM_floor - MM)/MM_floor``, each term only when positive (gain in dB, phase in deg, delay in
     samples beyond the identified delay, modulus dimensionless); an unstable loop counts
-    :data:`UNSTABLE` plus its spectral radius's excess over 1.
+    ``settings.unstable`` plus its spectral radius's excess over 1.
     """
     total = 0.0
     for r in rows:
         m = r.margins
         if not m.stable:
-            total += UNSTABLE + max(0.0, m.spectral_radius - 1.0)
+            total += settings.unstable + max(0.0, m.spectral_radius - 1.0)
             continue
         for val, floor, rel in ((m.gain_margin_db, floors.gain_db, True), (m.phase_margin_deg, floors.phase_deg, True),
                                 (m.delay_margin_samples, floors.delay_samples, False),
                                 (m.modulus_margin, floors.modulus, True)):
             if not math.isfinite(val) and val > 0:
                 continue  # no crossover: nothing to lose
-            short = floor - val if math.isfinite(val) else UNSTABLE
+            short = floor - val if math.isfinite(val) else settings.unstable
             if short > 0:
                 total += short / floor if (rel and floor > 0) else short
     return total
 
 
-def box_violation(box: BoxRobustness, floors: MarginFloors) -> float:
+def box_violation(box: BoxRobustness, floors: MarginFloors, settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """How far the ARC misses the box check (0: it holds): :func:`margin_violation` of the loops with
-    theta_hat at each box plant's theta, plus :data:`UNSTABLE` and the spectral radius's excess over 1
+    theta_hat at each box plant's theta, plus ``settings.unstable`` and the spectral radius's excess over 1
     when a loop with theta_hat anywhere the projection allows is unstable."""
     a = box.any_estimate
-    return margin_violation(box.at_plant, floors) + (0.0 if a.stable else UNSTABLE + a.spectral_radius - 1.0)
+    return (margin_violation(box.at_plant, floors, settings)
+            + (0.0 if a.stable else settings.unstable + a.spectral_radius - 1.0))
 
 
 def feasibility_violation(rep: FeasibilityReport) -> float:
@@ -74,4 +72,4 @@ def feasibility_violation(rep: FeasibilityReport) -> float:
     return max(0.0, rep.rho_max - (1.0 - rep.margin)) + max(0.0, rep.rho_adaptive_max - 1.0) + 1e-6
 
 
-__all__ = ["GATE_MARGIN", "UNSTABLE", "box_violation", "feasibility_violation", "margin_violation"]
+__all__ = ["box_violation", "feasibility_violation", "margin_violation"]

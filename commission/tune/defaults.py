@@ -29,25 +29,7 @@ from commission.scenarios import (
 )
 from commission.spec import Spec
 from commission.units import unit
-
-
-#: The paper's axis: theta1 = 37 at 2.5 kHz; the reference of the gain scaling.
-PAPER_THETA1 = 37.0
-
-
-PAPER_RATE = 2500.0
-
-
-#: When the spec leaves the envelope to its defaults, the feedforward of the worst plant may use at
-#: most this fraction of u_max (the rest is left to the feedback: start-up transients, unlearnt loads).
-DRIVE_HEADROOM = 0.7
-
-
-#: Smallest envelope :func:`default_envelope` derives (m/s, m/s^2); below it the box is refused instead.
-MIN_DEFAULT_V_MAX = 0.1
-
-
-MIN_DEFAULT_A_MAX = 1.0
+from commission.tune.settings import DEFAULT_SETTINGS, PAPER_RATE, TuneSettings
 
 
 def _axis_units(units: Mapping[str, str] | None) -> tuple[str, str, str]:
@@ -112,7 +94,8 @@ def drive_need(ident: Identification) -> DriveNeed:
                      const=k * max(p[P_FC], p[P_FS]) + p[P_RIPPLE_AMP] + force)
 
 
-def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "spec.toml") -> None:
+def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "spec.toml", *,
+                             settings: TuneSettings = DEFAULT_SETTINGS) -> None:
     """Reject a spec whose input limit cannot drive the envelope on the most demanding plant of the box.
 
     Needed |u| (u-unit): :meth:`DriveNeed.need` at (v_max, a_max) (:func:`drive_need`).
@@ -126,7 +109,7 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
     d = drive_need(ident)
     u = ident.units.get("u", "u-unit")
     _, v_unit, a_unit = _axis_units(ident.units)
-    check_moves_against_drive(spec, ident, source)
+    check_moves_against_drive(spec, ident, source, settings=settings)
     vc, ac = spec.case_v_max, spec.case_a_max
     ref = spec.reference_v_max is not None or spec.reference_a_max is not None
     kv, ka = ("trajectory.reference_v_max", "trajectory.reference_a_max") if ref else ("trajectory.v_max",
@@ -155,7 +138,8 @@ def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "s
             f"drive really has it")
 
 
-def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "spec.toml") -> None:
+def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "spec.toml", *,
+                              settings: TuneSettings = DEFAULT_SETTINGS) -> None:
     """Refuse the machine's moves (``spec.profile``) when the drive cannot make them on the worst plant.
 
     The need is ``max_k (mass |a_k| + viscous |v_k|) + const`` along the profile sampled at the
@@ -166,7 +150,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     limits.  The refusal names each term with its figures, then values that would pass: the
     acceleration of the moves, and the load-force bound of ``commission identify`` when the
     box's constant force is what does not fit, both sized so that the worst plant's feedforward
-    takes at most :data:`DRIVE_HEADROOM` x u_max (the rest is the feedback's: a command that
+    takes at most ``settings.drive_headroom`` x u_max (the rest is the feedback's: a command that
     reaches u_max fails validate's gate).
     """
     p = spec.profile
@@ -184,7 +168,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     ripple = plant[P_RIPPLE_AMP]
     force = d.const - friction - ripple
     hints = []
-    budget = DRIVE_HEADROOM * spec.u_max
+    budget = settings.drive_headroom * spec.u_max
     a_ok = (budget - d.viscous * p.v_peak - d.const) / d.mass
     if a_ok > 0:
         hints.append(f"moves with a_max <= {_floor3(a_ok):.3g} {a_unit} at their peak speed {p.v_peak:.3g} {v_unit}")
@@ -199,8 +183,8 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
             dflt = ", the default 10 max(fc, fs)" if bounds.get("disturbance_bound_defaulted") else ""
             hints.append(f"a load-force bound commission identify --disturbance-bound {_floor3(d_ok):.3g} ({u}; now "
                          f"{bound:.4g} {u}{dflt}) if the real load is that small")
-    hint = (" or ".join(hints) + f" would leave the feedback {1 - DRIVE_HEADROOM:.0%} of u_max" if hints else
-            f"no move fits: even at rest the plant needs {d.const:.4g} {u}")
+    hint = (" or ".join(hints) + f" would leave the feedback {1 - settings.drive_headroom:.0%} of u_max"
+            if hints else f"no move fits: even at rest the plant needs {d.const:.4g} {u}")
     raise SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is below the {need:.4g} {u} that {p.label} need on the "
         f"most demanding plant of the theta box (scenarios user/payload_heavy, user/friction_high, user/disturbance): "
@@ -216,14 +200,8 @@ def _floor3(x: float) -> float:
     return math.floor(x * (1 - 1e-12) / step) * step
 
 
-#: Share of the feedforward budget (DRIVE_HEADROOM x u_max) that a *defaulted* load-force bound
-#: is narrowed to when, at its default, not even the smallest default envelope fits (see
-#: :func:`fit_disturbance_to_drive`).
-DISTURBANCE_SHARE = 0.5
-
-
-def fit_disturbance_to_drive(spec: Spec, ident: Identification,
-                             given: set[str]) -> tuple[Identification, tuple[str, ...]]:
+def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str], *,
+                             settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Identification, tuple[str, ...]]:
     """Narrow the theta3 box of a *defaulted* load-force bound to what the drive can reject.
 
     ``commission identify`` bounds the load force by ``10 max(fc, fs)`` when the user does not
@@ -231,10 +209,11 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification,
     heavy axis with high friction that default alone can exceed the drive (10 x 1.1 V of
     stiction on a 10 V rail): no controller rejects a load the motor cannot push, and the
     spec used to be refused.  When the bound was defaulted (``bounds.disturbance_bound_defaulted``
-    in ident.json) and even the smallest default envelope (:data:`MIN_DEFAULT_V_MAX`,
-    :data:`MIN_DEFAULT_A_MAX`) does not fit in the feedforward budget ``DRIVE_HEADROOM x u_max``
+    in ident.json) and even the smallest default envelope (``settings.min_default_v_max``,
+    ``settings.min_default_a_max``) does not fit in the feedforward budget
+    ``settings.drive_headroom x u_max``
     on the most demanding plant, the force range is narrowed symmetrically about the identified
-    offset force until friction, ripple and constant force take :data:`DISTURBANCE_SHARE` of the
+    offset force until friction, ripple and constant force take ``settings.disturbance_share`` of the
     budget; the rest is left to the envelope (:func:`default_envelope`).  theta3's bounds
     follow at the lightest mass, where they bind (:func:`commission.scenarios.force_range`).
 
@@ -256,10 +235,10 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification,
         return ident, ()
     if {"v_max", "a_max"} <= given:
         return ident, ()
-    budget = DRIVE_HEADROOM * spec.u_max
+    budget = settings.drive_headroom * spec.u_max
     d = drive_need(ident)
-    v_min = min(spec.v_max, MIN_DEFAULT_V_MAX)
-    a_min = min(spec.a_max, MIN_DEFAULT_A_MAX)
+    v_min = min(spec.v_max, settings.min_default_v_max)
+    a_min = min(spec.a_max, settings.min_default_a_max)
     if d.need(v_min, a_min, spec.beta1) <= budget:
         return ident, ()
     p = identified_plant(ident)
@@ -267,7 +246,7 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification,
     step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
     force = max(abs(d_lo), abs(d_hi), step)
     fixed = d.const - force  # friction (+20 %) and ripple
-    allowed = DISTURBANCE_SHARE * budget - fixed  # largest |constant force| left for the box
+    allowed = settings.disturbance_share * budget - fixed  # largest |constant force| left for the box
     dn = -p[P_OFFSET]
     reach = allowed - abs(dn)  # half-width of the narrowed force range about d_n
     if not (reach > 0 and allowed >= step and max(abs(d_lo), abs(d_hi)) > allowed):
@@ -291,7 +270,8 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification,
     note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
             f"{a_unit} (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
             f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} {v_unit}, "
-            f"a_max = {a_min:g} {a_unit} on the most demanding plant; it now takes {DISTURBANCE_SHARE:g} of the "
+            f"a_max = {a_min:g} {a_unit} on the most demanding plant; it now takes {settings.disturbance_share:g} "
+            f"of the "
             f"{budget:.3g} {u} feedforward budget.  State the real load with commission identify "
             f"--disturbance-bound")
     return out, (note,)
@@ -306,9 +286,9 @@ def rate_scaled_envelope(spec: Spec, given: set[str],
     caps, the PID's poles), so the tracking error of a given trajectory grows as 1/r^2
     for the acceleration-driven part and 1/r for the velocity-driven part.  Below 2.5 kHz a
     defaulted a_max is therefore scaled by r^2 and v_max by r, which keeps the demand
-    relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2).  Without
-    it, 1 kHz axes of :func:`commission.synth.random_axis` miss the default gate's e_rms
-    limit (20 um) by 1.1-2x on their heavy plants, with the ARC still ahead of the PID.
+    relative to the loop's bandwidth at the paper's (1 kHz: 0.4 m/s, 1.92 m/s^2); without it,
+    slow axes miss the default gate's e_rms limit on their heavy plants (docs/robustness.md,
+    "Tune's defaults, measured").
     Keys the user set are kept; at or above 2.5 kHz nothing changes.  ``units`` (the
     identification's) only words the notes: rad/s on a rotary axis; default m.
     """
@@ -331,15 +311,15 @@ def _envelope_notes(spec: Spec, v: float, a: float, why: str,
                  if new != old)
 
 
-def default_envelope(spec: Spec, ident: Identification, given: set[str],
-                     source: str = "spec (defaults)") -> tuple[Spec, tuple[str, ...]]:
+def default_envelope(spec: Spec, ident: Identification, given: set[str], source: str = "spec (defaults)", *,
+                     settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Spec, tuple[str, ...]]:
     """Lower the *defaulted* envelope (v_max, a_max) to what the drive can move on the worst plant.
 
     The paper's 1 m/s and 12 m/s^2 ask a heavy axis (with its payload bound) for more
     than a +-10 V drive gives.  A key the user set (``given`` holds ``"v_max"``,
     ``"a_max"``) is never changed: :func:`check_spec_against_ident` then accepts or
     rejects it.  Defaulted keys are lowered so that the worst plant's feedforward
-    (:func:`drive_need`) uses at most :data:`DRIVE_HEADROOM` x u_max: a_max first; v_max
+    (:func:`drive_need`) uses at most ``settings.drive_headroom`` x u_max: a_max first; v_max
     too when the viscous term alone would take more than half of that budget or v_max
     could not be reached within ``travel``.
 
@@ -357,7 +337,7 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
         friction and forces with the headroom.
     """
     d = drive_need(ident)
-    budget = DRIVE_HEADROOM * spec.u_max
+    budget = settings.drive_headroom * spec.u_max
     if d.need(spec.v_max, spec.a_max, spec.beta1) <= budget or {"v_max", "a_max"} <= given:
         return spec, ()
     free = budget - d.const
@@ -366,8 +346,9 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
     refuse = SpecError(
         f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
         f"plant (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs {d.const:.3g} {u} for friction and constant forces "
-        f"alone, leaving less than v_max = {MIN_DEFAULT_V_MAX:g} {v_unit}, a_max = {MIN_DEFAULT_A_MAX:g} {a_unit} "
-        f"within {DRIVE_HEADROOM:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
+        f"alone, leaving less than v_max = {settings.min_default_v_max:g} {v_unit}, "
+        f"a_max = {settings.min_default_a_max:g} {a_unit} "
+        f"within {settings.drive_headroom:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
         f"(commission identify --payload-max, --disturbance-bound)")
     if free <= 0:
         raise refuse
@@ -382,7 +363,8 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
             v = min(v, math.sqrt(a * spec.travel))  # v_max reachable within the travel
     if not (a > 0 and v > 0):
         return spec, ()  # the set key cannot be met: check_spec_against_ident names it
-    if ("v_max" not in given and v < MIN_DEFAULT_V_MAX) or ("a_max" not in given and a < MIN_DEFAULT_A_MAX):
+    if (("v_max" not in given and v < settings.min_default_v_max)
+            or ("a_max" not in given and a < settings.min_default_a_max)):
         raise refuse
     if v * v / a > spec.travel:
         raise SpecError(
@@ -391,11 +373,11 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str],
             f"of the theta box (need v_max^2/a_max <= travel)")
     return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
         spec, v, a, f"the most demanding plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs "
-                    f"<= {DRIVE_HEADROOM:g} x controller.u_max = {budget:.3g} {u} of feedforward", ident.units)
+                    f"<= {settings.drive_headroom:g} x controller.u_max = {budget:.3g} {u} of feedforward", ident.units)
 
 
-def reference_envelope(spec: Spec, ident: Identification, given: set[str],
-                       source: str = "spec (defaults)") -> tuple[Spec, tuple[str, ...]]:
+def reference_envelope(spec: Spec, ident: Identification, given: set[str], source: str = "spec (defaults)", *,
+                       settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Spec, tuple[str, ...]]:
     """The envelope of the paper's Case 1 and Case 2 when the spec gives the machine's moves.
 
     With the machine's moves, the spec's envelope (``v_max``, ``a_max``, ``travel``: the runtime
@@ -408,7 +390,7 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
     defaulted envelope (the paper's scaled to the rate, :func:`rate_scaled_envelope`, lowered to
     the drive's feedforward budget, :func:`default_envelope`), capped at the moves' peaks and
     at ``sqrt(a travel)``.  When even that derivation refuses (friction and forces take more than
-    :data:`DRIVE_HEADROOM` x u_max) the cap is the whole of u_max instead.
+    ``settings.drive_headroom`` x u_max) the cap is the whole of u_max instead.
 
     Parameters
     ----------
@@ -432,7 +414,7 @@ def reference_envelope(spec: Spec, ident: Identification, given: set[str],
         a_max=spec.reference_a_max if "a_max" in g else paper.a_max)
     base, _ = rate_scaled_envelope(base, g)
     try:
-        base, _ = default_envelope(base, ident, g, source)
+        base, _ = default_envelope(base, ident, g, source, settings=settings)
         v, a = base.v_max, base.a_max
     except SpecError:
         d = drive_need(ident)

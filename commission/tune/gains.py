@@ -12,43 +12,24 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Sequence
-import numpy as np
 from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, paper_gains_as_printed, paper_gains_implementable
 from commission.controllers.design import observer_design
 from commission.spec import Spec
-from commission.tune.defaults import PAPER_THETA1, PAPER_RATE
+from commission.tune.settings import DEFAULT_SETTINGS, PAPER_RATE, PAPER_THETA1, TuneSettings
 
 
-#: Lowest theta_hat1(0) the search considers, as a fraction of the identified nominal theta1
-#: (further clipped to the box).  theta_hat1(0) below the nominal trades a slower start on the
-#: empty axis for a faster one under payload (a payload only lowers theta1 = 1/M); above the
-#: nominal nothing is gained.
-THETA1_0_LOW = 0.5
-
-
-#: The paper's theta_hat1(0) (§4.3), for a nominal theta1 of 37.
-PAPER_THETA1_0 = 30.0
-
-
-#: Structured starting points of generation 0 besides FREE_START and :func:`paper_implementable_start`
-#: (relative free gains): a small w2 with a faster theta3 adaptation (the integral action, see FREE_BOUNDS);
-#: a larger K2 cap, w2 and theta3 rate with the paper's theta_hat1(0) / theta1 = 30/37.
-EXTRA_STARTS = ((1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 10.0, 0.1, 1.0),
-                (1.0, 3.0, 1.0, 1.0, 1.0, 1.0, 3.0, 3.0, PAPER_THETA1_0 / PAPER_THETA1))
-
-
-def paper_implementable_start() -> tuple[float, ...]:
+def paper_implementable_start(settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[float, ...]:
     """:func:`controllers.arc.paper_gains_implementable` as relative free gains.
 
     Its caps, g and Gamma relative to the printed paper gains (the base of
-    :func:`base_arc_gains` for the paper's axis), clipped to :data:`FREE_BOUNDS`.
+    :func:`base_arc_gains` for the paper's axis), clipped to ``settings.free_bounds``.
     """
     pr, im = paper_gains_as_printed(), paper_gains_implementable()
     x = (im.k1s_max / pr.g1, im.k2s_max / pr.g2, im.g1 / im.k1s_max, im.g2 / im.k2s_max,
          im.Gamma[0] / pr.Gamma[0], im.Gamma[1] / pr.Gamma[1], im.Gamma[2] / pr.Gamma[2], im.w2 / pr.w2,
          im.theta0[0] / PAPER_THETA1)
-    return tuple(min(max(v, b[1]), b[2]) for v, b in zip(x, FREE_BOUNDS))
+    return tuple(min(max(v, b[1]), b[2]) for v, b in zip(x, settings.free_bounds))
 
 
 @dataclass(frozen=True)
@@ -84,42 +65,12 @@ class FreeGains:
                 "theta1_0": self.theta1_0}
 
 
-#: Lowest cap multiple the search considers: an axis whose PID yardstick crosses over far below the
-#: carried-over paper gains' bandwidth (a low rate against a structural mode) needs caps of a tenth of
-#: the base to keep its margins (:meth:`commission.tune.optimiser.Problem.matched_starts`); 0.25 left
-#: such axes no gains that tie the PID's loop.
-CAP_LOW = 0.05
-
-
-#: Search box of the free gains, relative to :func:`base_arc_gains`: (name, low, high).
-#: k1, k2: caps as multiples of the base g1, g2; f1, f2: g as a fraction of its cap;
-#: G1..G3: Gamma entries as multiples of the base Gamma; w2: the weight w2 of (41) as a
-#: multiple of the base (w1 = 1 fixed: only w1/w2 matters).  A small w2 lets the theta3
-#: adaptation (the loop's integral action, tau3 = w1 psi2 z1 + w2 phi2_3 z2) run much faster
-#: before its loop loses stability, at the price of more chattering: the search trades them.
-#: t1: theta_hat1(0) as a multiple of the identified nominal (clipped to the box; see THETA1_0_LOW).
-FREE_BOUNDS = (("k1", CAP_LOW, 4.0), ("k2", CAP_LOW, 4.0), ("f1", 0.05, 1.0), ("f2", 0.05, 1.0),
-               ("G1", 1e-2, 30.0), ("G2", 1e-2, 30.0), ("G3", 1e-2, 1e4), ("w2", 1e-3, 10.0),
-               ("t1", THETA1_0_LOW, 1.0))
-
-
-#: Starting point (relative): the paper's g1, g2 as caps (robust terms bounded by g), paper Gamma and w2,
-#: theta_hat(0) = the identified nominal.
-FREE_START = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
-
-
-N_FREE = len(FREE_BOUNDS)
-
+#: Length of the free vector (the order of :func:`apply_free` and of
+#: :attr:`commission.tune.settings.TuneSettings.free_bounds`).
+N_FREE = 9
 
 #: Index of theta_hat1(0) in the free vector.
 I_THETA1_0 = 8
-
-
-#: :data:`FREE_BOUNDS` in log space (read-only; copy before pinning a coordinate).
-FREE_LOG_LO = np.log([b[1] for b in FREE_BOUNDS])
-
-
-FREE_LOG_HI = np.log([b[2] for b in FREE_BOUNDS])
 
 
 def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
@@ -129,7 +80,8 @@ def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
     w1 = 1, w2 = 0.1 / c^2; g1 = 600 r, g2 = 850 r (1/s); eps11 = 5e-5, eps12 = 5e-5 / r,
     eps21 = 1e-3, eps22 = c^2 r; C_phi1 = 1e-5 [5 c, 0.5, 10]; C_phi2 = 1e-5 [5, 0.5/c, 10/c];
     C_theta2 = 1e5 [1/c^2, 1/c, 1/c]; Gamma = 1e5 [5/c^2, 3, 20]; caps k1s_max = g1,
-    k2s_max = g2 (the robust terms bounded: see :data:`FREE_START`).
+    k2s_max = g2 (the robust terms bounded: see
+    :attr:`commission.tune.settings.TuneSettings.free_start`).
     """
     c = PAPER_THETA1 / ident.theta.nominal[0]
     r = spec.sample_rate / PAPER_RATE
@@ -149,7 +101,7 @@ def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
 
 
 def apply_free(base: ArcGains, x: Sequence[float]) -> ArcGains:
-    """ARC gains for the relative free gains ``x`` (order of :data:`FREE_BOUNDS`)."""
+    """ARC gains for the relative free gains ``x`` (order of :attr:`TuneSettings.free_bounds`)."""
     k1 = base.g1 * x[0]
     k2 = base.g2 * x[1]
     # Theorem 1 needs c_theta2_r^2 >= w_k w2 / (2 c_phi_kr^2): a larger w2 scales C_theta2 by

@@ -21,50 +21,10 @@ from commission.scenarios import Scenario, plant_substeps, scenario_matrix
 from commission.spec import Spec
 from commission.tuning import Score
 from commission.tune.defaults import default_gate_limits
+from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
 
 Progress = Callable[[int, int], None]
-
-
-#: Penalty weights of the objective (per scenario, in units of ln e_rms).
-W_TARGET = 2.0
-
-
-W_CHATTER = 10.0
-
-
-W_STEP = 1.0
-
-
-W_SATURATION = 2.0
-
-
-W_DIVERGED = 20.0
-
-
-#: The ARC is asked to beat the PID's e_rms by this factor on every tuning scenario (soft
-#: constraint), so that validation's "ARC no worse than PID" holds on plants between them.
-PID_MARGIN = 0.9
-
-
-#: Weight of the worst ARC/PID e_rms ratio over the scenarios (minimax term of the objective).
-W_WORST = 1.0
-
-
-#: Objective weight of each of the 16 box-corner scenarios (the 12 fixed scenarios weigh 1):
-#: the corners mostly act through the penalties (divergence, no worse than the PID).
-CORNER_WEIGHT = 0.25
-
-
-#: Weight of the gate's ARC-vs-PID quantiles in the objective (:func:`quantile_excess`).
-W_QUANTILE = 4.0
-
-
-#: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
-HOLDOUT_PLANTS = 32
-
-#: Excess counted for a diverged run by :func:`gate_excess` (ln units).
-DIVERGED_EXCESS = 10.0
 
 
 @dataclass(frozen=True)
@@ -92,16 +52,19 @@ class Evaluator:
         Sample rate and actuator limit ``u_max``.
     workers : int, optional
         Threads of the batch simulator.
+    settings : TuneSettings
+        ``corner_weight``.
     """
 
-    def __init__(self, scenarios: Sequence[Scenario], spec: Spec, workers: int | None = None) -> None:
+    def __init__(self, scenarios: Sequence[Scenario], spec: Spec, workers: int | None = None,
+                 settings: TuneSettings = DEFAULT_SETTINGS) -> None:
         self.scenarios = list(scenarios)
         self.spec = spec
         self.workers = workers
         #: Objective weight per scenario: the box corners (tune-only stand-ins for the
         #: Monte-Carlo sample) and the robustness scenarios (constraints more than
-        #: performance) count CORNER_WEIGHT each, every other scenario 1.
-        self.weights = [CORNER_WEIGHT if ("corner" in s.tags or "robustness" in s.tags) else 1.0
+        #: performance) count ``settings.corner_weight`` each, every other scenario 1.
+        self.weights = [settings.corner_weight if ("corner" in s.tags or "robustness" in s.tags) else 1.0
                         for s in self.scenarios]
         groups: dict[tuple, list[int]] = {}
         for i, s in enumerate(self.scenarios):
@@ -149,26 +112,27 @@ class Evaluator:
 
 
 def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None = None,
-         weights: Sequence[float] | None = None, gate: GateLimits | None = None) -> float:
+         weights: Sequence[float] | None = None, gate: GateLimits | None = None,
+         settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """Objective of one candidate (lower is better): see the module docstring, step 4.
 
     Per scenario::
 
         ln(e_rms / targets.e_rms)                                   objective
-        + W_TARGET  ln(e_F / targets.e_f)^+                          accuracy target
-        + W_CHATTER ln(c_u / targets.c_u)^+ + W_STEP [c_u > target]  chattering target
-        + W_SATURATION [|u| reached u_max]                           input limit
-        + W_CHATTER ln(e_rms / (m e_rms_ref))^+ + W_STEP [e_rms > m ref]   better than the PID
-                                                                     by the margin m = PID_MARGIN
-        + W_CHATTER ln(e_M / e_M_ref)^+ + W_STEP [e_M > e_M_ref]     and on the transient
+        + w_target  ln(e_F / targets.e_f)^+                          accuracy target
+        + w_chatter ln(c_u / targets.c_u)^+ + w_step [c_u > target]  chattering target
+        + w_saturation [|u| reached u_max]                           input limit
+        + w_chatter ln(e_rms / (m e_rms_ref))^+ + w_step [e_rms > m ref]   better than the PID
+                                                                     by the margin m = pid_margin
+        + w_chatter ln(e_M / e_M_ref)^+ + w_step [e_M > e_M_ref]     and on the transient
 
     averaged over the scenarios with ``weights`` (default equal), plus, with ``gate`` given,
-    ``W_QUANTILE`` x :func:`quantile_excess` at ``PID_MARGIN``: the gate's own ARC-vs-PID
+    ``w_quantile`` x :func:`quantile_excess` at ``pid_margin``: the gate's own ARC-vs-PID
     judgement (median and 90th percentile of its factor over the scenarios), so that the search
     minimises what the gate checks; without ``gate``,
-    ``W_WORST max_s ln(e_rms / (e_rms_ref + slack))`` (the scenario where the ARC gains least
+    ``w_worst max_s ln(e_rms / (e_rms_ref + slack))`` (the scenario where the ARC gains least
     over the PID counts again).  A diverged run
-    counts W_DIVERGED.  ``reference`` are the PID baseline's scores on the same
+    counts w_diverged.  ``reference`` are the PID baseline's scores on the same
     scenarios (optional).
 
     ``gate`` (optional) are validate's default gate limits for this axis.  Their ARC-vs-PID
@@ -178,7 +142,11 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
     at the quantization floor from counting; in the per-scenario margin penalty it made the
     search settle for less).  The gate's absolute limits are not part of the objective: they
     are a constraint of the search (:mod:`commission.tune.constraints`).
+
+    The weights ``w_*`` and the margin ``pid_margin`` are fields of ``settings``
+    (:class:`~commission.tune.settings.TuneSettings`).
     """
+    st = settings
     total = 0.0
     wsum = 0.0
     worst = -math.inf
@@ -187,47 +155,48 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
         w = 1.0 if weights is None else float(weights[i])
         wsum += w
         if s.diverged or not math.isfinite(s.e_rms) or s.e_rms <= 0:
-            total += w * W_DIVERGED
+            total += w * st.w_diverged
             continue
         j = math.log(s.e_rms / spec.e_rms)
         if reference is not None:
             r = reference[i]
             if not r.diverged and math.isfinite(r.e_rms) and r.e_rms > 0:
                 worst = max(worst, math.log(s.e_rms / (r.e_rms + slack)))
-                ref = PID_MARGIN * r.e_rms
+                ref = st.pid_margin * r.e_rms
                 if ref < s.e_rms:
-                    j += W_STEP + W_CHATTER * math.log(s.e_rms / ref)
+                    j += st.w_step + st.w_chatter * math.log(s.e_rms / ref)
             if not r.diverged and math.isfinite(r.e_M) and 0 < r.e_M < s.e_M:
                 # The transient too (the start-up against unlearnt estimates): e_rms alone let the
                 # search trade the empty axis's start-up for a softer command.
-                j += W_STEP + W_CHATTER * math.log(s.e_M / r.e_M)
+                j += st.w_step + st.w_chatter * math.log(s.e_M / r.e_M)
         if s.e_F > 0:
-            j += W_TARGET * max(0.0, math.log(s.e_F / spec.e_f))
+            j += st.w_target * max(0.0, math.log(s.e_F / spec.e_f))
         if not (math.isfinite(s.c_u) and s.c_u >= 0):
-            j += W_STEP + W_CHATTER
+            j += st.w_step + st.w_chatter
         elif s.c_u > spec.c_u:
-            j += W_STEP + W_CHATTER * math.log(s.c_u / spec.c_u)
+            j += st.w_step + st.w_chatter * math.log(s.c_u / spec.c_u)
         if s.u_peak >= spec.u_max * (1.0 - 1e-9):
-            j += W_SATURATION
+            j += st.w_saturation
         total += w * j
     out = total / wsum if wsum > 0 else 0.0
     if gate is not None and reference is not None:
         # What the gate judges (the median and 90th percentile of the ARC/PID factor), not the single
         # worst scenario: the minimax term chased the plant where no controller beats the PID.
-        out += W_QUANTILE * quantile_excess(gate, scores, reference, PID_MARGIN)
+        out += st.w_quantile * quantile_excess(gate, scores, reference, st.pid_margin, settings)
     elif math.isfinite(worst):
-        out += W_WORST * worst
+        out += st.w_worst * worst
     return out
 
 
-def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score], margin: float = 1.0) -> float:
+def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score], margin: float = 1.0,
+                    settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """How far the ARC misses the gate's ARC-vs-PID quantiles on these scenarios (0: within), ln units.
 
     The factors are the gate's own (:func:`commission.gate.required_factor`, with the gate's slack)
     and so are the quantiles (:data:`commission.gate.ARC_VS_PID_QUANTILES`, numpy's ``"higher"``
     method); each quantile ``q`` counts ``ln(q / (margin limit))^+`` against its limit
     (``arc_vs_pid_median``, ``arc_vs_pid_p90``), an infinite one (a diverged run among the
-    quantile's scenarios) :data:`DIVERGED_EXCESS`.  ``margin`` < 1 asks for room: the tuning
+    quantile's scenarios) ``settings.diverged_excess``.  ``margin`` < 1 asks for room: the tuning
     scenarios stand in for validate's Monte-Carlo plants.
     """
     f = np.array([required_factor(a, p, gate.arc_vs_pid_slack) for a, p in zip(arc, pid)])
@@ -238,7 +207,7 @@ def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score]
         v = float(np.quantile(f, q, method="higher"))
         lim = margin * float(getattr(gate, key))
         if not math.isfinite(v):
-            total += DIVERGED_EXCESS
+            total += settings.diverged_excess
         elif v > lim > 0:
             total += math.log(v / lim)
     return total
@@ -255,7 +224,7 @@ class HoldoutGate:
 
     The search scores candidates on the tuning scenarios only; what decides deployment is
     the gate on validate's matrix, whose Monte-Carlo plants the search never saw.  This
-    stands in for it inside ``tune``: :data:`HOLDOUT_PLANTS` plants drawn from tune's own
+    stands in for it inside ``tune``: ``settings.holdout_plants`` plants drawn from tune's own
     Generator (independent of validate's seeded sample), the PID baseline scored on them
     once, and the default :class:`~commission.gate.GateSpec` resolved for this axis.
 
@@ -273,16 +242,19 @@ class HoldoutGate:
         Draws the hold-out plants.
     workers : int, optional
         Batch-simulator threads.
-    n_plants : int
-        Hold-out Monte-Carlo plants.
+    n_plants : int, optional
+        Hold-out Monte-Carlo plants (default ``settings.holdout_plants``).
+    settings : TuneSettings
     """
 
     def __init__(self, ident: Identification, spec: Spec, ev: Evaluator, pid: PidGains,
                  pid_scores: Sequence[Score], *, rng: np.random.Generator, workers: int | None = None,
-                 n_plants: int = HOLDOUT_PLANTS) -> None:
-        plants = [s for s in scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n_plants) if "monte_carlo" in s.tags]
+                 n_plants: int | None = None, settings: TuneSettings = DEFAULT_SETTINGS) -> None:
+        n = settings.holdout_plants if n_plants is None else n_plants
+        plants = [s for s in scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n) if "monte_carlo" in s.tags]
         self.ev = ev
-        self.ev_h = Evaluator(plants, spec, workers=workers)
+        self.settings = settings
+        self.ev_h = Evaluator(plants, spec, workers=workers, settings=settings)
         self.pid_scores = [*pid_scores, *self.ev_h.scores(KIND_PID, [pid_pack(pid)])[0]]
         self.limits = default_gate_limits(ident, spec)
         self.names = [*ev.names, *self.ev_h.names]
@@ -305,19 +277,20 @@ class HoldoutGate:
         for t, h in zip(ts, hs):
             arc = [*t, *h]
             runs = [(n, a, p, math.nan) for n, a, p in zip(self.names, arc, self.pid_scores)]
-            out.append((t, len(evaluate_gate(self.limits, runs).failures), gate_excess(self.limits, arc,
-                                                                                    self.pid_scores)))
+            out.append((t, len(evaluate_gate(self.limits, runs).failures),
+                        gate_excess(self.limits, arc, self.pid_scores, settings=self.settings)))
         return out
 
 
 def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
-                margin: float = 1.0, *, yardstick_reach: bool = False) -> float:
+                margin: float = 1.0, *, yardstick_reach: bool = False,
+                settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """Summed log-excess of the ARC's indexes over ``margin`` x their gate limits (0: all within).
 
     Per scenario: ``sum ln(index / (margin limit))^+`` over e_F, e_M, e_rms, c_u, the peak
     |u| (against u_max: a clipped command counts ln(1/margin)) and, when the gate compares
     scenario by scenario (``limits.arc_vs_pid_every``), the ARC-vs-PID e_rms (against ``factor x
-    PID + slack``); a diverged run counts :data:`DIVERGED_EXCESS`.  Otherwise (validate's default,
+    PID + slack``); a diverged run counts ``settings.diverged_excess``.  Otherwise (validate's default,
     which judges the comparison by quantiles) the constraint is the ARC's own limits, what makes
     it *safe*; beating the PID yardstick is the objective's (:func:`cost`).  Held as a constraint,
     an unreachable comparison with a strong yardstick left every candidate "gate missed", never
@@ -330,14 +303,14 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
     PID's value there instead (no worse than the yardstick).  The box-corner stand-ins for the
     Monte-Carlo sample are harsher than any plant validate draws; where no PID meets a limit
     there, every candidate missed the constraint, the search ranked them all by that excess
-    alone and the ARC-vs-PID objective never decided (the sample: e_M at the heavy corners,
-    ARC and PID 1.16 and 1.18 x the limit).  validate's gate is unchanged.
+    alone and the ARC-vs-PID objective never decided (docs/robustness.md, "Tune's defaults,
+    measured").  validate's gate is unchanged.
     """
     total = 0.0
     every = getattr(limits, "arc_vs_pid_every", True)
     for a, p in zip(arc, pid):
         if a.diverged or not math.isfinite(a.e_rms):
-            total += DIVERGED_EXCESS
+            total += settings.diverged_excess
             continue
         lim_f, lim_m, lim_r = limits.e_F, limits.e_M, limits.e_rms
         if yardstick_reach and not p.diverged:
@@ -350,7 +323,7 @@ def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
                 ratios.append(a.e_rms / (limits.arc_vs_pid_e_rms * p.e_rms + limits.arc_vs_pid_slack))
         for r in ratios:
             if not math.isfinite(r):  # an index undefined (NaN) or unbounded counts as a diverged run
-                total += DIVERGED_EXCESS
+                total += settings.diverged_excess
             elif r > margin:
                 total += math.log(r / margin)
     return total
