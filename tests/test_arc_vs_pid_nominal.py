@@ -14,13 +14,13 @@ import pytest
 from commission.errors import SpecError
 from commission.gate import (GateSpec, arc_vs_pid_nominal_checks, evaluate_gate, gate_from_mapping, resolve_gate,
                              safe_not_better)
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 NAN = math.nan
 
 
 def score(e_rms, diverged=False):
-    return Score(e_M=10 * e_rms, e_F=2 * e_rms, e_rms=e_rms, u_rms=0.5, du_rms=0.2, c_u=0.4, u_peak=2.0,
+    return Indexes(e_M=10 * e_rms, e_F=2 * e_rms, e_rms=e_rms, u_rms=0.5, du_rms=0.2, c_u=0.4, u_peak=2.0,
                  diverged=diverged)
 
 

@@ -19,7 +19,7 @@ import pytest
 from commission.executor import (ENV_SCHEDULER, LocalExecutor, SchedulerError, compute_scheduler, make_executor,
                                  resolve_scheduler)
 from commission.montecarlo import WORST_KEPT, MonteCarloSummary
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 def _slow_square(shared, x):
@@ -98,7 +98,7 @@ def test_local_default_imports_no_dask():
 
 
 def _score(e_rms, diverged=False):
-    return Score(2 * e_rms, e_rms / 2, e_rms, 1.0, 0.1, 0.5, 2.0, diverged)
+    return Indexes(2 * e_rms, e_rms / 2, e_rms, 1.0, 0.1, 0.5, 2.0, diverged)
 
 
 def test_monte_carlo_summary_against_numpy_and_ties_in_plant_order():

@@ -11,7 +11,7 @@ import math
 
 from commission.gate import (ABSOLUTE_FIXED, ABSOLUTE_REPORTED, ABSOLUTE_YARDSTICK, GateSpec, absolute_mode,
                              evaluate_gate, gate_from_mapping, resolve_gate)
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 NAN = math.nan
 NOMINAL = frozenset({"case2/nominal"})
@@ -22,8 +22,8 @@ SLOWED = {"method": "margin_search", "is_yardstick": True, "simulated": 8, "admi
 NONE = {"method": "none_admissible", "is_yardstick": False, "simulated": 1, "admissible": 0, "pole": 441.0}
 
 
-def score(e_rms, e_F=None, e_M=1e-4, c_u=0.1, u_peak=1.0, diverged=False) -> Score:
-    return Score(e_M=e_M, e_F=e_rms if e_F is None else e_F, e_rms=e_rms, u_rms=1.0, du_rms=c_u, c_u=c_u,
+def score(e_rms, e_F=None, e_M=1e-4, c_u=0.1, u_peak=1.0, diverged=False) -> Indexes:
+    return Indexes(e_M=e_M, e_F=e_rms if e_F is None else e_F, e_rms=e_rms, u_rms=1.0, du_rms=c_u, c_u=c_u,
                  u_peak=u_peak, diverged=diverged)
 
 

@@ -20,7 +20,7 @@ from commission.paper import reference_identification
 from commission.scenarios import force_range, identified_plant
 from commission.controllers.plant import P_M, P_OFFSET
 from commission.spec import spec_from_mapping
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 from commission.tune.box import fit_force_to_drive
 from commission.tune.defaults import default_envelope, fit_disturbance_to_drive
 
@@ -29,8 +29,8 @@ NAMES = ("case1/nominal", "case1/payload_light", "case1/payload_heavy", "case1/f
          "case1/disturbance", "case1/delay+1", "case1/mode_low", "user/nominal", "user/payload_heavy", "mc/000")
 
 
-def score(e=1e-6, c_u=0.1, u_peak=1.0, diverged=False) -> Score:
-    return Score(e_M=e, e_F=e, e_rms=e, u_rms=1.0, du_rms=c_u, c_u=c_u, u_peak=u_peak, diverged=diverged)
+def score(e=1e-6, c_u=0.1, u_peak=1.0, diverged=False) -> Indexes:
+    return Indexes(e_M=e, e_F=e, e_rms=e, u_rms=1.0, du_rms=c_u, c_u=c_u, u_peak=u_peak, diverged=diverged)
 
 
 def test_the_identified_plant_always_certifies_performance_stated_ranges_too_monte_carlo_never():

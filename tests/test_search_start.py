@@ -23,7 +23,7 @@ from commission.tune.constraints import box_violation, margin_violation
 from commission.tune.objective import quantile_excess
 from commission.tune.optimiser import Problem
 from commission.tune.settings import DEFAULT_SETTINGS
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 class _NoScenarios:
@@ -70,8 +70,8 @@ def test_matched_starts_tie_the_yardstick_bandwidth_within_every_linear_constrai
     assert _problem(None)[2].matched_starts() == []
 
 
-def _s(e_rms: float, diverged: bool = False) -> Score:
-    return Score(e_M=1e-6, e_F=1e-6, e_rms=e_rms, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=diverged)
+def _s(e_rms: float, diverged: bool = False) -> Indexes:
+    return Indexes(e_M=1e-6, e_F=1e-6, e_rms=e_rms, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=diverged)
 
 
 def test_quantile_excess_is_the_gates_quantiles_in_log_units():
@@ -102,8 +102,8 @@ def test_gate_excess_holds_the_arc_to_the_yardstick_where_the_yardstick_misses_a
     gate = GateLimits(e_F=1.0, e_M=10e-6, e_rms=1.0, c_u=1.0, u_max=10.0, no_divergence=True, arc_vs_pid_e_rms=1.0,
                       basis={}, lsb=1e-6, travel=1.0, arc_vs_pid_every=False)
 
-    def s(e_M: float) -> Score:
-        return Score(e_M=e_M, e_F=1e-7, e_rms=1e-7, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
+    def s(e_M: float) -> Indexes:
+        return Indexes(e_M=e_M, e_F=1e-7, e_rms=1e-7, u_rms=1.0, du_rms=0.1, c_u=0.1, u_peak=1.0, diverged=False)
 
     pid = [s(12e-6), s(5e-6)]  # the PID misses e_M on the first scenario, meets it on the second
     arc = [s(11e-6), s(5e-6)]

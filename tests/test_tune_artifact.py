@@ -34,7 +34,8 @@ from commission.tune.optimiser import Problem, search, select_on_holdout
 from commission.tune.settings import DEFAULT_SETTINGS
 from commission.robustness import LoopMargins, MarginFloors
 from commission.controllers.margins import Margins
-from commission.tuning import Score, Tuning
+from commission.controllers.metrics import Indexes
+from commission.tuning import Tuning
 
 SMALL = {"tune": {"budget": 3}}
 
@@ -450,7 +451,7 @@ def _kd_chatter_evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
 
     def scores(kind, packs):
         assert kind == KIND_PID
-        return [[Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD] * (1 + 0.1 * i),
+        return [[Indexes(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD] * (1 + 0.1 * i),
                        c_u=c_u_per_kd * p[G_KD] * (1 + 0.1 * i), u_peak=1.0, diverged=False) for i in range(n)]
                 for p in packs]
     return SimpleNamespace(scores=scores, weights=[1.0] * n)
@@ -507,8 +508,8 @@ def test_cost_charges_a_transient_and_an_average_worse_than_the_pids():
     st = DEFAULT_SETTINGS
     spec = default_spec()
 
-    def score(e_M: float, e_rms: float) -> Score:
-        return Score(e_M=e_M, e_F=0.1 * spec.e_f, e_rms=e_rms, u_rms=1.0, du_rms=0.1 * spec.c_u,
+    def score(e_M: float, e_rms: float) -> Indexes:
+        return Indexes(e_M=e_M, e_F=0.1 * spec.e_f, e_rms=e_rms, u_rms=1.0, du_rms=0.1 * spec.c_u,
                      c_u=0.1 * spec.c_u, u_peak=0.5 * spec.u_max, diverged=False)
 
     pid = [score(20e-6, 2 * spec.e_rms)]

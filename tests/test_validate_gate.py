@@ -17,13 +17,13 @@ from commission.gate import (
     load_gate,
     resolve_gate,
 )
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 NAN = math.nan
 
 
 def score(e_M=50e-6, e_F=5e-6, e_rms=2e-6, c_u=0.3, u_peak=1.0, diverged=False, u_rms=0.2, du_rms=0.06):
-    return Score(e_M, e_F, e_rms, u_rms, du_rms, c_u, u_peak, diverged)
+    return Indexes(e_M, e_F, e_rms, u_rms, du_rms, c_u, u_peak, diverged)
 
 
 def test_defaults_on_the_paper_axis_are_the_documented_formulas():
@@ -256,7 +256,7 @@ def test_a_diverged_robustness_scenario_fails_the_floor_whatever_the_gate_says()
     """no_divergence = false switches the gate's criterion off, never the floor, on any scenario."""
     from commission.gate import FloorContext, check_floors
 
-    diverged = Score(math.inf, math.inf, math.inf, math.inf, math.inf, math.inf, 12.0, True)
+    diverged = Indexes(math.inf, math.inf, math.inf, math.inf, math.inf, math.inf, 12.0, True)
     ctx = FloorContext(runs=[("case1/delay+1", diverged, 1.2)],
                        limits={"u_max": 10.0, "k1s_max": 1e3, "k2s_max": 1e3}, drive_u_max=10.0)
     off = resolve_gate(gate_from_mapping({"gate": {"no_divergence": False}}), lsb=1e-6, travel=0.4, u_max=10.0)

@@ -8,15 +8,15 @@ import pytest
 from commission.gate import GateSpec, evaluate_gate, resolve_gate
 from commission.report import monte_carlo_summary, summary_text, table1_markdown, verdict_text
 from commission.scenarios import VARIANTS
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 NAN = math.nan
 
 
 def sc(e_rms, diverged=False):
     if diverged:
-        return Score(NAN, NAN, NAN, NAN, NAN, NAN, 10.0, True)
-    return Score(10 * e_rms, 3 * e_rms, e_rms, 0.2, 0.06, 0.3, 0.7, False)
+        return Indexes(NAN, NAN, NAN, NAN, NAN, NAN, 10.0, True)
+    return Indexes(10 * e_rms, 3 * e_rms, e_rms, 0.2, 0.06, 0.3, 0.7, False)
 
 
 def run(name, tags, arc, pid):

@@ -23,7 +23,7 @@ from commission.tune.settings import DEFAULT_SETTINGS
 
 #: The yardstick's pole grid of the default settings, as fractions of the sample rate.
 FRACTIONS = DEFAULT_SETTINGS.yardstick_pole_fractions
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 def _evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
@@ -33,7 +33,7 @@ def _evaluator(c_u_per_kd: float, n: int = 3) -> SimpleNamespace:
     def scores(kind, packs):
         assert kind == KIND_PID
         calls.append(len(packs))
-        return [[Score(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD],
+        return [[Indexes(e_M=1e-5, e_F=1e-6, e_rms=1e-6, u_rms=1.0, du_rms=c_u_per_kd * p[G_KD],
                        c_u=c_u_per_kd * p[G_KD] * (1 + 0.1 * i), u_peak=1.0, diverged=False) for i in range(n)]
                 for p in packs]
     return SimpleNamespace(scores=scores, weights=[1.0] * n, calls=calls)

@@ -17,7 +17,7 @@ import numpy as np
 
 from commission.gate.check import Check, um
 from commission.gate.limits import GateLimits
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 #: The quantiles judged, criterion name -> quantile.
 ARC_VS_PID_QUANTILES = {"arc_vs_pid_median": 0.5, "arc_vs_pid_p90": 0.9}
@@ -33,7 +33,7 @@ def scenario_group(name: str) -> str:
     return "monte_carlo" if name.startswith("mc/") else "fixed"
 
 
-def required_factor(arc: Score, pid: Score, slack: float) -> float:
+def required_factor(arc: Indexes, pid: Indexes, slack: float) -> float:
     """The smallest factor f with ``ARC e_rms <= f x PID e_rms + slack`` on one scenario.
 
     0 where the PID diverged (or its e_rms is undefined) and the ARC did not; inf where the ARC
@@ -51,7 +51,7 @@ def required_factor(arc: Score, pid: Score, slack: float) -> float:
     return excess / pid.e_rms if pid.e_rms > 0 else math.inf
 
 
-def arc_vs_pid_quantile_checks(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> list[Check]:
+def arc_vs_pid_quantile_checks(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]]) -> list[Check]:
     """The ARC-vs-PID judgement by quantiles: per group of scenarios (fixed, Monte-Carlo), the median
     and the 90th percentile of :func:`required_factor` against ``arc_vs_pid_median`` and
     ``arc_vs_pid_p90``.
@@ -60,7 +60,7 @@ def arc_vs_pid_quantile_checks(limits: GateLimits, runs: Sequence[tuple[str, Sco
     factor of a diverged ARC counts as one scenario).  Each check's detail names the group's worst
     scenario and its ARC/PID e_rms, reported, not judged on its own.
     """
-    groups: dict[str, list[tuple[float, str, Score, Score]]] = {}
+    groups: dict[str, list[tuple[float, str, Indexes, Indexes]]] = {}
     for name, arc, pid, _t in runs:
         groups.setdefault(scenario_group(name), []).append((required_factor(arc, pid, limits.arc_vs_pid_slack),
                                                             name, arc, pid))
@@ -86,7 +86,7 @@ def arc_vs_pid_quantile_checks(limits: GateLimits, runs: Sequence[tuple[str, Sco
     return out
 
 
-def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> list[Check]:
+def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]]) -> list[Check]:
     """The ARC beats the yardstick on the identified plant: one check per case (criterion ``arc_vs_pid_nominal``).
 
     Per case (``case1``, ``case2``, ...), over its scenarios that are the identified plant
@@ -108,7 +108,7 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Scor
     ``inf`` where the ARC diverged in one of the case's runs; a run whose PID diverged (or has no
     e_rms) is left out of the sum (the ARC beat it), and a case left without runs gives no check.
     """
-    per_case: dict[str, list[tuple[str, Score, Score]]] = {}
+    per_case: dict[str, list[tuple[str, Indexes, Indexes]]] = {}
     for name, arc, pid, _t in runs:
         if name.startswith("mc/") or "/" not in name:
             continue

@@ -21,7 +21,7 @@ from typing import Any, Callable, Mapping, Sequence
 from commission.gate.check import Check, divergence_check
 from commission.gate.limits import SATURATION_TOL
 from commission.robustness import margin_rows
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class FloorContext:
     A floor that needs more adds an optional field here and an entry in :data:`FLOORS`.
     """
 
-    runs: Sequence[tuple[str, Score, float]]
+    runs: Sequence[tuple[str, Indexes, float]]
     limits: Mapping[str, float]
     drive_u_max: float
     margins: Sequence[Any] = ()

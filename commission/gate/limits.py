@@ -41,7 +41,7 @@ from commission.errors import SpecError
 from commission.formats.gate_toml import ARC_VS_PID_AIM, ERROR_KEYS, GATE, QUANTIZATION_RMS_LSB
 from commission.gate.check import um
 from commission.gate.spec import ErrorLimit, GateSpec
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 #: The defaults below are the table's (:data:`commission.formats.gate_toml.GATE_KEYS`), named here for
 #: the code that reads them.
@@ -248,7 +248,7 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
                       arc_vs_pid_nominal=q_lim["arc_vs_pid_nominal"], absolute=absolute, defaulted=defaulted)
 
 
-def scenario_error_limit(limits: GateLimits, key: str, pid: Score) -> tuple[float, str]:
+def scenario_error_limit(limits: GateLimits, key: str, pid: Indexes) -> tuple[float, str]:
     """The absolute error limit ``key`` (``e_F``, ``e_M``, ``e_rms``) on one scenario, and how it was set.
 
     A limit the user set (gate.toml) applies as given.  A DEFAULTED limit is the axis's default

@@ -20,7 +20,7 @@ from commission.gate.comparison import (COMPARISON_CRITERIA, arc_vs_pid_nominal_
                                         arc_vs_pid_quantile_checks)
 from commission.gate.floors import FloorContext, check_floors
 from commission.gate.limits import SATURATION_TOL, GateLimits, scenario_error_limit
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ class GateVerdict:
         return out
 
 
-def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]],
+def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]],
                   floors: FloorContext | None = None,
                   performance: Collection[str] | None = None, compare_nominal: bool = False) -> GateVerdict:
     """Check every criterion on every scenario.
@@ -141,7 +141,7 @@ def evaluate_gate(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, fl
 SAFETY_CRITERIA = ("divergence", "c_u", "u_peak")
 
 
-def safety_failures(limits: GateLimits, runs: Sequence[tuple[str, Score, Score, float]]) -> list[Check]:
+def safety_failures(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]]) -> list[Check]:
     """The failed SAFETY checks (:data:`SAFETY_CRITERIA`) of ``runs``: divergence (always, whatever
     ``no_divergence`` says: it is a floor), chattering and a clipped command."""
     v = evaluate_gate(dataclasses.replace(limits, no_divergence=True), runs, performance=frozenset())

@@ -15,7 +15,8 @@ from commission.artifacts import Identification
 from commission.controllers.design import KIND_PID
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.spec import Spec
-from commission.tuning import Score, Tuning
+from commission.controllers.metrics import Indexes
+from commission.tuning import Tuning
 from commission.tune.defaults import default_gate_limits
 from commission.tune.objective import Evaluator
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
@@ -38,7 +39,7 @@ def _pid_at(ident: Identification, spec: Spec, pole: float) -> PidGains:
     return pid_baseline(ident, dataclasses.replace(spec, pid_pole=float(pole)))[0]
 
 
-def _within_c_u(scores: Sequence[Score], c_u_limit: float) -> bool:
+def _within_c_u(scores: Sequence[Indexes], c_u_limit: float) -> bool:
     """Every run bounded and its c_u finite and at most ``c_u_limit``."""
     return all(math.isfinite(s.c_u) and s.c_u <= c_u_limit and not s.diverged for s in scores)
 
@@ -54,14 +55,14 @@ class PidBaseline:
         Triple closed-loop pole of (56), rad/s.
     design_mass : float
         M_min = 1/theta_max[0], u-unit s^2/m.
-    scores : list of Score
+    scores : list of Indexes
         On the tuning scenarios, in the Evaluator's order.
     """
 
     gains: PidGains
     pole: float
     design_mass: float
-    scores: list[Score]
+    scores: list[Indexes]
 
 
 def deployable_pid(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: float,
@@ -359,7 +360,7 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
                                      c.radius_plus_one, c.violations)
     m_min = 1.0 / ident.theta.max[0]
     simulated = 0
-    tried: list[tuple[PidCandidate, PidGains, list[Score]]] = []
+    tried: list[tuple[PidCandidate, PidGains, list[Indexes]]] = []
     n = settings.yardstick_batch
     for b in range(settings.yardstick_batches):
         batch = ok[b * n:(b + 1) * n]

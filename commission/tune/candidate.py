@@ -16,7 +16,7 @@ import numpy as np
 
 from commission.controllers.arc import ArcGains
 from commission.controllers.design import FeasibilityReport
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 #: Constraint levels of a candidate: every constraint met, only the gate missed, a margin or
 #: discrete feasibility missed.
@@ -47,7 +47,7 @@ class Candidate:
         Summed violation of the constraints of its level (0 when feasible).
     objective : float
         :func:`commission.tune.objective.cost` (nan: not simulated on every tuning scenario).
-    scores : list of Score or None
+    scores : list of Indexes or None
         On the tuning scenarios (None: not simulated on all of them).
     feasibility : FeasibilityReport or None
         Discrete feasibility (None: not checked, a constraint before it missed).
@@ -62,7 +62,7 @@ class Candidate:
     level: int
     violation: float
     objective: float
-    scores: list[Score] | None
+    scores: list[Indexes] | None
     feasibility: FeasibilityReport | None
     screened: bool = False
 

@@ -19,7 +19,7 @@ from commission.controllers.simulate import simulate_batch
 from commission.gate import ARC_VS_PID_QUANTILES, GateLimits, evaluate_gate, required_factor
 from commission.scenarios import Scenario, plant_substeps, scenario_matrix
 from commission.spec import Spec
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 from commission.tune.defaults import default_gate_limits
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
@@ -82,12 +82,12 @@ class Evaluator:
         return [s.name for s in self.scenarios]
 
     def scores(self, kind: int, ctrl_ps: Sequence[np.ndarray],
-               only: Sequence[int] | None = None) -> list[list[Score]]:
+               only: Sequence[int] | None = None) -> list[list[Indexes]]:
         """``scores[c][j]`` of candidate ``c`` on scenario ``only[j]`` (default: every scenario, in order)."""
         sel = list(range(len(self.scenarios))) if only is None else [int(i) for i in only]
         pos = {si: j for j, si in enumerate(sel)}
         nc, ns = len(ctrl_ps), len(sel)
-        out: list[list[Score | None]] = [[None] * ns for _ in range(nc)]
+        out: list[list[Indexes | None]] = [[None] * ns for _ in range(nc)]
         P = np.stack(ctrl_ps)
         for g in self.groups:
             rows = [j for j, si in enumerate(g.idx) if si in pos]
@@ -102,16 +102,14 @@ class Evaluator:
                                quant=g.quant, disturbance=dist, noise=noise, y0=self.scenarios[g.idx[0]].y0,
                                u_sat=self.spec.u_max, e_abort=self.spec.travel, workers=self.workers)
             # No traces: the kernel's u_peak (recorded samples, also before an abort) is all that is needed.
+            recs = r.scores()
             for c in range(nc):
                 for k, j in enumerate(rows):
-                    row = c * m + k
-                    out[c][pos[g.idx[j]]] = Score(float(r.e_M[row]), float(r.e_F[row]), float(r.e_rms[row]),
-                                                  float(r.u_rms[row]), float(r.du_rms[row]), float(r.c_u[row]),
-                                                  float(r.u_peak[row]), bool(r.diverged[row]))
+                    out[c][pos[g.idx[j]]] = recs[c * m + k]
         return out  # type: ignore[return-value]
 
 
-def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None = None,
+def cost(scores: Sequence[Indexes], spec: Spec, reference: Sequence[Indexes] | None = None,
          weights: Sequence[float] | None = None, gate: GateLimits | None = None,
          settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """Objective of one candidate (lower is better): see the module docstring, step 4.
@@ -188,7 +186,7 @@ def cost(scores: Sequence[Score], spec: Spec, reference: Sequence[Score] | None 
     return out
 
 
-def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score], margin: float = 1.0,
+def quantile_excess(gate: GateLimits, arc: Sequence[Indexes], pid: Sequence[Indexes], margin: float = 1.0,
                     settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """How far the ARC misses the gate's ARC-vs-PID quantiles on these scenarios (0: within), ln units.
 
@@ -213,7 +211,7 @@ def quantile_excess(gate: GateLimits, arc: Sequence[Score], pid: Sequence[Score]
     return total
 
 
-def meets_targets(scores: Sequence[Score], spec: Spec) -> bool:
+def meets_targets(scores: Sequence[Indexes], spec: Spec) -> bool:
     """Every run finite, within e_f and c_u targets and below the input limit."""
     return all(not s.diverged and s.e_F <= spec.e_f and s.c_u <= spec.c_u and s.u_peak < spec.u_max
                for s in scores)
@@ -236,7 +234,7 @@ class HoldoutGate:
         The search's evaluator (tuning scenarios).
     pid : PidGains
         The PID baseline.
-    pid_scores : sequence of Score
+    pid_scores : sequence of Indexes
         The PID's scores on ``ev``'s scenarios.
     rng : numpy.random.Generator
         Draws the hold-out plants.
@@ -248,7 +246,7 @@ class HoldoutGate:
     """
 
     def __init__(self, ident: Identification, spec: Spec, ev: Evaluator, pid: PidGains,
-                 pid_scores: Sequence[Score], *, rng: np.random.Generator, workers: int | None = None,
+                 pid_scores: Sequence[Indexes], *, rng: np.random.Generator, workers: int | None = None,
                  n_plants: int | None = None, settings: TuneSettings = DEFAULT_SETTINGS) -> None:
         n = settings.holdout_plants if n_plants is None else n_plants
         plants = [s for s in scenario_matrix(ident, spec, rng=rng, n_monte_carlo=n) if "monte_carlo" in s.tags]
@@ -264,7 +262,7 @@ class HoldoutGate:
         return len(self.ev_h.scenarios)
 
     def judge(self, gains: Sequence[ArcGains],
-              tune_scores: Sequence[Sequence[Score]] | None = None) -> list[tuple[list[Score], int, float]]:
+              tune_scores: Sequence[Sequence[Indexes]] | None = None) -> list[tuple[list[Indexes], int, float]]:
         """``(tuning-scenario scores, gate failures, excess)`` of each candidate.
 
         ``tune_scores`` (the candidates' scores on the tuning scenarios, when already
@@ -282,7 +280,7 @@ class HoldoutGate:
         return out
 
 
-def gate_excess(limits: GateLimits, arc: Sequence[Score], pid: Sequence[Score],
+def gate_excess(limits: GateLimits, arc: Sequence[Indexes], pid: Sequence[Indexes],
                 margin: float = 1.0, *, yardstick_reach: bool = False,
                 settings: TuneSettings = DEFAULT_SETTINGS) -> float:
     """Summed log-excess of the ARC's indexes over ``margin`` x their gate limits (0: all within).

@@ -65,7 +65,7 @@ from commission.evidence import EvidenceBound
 from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, MarginFloors
 from commission.scenarios import screening_indices
 from commission.spec import Spec
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 from commission.tune.candidate import FEASIBLE, GATE_MISSED, STABILITY_MISSED, Candidate, SearchResult
 from commission.tune.constraints import box_violation, feasibility_violation, margin_violation
 from commission.tune.gains import I_THETA1_0, N_FREE, apply_free, paper_implementable_start
@@ -85,7 +85,7 @@ class Problem:
     spec : Spec
     ident : Identification
         The plant the margins are computed on (mode and delay included).
-    reference : sequence of Score
+    reference : sequence of Indexes
         The PID baseline's scores on ``ev``'s scenarios.
     gate : GateLimits
         validate's default gate for this axis.
@@ -101,7 +101,7 @@ class Problem:
     """
 
     def __init__(self, base: ArcGains, ev: Evaluator, spec: Spec, ident: Identification,
-                 reference: Sequence[Score], gate: GateLimits,
+                 reference: Sequence[Indexes], gate: GateLimits,
                  feasible: Callable[[ArcGains], FeasibilityReport], *, observer_free: bool,
                  target_crossover_hz: float | None = None, settings: TuneSettings = DEFAULT_SETTINGS) -> None:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
@@ -279,13 +279,13 @@ class Problem:
                 for fut in pending.values():
                     fut.cancel()
                 raise
-        first: dict[int, list[Score]] = {i: r[0] for i, r in done.items()}
+        first: dict[int, list[Indexes]] = {i: r[0] for i, r in done.items()}
         screen_excess = {i: r[1] for i, r in done.items()}
-        scores: dict[int, list[Score]] = {}
+        scores: dict[int, list[Indexes]] = {}
         for i, (fs, _, rest) in done.items():
             if rest is None:
                 continue
-            sc: list[Score] = [None] * len(self.ev.scenarios)  # type: ignore[list-item]
+            sc: list[Indexes] = [None] * len(self.ev.scenarios)  # type: ignore[list-item]
             for j, s in zip(self.screen, fs):
                 sc[j] = s
             for j, s in zip(self.rest, rest):
@@ -314,7 +314,7 @@ class Problem:
         return out
 
     def _simulate_candidate(self, pack: np.ndarray,
-                            ref_screen: Sequence[Score]) -> tuple[list[Score], float, list[Score] | None]:
+                            ref_screen: Sequence[Indexes]) -> tuple[list[Indexes], float, list[Indexes] | None]:
         """``(screen scores, their gate excess, the other scenarios' scores or None)`` of one gain set.
 
         The gate on the screening scenarios first; the rest only when the excess is at most

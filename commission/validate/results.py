@@ -19,7 +19,7 @@ from commission.evidence import Evidence, RobustStability
 from commission.formats.validation_json import RUN_KEYS, VALIDATION_KIND, VALIDATION_SCHEMA_VERSION
 from commission.robustness import CONTROLLERS, BoxRobustness, LoopMargins, MarginFloors, worst
 from commission.scenarios import plant_substeps
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 
 Progress = Callable[[int, int], None]
@@ -49,7 +49,7 @@ class RunRecord:
     ----------
     name : str
     tags : tuple of str
-    arc, pid : Score
+    arc, pid : Indexes
         Indexes (SI units; NaN when diverged) and the peak |u|.
     arc_t_abort, pid_t_abort : float
         Time of the abort, s (NaN when the run completed).
@@ -61,8 +61,8 @@ class RunRecord:
 
     name: str
     tags: tuple[str, ...]
-    arc: Score
-    pid: Score
+    arc: Indexes
+    pid: Indexes
     arc_t_abort: float
     pid_t_abort: float
     theta_final: tuple[float, float, float]
@@ -236,7 +236,7 @@ def _nn(x: float) -> float | None:
 def _json_value(v: Any) -> Any:
     """A record's value as JSON holds it: a score as its dict, a tuple as a list, a number that is not
     finite as null."""
-    if isinstance(v, Score):
+    if isinstance(v, Indexes):
         return v.to_dict()
     if isinstance(v, tuple):
         return [_json_value(x) for x in v]

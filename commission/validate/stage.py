@@ -31,7 +31,8 @@ from commission.robustness import (BoxArcCheck, MarginFloors, margin_table, iden
 from commission.scenarios import (PAYLOAD_BISECTIONS, largest_safe_payload, payload_heavy_at, plant_substeps,
                                   scenario_matrix)
 from commission.spec import check_flags
-from commission.tuning import Score, Tuning
+from commission.controllers.metrics import Indexes
+from commission.tuning import Tuning
 from commission.units import axis_units_context
 from commission.validate.results import DEFAULT_MONTE_CARLO, Progress, RunRecord, Trace, ValidationResult
 from commission.validate.guards import deployable_gains, runtime_guards
@@ -39,7 +40,7 @@ from commission.validate.guards import deployable_gains, runtime_guards
 
 @dataclass(frozen=True)
 class _Outcome:
-    score: Score
+    score: Indexes
     t_abort: float
     theta_final: tuple[float, float, float]
     sim: SimResult | None
@@ -48,14 +49,6 @@ class _Outcome:
 def _theta_true(plant: np.ndarray) -> tuple[float, float, float]:
     M = float(plant[P_M])
     return (1.0 / M, float(plant[P_B]) / M, -float(plant[P_OFFSET]) / M)
-
-
-def _score(r: SimResult) -> Score:
-    peak = float(np.max(np.abs(r.u))) if r.n_steps > 0 else math.nan
-    if r.indexes is None:
-        return Score(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, peak, True)
-    i = r.indexes
-    return Score(i.e_M, i.e_F, i.e_rms, i.u_rms, i.du_rms, i.c_u, peak, False)
 
 
 def _t_abort(r: SimResult, Ts: float) -> float:
@@ -86,7 +79,7 @@ def _simulate_one(ctx: _SimContext, s: Any, kind: int, keep: bool) -> _Outcome:
                  e_abort=ctx.e_abort)
     th = r.theta_hat
     final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
-    score, t_abort = _score(r), _t_abort(r, ctx.Ts)
+    score, t_abort = r.score(), _t_abort(r, ctx.Ts)
     k = latched_fault_start(r) if kind == KIND_ARC and not r.diverged else None
     if k is not None:
         # A latched runtime guard (the safe command 0 to the end) stops the machine: a safety failure on
