@@ -19,8 +19,9 @@ Modules
 * :mod:`~commission.report.margins`: the stability margins and the whole theta box;
 * :mod:`~commission.report.text`: numbers rounded for people and input text escaped for Markdown
   (:func:`md_code`, :func:`md_text`);
-* :mod:`~commission.report.labels`: every word table (index labels, scales and formats; case titles;
-  criterion and parameter wording; figure captions).
+* :mod:`~commission.report.labels`: every word table (index headings from the one index table,
+  :data:`commission.controllers.metrics.INDEX_TABLE`; case titles; criterion and parameter wording;
+  figure captions).
 """
 
 from commission.report.discussion import excitation_level, pid_limit_cycle, theta_convergence

@@ -1,32 +1,37 @@
-"""Every word table of the report: index labels and display scales, case titles, criterion and
-parameter wording, figure captions.
+"""Every word table of the report: index headings, case titles, criterion and parameter wording,
+figure captions.
 
-The index table (:data:`INDEXES`) is the report's only copy of the performance indexes' labels,
-scales and formats (Table 1 of Xu & Yao 2001: e_M, e_F, ‖e‖rms in the small length unit, ‖u‖rms,
-‖Δu‖rms in the command's unit, c_u), plus the peak command; the Table-1 tables, the Monte-Carlo
-table and the stdout summary all read it, so a label or a scale is changed here once.  Markdown
-tables use "‖" (U+2016) for the norm bars, since "|" separates cells.
+The performance indexes' names, labels, units, display scales and formats are the one table of
+:data:`commission.controllers.metrics.INDEX_TABLE` (Table 1 of Xu & Yao 2001: e_M, e_F, ‖e‖rms in
+the small length unit, ‖u‖rms, ‖Δu‖rms in the command's unit, c_u; then the peak input); the
+report only words the peak input its own way (:func:`index_heading`).  Markdown tables use "‖"
+(U+2016) for the norm bars, since "|" separates cells.
 """
 
 from __future__ import annotations
 
-#: Index -> (label, display scale, format).  In a label ``{s}`` is the small length unit
-#: (um, or urad on a rotary axis) and ``{u}`` the command's unit; the scale takes m (rad) to it.
-INDEXES = {
-    "e_M": ("e_M ({s})", 1e6, "{:.3g}"),
-    "e_F": ("e_F ({s})", 1e6, "{:.3g}"),
-    "e_rms": ("‖e‖rms ({s})", 1e6, "{:.3g}"),
-    "u_rms": ("‖u‖rms ({u})", 1.0, "{:.3g}"),
-    "du_rms": ("‖Δu‖rms ({u})", 1.0, "{:.3g}"),
-    "c_u": ("c_u", 1.0, "{:.2f}"),
-    "u_peak": ("peak command ({u})", 1.0, "{:.3g}"),
-}
+from dataclasses import replace
+
+from commission.controllers.metrics import INDEX_NAMES, INDEX_ROWS
+
 #: The rows of Table 1 of the paper, in its order.
-TABLE1 = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u")
+TABLE1 = INDEX_NAMES
 #: The indexes summed up over the Monte-Carlo plants (median and worst).
 MONTE_CARLO = ("e_M", "e_F", "e_rms", "c_u", "u_peak")
 #: Format of every cell of the Monte-Carlo table (c_u included: medians and worst values).
 MONTE_CARLO_FORMAT = "{:.3g}"
+#: The report's word for an index where it is not the table's label ("|" would split a Markdown cell).
+_WORDING = {"u_peak": "peak command"}
+
+
+def index_heading(key: str, small: str, u: str) -> str:
+    """``label (unit)`` of index ``key`` as the report's tables print it.
+
+    ``small`` is the scaled position unit (um, or urad on a rotary axis), ``u`` the command's unit.
+    """
+    row = INDEX_ROWS[key]
+    return (replace(row, label=_WORDING[key]) if key in _WORDING else row).heading(small, u)
+
 
 CASE_TITLE = {"case1": "Case 1 (sinusoid through filter (58))", "case2": "Case 2 (back-and-forth point-to-point moves)",
               "user": "The machine's own moves (spec [trajectory] file or [[trajectory.move]])"}

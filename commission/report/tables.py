@@ -3,7 +3,7 @@ summary, the parameter estimates at the end of each fixed scenario, and the gate
 
 Table 1's layout: one column pair (PID, ARC) per scenario, rows e_M, e_F, ‖e‖rms (um),
 ‖u‖rms, ‖Δu‖rms (u-unit) and c_u; labels, scales and formats from
-:data:`commission.report.labels.INDEXES`.
+:data:`commission.controllers.metrics.INDEX_TABLE`.
 """
 
 from __future__ import annotations
@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
+from commission.controllers.metrics import INDEX_ROWS
 from commission.gate import CRITERIA, DEFAULT_ARC_VS_PID_NOMINAL
-from commission.report.labels import CRITERION_TEXT, INDEXES, MONTE_CARLO, MONTE_CARLO_FORMAT, TABLE1
+from commission.report.labels import CRITERION_TEXT, MONTE_CARLO, MONTE_CARLO_FORMAT, TABLE1, index_heading
 from commission.report.text import index_cell, scaled
 from commission.scenarios.matrix import VARIANTS
 from commission.units import unit as unit_of
@@ -29,8 +30,7 @@ def table1_markdown(result: Any, case: str, unit: str) -> str:
     lines = [head, sep]
     for key in TABLE1:
         cells = [c for n in names for c in (index_cell(runs[n].pid, key), index_cell(runs[n].arc, key))]
-        label = INDEXES[key][0].format(u=unit, s=unit_of('small', result.units))
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        lines.append(f"| {index_heading(key, unit_of('small', result.units), unit)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -62,9 +62,8 @@ def monte_carlo_markdown(result: Any, unit: str) -> list[str]:
          "| | ARC median | ARC worst | PID median | PID worst |", "|---|---:|---:|---:|---:|"]
     small = unit_of("small")
     for key in MONTE_CARLO:
-        label, scale, _ = INDEXES[key]
-        cells = [scaled(x, MONTE_CARLO_FORMAT, scale) for ctrl in ("arc", "pid") for x in mc[ctrl][key]]
-        L.append(f"| {label.format(s=small, u=unit)} | " + " | ".join(cells) + " |")
+        cells = [scaled(x, MONTE_CARLO_FORMAT, INDEX_ROWS[key].scale) for ctrl in ("arc", "pid") for x in mc[ctrl][key]]
+        L.append(f"| {index_heading(key, small, unit)} | " + " | ".join(cells) + " |")
     L.append(f"| diverged | {mc['arc']['diverged']} | | {mc['pid']['diverged']} | |")
     L.append("")
     L.append(f"ARC e_rms no worse than PID on {mc['arc_better']} of {mc['n']} plants.")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
-from commission.report.labels import INDEXES
+from commission.controllers.metrics import INDEX_ROWS
 
 
 def md_code(text: object) -> str:
@@ -46,9 +46,10 @@ def scaled(v: float, fmt: str, scale: float) -> str:
 
 
 def index_cell(score: Any, key: str, fmt: str | None = None) -> str:
-    """One index of a run (:class:`commission.tuning.Score`) at its display scale and format
-    (:data:`commission.report.labels.INDEXES`; ``fmt`` overrides the format), ``diverged`` for a run that did."""
+    """One index of a run (:class:`commission.controllers.metrics.Indexes`) at its display scale and
+    format (:data:`commission.controllers.metrics.INDEX_TABLE`; ``fmt`` overrides the format),
+    ``diverged`` for a run that did."""
     if score.diverged:
         return "diverged"
-    _, scale, default = INDEXES[key]
-    return scaled(getattr(score, key), fmt or default, scale)
+    row = INDEX_ROWS[key]
+    return scaled(getattr(score, key), fmt or row.fmt, row.scale)

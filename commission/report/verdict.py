@@ -13,7 +13,7 @@ import math
 from typing import Any
 
 from commission.gate import safe_not_better, search_infeasible_line
-from commission.report.labels import INDEXES
+from commission.controllers.metrics import INDEX_ROWS
 from commission.report.text import index_cell, md_text, scaled
 from commission.tuning import Tuning
 from commission.units import unit as unit_of
@@ -36,8 +36,7 @@ def summary_rows(result: Any) -> tuple[list[str], list[list[str]]]:
     rows: list[list[str]] = []
 
     def shown(value: float, key: str) -> str:
-        _, scale, fmt = INDEXES[key]
-        return scaled(value, fmt, scale)
+        return scaled(value, INDEX_ROWS[key].fmt, INDEX_ROWS[key].scale)
 
     for r in result.runs:
         if "monte_carlo" in r.tags:
