@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
+from commission.evidence import evidence_limited_line, evidence_lines, excite_command, limits_toml
 from commission.gate import safe_not_better, search_infeasible_line
 from commission.next_steps import next_steps
 from commission.report.discussion import discussion_markdown
@@ -56,8 +57,6 @@ def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
     The band the log backs, the robust-stability peak of each loop above it, and the
     ``commission excite`` command with a limits.toml sketch that would raise it.
     """
-    from commission.evidence import evidence_lines, excite_command, limits_toml
-
     ev = getattr(result, "evidence", None)
     if ev is None:
         return []
@@ -124,8 +123,6 @@ def _verdict_section(result: Any, tuning: Tuning) -> list[str]:
             L.append(f"- {line}")
     else:
         L.extend(_search_miss_lines(tuning))
-        from commission.evidence import evidence_limited_line  # evidence imports this module's helpers
-
         missing = evidence_limited_line(result)
         if missing is not None:
             L.extend([f"**{md_text(missing)}**", ""])

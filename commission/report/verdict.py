@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from commission.evidence import evidence_limited_line
 from commission.gate import safe_not_better, search_infeasible_line
 from commission.controllers.metrics import INDEX_ROWS
 from commission.report.text import index_cell, md_text, scaled
@@ -102,8 +103,6 @@ def refusal_lines(result: Any, tuning: Tuning) -> list[str]:
     the deployable choices (:func:`not_better_lines`), the search's own refusal
     (:func:`commission.gate.search_infeasible_line`) and a refusal for want of evidence
     (:func:`commission.evidence.evidence_limited_line`), each when it applies."""
-    from commission.evidence import evidence_limited_line  # evidence imports this module's helpers
-
     out = not_better_lines(result, tuning) if safe_not_better(result.verdict) else []
     out += [x for x in (search_infeasible_line(tuning.search), evidence_limited_line(result)) if x is not None]
     return out
