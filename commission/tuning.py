@@ -66,8 +66,6 @@ class Provenance:
     ident_path: str
 
 
-#: The one record of a run's indexes (:class:`commission.controllers.metrics.Indexes`).
-Score = Indexes  # alias kept until the callers are renamed
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ The kernel is compiled so that the batch simulator can call it per scenario.
 This module holds the one definition of the indexes: :class:`Indexes`, the record of one run
 (the six indexes, the peak input and whether it diverged) that tune, validate, the gate, the
 report and the paper table share; :func:`batch_indexes`, the same records from a batch's
-columns; and :data:`INDEX_TABLE`, each index's name, label, unit and display scale, from which
+columns; and :data:`INDEX_TABLE` (defined in :mod:`.index_table`, re-exported here), each index's name, label, unit and display scale, from which
 tables and file formats take their rows.
 """
 
@@ -28,65 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from commission.controllers.index_table import (INDEX_NAMES, INDEX_ROWS, INDEX_TABLE,  # noqa: F401 (re-exported)
+                                                SCORE_NAMES, IndexRow)
+
 FINAL_WINDOW = 2.0  # s, the paper's e_F window
-
-
-@dataclass(frozen=True)
-class IndexRow:
-    """One row of :data:`INDEX_TABLE`: how an index is named, labelled, scaled and unit-ed.
-
-    Attributes
-    ----------
-    name : str
-        Field of :class:`Indexes` and key in tuning.json / validation.json.
-    label : str
-        Label as the paper prints it (Unicode), without its unit.
-    text : str
-        The same label in plain ASCII, for terminals.
-    unit : str
-        ``"q"`` (the axis position unit: m or rad), ``"u"`` (the command's unit) or ``""``
-        (dimensionless).
-    scale : float
-        Display scale: a ``"q"`` index is shown in micro-units (x 1e6), the rest as stored.
-    fmt : str
-        Display format of the scaled value.
-    doc : str
-        One-line meaning.
-    """
-
-    name: str
-    label: str
-    text: str
-    unit: str
-    scale: float
-    fmt: str
-    doc: str
-
-    def heading(self, q_unit: str, u_unit: str, *, ascii: bool = False) -> str:
-        """``label (unit)``: ``q_unit`` names the *scaled* position unit (e.g. ``um``), ``u_unit``
-        the command's; a dimensionless index has no unit."""
-        unit = {"q": q_unit, "u": u_unit}.get(self.unit, "")
-        name = self.text if ascii else self.label
-        return f"{name} ({unit})" if unit else name
-
-
-#: The one table of the indexes: the six of Section 4.2, then the peak input.  Its order is the
-#: field order of :class:`Indexes` and of the records in tuning.json and validation.json.
-INDEX_TABLE: tuple[IndexRow, ...] = (
-    IndexRow("e_M", "e_M", "e_M", "q", 1e6, "{:.3g}", "maximum |e| (transient)"),
-    IndexRow("e_F", "e_F", "e_F", "q", 1e6, "{:.3g}", "maximum |e| over the final window (final accuracy)"),
-    IndexRow("e_rms", "‖e‖rms", "||e||rms", "q", 1e6, "{:.3g}", "RMS tracking error"),
-    IndexRow("u_rms", "‖u‖rms", "||u||rms", "u", 1.0, "{:.3g}", "RMS input"),
-    IndexRow("du_rms", "‖Δu‖rms", "||du||rms", "u", 1.0, "{:.3g}", "RMS of the input increments (54)"),
-    IndexRow("c_u", "c_u", "c_u", "", 1.0, "{:.2f}", "chattering du_rms / u_rms"),
-    IndexRow("u_peak", "peak |u|", "peak |u|", "u", 1.0, "{:.3g}", "largest |u| over the recorded samples"),
-)
-#: Rows by name.
-INDEX_ROWS: dict[str, IndexRow] = {r.name: r for r in INDEX_TABLE}
-#: The six indexes of Section 4.2 (what :func:`indexes_kernel` returns, in its order).
-INDEX_NAMES: tuple[str, ...] = tuple(r.name for r in INDEX_TABLE[:6])
-#: The numbers of a run's record (the six indexes and ``u_peak``), as tuning.json stores them.
-SCORE_NAMES: tuple[str, ...] = tuple(r.name for r in INDEX_TABLE)
 
 
 def _num_or_null(x: float) -> float | None:

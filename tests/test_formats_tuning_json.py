@@ -38,13 +38,6 @@ def test_the_names_the_table_writes_are_the_controllers():
     assert [n for n, _, _ in tj.PID_GAINS] == [f.name for f in dataclasses.fields(PidGains)]
 
 
-@pytest.mark.parametrize("module", ["json_table.py", "ident_json.py", "tuning_json.py"])
-def test_the_format_modules_import_no_simulation_code(module):
-    src = (ROOT / "commission" / "formats" / module).read_text()
-    imports = re.findall(r"^\s*(?:from|import) (commission\.[\w.]+)", src, re.M)
-    assert imports and all(m.split(".")[1] in ("formats", "errors", "logs") for m in imports), imports
-
-
 def test_a_load_saves_byte_identical():
     # the stored file predates the plant's second mode: its first load adds those entries at their defaults
     first = Tuning.from_dict(copy.deepcopy(DOC)).to_dict()

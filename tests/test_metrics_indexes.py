@@ -19,7 +19,6 @@ from commission.controllers.simulate import KIND_PID, simulate, simulate_batch
 from commission.controllers.trajectory import Trajectory
 from commission.formats import tuning_json
 from commission.paper import paper_controller, reference_plant
-from commission.tuning import Score
 
 TS = 1e-3
 
@@ -38,15 +37,13 @@ def test_table_is_the_record_fields_in_order():
 
 
 def test_tuning_json_rows_agree_with_the_table():
-    # tuning.json's table (commission.formats) names the record's numbers and units itself, as it
-    # imports no simulation code: it must say what the table says.
-    assert tuning_json.SCORE_NAMES == SCORE_NAMES
-    assert {n: tuning_json._SCORE_UNITS[n] for n in SCORE_NAMES} == {r.name: r.unit for r in INDEX_TABLE}
+    # tuning.json's score rows are built from the one table: every index, in its order, with its unit.
+    units = {f.path.rsplit(".", 1)[1]: f.unit for f in tuning_json.score_rows("$.s")[1:-1]}
+    assert units == {r.name: r.unit for r in INDEX_TABLE}
 
 
-def test_score_is_the_one_type():
-    assert Score is Indexes
-    s = Score(1e-6, 2e-7, 3e-7, 0.2, 0.05, 0.25, 0.9, False)
+def test_positional_order_is_the_table_s():
+    s = Indexes(1e-6, 2e-7, 3e-7, 0.2, 0.05, 0.25, 0.9, False)
     assert s == Indexes(e_M=1e-6, e_F=2e-7, e_rms=3e-7, u_rms=0.2, du_rms=0.05, c_u=0.25, u_peak=0.9, diverged=False)
 
 

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 from commission.controllers.metrics import INDEX_ROWS
 from commission.report.tables import monte_carlo_markdown
-from commission.tuning import Score
+from commission.controllers.metrics import Indexes
 
 NAN = math.nan
 
@@ -19,8 +19,8 @@ def _run(name, arc, pid):
 
 def _score(e_rms, c_u, u_peak, diverged=False):
     if diverged:
-        return Score(NAN, NAN, NAN, NAN, NAN, NAN, u_peak, True)
-    return Score(10 * e_rms, 3 * e_rms, e_rms, 0.2, 0.06, c_u, u_peak, False)
+        return Indexes(NAN, NAN, NAN, NAN, NAN, NAN, u_peak, True)
+    return Indexes(10 * e_rms, 3 * e_rms, e_rms, 0.2, 0.06, c_u, u_peak, False)
 
 
 def test_monte_carlo_table_shows_median_and_worst_in_display_units():

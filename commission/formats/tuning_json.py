@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from commission.controllers.index_table import INDEX_TABLE
 from commission.formats.json_table import Field, build_json_model, header_rows, is_finite_number, rows
 from commission.formats.spec_toml import SPEC_KEYS
 
@@ -29,9 +30,6 @@ PLANT_NAMES = ("M", "B", "fc", "fs", "vs", "xi", "offset", "ripple_amp", "ripple
                "mode_damping", "mode_ratio", "mode_load_side", "delay", "mode2_hz", "mode2_damping",
                "mode2_ratio", "mode2_load_side")
 N_REQUIRED_PLANT = 9
-#: Section-4.2 indexes of a score (SI units), null when the run diverged.
-SCORE_NAMES = ("e_M", "e_F", "e_rms", "u_rms", "du_rms", "c_u", "u_peak")
-_SCORE_UNITS = {"e_M": "q", "e_F": "q", "e_rms": "q", "u_rms": "u", "du_rms": "u", "c_u": "", "u_peak": "u"}
 #: ArcGains fields (:class:`commission.controllers.arc.ArcGains`): name, unit, may be null (infinite).
 ARC_GAINS = (("Ts", "s", False), ("k1", "1/s", False), ("k2", "1/s^2", False), ("w1", "", False),
              ("w2", "", False), ("g1", "", False), ("g2", "", False), ("eps11", "", True), ("eps12", "", True),
@@ -111,7 +109,7 @@ _BOOLS = _list_of(lambda x: isinstance(x, bool), "boolean")
 
 def score_rows(prefix: str) -> list[Field]:
     rows = [Field(prefix, "object", "", f"the {prefix.rsplit('.', 1)[-1].upper()} loop's score", required=True)]
-    rows += [Field(f"{prefix}.{n}", "number", _SCORE_UNITS[n], f"index {n} (null: diverged)") for n in SCORE_NAMES]
+    rows += [Field(f"{prefix}.{r.name}", "number", r.unit, f"index {r.name} (null: diverged)") for r in INDEX_TABLE]
     return rows + [Field(f"{prefix}.diverged", "boolean", "", "the run diverged", required=True)]
 
 
