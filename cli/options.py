@@ -2,20 +2,26 @@
 
 Each factory returns a fresh ``typer.Option`` (typer reads the parameter's default to
 build the command); :func:`identify_options` turns the parsed flags into one
-:class:`commission.identification.IdentifyOptions`, with every check in one place.
+:class:`commission.identification.IdentifyOptions`, with every check in one place, and
+:func:`with_identify_flags` gives a command all of them at once.
 """
 
 from __future__ import annotations
 
 import enum
+import functools
+import inspect
+import typing
 from pathlib import Path
-from typing import Any, List, Optional
+from typing import Any, Callable, List, Optional, TypeVar
 
 import typer
 
 from commission.errors import UsageError
 from commission.identification import BoundsOptions, IdentifyOptions, check_input_gain, parse_fix, payload_from_kg
 from commission.logs import check_counts_per_rev, parse_mapping
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 class Friction(str, enum.Enum):
@@ -136,3 +142,49 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
                               force_constant, disturbance_bound),
         u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear,
         counts_per_rev=counts_per_rev)
+
+
+#: (parameter, flag, type) of every identify flag, in the order --help lists them.
+_IDENTIFY_PARAMS: tuple[tuple[str, str, Any], ...] = (
+    ("map_", "--map", List[str]), ("input_gain", "--input-gain", float), ("u_unit", "--u-unit", Optional[str]),
+    ("sample_rate", "--sample-rate", Optional[float]), ("q_unit", "--q-unit", Optional[str]),
+    ("friction", "--friction", Friction), ("ripple_pitch", "--ripple-pitch", List[float]),
+    ("validate_on", "--validate-on", Optional[Path]), ("k_sigma", "--k-sigma", float),
+    ("model_margin", "--model-margin", float), ("payload_min", "--payload-min", Optional[float]),
+    ("payload_max", "--payload-max", Optional[float]), ("payload_min_kg", "--payload-min-kg", Optional[float]),
+    ("payload_max_kg", "--payload-max-kg", Optional[float]), ("force_constant", "--force-constant", Optional[float]),
+    ("disturbance_bound", "--disturbance-bound", Optional[float]), ("log_format", "--format", Optional[str]),
+    ("resample", "--resample", Optional[float]), ("fix", "--fix", List[str]), ("lead", "--lead", Optional[float]),
+    ("gear", "--gear", Optional[float]), ("counts_per_rev", "--counts-per-rev", Optional[float]),
+)
+
+
+def with_identify_flags(fn: F) -> F:
+    """Give a typer command every identify flag in place of its parameter ``o``, parsed into ``o``.
+
+    ``identify`` and ``run`` take the same flags: they are declared once here (their
+    defaults and help in :data:`_IDENTIFY`), typer sees them where ``o`` stands in the
+    command's signature, and the command receives them as one
+    :class:`commission.identification.IdentifyOptions` (:func:`identify_options`, whose
+    checks run before the command's body).
+    """
+    sig = inspect.signature(fn)
+    hints = typing.get_type_hints(fn)
+    params: list[inspect.Parameter] = []
+    for p in sig.parameters.values():
+        if p.name == "o":
+            params += [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=opt(flag),
+                                         annotation=kind) for name, flag, kind in _IDENTIFY_PARAMS]
+        else:
+            params.append(p.replace(annotation=hints.get(p.name, p.annotation)))
+    names = [name for name, _flag, _kind in _IDENTIFY_PARAMS]
+
+    @functools.wraps(fn)
+    def wrapper(**kwargs: Any) -> Any:
+        o = identify_options(**{name: kwargs.pop(name) for name in names})
+        return fn(o=o, **kwargs)
+
+    wrapper.__signature__ = sig.replace(parameters=params, return_annotation=hints.get("return", None))  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {p.name: p.annotation for p in params}
+    wrapper.__annotations__["return"] = hints.get("return", None)
+    return wrapper  # type: ignore[return-value]
