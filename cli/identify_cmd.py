@@ -202,9 +202,9 @@ def identify_command(
         "of a friction test (one leg per file, both directions), or else logs of one axis fitted together, "
         "each file its own segment.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
-    o: IdentifyOptions = None,  # type: ignore[assignment]  # every identify flag (with_identify_flags)
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot; a friction test: its map)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
+    o: IdentifyOptions = None,  # type: ignore[assignment]  # every identify flag (with_identify_flags)
     plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
         "plan.json of `commission excite` that the one LOG was recorded from: the frequency response is "
         "measured on the plan's injection windows (the log's time starts with the plan's).")),
