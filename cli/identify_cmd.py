@@ -17,9 +17,9 @@ from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
 from commission.files import Outputs
-from commission.cli.options import Friction, identify_options, opt
-from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOutcome, LegsOutcome, expand_log_paths,
-                                       identify_files, identify_log)
+from commission.cli.options import with_identify_flags
+from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome, LegsOutcome,
+                                       expand_log_paths, identify_files, identify_log)
 from commission.jsonio import write_json_atomic
 
 
@@ -194,6 +194,7 @@ def frequency_summary(fr: dict | None) -> str:
 
 @app.command("identify")
 @cli_errors
+@with_identify_flags
 def identify_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
         "Excitation log: .h5/.hdf5, .csv, .mat, .npy/.npz (a 2-D .npy by index: --map t=0 --map q=1 --map u=2) "
@@ -201,30 +202,9 @@ def identify_command(
         "of a friction test (one leg per file, both directions), or else logs of one axis fitted together, "
         "each file its own segment.")),
     out: Path = typer.Option(Path("ident.json"), "--out", "-o", help="Where to write ident.json."),
-    map_: List[str] = opt("--map"),
-    input_gain: float = opt("--input-gain"),
-    u_unit: Optional[str] = opt("--u-unit"),
-    sample_rate: Optional[float] = opt("--sample-rate"),
-    q_unit: Optional[str] = opt("--q-unit"),
-    friction: Friction = opt("--friction"),
-    ripple_pitch: List[float] = opt("--ripple-pitch"),
-    validate_on: Optional[Path] = opt("--validate-on"),
-    k_sigma: float = opt("--k-sigma"),
-    model_margin: float = opt("--model-margin"),
-    payload_min: Optional[float] = opt("--payload-min"),
-    payload_max: Optional[float] = opt("--payload-max"),
-    payload_min_kg: Optional[float] = opt("--payload-min-kg"),
-    payload_max_kg: Optional[float] = opt("--payload-max-kg"),
-    force_constant: Optional[float] = opt("--force-constant"),
-    disturbance_bound: Optional[float] = opt("--disturbance-bound"),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Directory for PNG plots (force fit, friction curve, residuals, Bode plot; a friction test: its map)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --out file and --plot figures."),
-    log_format: Optional[str] = opt("--format"),
-    resample: Optional[float] = opt("--resample"),
-    fix: List[str] = opt("--fix"),
-    lead: Optional[float] = opt("--lead"),
-    gear: Optional[float] = opt("--gear"),
-    counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    o: IdentifyOptions = None,  # type: ignore[assignment]  # every identify flag (with_identify_flags)
     plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
         "plan.json of `commission excite` that the one LOG was recorded from: the frequency response is "
         "measured on the plan's injection windows (the log's time starts with the plan's).")),
@@ -244,12 +224,6 @@ def identify_command(
     Several logs (or a folder) that are all constant-speed legs are a friction test: the friction map and
     curve are identified, and M is reported as not identified unless --fix gives it. Otherwise several logs
     are fitted together, each its own segment: nothing is filtered across the joins between files."""
-    o = identify_options(map_=map_, input_gain=input_gain, u_unit=u_unit, sample_rate=sample_rate, q_unit=q_unit,
-                         friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
-                         model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
-                         payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
-                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
-                         lead=lead, gear=gear, counts_per_rev=counts_per_rev)
     o = dataclasses.replace(o, terms=terms)
     files = expand_log_paths([str(p) for p in logs])
     val_files = expand_log_paths([o.validate_on]) if o.validate_on else []

@@ -2,20 +2,26 @@
 
 Each factory returns a fresh ``typer.Option`` (typer reads the parameter's default to
 build the command); :func:`identify_options` turns the parsed flags into one
-:class:`commission.identification.IdentifyOptions`, with every check in one place.
+:class:`commission.identification.IdentifyOptions`, with every check in one place, and
+:func:`with_identify_flags` gives a command all of them at once.
 """
 
 from __future__ import annotations
 
 import enum
+import functools
+import inspect
+import typing
 from pathlib import Path
-from typing import Any, List, Optional
+from typing import Any, Callable, List, NamedTuple, Optional, TypeVar
 
 import typer
 
 from commission.errors import UsageError
 from commission.identification import BoundsOptions, IdentifyOptions, check_input_gain, parse_fix, payload_from_kg
 from commission.logs import check_counts_per_rev, parse_mapping
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 class Friction(str, enum.Enum):
@@ -40,45 +46,71 @@ GEAR_HELP = ("Gear ratio, motor rad per load rad (> 0): the log's motor angle di
 FRICTION_HELP = ("Friction model. auto: the Stribeck curve when the log supports it, else the Coulomb model "
                  "with a warning; stribeck: refuse a log that does not support it.")
 
-#: flag -> (default, help, metavar or None); the identify options in the order --help lists them.
-_IDENTIFY: dict[str, tuple[Any, str, str | None]] = {
-    "--map": ([], "NAME=SOURCE: contract channel -> name in the file (repeatable).", "NAME=SOURCE"),
-    "--input-gain": (1.0, "Multiplies u before identification (e.g. N/V); other than 1 it needs --u-unit.", None),
-    "--u-unit": (None, "Unit of u after --input-gain (V, N, A, Nm, %); default: the file's (only without "
-                       "--input-gain).", None),
-    "--sample-rate": (None, "Hz, for a file without t.", "HZ"),
-    "--q-unit": (None, Q_UNIT_HELP, None),
-    "--friction": (Friction.auto, FRICTION_HELP, None),
-    "--ripple-pitch": ([], "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, one "
-                           "sinusoid per pitch (e.g. the harmonics of one cogging period).", "P"),
-    "--validate-on": (None, "Second log for the cross-test relative error; identify also takes a folder (its logs "
-                            "read as the identification's: legs, or segments fitted together).", "LOG2"),
-    "--k-sigma": (3.0, "Standard deviations covered by the theta box.", None),
-    "--model-margin": (0.2, "Relative margin on M and B for model error.", None),
-    "--payload-min": (None, "Least added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 0).", None),
-    "--payload-max": (None, "Largest added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 3 M).",
-                      None),
-    "--payload-min-kg": (None, "Least added mass in kg (needs --force-constant).", None),
-    "--payload-max-kg": (None, "Largest added mass in kg (needs --force-constant).", None),
-    "--force-constant": (None, "N per u-unit, to convert kg payloads.", None),
-    "--disturbance-bound": (None, "Largest load force, u-unit (default 10 max(fc, fs)).", None),
-    "--format": (None, "Force the log format: hdf5, csv, mat, epos or npy (default: from the content, then the "
-                       "extension).", None),
-    "--resample": (None, "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
-                         "polling).", "HZ"),
-    "--counts-per-rev": (None, COUNTS_PER_REV_HELP, "N"),
-    "--lead": (None, LEAD_HELP, "M_PER_RAD"),
-    "--gear": (None, GEAR_HELP, "RATIO"),
-    "--fix": ([], "A known parameter, e.g. M=0.027 (u-unit·s²/m, or u-unit·s²/rad on a rotary axis): not fitted; a "
-                  "log without acceleration content then still gives theta and its box.", "NAME=VALUE"),
+class _Flag(NamedTuple):
+    """One identify flag: the command's parameter, its type, default, metavar (None: typer's) and help."""
+
+    param: str
+    kind: Any
+    default: Any
+    metavar: Optional[str]
+    help: str
+
+
+#: Every identify flag, in the order --help lists them (:func:`opt`, :func:`with_identify_flags`).
+_IDENTIFY: dict[str, _Flag] = {
+    "--map": _Flag("map_", List[str], [], "NAME=SOURCE",
+                   "NAME=SOURCE: contract channel -> name in the file (repeatable)."),
+    "--input-gain": _Flag("input_gain", float, 1.0, None,
+                          "Multiplies u before identification (e.g. N/V); other than 1 it needs --u-unit."),
+    "--u-unit": _Flag("u_unit", Optional[str], None, None,
+                      "Unit of u after --input-gain (V, N, A, Nm, %); default: the file's (only without "
+                      "--input-gain)."),
+    "--sample-rate": _Flag("sample_rate", Optional[float], None, "HZ",
+                           "Hz, for a file without t."),
+    "--q-unit": _Flag("q_unit", Optional[str], None, None, Q_UNIT_HELP),
+    "--friction": _Flag("friction", Friction, Friction.auto, None, FRICTION_HELP),
+    "--ripple-pitch": _Flag("ripple_pitch", List[float], [], "P",
+                            "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, "
+                            "one sinusoid per pitch (e.g. the harmonics of one cogging period)."),
+    "--validate-on": _Flag("validate_on", Optional[Path], None, "LOG2",
+                           "Second log for the cross-test relative error; identify also takes a folder (its logs "
+                           "read as the identification's: legs, or segments fitted together)."),
+    "--k-sigma": _Flag("k_sigma", float, 3.0, None,
+                       "Standard deviations covered by the theta box."),
+    "--model-margin": _Flag("model_margin", float, 0.2, None,
+                            "Relative margin on M and B for model error."),
+    "--payload-min": _Flag("payload_min", Optional[float], None, None,
+                           "Least added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 0)."),
+    "--payload-max": _Flag("payload_max", Optional[float], None, None,
+                           "Largest added mass, u-unit·s²/m, or u-unit·s²/rad on a rotary axis (default 3 M)."),
+    "--payload-min-kg": _Flag("payload_min_kg", Optional[float], None, None,
+                              "Least added mass in kg (needs --force-constant)."),
+    "--payload-max-kg": _Flag("payload_max_kg", Optional[float], None, None,
+                              "Largest added mass in kg (needs --force-constant)."),
+    "--force-constant": _Flag("force_constant", Optional[float], None, None,
+                              "N per u-unit, to convert kg payloads."),
+    "--disturbance-bound": _Flag("disturbance_bound", Optional[float], None, None,
+                                 "Largest load force, u-unit (default 10 max(fc, fs))."),
+    "--format": _Flag("log_format", Optional[str], None, None,
+                      "Force the log format: hdf5, csv, mat, epos or npy (default: from the content, then the "
+                      "extension)."),
+    "--resample": _Flag("resample", Optional[float], None, "HZ",
+                        "Interpolate the log onto a uniform grid at HZ first (irregular time stamps, e.g. host "
+                        "polling)."),
+    "--fix": _Flag("fix", List[str], [], "NAME=VALUE",
+                   "A known parameter, e.g. M=0.027 (u-unit·s²/m, or u-unit·s²/rad on a rotary axis): not fitted; "
+                   "a log without acceleration content then still gives theta and its box."),
+    "--lead": _Flag("lead", Optional[float], None, "M_PER_RAD", LEAD_HELP),
+    "--gear": _Flag("gear", Optional[float], None, "RATIO", GEAR_HELP),
+    "--counts-per-rev": _Flag("counts_per_rev", Optional[float], None, "N", COUNTS_PER_REV_HELP),
 }
 
 
 def opt(flag: str) -> Any:
     """A fresh ``typer.Option`` for the identify flag ``flag`` (see :data:`_IDENTIFY`)."""
-    default, help_, metavar = _IDENTIFY[flag]
-    return typer.Option(list(default) if isinstance(default, list) else default, flag, help=help_,
-                        **({"metavar": metavar} if metavar else {}))
+    f = _IDENTIFY[flag]
+    return typer.Option(list(f.default) if isinstance(f.default, list) else f.default, flag, help=f.help,
+                        **({"metavar": f.metavar} if f.metavar else {}))
 
 
 def bounds_options(
@@ -136,3 +168,35 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
                               force_constant, disturbance_bound),
         u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear,
         counts_per_rev=counts_per_rev)
+
+
+def with_identify_flags(fn: F) -> F:
+    """Give a typer command every identify flag in place of its parameter ``o``, parsed into ``o``.
+
+    ``identify`` and ``run`` take the same flags: they are declared once here (their
+    defaults and help in :data:`_IDENTIFY`), typer sees them where ``o`` stands in the
+    command's signature, and the command receives them as one
+    :class:`commission.identification.IdentifyOptions` (:func:`identify_options`, whose
+    checks run before the command's body).
+    """
+    sig = inspect.signature(fn)
+    hints = typing.get_type_hints(fn)
+    params: list[inspect.Parameter] = []
+    for p in sig.parameters.values():
+        if p.name == "o":
+            params += [inspect.Parameter(f.param, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=opt(flag),
+                                         annotation=f.kind) for flag, f in _IDENTIFY.items()]
+        else:
+            params.append(p.replace(annotation=hints.get(p.name, p.annotation)))
+    names = [f.param for f in _IDENTIFY.values()]
+
+    @functools.wraps(fn)
+    def wrapper(**kwargs: Any) -> Any:
+        o = identify_options(**{name: kwargs.pop(name) for name in names})
+        return fn(o=o, **kwargs)
+
+    # typer reads the signature and the type hints: both name the flags, with evaluated types.
+    ret = hints.get("return", None)
+    wrapper.__signature__ = sig.replace(parameters=params, return_annotation=ret)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {**{p.name: p.annotation for p in params}, "return": ret}
+    return wrapper  # type: ignore[return-value]

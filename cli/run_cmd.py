@@ -13,12 +13,13 @@ from rich.markup import escape
 
 from commission.report import refusal_lines
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
-from commission.cli.options import SCHEDULER_HELP, Friction, identify_options, opt
+from commission.cli.options import SCHEDULER_HELP, with_identify_flags
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
 from commission.cli.validate_cmd import SIGN_KEY_HELP, print_next_steps, print_summary
 from commission.controller_config import load_sign_key
 from commission.formats.gate_toml import gate_help
+from commission.identification import IdentifyOptions
 from commission.tune import pid_pole_note
 from commission.pipeline import run_all
 from commission.validate import DEFAULT_MONTE_CARLO
@@ -31,6 +32,7 @@ RUN_HELP = f"""Identify the axis, tune the ARC, validate it; exit 0 with control
 
 @app.command("run", help=RUN_HELP)
 @cli_errors
+@with_identify_flags
 def run_command(
     logs: List[Path] = typer.Argument(..., metavar="LOG...", help=(
         "Excitation log: .h5/.hdf5, .csv, .mat, .npy/.npz or an EPOS recorder CSV (docs/interface.md §1). "
@@ -44,28 +46,7 @@ def run_command(
     workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
     sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="tcp://HOST:PORT", help=SCHEDULER_HELP),
-    map_: List[str] = opt("--map"),
-    input_gain: float = opt("--input-gain"),
-    u_unit: Optional[str] = opt("--u-unit"),
-    sample_rate: Optional[float] = opt("--sample-rate"),
-    q_unit: Optional[str] = opt("--q-unit"),
-    friction: Friction = opt("--friction"),
-    ripple_pitch: List[float] = opt("--ripple-pitch"),
-    validate_on: Optional[Path] = opt("--validate-on"),
-    k_sigma: float = opt("--k-sigma"),
-    model_margin: float = opt("--model-margin"),
-    payload_min: Optional[float] = opt("--payload-min"),
-    payload_max: Optional[float] = opt("--payload-max"),
-    payload_min_kg: Optional[float] = opt("--payload-min-kg"),
-    payload_max_kg: Optional[float] = opt("--payload-max-kg"),
-    force_constant: Optional[float] = opt("--force-constant"),
-    disturbance_bound: Optional[float] = opt("--disturbance-bound"),
-    log_format: Optional[str] = opt("--format"),
-    resample: Optional[float] = opt("--resample"),
-    fix: List[str] = opt("--fix"),
-    lead: Optional[float] = opt("--lead"),
-    gear: Optional[float] = opt("--gear"),
-    counts_per_rev: Optional[float] = opt("--counts-per-rev"),
+    o: IdentifyOptions = None,  # type: ignore[assignment]  # every identify flag (with_identify_flags)
     plan: Optional[Path] = typer.Option(None, "--plan", metavar="PLAN_JSON", help=(
         "plan.json of `commission excite` that the one LOG was recorded from, passed to identify: the frequency "
         "response is measured on the plan's injection windows (default: a plan.json beside the LOG, if it is "
@@ -76,12 +57,6 @@ def run_command(
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
-    o = identify_options(map_=map_, input_gain=input_gain, u_unit=u_unit, sample_rate=sample_rate, q_unit=q_unit,
-                         friction=friction, ripple_pitch=ripple_pitch, validate_on=validate_on, k_sigma=k_sigma,
-                         model_margin=model_margin, payload_min=payload_min, payload_max=payload_max,
-                         payload_min_kg=payload_min_kg, payload_max_kg=payload_max_kg, force_constant=force_constant,
-                         disturbance_bound=disturbance_bound, log_format=log_format, resample=resample, fix=fix,
-                         lead=lead, gear=gear, counts_per_rev=counts_per_rev)
     if plan is not None:
         from commission.errors import UsageError
         from commission.excite import load_plan_json

@@ -144,7 +144,57 @@ def check_log(
     t, q, u = log.t, log.q, log.u
     n = log.n
 
-    # 1. Finite samples.
+    _check_finite(log, src)  # 1. finite samples
+    rate, dt_max_dev, dt_rel_std = _check_time_base(t, n, src, dt_tolerance)  # 2. time base
+
+    # 3. Length.
+    duration = n / rate if n >= 2 else 0.0
+    if n < min_samples or duration < min_duration:
+        raise DataError(
+            f"{src}: log too short: {n} samples over {duration:.4g} s; identification needs at "
+            f"least {min_samples} samples and {min_duration:g} s (the zero-phase filters and the "
+            "decimation lose samples at both ends)"
+        )
+
+    # 4. Motion and excitation.
+    q_unit = "rad" if log.q_unit_in_file == "rad" else "m"  # q is in m once read, unless rotary
+    q_min, q_max = float(q.min()), float(q.max())
+    if q_min == q_max:
+        raise DataError(f"{src}: channel q: constant (all {n} samples = {q_min!r} {q_unit}); the axis never moved")
+    u_min, u_max = float(u.min()), float(u.max())
+    if u_min == u_max:
+        raise DataError(
+            f"{src}: channel u: constant command (all {n} samples = {u_min!r}); nothing excites the axis"
+        )
+
+    warns: list[str] = []
+    if log.q_ref is None:
+        warns.append("q_ref absent: tracking error cannot be reported")
+
+    # 5. Saturation.
+    rail_fraction = _check_saturation(u, n, u_min, u_max, src, saturation_fraction, saturation_min_run, warns)
+
+    step, resolution = encoder_grid(q)
+    if step is None:
+        warns.append(
+            f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} {q_unit}): the record may be "
+            "resampled or filtered, so the encoder resolution is unknown"
+        )
+
+    warns += plausibility_warnings(t, q, step, rotary=log.q_unit_in_file == "rad", u_unit=log.u_unit)
+
+    return CheckReport(
+        source=src, n=n, sample_rate=rate, duration=duration,
+        dt_max_deviation=dt_max_dev, dt_relative_std=dt_rel_std,
+        quantization_step=step, apparent_resolution=resolution,
+        q_range=(q_min, q_max), u_range=(u_min, u_max), u_rail_fraction=rail_fraction,
+        warnings=tuple(warns),
+    )
+
+
+def _check_finite(log: ExcitationLog, src: str) -> None:
+    """Step 1: every sample of t, q, u and q_ref finite (the first bad one named)."""
+    t, q, u = log.t, log.q, log.u
     for name, arr in (("t", t), ("q", q), ("u", u), ("q_ref", log.q_ref)):
         if arr is None:
             continue
@@ -155,7 +205,9 @@ def check_log(
             more = f" ({bad.size} non-finite samples in all)" if bad.size > 1 else ""
             raise DataError(f"{src}: channel {name}: sample {k} is {what}{more}")
 
-    # 2. Time base.
+
+def _check_time_base(t: np.ndarray, n: int, src: str, dt_tolerance: float) -> tuple[float, float, float]:
+    """Step 2: strictly increasing, uniform time; returns (rate [Hz], max and relative std deviation of dt)."""
     with np.errstate(over="ignore", invalid="ignore"):
         dt = np.diff(t)
     dt_max_dev = dt_rel_std = 0.0
@@ -186,32 +238,12 @@ def check_log(
                 f"{100 * dt_max_dev:.3g} %, relative std {100 * dt_rel_std:.3g} %); --resample HZ puts the log "
                 f"on a uniform grid by linear interpolation (its median rate is {rate:.6g} Hz)"
             )
+    return rate, dt_max_dev, dt_rel_std
 
-    # 3. Length.
-    duration = n / rate if n >= 2 else 0.0
-    if n < min_samples or duration < min_duration:
-        raise DataError(
-            f"{src}: log too short: {n} samples over {duration:.4g} s; identification needs at "
-            f"least {min_samples} samples and {min_duration:g} s (the zero-phase filters and the "
-            "decimation lose samples at both ends)"
-        )
 
-    # 4. Motion and excitation.
-    q_unit = "rad" if log.q_unit_in_file == "rad" else "m"  # q is in m once read, unless rotary
-    q_min, q_max = float(q.min()), float(q.max())
-    if q_min == q_max:
-        raise DataError(f"{src}: channel q: constant (all {n} samples = {q_min!r} {q_unit}); the axis never moved")
-    u_min, u_max = float(u.min()), float(u.max())
-    if u_min == u_max:
-        raise DataError(
-            f"{src}: channel u: constant command (all {n} samples = {u_min!r}); nothing excites the axis"
-        )
-
-    warns: list[str] = []
-    if log.q_ref is None:
-        warns.append("q_ref absent: tracking error cannot be reported")
-
-    # 5. Saturation.
+def _check_saturation(u: np.ndarray, n: int, u_min: float, u_max: float, src: str, saturation_fraction: float,
+                      saturation_min_run: int, warns: list[str]) -> float:
+    """Step 5: refuse a command at its rails too long (warn when near); returns the fraction at the rails."""
     rail_fraction = 0.0
     levels = np.unique(u).size
     if levels <= FEW_LEVELS:
@@ -237,23 +269,7 @@ def check_log(
             warns.append(
                 f"u near saturation: {100 * rail_fraction:.3g} % of samples at the rails ({'; '.join(rails)})"
             )
-
-    step, resolution = encoder_grid(q)
-    if step is None:
-        warns.append(
-            f"q is not on a regular grid (smallest nonzero |dq| = {resolution:.3g} {q_unit}): the record may be "
-            "resampled or filtered, so the encoder resolution is unknown"
-        )
-
-    warns += plausibility_warnings(t, q, step, rotary=log.q_unit_in_file == "rad", u_unit=log.u_unit)
-
-    return CheckReport(
-        source=src, n=n, sample_rate=rate, duration=duration,
-        dt_max_deviation=dt_max_dev, dt_relative_std=dt_rel_std,
-        quantization_step=step, apparent_resolution=resolution,
-        q_range=(q_min, q_max), u_range=(u_min, u_max), u_rail_fraction=rail_fraction,
-        warnings=tuple(warns),
-    )
+    return rail_fraction
 
 
 def _rail_runs(u: np.ndarray, rail: float, min_run: int) -> tuple[int, int | None]:

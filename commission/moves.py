@@ -261,6 +261,45 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise SpecError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    header, cols, data_lines = _profile_columns(text, path)
+    if header is None:
+        raise SpecError(f"{path}: empty (a profile has a header t,q[,v,a] and one row per sample)")
+    n = len(cols[0])
+    if n < 2:
+        raise SpecError(f"{path}: {n} data rows; a profile needs at least 2")
+    arr = {c: np.asarray(cols[j], dtype=np.float64) for j, c in enumerate(header)}
+    t = arr["t"]
+    dt = np.diff(t)
+    bad = np.flatnonzero(~(dt > 0))
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise SpecError(f"{path}: row {data_lines[k]}, column t: {float(t[k])!r} s is not after the previous row's "
+                        f"{float(t[k - 1])!r} s (t must increase strictly)")
+    t = t - t[0]
+    q = arr["q"]
+    v = arr["v"] if "v" in arr else np.gradient(q, t)
+    a = arr["a"] if "a" in arr else np.gradient(v, t)
+    v_peak = float(np.max(np.abs(v)))
+    a_peak = float(np.max(np.abs(a)))
+    span = float(np.max(q) - np.min(q))
+    if not (v_peak > 0 and span > 0):
+        raise SpecError(f"{path}: the profile does not move (column q is constant)")
+    vcol = "v" if "v" in arr else "v (the differences of q)"
+    for k in (0, n - 1):
+        if abs(v[k]) > REST_FRACTION * v_peak:
+            where = "start" if k == 0 else "end"
+            raise SpecError(f"{path}: row {data_lines[k]}, column {vcol}: {v[k]:.4g} m/s; the profile must {where} at "
+                            f"rest (|v| <= {REST_FRACTION:g} x its peak {v_peak:.4g} m/s)")
+    return UserProfile(kind="file", label=f"{key_path} = {name!r}", path=path, sha256=digest, end=float(t[-1]),
+                       v_peak=v_peak, a_peak=a_peak, span=span, t=_frozen(t), q=_frozen(q), v=_frozen(v),
+                       a=_frozen(a))
+
+
+def _profile_columns(text: str, path: str) -> tuple[list[str] | None, list[list[float]], list[int]]:
+    """The header, the columns and the line number of each data row of a profile CSV (checked cell by cell).
+
+    The header is row 1 and blank lines are skipped; ``header`` is None for a file without rows.
+    """
     rows = csv.reader(io.StringIO(text))
     header: list[str] | None = None
     cols: list[list[float]] = []
@@ -298,37 +337,7 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
                 raise SpecError(f"{path}: row {line}, column {header[j]}: {shown!r} is not a finite number")
             cols[j].append(x)
         data_lines.append(line)
-    if header is None:
-        raise SpecError(f"{path}: empty (a profile has a header t,q[,v,a] and one row per sample)")
-    n = len(cols[0])
-    if n < 2:
-        raise SpecError(f"{path}: {n} data rows; a profile needs at least 2")
-    arr = {c: np.asarray(cols[j], dtype=np.float64) for j, c in enumerate(header)}
-    t = arr["t"]
-    dt = np.diff(t)
-    bad = np.flatnonzero(~(dt > 0))
-    if bad.size:
-        k = int(bad[0]) + 1
-        raise SpecError(f"{path}: row {data_lines[k]}, column t: {float(t[k])!r} s is not after the previous row's "
-                        f"{float(t[k - 1])!r} s (t must increase strictly)")
-    t = t - t[0]
-    q = arr["q"]
-    v = arr["v"] if "v" in arr else np.gradient(q, t)
-    a = arr["a"] if "a" in arr else np.gradient(v, t)
-    v_peak = float(np.max(np.abs(v)))
-    a_peak = float(np.max(np.abs(a)))
-    span = float(np.max(q) - np.min(q))
-    if not (v_peak > 0 and span > 0):
-        raise SpecError(f"{path}: the profile does not move (column q is constant)")
-    vcol = "v" if "v" in arr else "v (the differences of q)"
-    for k in (0, n - 1):
-        if abs(v[k]) > REST_FRACTION * v_peak:
-            where = "start" if k == 0 else "end"
-            raise SpecError(f"{path}: row {data_lines[k]}, column {vcol}: {v[k]:.4g} m/s; the profile must {where} at "
-                            f"rest (|v| <= {REST_FRACTION:g} x its peak {v_peak:.4g} m/s)")
-    return UserProfile(kind="file", label=f"{key_path} = {name!r}", path=path, sha256=digest, end=float(t[-1]),
-                       v_peak=v_peak, a_peak=a_peak, span=span, t=_frozen(t), q=_frozen(q), v=_frozen(v),
-                       a=_frozen(a))
+    return header, cols, data_lines
 
 
 def parse_profile(table: Mapping[str, Any], source: str, prefix: str = "") -> UserProfile | None:

@@ -206,17 +206,34 @@ def _ramp_time(v: float, a: float, j: float) -> float:
     return v / a + a / j if v * j >= a * a else 2.0 * math.sqrt(v / j)
 
 
-def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale: float = 1.0) -> Plan:
-    """The plan's segments and samples (no pre-simulation: :func:`plan_run` does both).
+@dataclass(frozen=True)
+class _Moves:
+    """The plan's moves before sampling: what :func:`design_plan` samples and fills with injection."""
 
-    Parameters
-    ----------
-    spec : ExciteSpec
-    injection_scale : float
-        Fraction of the designed injection (and bump) amplitude (the pre-simulation lowers it).
-    motion_scale : float
-        Fraction of the designed top speed and acceleration of the moves (the pre-simulation lowers it).
-    """
+    moves: list[Move]
+    #: (name, purpose, info, number of moves) per segment, in order.
+    seg_moves: list[tuple[str, str, dict[str, Any], int]]
+    sine_legs: list[tuple[float, float]]  # (frequency [Hz], cruise [s]) of each stepped-sine leg
+    u_bump: float  # amplitude of the mass doublet [command unit] (0 with a given mass)
+    t_ramp: float  # S-curve ramp time to the injection speed [s]
+    a_mv: float  # acceleration of the ladder moves [q unit/s^2]
+    light: float  # lightest mass of the bracket [kg or kg m^2]
+    heavy: float  # heaviest mass of the bracket [kg or kg m^2]
+
+
+def _cruise_time(wanted: float, pos: float, s: float, v_inj: float, t_ramp: float) -> float:
+    """The cruise [s] of a leg from ``pos`` toward the farther end of the span (the room there is s + |pos|)."""
+    d_max = s + abs(pos) - v_inj * t_ramp
+    return min(wanted, d_max / v_inj)
+
+
+def _cruise_end(pos: float, cruise: float, v_inj: float, t_ramp: float) -> float:
+    """Where a leg from ``pos`` cruising ``cruise`` s at ``v_inj`` ends (toward the farther end)."""
+    return pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
+
+
+def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float) -> _Moves:
+    """The bump, approach, friction ladder, moves, injection and stepped-sine legs and the return, in order."""
     p = spec.plan
     fs = spec.sample_rate
     s = _half_span(spec)
@@ -265,14 +282,12 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
     inj_legs = []
     remaining = p["injection_s"]
     while remaining > 1e-9:
-        # toward the farther end of the span: the room there is s + |pos|
-        d_max = s + abs(pos) - v_inj * t_ramp
-        cruise = min(remaining, d_max / v_inj)
+        cruise = _cruise_time(remaining, pos, s, v_inj, t_ramp)
         if cruise < 0.1:
             raise SpecError(f"{spec.source}: limits.travel = {spec.travel:g} {spec.q_unit} is too short for the "
                             f"injection's cruise at {v_inj:.4g} {spec.q_unit}/s (0.1 s at least); raise travel or "
                             f"lower plan.v_min")
-        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
+        target = _cruise_end(pos, cruise, v_inj, t_ramp)
         inj_legs.append(mv(target, v_inj, a_mv, dwell))
         pos = target
         remaining -= cruise
@@ -285,13 +300,11 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
                        "shaping": p["shaping"] if p["injection"] == "multisine" else 0.0}, len(inj_legs)))
     sine_legs = []
     for f in p["stepped_sine_hz"]:
-        cruise = max(p["sine_cycles"] / f, 0.1)
-        d_max = s + abs(pos) - v_inj * t_ramp
-        cruise = min(cruise, d_max / v_inj)
+        cruise = _cruise_time(max(p["sine_cycles"] / f, 0.1), pos, s, v_inj, t_ramp)
         if cruise < 0.1:
             raise SpecError(f"{spec.source}: limits.travel = {spec.travel:g} {spec.q_unit} is too short for the "
                             f"stepped sine at {f:g} Hz on a cruise at {v_inj:.4g} {spec.q_unit}/s (0.1 s at least)")
-        target = pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
+        target = _cruise_end(pos, cruise, v_inj, t_ramp)
         moves.append(mv(target, v_inj, a_mv, dwell))
         sine_legs.append((f, cruise))
         seg_moves.append((f"sine {f:g} Hz", "stepped sine on a slow cruise (frequency response at one frequency)",
@@ -299,9 +312,11 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
         pos = target
     moves.append(mv(0.0, 0.5 * speeds[-1], a_mv, dwell))
     seg_moves.append(("return", "back to the start position", {}, 1))
+    return _Moves(moves, seg_moves, sine_legs, u_bump, t_ramp, a_mv, light, heavy)
 
-    sched, _move_peaks = scurve_schedule(moves, start=0.0)
-    # Move boundaries: each move's S-curve phases plus its dwell.
+
+def _move_ends(moves: list[Move]) -> list[tuple[float, float, float]]:
+    """Each move's (end time [s], S-curve duration [s], dwell [s]) from the start at 0."""
     ends = []
     t = 0.0
     x = 0.0
@@ -310,6 +325,28 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
         t += sum(dur) + m.dwell
         ends.append((t, sum(dur), m.dwell))
         x = m.to
+    return ends
+
+
+def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale: float = 1.0) -> Plan:
+    """The plan's segments and samples (no pre-simulation: :func:`plan_run` does both).
+
+    Parameters
+    ----------
+    spec : ExciteSpec
+    injection_scale : float
+        Fraction of the designed injection (and bump) amplitude (the pre-simulation lowers it).
+    motion_scale : float
+        Fraction of the designed top speed and acceleration of the moves (the pre-simulation lowers it).
+    """
+    p = spec.plan
+    fs = spec.sample_rate
+    legs = _plan_moves(spec, injection_scale, motion_scale)
+    moves, seg_moves, sine_legs, u_bump, t_ramp = (legs.moves, legs.seg_moves, legs.sine_legs, legs.u_bump,
+                                                   legs.t_ramp)
+    a_mv, light, heavy = legs.a_mv, legs.light, legs.heavy
+    sched, _move_peaks = scurve_schedule(moves, start=0.0)
+    ends = _move_ends(moves)  # each move's S-curve phases plus its dwell
     total = ends[-1][0]
     n = int(math.floor(total * fs)) + 1
     tt = np.arange(n) / fs

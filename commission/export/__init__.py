@@ -333,28 +333,8 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
 
     config = load_controller(cpath, key=key).config
     checked_provenance(config.provenance, cpath)
-    tuning = None
-    tuning_sha = None
-    tpath = None
-    if tuning_path is not None:
-        tpath = os.fspath(tuning_path)
-        tuning = Tuning.from_dict(read_json(tpath), source=tpath)
-        tuning_sha = sha256_file(tpath)
-        if tuning_sha != config.provenance.tuning_sha256:
-            raise UsageError(f"--tuning {tpath}: sha256 {tuning_sha[:16]}... is not the tuning.json "
-                             f"{cpath} was validated from ($.provenance.tuning_sha256 "
-                             f"{config.provenance.tuning_sha256[:16]}...)")
-    if kind == "pid" and tuning is None:
-        raise UsageError("--controller pid: needs --tuning (controller.json holds the ARC; the PID baseline "
-                         "validate simulated is in the tuning.json it records)")
-    if kind == "arc":
-        p = arc_pack(config.gains)
-    else:
-        assert tuning is not None
-        if abs(tuning.pid.Ts - config.gains.Ts) > 1e-12 * config.gains.Ts:
-            raise UsageError(f"--tuning: PID sample period {tuning.pid.Ts} s differs from the controller's "
-                             f"{config.gains.Ts} s")
-        p = pid_pack(tuning.pid)
+    tuning, tuning_sha, tpath = _matched_tuning(tuning_path, config, cpath)
+    p = _packed_gains(kind, config, tuning)
     names = output_names(kind, target)
     _refuse_dangling_link(out_dir)
     outputs = Outputs(force=force, inputs=(cpath, tpath, *inputs))
@@ -379,6 +359,39 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
         outputs.abort()  # Ctrl-C, SIGTERM (SystemExit), a bug: the folder stays as it was
         raise
     return [out / name for name in names]
+
+
+def _matched_tuning(tuning_path: str | os.PathLike[str] | None, config: ControllerConfig,
+                    cpath: str) -> tuple[Tuning | None, str | None, str | None]:
+    """(tuning, its sha256, its path) of ``--tuning``, refused unless it is the tuning.json ``cpath`` records."""
+    tuning = None
+    tuning_sha = None
+    tpath = None
+    if tuning_path is not None:
+        tpath = os.fspath(tuning_path)
+        tuning = Tuning.from_dict(read_json(tpath), source=tpath)
+        tuning_sha = sha256_file(tpath)
+        if tuning_sha != config.provenance.tuning_sha256:
+            raise UsageError(f"--tuning {tpath}: sha256 {tuning_sha[:16]}... is not the tuning.json "
+                             f"{cpath} was validated from ($.provenance.tuning_sha256 "
+                             f"{config.provenance.tuning_sha256[:16]}...)")
+    return tuning, tuning_sha, tpath
+
+
+def _packed_gains(kind: str, config: ControllerConfig, tuning: Tuning | None) -> np.ndarray:
+    """The packed parameters of ``kind``: the ARC of ``config``, or the PID of ``tuning`` at the same period."""
+    if kind == "pid" and tuning is None:
+        raise UsageError("--controller pid: needs --tuning (controller.json holds the ARC; the PID baseline "
+                         "validate simulated is in the tuning.json it records)")
+    if kind == "arc":
+        p = arc_pack(config.gains)
+    else:
+        assert tuning is not None
+        if abs(tuning.pid.Ts - config.gains.Ts) > 1e-12 * config.gains.Ts:
+            raise UsageError(f"--tuning: PID sample period {tuning.pid.Ts} s differs from the controller's "
+                             f"{config.gains.Ts} s")
+        p = pid_pack(tuning.pid)
+    return p
 
 
 def _refuse_dangling_link(out_dir: str | os.PathLike[str]) -> None:

@@ -47,7 +47,7 @@ import inspect
 import math
 import textwrap
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 
 class TranslationError(ValueError):
@@ -103,6 +103,19 @@ class Translator:
     used_constants: dict[str, Any] = field(default_factory=dict)
     _funcs: dict[str, _Func] = field(default_factory=dict)
 
+    # The target's words for what every target writes alike (:meth:`expr`, :meth:`stmts`).
+    ASSIGN: ClassVar[str] = "="
+    NOT: ClassVar[str] = "!"
+    AND: ClassVar[str] = " && "
+    OR: ClassVar[str] = " || "
+    CMPOPS: ClassVar[Mapping[type, str]] = _CMPOPS
+    PI: ClassVar[str] = c_float(math.pi)
+    INF: ClassVar[str] = "INFINITY"
+    RETURN: ClassVar[str] = "return;"
+    RETURN_ARRAY: ClassVar[str] = "out_"  # the caller's buffer of a tuple-returning function
+    IF_WORDS: ClassVar[tuple[tuple[str, str], tuple[str, str], str, str]] = (
+        ("if (", ") {"), ("} else if (", ") {"), "} else {", "}")
+
     def const_name(self, name: str) -> str:
         return f"{self.prefix.upper()}{name}"
 
@@ -156,19 +169,19 @@ class Translator:
         if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub):
             return f"(-{self.expr(f, e.operand)})"
         if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not):
-            return f"(!{self.expr(f, e.operand)})"
+            return f"({self.NOT}{self.expr(f, e.operand)})"
         if isinstance(e, ast.BoolOp):
-            op = " && " if isinstance(e.op, ast.And) else " || "
+            op = self.AND if isinstance(e.op, ast.And) else self.OR
             return "(" + op.join(self.expr(f, v) for v in e.values) + ")"
         if isinstance(e, ast.Compare):
-            if len(e.ops) != 1 or type(e.ops[0]) not in _CMPOPS:
+            if len(e.ops) != 1 or type(e.ops[0]) not in self.CMPOPS:
                 raise self.fail(f, e, "a chained or non-arithmetic comparison")
-            return f"({self.expr(f, e.left)} {_CMPOPS[type(e.ops[0])]} {self.expr(f, e.comparators[0])})"
+            return f"({self.expr(f, e.left)} {self.CMPOPS[type(e.ops[0])]} {self.expr(f, e.comparators[0])})"
         if isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name) and e.value.id == "math":
             if e.attr == "pi":
-                return c_float(math.pi)
+                return self.PI
             if e.attr == "inf":
-                return "INFINITY"
+                return self.INF
             raise self.fail(f, e, f"math.{e.attr}")
         if isinstance(e, ast.Subscript):
             base = e.value
@@ -237,80 +250,121 @@ class Translator:
             return self.expr(f, t)
         raise self.fail(f, t, "this assignment target")
 
+    def _check_tuple_call(self, f: _Func, st: ast.stmt, t: ast.Tuple, v: ast.AST) -> None:
+        """Refuse tuple unpacking of anything but a call of a translated function returning ``len(t.elts)`` values."""
+        if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self._funcs
+                and self._funcs[v.func.id].tuple_len == len(t.elts)):
+            raise self.fail(f, st, "tuple unpacking of anything but a translated tuple-returning call")
+
+    def _check_range_loop(self, f: _Func, st: ast.For) -> None:
+        """Refuse any loop but ``for i in range(a[, b])`` (without ``else``)."""
+        if not (isinstance(st.target, ast.Name) and isinstance(st.iter, ast.Call)
+                and isinstance(st.iter.func, ast.Name) and st.iter.func.id == "range"
+                and 1 <= len(st.iter.args) <= 2 and not st.orelse):
+            raise self.fail(f, st, "a loop other than `for i in range(a[, b])`")
+
+    def _range_bounds(self, f: _Func, st: ast.For) -> tuple[str, str]:
+        """The translated start and stop of a checked ``range`` loop (start "0" when only the stop is given)."""
+        assert isinstance(st.iter, ast.Call)
+        return ("0", self.expr(f, st.iter.args[0])) if len(st.iter.args) == 1 else (
+            self.expr(f, st.iter.args[0]), self.expr(f, st.iter.args[1]))
+
+    def _if_chain(self, f: _Func, st: ast.If, ind: int, head: tuple[str, str], elif_: tuple[str, str],
+                  else_: str, end: str) -> list[str]:
+        """An ``if``/``elif``/``else`` chain in the target's words: ``head`` and ``elif_`` wrap the test."""
+        pad = "    " * ind
+        out = [f"{pad}{head[0]}{self.expr(f, st.test)}{head[1]}"]
+        out.extend(self.stmts(f, st.body, ind + 1))
+        orelse = st.orelse
+        while len(orelse) == 1 and isinstance(orelse[0], ast.If):
+            out.append(f"{pad}{elif_[0]}{self.expr(f, orelse[0].test)}{elif_[1]}")
+            out.extend(self.stmts(f, orelse[0].body, ind + 1))
+            orelse = orelse[0].orelse
+        if orelse:
+            out.append(f"{pad}{else_}")
+            out.extend(self.stmts(f, orelse, ind + 1))
+        out.append(f"{pad}{end}")
+        return out
+
+    def _block(self, f: _Func, body: Sequence[ast.stmt], ind: int, head: str, end: str) -> list[str]:
+        """``head``, the statements of ``body`` one level in, and ``end`` (a loop)."""
+        pad = "    " * ind
+        return [f"{pad}{head}", *self.stmts(f, body, ind + 1), f"{pad}{end}"]
+
+    def _tuple_return(self, f: _Func, value: ast.Tuple, pad: str, array: str, assign: str, ret: str) -> list[str]:
+        """``return a, b, ...``: each value into ``array[i]`` (the caller's buffer), then ``ret``."""
+        return [*(f"{pad}{array}[{i}] {assign} {self.expr(f, el)};" for i, el in enumerate(value.elts)),
+                f"{pad}{ret}"]
+
     def stmts(self, f: _Func, body: Sequence[ast.stmt], ind: int) -> list[str]:
+        """The statements of ``body`` at indent level ``ind``; the target's words come from its hooks."""
         out: list[str] = []
         pad = "    " * ind
         for st in body:
             if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant) and isinstance(st.value.value, str):
                 continue  # docstring
             if isinstance(st, ast.Assign):
-                if len(st.targets) != 1:
-                    raise self.fail(f, st, "a chained assignment")
-                t = st.targets[0]
-                if isinstance(t, ast.Tuple):
-                    v = st.value
-                    if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self._funcs
-                            and self._funcs[v.func.id].tuple_len == len(t.elts)):
-                        raise self.fail(f, st, "tuple unpacking of anything but a translated tuple-returning call")
-                    n = len(t.elts)
-                    self._tmp = max(self._tmp, n)
-                    args = [self.expr(f, a) for a in v.args] + ["tup_"]
-                    out.append(f"{pad}{self.func_name(v.func.id)}({', '.join(args)});")
-                    for i, el in enumerate(t.elts):
-                        out.append(f"{pad}{self.target(f, el)} = tup_[{i}];")
-                    continue
-                if isinstance(t, ast.Name) and isinstance(st.value, ast.Tuple):
-                    if t.id in self._locals and t.id not in self._tuples:
-                        raise self.fail(f, st, f"{t.id} as both a scalar and a tuple")
-                    self._tuples[t.id] = len(st.value.elts)
-                    for i, el in enumerate(st.value.elts):
-                        out.append(f"{pad}{t.id}[{i}] = {self.expr(f, el)};")
-                    continue
-                rhs = self.expr(f, st.value)
-                out.append(f"{pad}{self.target(f, t, st.value)} = {rhs};")
+                out.extend(self.assign(f, st, pad))
             elif isinstance(st, ast.AugAssign) and type(st.op) in (ast.Add, ast.Sub):
                 op = _BINOPS[type(st.op)]
                 tgt = self.target(f, st.target)
                 # Python's x += e is x = x + e: one rounding, the same in C
-                out.append(f"{pad}{tgt} = ({tgt} {op} {self.expr(f, st.value)});")
+                out.append(f"{pad}{tgt} {self.ASSIGN} ({tgt} {op} {self.expr(f, st.value)});")
             elif isinstance(st, ast.If):
-                out.append(f"{pad}if ({self.expr(f, st.test)}) {{")
-                out.extend(self.stmts(f, st.body, ind + 1))
-                orelse = st.orelse
-                while len(orelse) == 1 and isinstance(orelse[0], ast.If):
-                    out.append(f"{pad}}} else if ({self.expr(f, orelse[0].test)}) {{")
-                    out.extend(self.stmts(f, orelse[0].body, ind + 1))
-                    orelse = orelse[0].orelse
-                if orelse:
-                    out.append(f"{pad}}} else {{")
-                    out.extend(self.stmts(f, orelse, ind + 1))
-                out.append(f"{pad}}}")
+                out.extend(self._if_chain(f, st, ind, *self.IF_WORDS))
             elif isinstance(st, ast.For):
-                if not (isinstance(st.target, ast.Name) and isinstance(st.iter, ast.Call)
-                        and isinstance(st.iter.func, ast.Name) and st.iter.func.id == "range"
-                        and 1 <= len(st.iter.args) <= 2 and not st.orelse):
-                    raise self.fail(f, st, "a loop other than `for i in range(a[, b])`")
-                i = st.target.id
-                if self._locals.get(i, "int") != "int":
-                    raise self.fail(f, st, f"{i} as both a loop counter and a float")
-                self._locals[i] = "int"
-                a, b = ("0", self.expr(f, st.iter.args[0])) if len(st.iter.args) == 1 else (
-                    self.expr(f, st.iter.args[0]), self.expr(f, st.iter.args[1]))
-                out.append(f"{pad}for ({i} = {a}; {i} < {b}; {i}++) {{")
-                out.extend(self.stmts(f, st.body, ind + 1))
-                out.append(f"{pad}}}")
+                self._check_range_loop(f, st)
+                out.extend(self.loop(f, st, ind))
             elif isinstance(st, ast.Return):
                 if st.value is None:
-                    out.append(f"{pad}return;")
+                    out.append(f"{pad}{self.RETURN}")
                 elif isinstance(st.value, ast.Tuple):
-                    for i, el in enumerate(st.value.elts):
-                        out.append(f"{pad}out_[{i}] = {self.expr(f, el)};")
-                    out.append(f"{pad}return;")
+                    out.extend(self._tuple_return(f, st.value, pad, self.RETURN_ARRAY, self.ASSIGN, self.RETURN))
                 else:
-                    out.append(f"{pad}return {self.expr(f, st.value)};")
+                    out.extend(self.return_value(f, st.value, pad))
             else:
                 raise self.fail(f, st, f"the statement {type(st).__name__}")
         return out
+
+    def assign(self, f: _Func, st: ast.Assign, pad: str) -> list[str]:
+        """``x = e``, ``a, b = g(...)`` (a translated tuple-returning call) or ``t = (e1, e2)``."""
+        out: list[str] = []
+        if len(st.targets) != 1:
+            raise self.fail(f, st, "a chained assignment")
+        t = st.targets[0]
+        if isinstance(t, ast.Tuple):
+            v = st.value
+            self._check_tuple_call(f, st, t, v)
+            n = len(t.elts)
+            self._tmp = max(self._tmp, n)
+            args = [self.expr(f, a) for a in v.args] + ["tup_"]
+            out.append(f"{pad}{self.func_name(v.func.id)}({', '.join(args)});")
+            for i, el in enumerate(t.elts):
+                out.append(f"{pad}{self.target(f, el)} = tup_[{i}];")
+            return out
+        if isinstance(t, ast.Name) and isinstance(st.value, ast.Tuple):
+            if t.id in self._locals and t.id not in self._tuples:
+                raise self.fail(f, st, f"{t.id} as both a scalar and a tuple")
+            self._tuples[t.id] = len(st.value.elts)
+            for i, el in enumerate(st.value.elts):
+                out.append(f"{pad}{t.id}[{i}] = {self.expr(f, el)};")
+            return out
+        rhs = self.expr(f, st.value)
+        out.append(f"{pad}{self.target(f, t, st.value)} = {rhs};")
+        return out
+
+    def loop(self, f: _Func, st: ast.For, ind: int) -> list[str]:
+        """A checked ``for i in range(a[, b])`` loop; ``i`` must stay an int."""
+        i = st.target.id
+        if self._locals.get(i, "int") != "int":
+            raise self.fail(f, st, f"{i} as both a loop counter and a float")
+        self._locals[i] = "int"
+        a, b = self._range_bounds(f, st)
+        return self._block(f, st.body, ind, f"for ({i} = {a}; {i} < {b}; {i}++) {{", "}")
+
+    def return_value(self, f: _Func, value: ast.expr, pad: str) -> list[str]:
+        """``return e`` of one value."""
+        return [f"{pad}return {self.expr(f, value)};"]
 
     # ------------------------------------------------------------------ functions
     def function(self, f: _Func) -> str:
@@ -400,6 +454,18 @@ class StTranslator(Translator):
     the member ``INF``, made infinite at ``Init`` (ST has no literal for it).
     """
 
+    ASSIGN: ClassVar[str] = ":="
+    NOT: ClassVar[str] = "NOT "
+    AND: ClassVar[str] = " AND "
+    OR: ClassVar[str] = " OR "
+    CMPOPS: ClassVar[Mapping[type, str]] = {**_CMPOPS, ast.Eq: "=", ast.NotEq: "<>"}
+    PI: ClassVar[str] = st_float(math.pi)
+    INF: ClassVar[str] = "INF"  # the member made infinite at Init
+    RETURN: ClassVar[str] = "RETURN;"
+    RETURN_ARRAY: ClassVar[str] = "ret"
+    IF_WORDS: ClassVar[tuple[tuple[str, str], tuple[str, str], str, str]] = (
+        ("IF ", " THEN"), ("ELSIF ", " THEN"), "ELSE", "END_IF;")
+
     def _names(self, f: _Func) -> dict[str, str]:
         # the packed arrays are the function block's members p and s; ret and INF are members too
         seen: dict[str, str] = {"p": "p", "s": "s", "ret": "ret", "inf": "INF"}
@@ -435,19 +501,6 @@ class StTranslator(Translator):
                 self.used_constants[e.id] = val
                 return st_float(val)
             return super().expr(f, e)
-        if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not):
-            return f"(NOT {self.expr(f, e.operand)})"
-        if isinstance(e, ast.BoolOp):
-            op = " AND " if isinstance(e.op, ast.And) else " OR "
-            return "(" + op.join(self.expr(f, v) for v in e.values) + ")"
-        if isinstance(e, ast.Compare) and len(e.ops) == 1 and isinstance(e.ops[0], (ast.Eq, ast.NotEq)):
-            op = "=" if isinstance(e.ops[0], ast.Eq) else "<>"
-            return f"({self.expr(f, e.left)} {op} {self.expr(f, e.comparators[0])})"
-        if isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name) and e.value.id == "math":
-            if e.attr == "pi":
-                return st_float(math.pi)
-            if e.attr == "inf":
-                return "INF"
         if isinstance(e, ast.Subscript) and isinstance(e.value, ast.Name) and e.value.id in self._tuples:
             return f"{self._map.get(e.value.id, e.value.id)}[{self.expr(f, e.slice)}]"
         return super().expr(f, e)
@@ -474,69 +527,33 @@ class StTranslator(Translator):
             return self._map[t.id]
         return name
 
-    def stmts(self, f: _Func, body: Sequence[ast.stmt], ind: int) -> list[str]:
+    def assign(self, f: _Func, st: ast.Assign, pad: str) -> list[str]:
         out: list[str] = []
-        pad = "    " * ind
-        for st in body:
-            if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant) and isinstance(st.value.value, str):
-                continue
-            if isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Tuple):
-                t, v = st.targets[0], st.value
-                if not (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id in self._funcs
-                        and self._funcs[v.func.id].tuple_len == len(t.elts)):
-                    raise self.fail(f, st, "tuple unpacking of anything but a translated tuple-returning call")
-                out.append(f"{pad}{self.call(f, v)};")
-                for i, el in enumerate(t.elts):
-                    out.append(f"{pad}{self.target(f, el)} := ret[{i}];")
-            elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name) and isinstance(st.value, ast.Tuple):
-                name = st.targets[0].id
-                self._tuples[name] = len(st.value.elts)
-                self._map.setdefault(name, name)
-                for i, el in enumerate(st.value.elts):
-                    out.append(f"{pad}{self._map[name]}[{i}] := {self.expr(f, el)};")
-            elif isinstance(st, ast.Assign):
-                rhs = self.expr(f, st.value)
-                out.append(f"{pad}{self.target(f, st.targets[0], st.value)} := {rhs};")
-            elif isinstance(st, ast.AugAssign) and type(st.op) in (ast.Add, ast.Sub):
-                tgt = self.target(f, st.target)
-                out.append(f"{pad}{tgt} := ({tgt} {_BINOPS[type(st.op)]} {self.expr(f, st.value)});")
-            elif isinstance(st, ast.If):
-                out.append(f"{pad}IF {self.expr(f, st.test)} THEN")
-                out.extend(self.stmts(f, st.body, ind + 1))
-                orelse = st.orelse
-                while len(orelse) == 1 and isinstance(orelse[0], ast.If):
-                    out.append(f"{pad}ELSIF {self.expr(f, orelse[0].test)} THEN")
-                    out.extend(self.stmts(f, orelse[0].body, ind + 1))
-                    orelse = orelse[0].orelse
-                if orelse:
-                    out.append(f"{pad}ELSE")
-                    out.extend(self.stmts(f, orelse, ind + 1))
-                out.append(f"{pad}END_IF;")
-            elif isinstance(st, ast.For):
-                if not (isinstance(st.target, ast.Name) and isinstance(st.iter, ast.Call)
-                        and isinstance(st.iter.func, ast.Name) and st.iter.func.id == "range"
-                        and 1 <= len(st.iter.args) <= 2 and not st.orelse):
-                    raise self.fail(f, st, "a loop other than `for i in range(a[, b])`")
-                self._locals[st.target.id] = "int"
-                i = self._map[st.target.id]
-                a, b = ("0", self.expr(f, st.iter.args[0])) if len(st.iter.args) == 1 else (
-                    self.expr(f, st.iter.args[0]), self.expr(f, st.iter.args[1]))
-                out.append(f"{pad}FOR {i} := {a} TO {b} - 1 DO")
-                out.extend(self.stmts(f, st.body, ind + 1))
-                out.append(f"{pad}END_FOR;")
-            elif isinstance(st, ast.Return):
-                if st.value is None:
-                    out.append(f"{pad}RETURN;")
-                elif isinstance(st.value, ast.Tuple):
-                    for i, el in enumerate(st.value.elts):
-                        out.append(f"{pad}ret[{i}] := {self.expr(f, el)};")
-                    out.append(f"{pad}RETURN;")
-                else:
-                    out.append(f"{pad}{self.func_name(f.name)} := {self.expr(f, st.value)};")
-                    out.append(f"{pad}RETURN;")
-            else:
-                raise self.fail(f, st, f"the statement {type(st).__name__}")
+        if isinstance(st.targets[0], ast.Tuple):
+            t, v = st.targets[0], st.value
+            self._check_tuple_call(f, st, t, v)
+            out.append(f"{pad}{self.call(f, v)};")
+            for i, el in enumerate(t.elts):
+                out.append(f"{pad}{self.target(f, el)} := ret[{i}];")
+        elif isinstance(st.targets[0], ast.Name) and isinstance(st.value, ast.Tuple):
+            name = st.targets[0].id
+            self._tuples[name] = len(st.value.elts)
+            self._map.setdefault(name, name)
+            for i, el in enumerate(st.value.elts):
+                out.append(f"{pad}{self._map[name]}[{i}] := {self.expr(f, el)};")
+        else:
+            rhs = self.expr(f, st.value)
+            out.append(f"{pad}{self.target(f, st.targets[0], st.value)} := {rhs};")
         return out
+
+    def loop(self, f: _Func, st: ast.For, ind: int) -> list[str]:
+        self._locals[st.target.id] = "int"
+        i = self._map[st.target.id]
+        a, b = self._range_bounds(f, st)
+        return self._block(f, st.body, ind, f"FOR {i} := {a} TO {b} - 1 DO", "END_FOR;")
+
+    def return_value(self, f: _Func, value: ast.expr, pad: str) -> list[str]:
+        return [f"{pad}{self.func_name(f.name)} := {self.expr(f, value)};", f"{pad}RETURN;"]
 
     def function(self, f: _Func) -> str:
         self._params = {a.arg for a in f.node.args.args}

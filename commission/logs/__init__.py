@@ -43,7 +43,7 @@ from commission.logs.hdf5 import _hdf5_offset, _read_hdf5
 from commission.logs.mat import _read_mat5
 from commission.logs.npy import _read_npy, _read_npz, looks_like_npz
 from commission.logs.model import CHANNELS, Q_UNITS, SAMPLE_RATE_TOLERANCE, U_UNITS, ExcitationLog
-from commission.logs.raw import _assemble
+from commission.logs.raw import _assemble, _Raw
 
 __all__ = [
     "CHANNELS",
@@ -194,6 +194,31 @@ def load_log(
         the file's attribute.
     """
     label = os.fspath(path)
+    mapping, gain, sample_rate = _checked_options(mapping, input_gain, sample_rate, q_unit, counts_per_rev, fmt)
+    p = Path(path)
+    forced = fmt
+    fmt = fmt or _EXTENSIONS.get(p.suffix.lower())
+    check_input_file(p, MAX_LOG_BYTES, "log file")  # missing, a folder, a FIFO or device, too large
+    # Read once, bounded: the hash is then exactly of the bytes that were parsed.
+    data = read_input_bytes(p, MAX_LOG_BYTES)
+
+    if forced is None and looks_like_epos(data):
+        fmt = "epos"
+    if fmt is None:
+        raise InputFileError(
+            f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
+            "(expected .h5, .hdf5, .csv, .mat, .npy or .npz); EPOS recorder files are recognised from their content "
+            "and --format forces a format"
+        )
+    raw = _read_format(data, fmt, label, mapping, need_t=sample_rate is None)
+    return _assemble(raw, label, gain, sample_rate, q_unit, hashlib.sha256(data).hexdigest(),
+                     counts_per_rev=None if counts_per_rev is None else float(counts_per_rev))
+
+
+def _checked_options(mapping: Mapping[str, str] | None, input_gain: float, sample_rate: float | None,
+                     q_unit: str | None, counts_per_rev: float | None,
+                     fmt: str | None) -> tuple[dict[str, str], float, float | None]:
+    """The options of :func:`load_log` checked (UsageError naming the flag); returns (mapping, gain, rate)."""
     mapping = dict(mapping or {})
     for key, src in mapping.items():
         if key not in CHANNELS:
@@ -213,34 +238,20 @@ def load_log(
 
     if fmt is not None and fmt not in FORMATS:
         raise UsageError(f"--format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    p = Path(path)
-    forced = fmt
-    fmt = fmt or _EXTENSIONS.get(p.suffix.lower())
-    check_input_file(p, MAX_LOG_BYTES, "log file")  # missing, a folder, a FIFO or device, too large
-    # Read once, bounded: the hash is then exactly of the bytes that were parsed.
-    data = read_input_bytes(p, MAX_LOG_BYTES)
+    return mapping, gain, sample_rate
 
-    if forced is None and looks_like_epos(data):
-        fmt = "epos"
-    if fmt is None:
-        raise InputFileError(
-            f"{label}: unknown log format {p.suffix or '(no extension)'!r} "
-            "(expected .h5, .hdf5, .csv, .mat, .npy or .npz); EPOS recorder files are recognised from their content "
-            "and --format forces a format"
-        )
-    need_t = sample_rate is None
+
+def _read_format(data: bytes, fmt: str, label: str, mapping: dict[str, str], *, need_t: bool) -> _Raw:
+    """The channels of ``data`` read by the reader of ``fmt`` (a ``.mat`` file: v7.3 as HDF5, else v5)."""
     if fmt == "epos":
-        raw = _read_epos(data, label, mapping)
+        return _read_epos(data, label, mapping)
     elif fmt == "hdf5":
-        raw = _read_hdf5(data, label, "HDF5", mapping, need_t, matlab=False)
+        return _read_hdf5(data, label, "HDF5", mapping, need_t, matlab=False)
     elif fmt == "csv":
-        raw = _read_csv(data, label, mapping, need_t)
+        return _read_csv(data, label, mapping, need_t)
     elif fmt == "npy":
-        raw = (_read_npz if looks_like_npz(data) else _read_npy)(data, label, mapping, need_t)
+        return (_read_npz if looks_like_npz(data) else _read_npy)(data, label, mapping, need_t)
     elif _hdf5_offset(data) is not None:
-        raw = _read_hdf5(data, label, "MATLAB v7.3", mapping, need_t, matlab=True)
+        return _read_hdf5(data, label, "MATLAB v7.3", mapping, need_t, matlab=True)
     else:
-        raw = _read_mat5(data, label, mapping, need_t)
-    return _assemble(raw, label, gain, sample_rate, q_unit, hashlib.sha256(data).hexdigest(),
-                     counts_per_rev=None if counts_per_rev is None else float(counts_per_rev))
-
+        return _read_mat5(data, label, mapping, need_t)
