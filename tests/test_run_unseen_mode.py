@@ -4,7 +4,7 @@ Two logs of the CONTRACT §5 reference plant (commission.synth's closed-loop com
 only the log goes to ``commission run``, and the emitted controller.json is simulated through
 the runtime's gains on the *true* two-mass plant, a non-collocated (load-side) mode at 479 Hz
 with damping 0.07 (inside the issue's 450-550 Hz, 0.03-0.08; the paper's experimental fact of
-``tests/test_robust_emitted.py``), against the paper's PID (57) at -300 rad/s on the same plant:
+``tests/test_run_true_axis.py``), against the paper's PID (57) at -300 rad/s on the same plant:
 
 1. **a rigid log without broadband content** (the mode is not in it, nor anything above the
    reference's 20-odd Hz): either the emitted controller works on the two-mass plant (stable,
@@ -14,7 +14,7 @@ with damping 0.07 (inside the issue's 450-550 Hz, 0.03-0.08; the paper's experim
 2. **a log of the two-mass plant with an injection segment**: the emitted ARC's e_rms is at most
    0.5 x the PID's, Case 1 and Case 2, at each of three search seeds (:data:`SEEDS`).
 
-Options as in ``tests/test_robust_emitted.py``: a payload of up to the axis' own mass.
+Options as in ``tests/test_run_true_axis.py``: a payload of up to the axis' own mass.
 """
 
 from __future__ import annotations
