@@ -12,7 +12,7 @@ where to evaluate them and records them for ``tuning.json``,
 * **ARC**: linearised twice per plant, with the estimate at its initial value
   theta_hat(0) (the start-up, before any adaptation) and at the plant's own
   theta (what the adaptation tends to when the motion excites it), since the
-  sampled loop's stability depends on the estimate (``controllers/arc.py``).
+  sampled loop's stability depends on the estimate (``controllers/arc/step.py``).
 
 Floors (``[margins]`` of spec.toml; defaults 6 dB, 30 deg, one sample beyond
 the identified delay and modulus 0.5, common practice for servo loops) are checked per loop;
