@@ -294,8 +294,9 @@ class Margins:
     crossover_hz : float
         First gain crossover, Hz (nan: none).
     spectral_radius : float
-        Largest closed-loop eigenvalue modulus.
+        Largest closed-loop eigenvalue modulus, dimensionless.
     stable : bool
+        The closed loop is stable: spectral radius below 1 (up to ``NEUTRAL_TOL`` for the neutral modes).
     """
 
     gain_margin_db: float
