@@ -203,12 +203,10 @@ def zoh_plant(M: float, B: float, Ts: float) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    M : float
-        Mass, u-unit s^2/m.
-    B : float
-        Viscous coefficient, u-unit s/m.
+    M, B : float
+        The rigid body's mass, u-unit s^2/m, and viscous coefficient, u-unit s/m.
     Ts : float
-        Sample period, s.
+        Sample period of the hold, s.
     """
     F = np.zeros((3, 3))
     F[0, 1] = 1.0
