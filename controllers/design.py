@@ -203,12 +203,10 @@ def zoh_plant(M: float, B: float, Ts: float) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    M : float
-        Mass, u-unit s^2/m.
-    B : float
-        Viscous coefficient, u-unit s/m.
+    M, B : float
+        The rigid body's mass, u-unit s^2/m, and viscous coefficient, u-unit s/m.
     Ts : float
-        Sample period, s.
+        Sample period of the hold, s.
     """
     F = np.zeros((3, 3))
     F[0, 1] = 1.0
@@ -343,18 +341,22 @@ class FeasibilityPoint:
 class FeasibilityReport:
     """Result of :func:`discrete_feasibility`.
 
+    The verdict and its evidence together: the worst points say where along which
+    trajectory the loop came closest to instability, which is what a failed check
+    must show to be acted on.
+
     Attributes
     ----------
     holds : bool
         Every frozen-estimate radius < 1 - margin and every adaptive radius < 1.
     margin : float
-        Required margin of the frozen-estimate loop.
+        Required margin of the frozen-estimate loop's spectral radius below 1, -.
     rho_max : float
-        Largest frozen-estimate spectral radius found.
+        Largest frozen-estimate spectral radius found, -.
     worst : FeasibilityPoint
         Where it was found.
     rho_adaptive_max : float
-        Largest radius with the theta3 adaptation in the loop (its integral mode is
+        Largest radius with the theta3 adaptation in the loop, - (its integral mode is
         slow by design, so only < 1 is required).
     worst_adaptive : FeasibilityPoint
         Where that was found.

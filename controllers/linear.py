@@ -257,8 +257,9 @@ class SampledPlant:
     Phi, G0, G1 : ndarray
         ``x_{k+1} = Phi x_k + G0 u_{k-n} + G1 u_{k-n-1}``.
     C : ndarray, shape (1, nx)
+        Output row, ``y_k = C x_k`` (position, m).
     n : int
-        Whole samples of the delay.
+        Whole samples of the delay, samples.
     Ts : float
         Sample period, s.
     """

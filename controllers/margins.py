@@ -118,6 +118,24 @@ _cache_lock = threading.Lock()
 _arc_linearisations: "OrderedDict[bytes, LinearController]" = OrderedDict()
 
 
+@njit(cache=True, nogil=True)
+def _perturbed(s0, idx, j, h):
+    """The point one central difference steps to: ``(s, y)`` = ``(s0, 0)`` moved by ``h``.
+
+    Input ``y`` for ``j < 0``, else state ``idx[j]``; ``s`` is a fresh copy of ``s0`` (the
+    step runs in place).  Compiled, so that :func:`_arc_jacobian` calls it inside its
+    loop; :func:`_jacobian` calls the same function from Python, so both linearisations
+    step by the very same rule.
+    """
+    s = s0.copy()
+    y = 0.0
+    if j < 0:
+        y = h
+    else:
+        s[idx[j]] += h
+    return s, y
+
+
 def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...], scale: np.ndarray,
               h_y: float) -> LinearController:
     n = len(dyn)
@@ -126,12 +144,7 @@ def _jacobian(step: Callable, p: np.ndarray, s0: np.ndarray, dyn: tuple[int, ...
     idx = np.array(dyn)
 
     def run(j: int, h: float) -> tuple[np.ndarray, float]:
-        s = s0.copy()
-        y = 0.0
-        if j < 0:
-            y = h
-        else:
-            s[idx[j]] += h
+        s, y = _perturbed(s0, idx, j, h)
         c = step(p, s, y, 0.0, 0.0, 0.0)
         return s[idx], c
 
@@ -164,21 +177,11 @@ def _arc_jacobian(p, s0, idx, scale, h_y, rel_step):
     sm = np.empty(n)
     for j in range(-1, n):
         h = h_y if j < 0 else rel_step * scale[j]
-        s = s0.copy()
-        y = 0.0
-        if j < 0:
-            y = h
-        else:
-            s[idx[j]] += h
+        s, y = _perturbed(s0, idx, j, h)
         cp = arc_step(p, s, y, 0.0, 0.0, 0.0)
         for i in range(n):
             sp[i] = s[idx[i]]
-        s = s0.copy()
-        y = 0.0
-        if j < 0:
-            y = -h
-        else:
-            s[idx[j]] += -h
+        s, y = _perturbed(s0, idx, j, -h)
         cm = arc_step(p, s, y, 0.0, 0.0, 0.0)
         for i in range(n):
             sm[i] = s[idx[i]]
@@ -291,8 +294,9 @@ class Margins:
     crossover_hz : float
         First gain crossover, Hz (nan: none).
     spectral_radius : float
-        Largest closed-loop eigenvalue modulus.
+        Largest closed-loop eigenvalue modulus, dimensionless.
     stable : bool
+        The closed loop is stable: spectral radius below 1 (up to ``NEUTRAL_TOL`` for the neutral modes).
     """
 
     gain_margin_db: float

@@ -188,16 +188,19 @@ def decimation_start(n: int, r: int) -> int:
 class Preprocessed:
     """A log after filtering, differentiation and edge trimming (full rate).
 
+    The one input every fit takes: the filter, the differences and the trim are done
+    once here, so the fits of one log see the same signals and rows.
+
     Attributes
     ----------
     sample_rate : float
-        Hz.
+        Sample rate of the log, Hz.
     cutoff_hz : float
         Butterworth cut-off used on ``q``, Hz.
     decimation : int
-        Decimation factor for the regression rows.
+        Decimation factor for the regression rows, samples per row.
     trim_start : int
-        Samples dropped at the start of the raw log.
+        Samples dropped at the start of the raw log, samples.
     t : ndarray
         Time of the kept samples, s.
     q : ndarray

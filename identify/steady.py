@@ -51,10 +51,14 @@ QUANTUM_SWING = 1.5
 class SteadySegments:
     """Constant-velocity segments found in a (preprocessed, full-rate) log.
 
+    What :func:`find_steady_segments` returns, one entry per segment in every array:
+    the points of the friction map (mean velocity, mean command) and what is needed to
+    correct them for the inertia force left in each leg.
+
     Attributes
     ----------
     start, stop : ndarray of int
-        Index ranges ``[start, stop)`` into the arrays given to :func:`find_steady_segments`.
+        Sample index ranges ``[start, stop)`` into the arrays given to :func:`find_steady_segments`.
     velocity : ndarray
         Mean velocity, ``(q[stop-1] - q[start]) / (t[stop-1] - t[start])``, m/s.
     command : ndarray
@@ -62,7 +66,7 @@ class SteadySegments:
     acceleration : ndarray
         Mean acceleration, ``(v[stop-1] - v[start]) / duration``, m/s^2.
     duration : ndarray
-        s.
+        Duration of the segment, ``t[stop-1] - t[start]``, s.
     """
 
     start: np.ndarray = field(repr=False)

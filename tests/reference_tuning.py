@@ -6,6 +6,8 @@ embedded identification against it when ident.json is not at hand."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from commission.jsonio import sha256_json
@@ -20,3 +22,11 @@ def reference_tuning(budget: int = 8) -> Tuning:
     ident = reference_identification(delta_d=0.5)
     return tune(ident, spec_from_mapping({"tune": {"budget": budget}}), rng=np.random.default_rng(0), seed=0,
                 ident_sha256=sha256_json(ident.to_dict()), log_sha256="2" * 64)
+
+
+def saved_reference_tuning(directory: Path, budget: int = 8) -> tuple[Tuning, Path]:
+    """:func:`reference_tuning`, and the path of its ``tuning.json`` saved in ``directory``."""
+    t = reference_tuning(budget=budget)
+    path = directory / "tuning.json"
+    t.save(str(path))
+    return t, path

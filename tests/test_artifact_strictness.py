@@ -14,8 +14,6 @@
 from __future__ import annotations
 
 import copy
-import hashlib
-import hmac
 import json
 import re
 from pathlib import Path
@@ -36,6 +34,7 @@ from commission.tune.defaults import log_sample_rate
 from commission.tune.gains import base_arc_gains
 from commission.tuning import Tuning
 from commission.validate import check_provenance
+from controller_docs import reseal
 
 TUNING_DOC = json.loads((Path(__file__).parent / "data" / "tuning_paper_budget8.json").read_text())
 runner = CliRunner()
@@ -227,16 +226,6 @@ def controller_doc():
                             provenance=prov).to_dict()
 
 
-def _rehash(doc, key: bytes | None = None):
-    doc.pop("checksum", None)
-    if key is not None:
-        body = {k: v for k, v in doc.items() if k != "signature"}
-        doc["signature"] = {"algorithm": "hmac-sha256",
-                            "value": hmac.new(key, canonical_json(body).encode(), hashlib.sha256).hexdigest()}
-    doc["checksum"] = {"algorithm": "sha256", "value": sha256_json(doc)}
-    return doc
-
-
 def _write(tmp_path, doc):
     p = tmp_path / "controller.json"
     write_json_atomic(p, doc)
@@ -248,7 +237,7 @@ def test_load_controller_refuses_an_implausible_sample_rate(tmp_path, controller
     doc = copy.deepcopy(controller_doc)
     doc["sample_rate"], doc["sample_period"] = rate, 1.0 / rate
     with pytest.raises(SchemaError, match=r"\$\.sample_rate: .* outside the plausible range \[1, 100000\] Hz"):
-        load_controller(_write(tmp_path, _rehash(doc)))
+        load_controller(_write(tmp_path, reseal(doc)))
 
 
 @pytest.mark.parametrize("u_max", [1e308, 1e7, 1e-9])
@@ -258,14 +247,14 @@ def test_load_controller_refuses_an_implausible_u_max(tmp_path, controller_doc, 
     lo, hi = RANGES[("controller", "u_max")]
     with pytest.raises(SchemaError, match=r"\$\.bounds\.u_max: .* V is outside the plausible range "
                                           + re.escape(f"[{lo:g}, {hi:g}] V")):
-        load_controller(_write(tmp_path, _rehash(doc)))
+        load_controller(_write(tmp_path, reseal(doc)))
 
 
 def test_export_refuses_an_unclamped_controller(tmp_path, controller_doc):
     doc = copy.deepcopy(controller_doc)
     doc["bounds"]["u_max"] = 1e308
     out = tmp_path / "out"
-    refused(invoke("export", _write(tmp_path, _rehash(doc)), "--out-dir", out), ": $.bounds.u_max: ")
+    refused(invoke("export", _write(tmp_path, reseal(doc)), "--out-dir", out), ": $.bounds.u_max: ")
     assert not out.exists() or not any(out.iterdir())
 
 
@@ -273,14 +262,14 @@ def test_load_controller_names_a_huge_integer_instead_of_overflowing(tmp_path, c
     doc = copy.deepcopy(controller_doc)
     doc["bounds"]["u_max"] = int("9" * 400)
     p = tmp_path / "controller.json"
-    p.write_text(canonical_json(_rehash(doc)))
+    p.write_text(canonical_json(reseal(doc)))
     with pytest.raises(SchemaError, match=r"controller\.json: \$\.bounds\.u_max: an integer literal of 400 digits"):
         load_controller(p)
 
 
 def test_a_signed_controller_with_a_duplicate_key_is_refused(tmp_path, controller_doc):
     key = b"k" * 32
-    doc = _rehash(copy.deepcopy(controller_doc), key)
+    doc = reseal(copy.deepcopy(controller_doc), key)
     text = canonical_json(doc)
     # a second u_max before the signed one: Python would keep the last (the signed value) and verify
     text = text.replace('"u_max": ', '"u_max": 1e308,\n    "u_max": ', 1)
@@ -299,7 +288,7 @@ def test_controller_units_and_digests_are_whitelisted(tmp_path, controller_doc):
         doc = copy.deepcopy(controller_doc)
         edit(doc)
         with pytest.raises(SchemaError, match=path + ": expected"):
-            load_controller(_write(tmp_path, _rehash(doc)))
+            load_controller(_write(tmp_path, reseal(doc)))
 
 
 # --------------------------------------------------------------------------- runtime

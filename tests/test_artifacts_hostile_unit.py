@@ -10,8 +10,6 @@ recomputed -- the command reading it exits 2 naming its JSON path, and writes no
 from __future__ import annotations
 
 import copy
-import hashlib
-import hmac
 import json
 from pathlib import Path
 
@@ -21,11 +19,12 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.controller_config import SIGN_KEY_ENV, ControllerConfig, ControllerProvenance
 from commission.errors import SchemaError
-from commission.jsonio import canonical_json, sha256_json, write_json_atomic
+from commission.jsonio import write_json_atomic
 from commission.paper import reference_identification
 from commission.runtime import load_controller
 from commission.tuning import Tuning
 from commission.validate import deployable_gains
+from controller_docs import reseal
 
 HOSTILE = ('V */ extern int puts(const char *); static void __attribute__((constructor)) x(void)'
            '{puts("INJECTED");} /*')
@@ -110,13 +109,8 @@ def _plant(doc, key: bytes | None = None):
     """``doc`` with the hostile unit, its signature (under ``key``) and checksum recomputed."""
     doc = copy.deepcopy(doc)
     doc["units"]["u"] = HOSTILE
-    doc.pop("checksum", None)
     doc.pop("signature", None)
-    if key is not None:
-        doc["signature"] = {"algorithm": "hmac-sha256",
-                            "value": hmac.new(key, canonical_json(doc).encode(), hashlib.sha256).hexdigest()}
-    doc["checksum"] = {"algorithm": "sha256", "value": sha256_json(doc)}
-    return doc
+    return reseal(doc, key)
 
 
 def test_load_controller_and_export_refuse_the_unit_planted_in_controller_json(tmp_path, controller_doc):

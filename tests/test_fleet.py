@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.errors import SchemaError
 from commission.fleet import OUTLIER_Z, exit_code, flag_outliers, load_manifest
+from refusals import assert_refused
 
 runner = CliRunner()
 
@@ -43,10 +44,7 @@ def test_toml_and_csv_manifests_resolve_paths_and_defaults(tmp_path):
     ("name,log\n", r"no axis listed"),
 ])
 def test_bad_csv_manifests_name_the_row_and_key(tmp_path, text, match):
-    p = tmp_path / "m.csv"
-    p.write_text(text)
-    with pytest.raises(SchemaError, match=match):
-        load_manifest(p)
+    assert_refused(tmp_path / "m.csv", text, load_manifest, SchemaError, match)
 
 
 def test_bad_toml_manifest_is_exit_2_before_any_axis(tmp_path):

@@ -7,6 +7,7 @@ import pytest
 
 from commission.errors import DataError, InputFileError
 from commission.logs import load_log
+from refusals import assert_refused
 
 
 def test_csv_dialects_comments_quotes_semicolons(tmp_path):
@@ -18,30 +19,15 @@ def test_csv_dialects_comments_quotes_semicolons(tmp_path):
     np.testing.assert_array_equal(log.u, [0.5, 0.25])
 
 
-def test_garbage_csv(tmp_path):
-    path = tmp_path / "garbage.csv"
-    path.write_text("hello world\nthis is not, a log\n")
-    with pytest.raises(DataError, match=r"garbage\.csv: channel 't' not found \(available: hello world\)"):
-        load_log(path)
-    path.write_text("# only a comment\n\n")
-    with pytest.raises(InputFileError, match=r"garbage\.csv: not a readable CSV file \(no header row\)"):
-        load_log(path)
-    path.write_text("t,q,u\n")
-    with pytest.raises(DataError, match=r"garbage\.csv: no data rows after the header"):
-        load_log(path)
-    path.write_bytes(b"t,q,u\n0,0\x00,0\n")
-    with pytest.raises(InputFileError, match=r"garbage\.csv: not a readable CSV file \(contains NUL bytes\)"):
-        load_log(path)
-
-
-@pytest.mark.parametrize("body, match", [
-    ("t,q,u\n0,1,2\n0.001,1,x\n", r"bad\.csv: line 3, column 'u': cannot parse 'x' as a number"),
-    ("t,q,u\n0,1,2\n0.001,,2\n", r"bad\.csv: line 3, column 'q': empty cell"),
-    ("t,q,u\n0,1,2\n0.001,1\n", r"bad\.csv: line 3: 2 fields, but column 'u' is field 3"),
-    ("t,q,u,q\n0,1,2,3\n", r"bad\.csv: channel 'q': column 'q' appears 2 times"),
+@pytest.mark.parametrize("content, error, match", [
+    ("hello world\nthis is not, a log\n", DataError, r"bad\.csv: channel 't' not found \(available: hello world\)"),
+    ("# only a comment\n\n", InputFileError, r"bad\.csv: not a readable CSV file \(no header row\)"),
+    ("t,q,u\n", DataError, r"bad\.csv: no data rows after the header"),
+    (b"t,q,u\n0,0\x00,0\n", InputFileError, r"bad\.csv: not a readable CSV file \(contains NUL bytes\)"),
+    ("t,q,u\n0,1,2\n0.001,1,x\n", DataError, r"bad\.csv: line 3, column 'u': cannot parse 'x' as a number"),
+    ("t,q,u\n0,1,2\n0.001,,2\n", DataError, r"bad\.csv: line 3, column 'q': empty cell"),
+    ("t,q,u\n0,1,2\n0.001,1\n", DataError, r"bad\.csv: line 3: 2 fields, but column 'u' is field 3"),
+    ("t,q,u,q\n0,1,2,3\n", DataError, r"bad\.csv: channel 'q': column 'q' appears 2 times"),
 ])
-def test_csv_cell_errors_name_line_and_column(tmp_path, body, match):
-    path = tmp_path / "bad.csv"
-    path.write_text(body)
-    with pytest.raises(DataError, match=match):
-        load_log(path)
+def test_bad_csv_is_refused_naming_the_file_line_and_column(tmp_path, content, error, match):
+    assert_refused(tmp_path / "bad.csv", content, load_log, error, match)

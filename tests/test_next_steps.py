@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.gate import Check, GateLimits, GateVerdict
 from commission.next_steps import gate_changes
-from reference_tuning import reference_tuning
+from reference_tuning import saved_reference_tuning
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"
@@ -49,11 +49,7 @@ def test_no_limit_is_offered_for_a_criterion_that_failed_on_a_diverged_run():
 
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
-    d = tmp_path_factory.mktemp("tuning")
-    t = reference_tuning(budget=8)
-    path = d / "tuning.json"
-    t.save(str(path))
-    return path
+    return saved_reference_tuning(tmp_path_factory.mktemp("tuning"))[1]
 
 
 def _suggested_gate(output: str) -> dict:

@@ -111,9 +111,21 @@ def mutate(data, doc, max_edits: int = 3):
     return doc
 
 
-def _write(path: pathlib.Path, doc) -> None:
+def read_bytes(data: bytes, name: str, reader):
+    """``reader(path)`` of ``data`` written to a temporary file ``name``: its result, or None if refused."""
+    with tempfile.TemporaryDirectory() as d:
+        p = pathlib.Path(d) / name
+        p.write_bytes(data)
+        return only_our_errors(reader, p)
+
+
+def read_mutated(data, doc, name: str, reader, edit=None):
+    """:func:`read_bytes` of ``doc`` mutated (then ``edit``-ed), as JSON."""
+    doc = mutate(data, doc)
+    if edit is not None:
+        doc = edit(doc)
     # allow_nan: a file may hold NaN/Infinity literals, which Python's json reads back.
-    path.write_text(json.dumps(doc, allow_nan=True))
+    return read_bytes(json.dumps(doc, allow_nan=True).encode(), name, reader)
 
 
 # --------------------------------------------------------------------------- JSON artifacts
@@ -122,20 +134,13 @@ def _write(path: pathlib.Path, doc) -> None:
 @PROPS
 @given(data=st.binary(max_size=400) | st.text(max_size=400).map(str.encode))
 def test_read_json_on_any_bytes(data):
-    with tempfile.TemporaryDirectory() as d:
-        p = pathlib.Path(d) / "x.json"
-        p.write_bytes(data)
-        only_our_errors(read_json, p)
+    read_bytes(data, "x.json", read_json)
 
 
 @PROPS
 @given(data=st.data())
 def test_ident_json_reader(data):
-    doc = mutate(data, IDENT_DOC)
-    with tempfile.TemporaryDirectory() as d:
-        p = pathlib.Path(d) / "ident.json"
-        _write(p, doc)
-        ident = only_our_errors(lambda: Identification.from_dict(read_json(p), source=str(p)))
+    ident = read_mutated(data, IDENT_DOC, "ident.json", lambda p: Identification.from_dict(read_json(p), source=str(p)))
     if ident is not None:  # what tune does with it before any simulation
         only_our_errors(resolve_spec, {}, "spec (defaults)", ident)
 
@@ -143,11 +148,7 @@ def test_ident_json_reader(data):
 @PROPS
 @given(data=st.data())
 def test_tuning_json_reader(data):
-    doc = mutate(data, TUNING_DOC)
-    with tempfile.TemporaryDirectory() as d:
-        p = pathlib.Path(d) / "tuning.json"
-        _write(p, doc)
-        t = only_our_errors(lambda: Tuning.from_dict(read_json(p), source=str(p)))
+    t = read_mutated(data, TUNING_DOC, "tuning.json", lambda p: Tuning.from_dict(read_json(p), source=str(p)))
     if t is not None:
         assert t.spec.sample_rate > 0 and all(math.isfinite(x) for x in t.arc.theta_min)
 
@@ -172,13 +173,7 @@ def _rehash(doc):
 def test_controller_json_reader(data, rehash):
     from commission.runtime import load_controller
 
-    doc = mutate(data, CONTROLLER_DOC)
-    if rehash:
-        doc = _rehash(doc)
-    with tempfile.TemporaryDirectory() as d:
-        p = pathlib.Path(d) / "controller.json"
-        _write(p, doc)
-        ctrl = only_our_errors(load_controller, p)
+    ctrl = read_mutated(data, CONTROLLER_DOC, "controller.json", load_controller, edit=_rehash if rehash else None)
     if ctrl is not None:  # the floors of a loaded controller: finite limits
         g = ctrl.config.gains
         assert all(math.isfinite(v) and v > 0 for v in (g.u_max, g.k1s_max, g.k2s_max))
@@ -243,13 +238,10 @@ def test_gate_reader(tables, lsb):
 @PROPS
 @given(data=st.binary(max_size=300) | st.text(max_size=300).map(str.encode))
 def test_toml_file_reader_on_any_bytes(data):
-    with tempfile.TemporaryDirectory() as d:
-        p = pathlib.Path(d) / "spec.toml"
-        p.write_bytes(data)
-        parsed = only_our_errors(read_toml, p)
-        if parsed is not None:
-            only_our_errors(spec_from_mapping, parsed, str(p))
-            only_our_errors(gate_from_mapping, parsed, str(p))
+    parsed = read_bytes(data, "spec.toml", read_toml)
+    if parsed is not None:
+        only_our_errors(spec_from_mapping, parsed, "spec.toml")
+        only_our_errors(gate_from_mapping, parsed, "spec.toml")
 
 
 # --------------------------------------------------------------------------- logs

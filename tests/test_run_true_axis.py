@@ -32,10 +32,11 @@ from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.pid import pid_pack
 from commission.controllers.plant import P_DELAY, P_M
-from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
-from commission.paper import paper_pid_gains, scenario
+from commission.controllers.simulate import KIND_ARC, KIND_PID
+from commission.paper import paper_pid_gains
 from commission.runtime import load_controller
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
+from scenario_runs import run_scenario
 
 pytestmark = pytest.mark.slow
 
@@ -88,15 +89,6 @@ def emitted(request, tmp_path_factory):
     return axis, truth, ctrls
 
 
-def _run(plant: np.ndarray, kind: int, ctrl: np.ndarray, name: str, Ts: float, u_max: float):
-    sc = scenario(name, Ts)
-    r = simulate(plant, kind, ctrl, sc.traj, quant=1e-6, disturbance=sc.disturbance, u_sat=u_max, e_abort=0.01)
-    e = r.y - r.qd
-    du = np.diff(r.u)
-    c_u = float(np.sqrt(np.mean(du ** 2)) / np.sqrt(np.mean(r.u ** 2)))
-    return r.diverged, float(np.sqrt(np.mean(e ** 2))), float(np.max(np.abs(e))), c_u, r
-
-
 def _true_plant(truth: AxisTruth, name: str, extra_delay_samples: float = 0.0) -> np.ndarray:
     p = truth.plant()
     if name == "set2":
@@ -119,8 +111,8 @@ def test_the_emitted_arc_is_stable_on_the_true_axis_and_beats_the_papers_pid(emi
     p = _true_plant(truth, name, delay)
     for ctrl in ctrls:
         g = ctrl.config.gains
-        div_a, rms_a, _, cu_a, _ = _run(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
-        div_p, rms_p, _, _, _ = _run(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
+        div_a, rms_a, _, cu_a, _ = run_scenario(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
+        div_p, rms_p, _, _, _ = run_scenario(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
         assert not div_a and cu_a <= 1.0, (rms_a, cu_a)
         assert not div_p  # the paper's PID holds at -300 rad/s here (the comparison is fair)
         if axis == "mode_479Hz" and name == "case2" and rms_a > rms_p:
@@ -146,8 +138,8 @@ def test_on_the_rigid_plant_it_beats_the_pid_on_every_table1_scenario(emitted, n
     (ctrl,) = ctrls
     g = ctrl.config.gains
     p = _true_plant(truth, name)
-    _, rms_a, em_a, cu_a, ra = _run(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
-    _, rms_p, em_p, _, rp = _run(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
+    _, rms_a, em_a, cu_a, ra = run_scenario(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
+    _, rms_p, em_p, _, rp = run_scenario(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
     n_f = int(round(2.0 / g.Ts))
     ef_a = float(np.max(np.abs((ra.y - ra.qd)[-n_f:])))
     ef_p = float(np.max(np.abs((rp.y - rp.qd)[-n_f:])))

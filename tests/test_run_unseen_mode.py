@@ -29,10 +29,11 @@ from typer.testing import CliRunner
 from commission.cli.main import app
 from commission.controllers.arc import arc_pack
 from commission.controllers.pid import pid_pack
-from commission.controllers.simulate import KIND_ARC, KIND_PID, simulate
-from commission.paper import paper_pid_gains, scenario
+from commission.controllers.simulate import KIND_ARC, KIND_PID
+from commission.paper import paper_pid_gains
 from commission.runtime import load_controller
 from commission.synth import AxisTruth, ExcitationPlan, simulate_excitation, write_log_h5
+from scenario_runs import run_scenario
 
 pytestmark = pytest.mark.slow
 
@@ -50,15 +51,6 @@ SEEDS = (0, 1, 2)
 CASES = ("set1", "case2")
 
 
-def _run(plant: np.ndarray, kind: int, ctrl: np.ndarray, name: str, Ts: float, u_max: float):
-    sc = scenario(name, Ts)
-    r = simulate(plant, kind, ctrl, sc.traj, quant=1e-6, disturbance=sc.disturbance, u_sat=u_max, e_abort=0.01)
-    e = r.y - r.qd
-    du = np.diff(r.u)
-    c_u = float(np.sqrt(np.mean(du ** 2)) / np.sqrt(np.mean(r.u ** 2)))
-    return bool(r.diverged), float(np.sqrt(np.mean(e ** 2))), c_u
-
-
 def _commission(tmp_path, truth: AxisTruth, plan: ExcitationPlan, seed: int):
     write_log_h5(tmp_path / "log.h5", simulate_excitation(truth, plan, np.random.default_rng(3)))
     out = tmp_path / "out"
@@ -74,8 +66,8 @@ def _on_the_two_mass_plant(ctrl):
     p = TWO_MASS.plant()
     out = {}
     for name in CASES:
-        da, ea, ca = _run(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
-        dp, ep, _ = _run(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
+        da, ea, _, ca, _ = run_scenario(p, KIND_ARC, arc_pack(g), name, g.Ts, g.u_max)
+        dp, ep, _, _, _ = run_scenario(p, KIND_PID, pid_pack(paper_pid_gains(g.Ts)), name, g.Ts, g.u_max)
         out[name] = (da, ea, ca, dp, ep)
     return out
 

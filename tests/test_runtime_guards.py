@@ -28,6 +28,7 @@ from commission.scenarios import case1_trajectory, case2_trajectory, identified_
 from commission.spec import default_spec
 from commission.tune.gains import base_arc_gains
 from commission.validate import deployable_gains, envelope_acceleration, guard_values, holding_force
+from sensor_faults import frozen
 
 LSB = 1e-6
 
@@ -91,17 +92,6 @@ def cruise(axis):
     """Case 2 and a sample in its first cruise at v_max."""
     traj = axis["trajs"]["case2"]
     return traj, int(np.argmax(np.abs(traj.dqd) >= 0.999 * axis["spec"].v_max)) + 50
-
-
-def frozen(k0, n):
-    """An encoder that repeats the reading of sample k0 - 1 over samples k0 .. k0 + n - 1."""
-    held = {}
-
-    def sensor(k, y):
-        if k == k0 - 1:
-            held["y"] = y
-        return held["y"] if k0 <= k < k0 + n else y
-    return sensor
 
 
 def spike(n, k, amp):

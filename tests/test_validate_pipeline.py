@@ -26,7 +26,7 @@ from commission.runtime import load_controller
 from commission.scenarios import plant_substeps, scenario_matrix
 from commission.tuning import Tuning
 from commission.validate import FIGURE_NAMES, run_validate, validate
-from reference_tuning import reference_tuning
+from reference_tuning import saved_reference_tuning
 
 MC = 8
 #: Margin of the test gate over the worst value the good tuning reached.
@@ -38,9 +38,7 @@ runner = CliRunner()
 @pytest.fixture(scope="module")
 def tuned(tmp_path_factory):
     d = tmp_path_factory.mktemp("tuning")
-    t = reference_tuning(budget=8)
-    path = d / "tuning.json"
-    t.save(str(path))
+    t, path = saved_reference_tuning(d)
     # The gate of these tests: MARGIN x the worst value this (short, 8-candidate) tuning reaches
     # on the same matrix, so that the good tuning passes whatever the search finds, and the
     # broken copies below must fail a gate that the good one passes.

@@ -58,7 +58,12 @@ RUNTIME_GUARDS = ("dy_max", "dy_fault", "n_reject_max", "e_max", "freeze_on_satu
                   "accel_max", "y_err", "n_frozen_max", "u_free")
 
 
-def _vec3(name: str, v) -> tuple[float, float, float]:
+#: A vector of the law: the diagonal of one of the paper's diagonal 3 x 3 matrices, or a
+#: point of the parameter space, ordered like theta = [1/M, B/M, d_n/M].
+ThetaVector = tuple[float, float, float]
+
+
+def _vec3(name: str, v) -> ThetaVector:
     t = tuple(float(x) for x in v)
     if len(t) != 3:
         raise ArcGainsError(f"ArcGains.{name}: needs 3 entries, got {len(t)}")
@@ -175,13 +180,13 @@ class ArcGains:
     eps12: float
     eps21: float
     eps22: float
-    C_phi1: tuple[float, float, float]
-    C_phi2: tuple[float, float, float]
-    C_theta2: tuple[float, float, float]
-    Gamma: tuple[float, float, float]
-    theta_min: tuple[float, float, float]
-    theta_max: tuple[float, float, float]
-    theta0: tuple[float, float, float]
+    C_phi1: ThetaVector
+    C_phi2: ThetaVector
+    C_theta2: ThetaVector
+    Gamma: ThetaVector
+    theta_min: ThetaVector
+    theta_max: ThetaVector
+    theta0: ThetaVector
     fric_level: float
     fric_slope: float
     k1s_max: float

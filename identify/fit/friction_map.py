@@ -188,6 +188,10 @@ def _usable_map(segs: SteadySegments, friction: FrictionModel) -> str | None:
 class MapFit:
     """Friction curve fitted to a friction map alone (legs of a friction test, no dynamics).
 
+    What :func:`fit_friction_map` returns: the map fit of the ``"steady+dynamic"`` method
+    on its own, so that a friction test recorded as separate legs can be fitted without
+    a whole-log regression.
+
     Attributes
     ----------
     friction : {"coulomb", "stribeck"}
@@ -203,6 +207,7 @@ class MapFit:
     condition_number : float
         2-norm condition number of the column-scaled map regressor ``[v, sign v, 1]``.
     warnings : tuple of str
+        Human-readable caveats (e.g. how far down the Stribeck dip the legs reach).
     """
 
     friction: FrictionModel

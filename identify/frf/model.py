@@ -30,6 +30,7 @@ class ExtraMode:
     Attributes
     ----------
     kind : {"load", "motor"}
+        How the mode enters the response (above): across the structure, or next to the force.
     hz : float
         Resonance, Hz.
     damping : float
@@ -67,7 +68,9 @@ class StructureFit:
     cost : float
         Sum of squared normalised residuals (about the number of residuals for a right model).
     n_residuals : int
+        Residuals the fit weighed (two per frequency bin: log magnitude and phase), count.
     n_params : int
+        Parameters fitted, count.
     mode_hz_std, mode_damping_std, mode_ratio_std : float or None
         One standard deviation of the first mode's parameters (Hz, -, -) from the fit's
         covariance ``(J^T J)^-1``, scaled by the reduced chi-square when that exceeds 1.

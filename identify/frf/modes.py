@@ -169,6 +169,11 @@ def _modes_hold(fit: StructureFit, ff: np.ndarray, M: float, B: float, Ts: float
 class PlantFit:
     """Two fitted modes as the simulator's plant: two appendages on the motor (:mod:`commission.controllers.plant`).
 
+    What :func:`plant_fit` returns: the physical reading of a two-mode :class:`StructureFit`
+    (masses and springs the simulator can run), kept beside the modal fit it came from
+    because the two answer different questions (what the response shows, what plant
+    produces it).
+
     Attributes
     ----------
     kwargs : dict
@@ -179,8 +184,9 @@ class PlantFit:
     std : dict
         One standard deviation of ``mode_hz``, ``mode_damping``, ``mode2_hz``, ``mode2_damping``.
     mass_scale : float
+        Total mass of the fitted plant over the rigid fit's M, - (as :attr:`StructureFit.mass_scale`).
     cost : float
-        As :attr:`StructureFit.cost`.
+        Sum of squared normalised residuals, - (as :attr:`StructureFit.cost`).
     """
 
     kwargs: dict[str, Any]

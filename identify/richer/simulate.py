@@ -32,6 +32,10 @@ def force_model(fit: RichFit, q: float, v: float) -> float:
 class PositionSimulation:
     """Open-loop simulation of an identified model under a log's command (the benchmark's output-error metric).
 
+    What :func:`simulate_position` returns.  An output-error score, unlike the force
+    residual of the fit, lets model errors accumulate through the dynamics, which is
+    how the published friction benchmarks compare models.
+
     Attributes
     ----------
     rmse : float
