@@ -72,11 +72,16 @@ class Provenance:
 class FeasibilitySummary:
     """Discrete feasibility of one controller (see :func:`controllers.design.discrete_feasibility`).
 
+    What tuning.json keeps of a :class:`controllers.design.FeasibilityReport`: the worst point
+    and the counts, not every radius checked.
+
     Attributes
     ----------
     holds : bool
         Every spectral radius < 1 - margin.
     margin : float
+        Required margin of the frozen-estimate loop, dimensionless: each radius must be
+        below ``1 - margin``.
     rho_max : float
         Largest spectral radius found (``inf``, stored as null, if a nominal run blew up).
     worst_corner : tuple of 3 float
@@ -132,6 +137,7 @@ class SearchRecord:
     budget : int
         Requested budget (spec ``tune.budget``).
     seed : int
+        Seed of the search's Generator (the same as ``provenance.seed``).
     cost_initial, cost_best : float
         Objective of the starting point and of the chosen gains (lower is better; nan: not
         simulated because a stability constraint failed first).
@@ -146,6 +152,7 @@ class SearchRecord:
     optimiser : str
         The optimiser and its constraint handling.
     generations : int
+        CMA-ES generations run (each one asks, simulates and tells one population).
     n_feasible : int
         Candidates that met every constraint.
     violations : tuple of float
@@ -156,6 +163,7 @@ class SearchRecord:
     chosen_level : int
         The chosen gains' level (0 unless no candidate met every constraint).
     chosen_violation : float
+        The chosen gains' constraint violation, dimensionless (0: met every constraint).
     screened : tuple of bool
         Each candidate was far off the gate on the screening scenarios
         (:data:`commission.tune.optimiser.SCREEN_EXCESS`) and was simulated on those only (its
@@ -228,7 +236,9 @@ class Tuning:
     Attributes
     ----------
     provenance : Provenance
+        The inputs' hashes, this tool's version, the time and the seed (key ``provenance``).
     spec : Spec
+        The tuning spec tune ran with (its defaults fitted to the axis: :func:`commission.tune.resolve_spec`).
     identification : Identification
         The identification the gains were tuned for.
     plant : numpy.ndarray
@@ -245,7 +255,9 @@ class Tuning:
     pid_design_mass : float
         M_min = 1/theta_max[0], u-unit s^2/m.
     observer : ObserverDesign
+        The velocity observer of (10): its pole (rad/s), gains and Lyapunov matrix.
     theorem1 : Theorem1Check
+        The paper's Theorem 1 condition on the chosen gains (holds, and its smallest ratio).
     feasibility : dict
         ``{"arc": FeasibilitySummary, "pid": FeasibilitySummary}``.
     guarantees : dict
@@ -253,6 +265,7 @@ class Tuning:
     scores : dict
         scenario -> ``{"arc": Indexes, "pid": Indexes}``.
     search : SearchRecord
+        How the gains were found (:class:`SearchRecord`).
     margins : tuple of LoopMargins
         Stability margins of both loops per plant (:mod:`commission.robustness`);
         empty in a tuning.json written before they were recorded.
