@@ -51,6 +51,7 @@ class PidBaseline:
     Attributes
     ----------
     gains : PidGains
+        The PID of (57) at ``pole``: Kp (u-unit/m), Ki, Kd and its friction compensation.
     pole : float
         Triple closed-loop pole of (56), rad/s.
     design_mass : float
