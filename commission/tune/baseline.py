@@ -126,11 +126,11 @@ class PidChatter:
     Attributes
     ----------
     limit : float
-        The gate's c_u limit.
+        The gate's c_u limit (du_rms / u_rms, dimensionless).
     count : int
         Scenarios where the PID's c_u exceeds it.
     worst : float
-        The PID's largest c_u.
+        The PID's largest c_u, dimensionless.
     scenario : str
         Where it occurs.
     """
