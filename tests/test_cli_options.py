@@ -1,4 +1,5 @@
-"""The identify flags declared once and given to a command by with_identify_flags (commission.cli.options)."""
+"""The identify and validation flags declared once and given to a command by with_identify_flags and
+with_validate_flags (commission.cli.options)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import typer
 from typer.testing import CliRunner
 
 from commission.cli.main import run
-from commission.cli.options import _IDENTIFY, with_identify_flags
+from commission.cli.options import _IDENTIFY, ValidateFlags, validate_flags, with_identify_flags, with_validate_flags
 from commission.identification import IdentifyOptions
+from commission.validate import DEFAULT_MONTE_CARLO
 
 runner = CliRunner()
 
@@ -59,3 +61,30 @@ def test_a_bad_identify_flag_is_refused_by_run_before_anything_is_written(tmp_pa
     err = capsys.readouterr().err
     assert "--input-gain" in err and "--u-unit" in err
     assert not out.exists()
+
+
+def test_validate_and_run_list_the_validation_flags_together_in_the_table_order(capsys):
+    order = list(validate_flags("seed", "plants"))
+    for command in ("validate", "run"):
+        shown = _options_in_help(capsys, command)
+        i = shown.index(order[0])
+        assert shown[i:i + len(order)] == order, command
+
+
+def test_the_command_receives_the_validation_flags_as_one_record():
+    seen: dict[str, object] = {}
+    demo = typer.Typer()
+
+    @demo.command()
+    @with_validate_flags(seed_help="seed", monte_carlo_help="plants")
+    def cmd(out: Path = typer.Option(Path("x.json"), "--out"), v: ValidateFlags = None) -> None:  # type: ignore[assignment]
+        seen.update(out=out, v=v)
+
+    r = runner.invoke(demo, ["--gate", "g.toml", "--force", "--seed", "7", "--monte-carlo", "3", "--workers", "2",
+                             "--scheduler", "tcp://h:1", "--out", "y.json"])
+    assert r.exit_code == 0, r.output
+    assert seen["v"] == ValidateFlags(Path("g.toml"), True, 7, 3, 2, None, "tcp://h:1")
+    assert seen["out"] == Path("y.json")
+    r = runner.invoke(demo, [])  # the table's defaults
+    assert r.exit_code == 0, r.output
+    assert seen["v"] == ValidateFlags(None, False, 0, DEFAULT_MONTE_CARLO, None, None, None)
