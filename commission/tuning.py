@@ -24,12 +24,13 @@ from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.metrics import SCORE_NAMES, Indexes
 from commission.controllers.pid import PidGains
-from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
+from commission.controllers.plant import PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.formats.json_table import check_header, json_error
 from commission.formats.tuning_json import TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION, TuningJson
 from commission.jsonio import read_json, write_json_atomic
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
+from commission.scenarios.scenario import read_only_plant
 from commission.spec import RANGES, Spec, spec_from_mapping
 
 
@@ -129,6 +130,9 @@ class Guarantee:
 @dataclass(frozen=True)
 class SearchRecord:
     """Summary of the gain search.
+
+    tuning.json's ``search``: every candidate's objective, level and violation in evaluation
+    order, but not its gains (only the chosen ones are kept, in ``arc``).
 
     Attributes
     ----------
@@ -304,11 +308,7 @@ class Tuning:
     pid_yardstick: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        p = np.array(self.plant, dtype=np.float64)
-        if p.shape != (NP,):
-            raise ValueError(f"Tuning.plant: expected {NP} entries, got shape {p.shape}")
-        p.setflags(write=False)
-        object.__setattr__(self, "plant", p)
+        object.__setattr__(self, "plant", read_only_plant(self.plant, "Tuning"))
 
     @property
     def delta_d(self) -> float:

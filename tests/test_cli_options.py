@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 from typing import Optional
 
+import pytest
 import typer
 from typer.testing import CliRunner
 
@@ -24,9 +25,12 @@ def _options_in_help(capsys, command: str) -> list[str]:
     return re.findall(r"^\S[ *]{1,6}(--[a-z][a-z0-9-]*)", capsys.readouterr().out, re.M)
 
 
-def test_identify_and_run_list_every_identify_flag_together_in_the_table_order(capsys):
-    order = list(_IDENTIFY)
-    for command in ("identify", "run"):
+@pytest.mark.parametrize("table, commands", [(_IDENTIFY, ("identify", "run")),
+                                             (validate_flags("seed", "plants"), ("validate", "run"))],
+                         ids=["identify flags", "validation flags"])
+def test_the_commands_list_every_shared_flag_together_in_the_table_order(capsys, table, commands):
+    order = list(table)
+    for command in commands:
         shown = _options_in_help(capsys, command)
         i = shown.index(order[0])
         assert shown[i:i + len(order)] == order, command
@@ -61,14 +65,6 @@ def test_a_bad_identify_flag_is_refused_by_run_before_anything_is_written(tmp_pa
     err = capsys.readouterr().err
     assert "--input-gain" in err and "--u-unit" in err
     assert not out.exists()
-
-
-def test_validate_and_run_list_the_validation_flags_together_in_the_table_order(capsys):
-    order = list(validate_flags("seed", "plants"))
-    for command in ("validate", "run"):
-        shown = _options_in_help(capsys, command)
-        i = shown.index(order[0])
-        assert shown[i:i + len(order)] == order, command
 
 
 def test_the_command_receives_the_validation_flags_as_one_record():
