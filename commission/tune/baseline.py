@@ -123,6 +123,10 @@ def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec
 class PidChatter:
     """Where the PID baseline exceeds the default gate's c_u on the tuning scenarios.
 
+    ``tune`` warns with it when its gains still fail the gate on the hold-out plants: if the
+    paper's PID itself chatters beyond the limit, the encoder's step at this sample rate, not
+    the ARC's tuning, sets the chattering floor.
+
     Attributes
     ----------
     limit : float
