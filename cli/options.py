@@ -134,9 +134,11 @@ class ValidateFlags(NamedTuple):
     workers : int or None
         ``--workers``: simulation threads (None: one per CPU).
     sign_key : Path or None
-        ``--sign-key``: the key file that signs controller.json (None: ``$COMMISSION_SIGN_KEY``'s).
+        ``--sign-key``: the key file that signs controller.json (None: the file named by
+        ``$COMMISSION_SIGN_KEY``, if set).
     scheduler : str or None
-        ``--scheduler``: the Dask scheduler's ``tcp://HOST:PORT`` (None: the default's order).
+        ``--scheduler``: the Dask scheduler's ``tcp://HOST:PORT`` (None: ``$COMMISSION_SCHEDULER``, else
+        the spec's ``compute.scheduler``, else local threads).
     """
 
     gate: Optional[Path]
