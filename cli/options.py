@@ -1,9 +1,12 @@
-"""Options shared by ``commission identify`` and ``commission run``: one definition of each flag.
+"""Options shared by several commands: one definition of each flag.
 
-Each factory returns a fresh ``typer.Option`` (typer reads the parameter's default to
-build the command); :func:`identify_options` turns the parsed flags into one
+The identify flags (``commission identify`` and ``commission run``): each factory returns a
+fresh ``typer.Option`` (typer reads the parameter's default to build the command);
+:func:`identify_options` turns the parsed flags into one
 :class:`commission.identification.IdentifyOptions`, with every check in one place, and
-:func:`with_identify_flags` gives a command all of them at once.
+:func:`with_identify_flags` gives a command all of them at once.  The validation flags
+(``commission validate`` and ``commission run``) are given the same way by
+:func:`with_validate_flags`, as one :class:`ValidateFlags`.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ class Friction(str, enum.Enum):
     stribeck = "stribeck"
 
 
+SIGN_KEY_HELP = ("Key file: sign controller.json with HMAC-SHA256 (default: the file named by $COMMISSION_SIGN_KEY; "
+                 "load_controller(path, key=...) then refuses files not signed with it).")
 SCHEDULER_HELP = ("Dask scheduler tcp://HOST:PORT to run the simulations on (default: COMMISSION_SCHEDULER, else "
                   "the spec's compute.scheduler, else local threads); needs pip install \"commission[dask]\"; "
                   "an unreachable one is exit 2.")
@@ -106,11 +111,58 @@ _IDENTIFY: dict[str, _Flag] = {
 }
 
 
-def opt(flag: str) -> Any:
-    """A fresh ``typer.Option`` for the identify flag ``flag`` (see :data:`_IDENTIFY`)."""
-    f = _IDENTIFY[flag]
+def opt(flag: str, table: Optional[dict[str, _Flag]] = None) -> Any:
+    """A fresh ``typer.Option`` for the flag ``flag`` of ``table`` (default: the identify flags, :data:`_IDENTIFY`)."""
+    f = (_IDENTIFY if table is None else table)[flag]
     return typer.Option(list(f.default) if isinstance(f.default, list) else f.default, flag, help=f.help,
                         **({"metavar": f.metavar} if f.metavar else {}))
+
+
+class ValidateFlags(NamedTuple):
+    """The validation flags of ``validate`` and ``run``, as the command receives them (:func:`with_validate_flags`).
+
+    Attributes
+    ----------
+    gate : Path or None
+        ``--gate``: the gate TOML (None: the table's defaults).
+    force : bool
+        ``--force``: overwrite existing outputs in ``--out-dir``.
+    seed : int
+        ``--seed``: seed of the Monte-Carlo plants (and, in ``run``, of the tuning search).
+    monte_carlo : int
+        ``--monte-carlo``: Monte-Carlo plants drawn from the theta box.
+    workers : int or None
+        ``--workers``: simulation threads (None: one per CPU).
+    sign_key : Path or None
+        ``--sign-key``: the key file that signs controller.json (None: the file named by
+        ``$COMMISSION_SIGN_KEY``, if set).
+    scheduler : str or None
+        ``--scheduler``: the Dask scheduler's ``tcp://HOST:PORT`` (None: ``$COMMISSION_SCHEDULER``, else
+        the spec's ``compute.scheduler``, else local threads).
+    """
+
+    gate: Optional[Path]
+    force: bool
+    seed: int
+    monte_carlo: int
+    workers: Optional[int]
+    sign_key: Optional[Path]
+    scheduler: Optional[str]
+
+
+def validate_flags(seed_help: str, monte_carlo_help: str) -> dict[str, _Flag]:
+    """The validation flags, in the order --help lists them; ``run`` and ``validate`` word two helps their own way."""
+    from commission.validate import DEFAULT_MONTE_CARLO
+
+    return {
+        "--gate": _Flag("gate", Optional[Path], None, None, "Gate TOML (default: the table's defaults, below)."),
+        "--force": _Flag("force", bool, False, None, "Overwrite existing outputs in --out-dir."),
+        "--seed": _Flag("seed", int, 0, None, seed_help),
+        "--monte-carlo": _Flag("monte_carlo", int, DEFAULT_MONTE_CARLO, None, monte_carlo_help),
+        "--workers": _Flag("workers", Optional[int], None, None, "Simulation threads, 1-256 (default: one per CPU)."),
+        "--sign-key": _Flag("sign_key", Optional[Path], None, None, SIGN_KEY_HELP),
+        "--scheduler": _Flag("scheduler", Optional[str], None, "tcp://HOST:PORT", SCHEDULER_HELP),
+    }
 
 
 def bounds_options(
@@ -170,6 +222,40 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
         counts_per_rev=counts_per_rev)
 
 
+def with_flags(slot: str, table: dict[str, _Flag], build: Callable[..., Any]) -> Callable[[F], F]:
+    """Give a typer command every flag of ``table`` in place of its parameter ``slot``, built into ``slot``.
+
+    typer sees the flags where ``slot`` stands in the command's signature (so --help lists
+    them there, in the table's order), and the command receives ``build(**flags)`` as
+    ``slot``; ``build``'s checks run before the command's body.
+    """
+
+    def decorate(fn: F) -> F:
+        sig = inspect.signature(fn)
+        hints = typing.get_type_hints(fn)
+        params: list[inspect.Parameter] = []
+        for p in sig.parameters.values():
+            if p.name == slot:
+                params += [inspect.Parameter(f.param, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=opt(flag, table),
+                                             annotation=f.kind) for flag, f in table.items()]
+            else:
+                params.append(p.replace(annotation=hints.get(p.name, p.annotation)))
+        names = [f.param for f in table.values()]
+
+        @functools.wraps(fn)
+        def wrapper(**kwargs: Any) -> Any:
+            built = build(**{name: kwargs.pop(name) for name in names})
+            return fn(**{slot: built}, **kwargs)
+
+        # typer reads the signature and the type hints: both name the flags, with evaluated types.
+        ret = hints.get("return", None)
+        wrapper.__signature__ = sig.replace(parameters=params, return_annotation=ret)  # type: ignore[attr-defined]
+        wrapper.__annotations__ = {**{p.name: p.annotation for p in params}, "return": ret}
+        return wrapper  # type: ignore[return-value]
+
+    return decorate
+
+
 def with_identify_flags(fn: F) -> F:
     """Give a typer command every identify flag in place of its parameter ``o``, parsed into ``o``.
 
@@ -179,24 +265,13 @@ def with_identify_flags(fn: F) -> F:
     :class:`commission.identification.IdentifyOptions` (:func:`identify_options`, whose
     checks run before the command's body).
     """
-    sig = inspect.signature(fn)
-    hints = typing.get_type_hints(fn)
-    params: list[inspect.Parameter] = []
-    for p in sig.parameters.values():
-        if p.name == "o":
-            params += [inspect.Parameter(f.param, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=opt(flag),
-                                         annotation=f.kind) for flag, f in _IDENTIFY.items()]
-        else:
-            params.append(p.replace(annotation=hints.get(p.name, p.annotation)))
-    names = [f.param for f in _IDENTIFY.values()]
+    return with_flags("o", _IDENTIFY, identify_options)(fn)
 
-    @functools.wraps(fn)
-    def wrapper(**kwargs: Any) -> Any:
-        o = identify_options(**{name: kwargs.pop(name) for name in names})
-        return fn(o=o, **kwargs)
 
-    # typer reads the signature and the type hints: both name the flags, with evaluated types.
-    ret = hints.get("return", None)
-    wrapper.__signature__ = sig.replace(parameters=params, return_annotation=ret)  # type: ignore[attr-defined]
-    wrapper.__annotations__ = {**{p.name: p.annotation for p in params}, "return": ret}
-    return wrapper  # type: ignore[return-value]
+def with_validate_flags(seed_help: str, monte_carlo_help: str) -> Callable[[F], F]:
+    """Give a typer command the validation flags (:func:`validate_flags`) in place of its parameter ``v``.
+
+    ``validate`` and ``run`` validate the same way: the command receives the flags as one
+    :class:`ValidateFlags`.
+    """
+    return with_flags("v", validate_flags(seed_help, monte_carlo_help), ValidateFlags)

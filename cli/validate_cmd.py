@@ -4,7 +4,7 @@ write the report and (gate passed) controller.json."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Sequence
 
 import typer
 from rich.console import Console
@@ -13,17 +13,13 @@ from rich.markup import escape
 from commission.report import refusal_lines, summary_text
 from commission.cli.errors import EXIT_GATE_FAILED, cli_errors
 from commission.cli.main import app
-from commission.cli.options import SCHEDULER_HELP
+from commission.cli.options import ValidateFlags, with_validate_flags
 from commission.cli.progress import StageProgress
 from commission.controller_config import load_sign_key
 from commission.evidence import evidence_lines
 from commission.formats.gate_toml import gate_help
 from commission.next_steps import next_steps
-from commission.validate import DEFAULT_MONTE_CARLO, ValidationResult, run_validate
-
-
-SIGN_KEY_HELP = ("Key file: sign controller.json with HMAC-SHA256 (default: the file named by $COMMISSION_SIGN_KEY; "
-                 "load_controller(path, key=...) then refuses files not signed with it).")
+from commission.validate import ValidationResult, run_validate
 
 
 def print_summary(result: ValidationResult) -> None:
@@ -61,32 +57,38 @@ criteria on every scenario (docs/interface.md section 6).
 
 @app.command("validate", help=VALIDATE_HELP)
 @cli_errors
+@with_validate_flags(seed_help="Seed of the Monte-Carlo plants.",
+                     monte_carlo_help="Monte-Carlo plants drawn from the theta box (0-10000).")
 def validate_command(
     tuning: Path = typer.Argument(..., help="tuning.json written by `commission tune`."),
     out_dir: Path = typer.Option(..., "--out-dir", help="Folder for report.md, the figures, validation.json and controller.json."),
-    gate: Optional[Path] = typer.Option(None, "--gate", help="Gate TOML (default: the table's defaults, below)."),
-    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in --out-dir."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the Monte-Carlo plants."),
-    monte_carlo: int = typer.Option(DEFAULT_MONTE_CARLO, "--monte-carlo", help="Monte-Carlo plants drawn from the theta box (0-10000)."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Simulation threads, 1-256 (default: one per CPU)."),
-    sign_key: Optional[Path] = typer.Option(None, "--sign-key", help=SIGN_KEY_HELP),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="tcp://HOST:PORT", help=SCHEDULER_HELP),
+    v: ValidateFlags = None,  # type: ignore[assignment]  # every validation flag (with_validate_flags)
 ) -> None:
     """Simulate ARC and PID on every scenario (the command's help is :data:`VALIDATE_HELP`)."""
     from commission.cli.plots_validate import validation_plots
 
     err = Console(stderr=True)
-    key = load_sign_key(sign_key)
+    key = load_sign_key(v.sign_key)
     with StageProgress(err) as bar:
-        outcome = run_validate(tuning, out_dir, gate_path=gate, force=force, seed=seed, n_monte_carlo=monte_carlo,
-                               progress=bar.callback("simulating"), workers=workers, figures=validation_plots,
-                               sign_key=key, scheduler=scheduler)
-    print_summary(outcome.result)
-    for p in outcome.written:
+        outcome = run_validate(tuning, out_dir, gate_path=v.gate, force=v.force, seed=v.seed,
+                               n_monte_carlo=v.monte_carlo, progress=bar.callback("simulating"), workers=v.workers,
+                               figures=validation_plots, sign_key=key, scheduler=v.scheduler)
+    print_outcome(outcome.result, outcome.tuning, outcome.written, out_dir, tuning, signed=key is not None)
+
+
+def print_outcome(result: ValidationResult, tuning: Any, written: Sequence[Path], out_dir: Path, tuning_path: Path,
+                  *, signed: bool) -> None:
+    """The summary, the files written, the next step, and on a failed gate why, then exit 1.
+
+    ``validate`` and ``run`` end the same way (``run`` lists ident.json and tuning.json
+    among ``written``).
+    """
+    print_summary(result)
+    for p in written:
         typer.echo(f"wrote {p}")
-    print_next_steps(outcome.result, outcome.tuning, out_dir, tuning, signed=key is not None)
-    if not outcome.result.passed:
-        for line in refusal_lines(outcome.result, outcome.tuning):
+    print_next_steps(result, tuning, out_dir, tuning_path, signed=signed)
+    if not result.passed:
+        for line in refusal_lines(result, tuning):
             typer.echo(line)
         typer.echo(f"no controller.json: the gate failed (see {Path(out_dir) / 'report.md'})")
         raise typer.Exit(EXIT_GATE_FAILED)

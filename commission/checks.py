@@ -50,7 +50,10 @@ FEW_LEVELS = 16
 class CheckReport:
     """What the pre-fit checks found in a log that passed them.
 
-    Parameters
+    Only a log that passes builds one (a failed check raises instead), so every field
+    describes data the fit will use; what does not stop the fit is in ``warnings``.
+
+    Attributes
     ----------
     source : str
         The log's file name.

@@ -90,14 +90,18 @@ SEARCH_ROOM = 0.05
 class MeasuredResponse:
     """The measured response of ident.json's ``frequency_response.measured``.
 
+    Kept beside the model so that a loop's margins are also read on what the log showed
+    (:func:`measured_margins`), not only on the fit's extrapolation; the file's magnitude and
+    phase (deg) are joined into one complex response on loading.
+
     Attributes
     ----------
     f_hz : ndarray
-        Hz.
+        Frequencies of the measured bins, Hz.
     H : ndarray, complex
-        q-unit per u-unit.
+        Measured response from u to q at those bins, q-unit per u-unit.
     coherence : ndarray
-        0-1.
+        Magnitude-squared coherence of each bin, dimensionless (0-1).
     n_averages : int
         Welch windows averaged (ident.json's ``frequency_response.n_averages``).
     """
@@ -254,6 +258,10 @@ def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
 @dataclass(frozen=True)
 class RobustStability:
     """``||W T||_inf`` of one loop and its margins on the measured response.
+
+    The two halves answer two questions: ``peak`` weighs the model's loop by the uncertainty
+    above the band the log backs (the module docstring's ``W``); the ``measured_*`` margins read
+    the same loop on the coherent bins the log did measure (:func:`measured_margins`).
 
     Attributes
     ----------

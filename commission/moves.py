@@ -68,6 +68,9 @@ MOVE_KEYS: dict[str, tuple[bool, str, float, float]] = {
 class UserProfile:
     """The machine's moves, parsed and checked (module docstring).
 
+    Equality and hashing go by ``(kind, sha256)``, not by the arrays, so that scenarios that
+    carry the same profile compare and cache as one.
+
     Attributes
     ----------
     kind : str

@@ -38,6 +38,9 @@ FIRST_TEST_FRACTION = 0.25
 class NextSteps:
     """The next step after a validation.
 
+    Built once (:func:`next_steps`) and rendered twice: :meth:`text` for the console,
+    :meth:`markdown` for report.md, so that both say the same.
+
     Attributes
     ----------
     lines : tuple of str
@@ -218,6 +221,9 @@ from commission.excite import SKETCH_BANDWIDTH_HZ  # noqa: E402  (the sketch's b
 @dataclass(frozen=True)
 class ExciteAdvice:
     """What the log lacks and the ``commission excite`` run that would supply it.
+
+    identify stores :meth:`to_dict` in ident.json, and the CLI prints :meth:`text` from there,
+    so that the advice is the one recorded.
 
     Attributes
     ----------

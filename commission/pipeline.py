@@ -40,8 +40,12 @@ class RunOutcome:
     Attributes
     ----------
     ident : Path
+        ident.json in the output folder.
     tuning : Path
+        tuning.json in the output folder.
     validation : ValidateOutcome
+        What validate wrote there: report, figures, validation.json and, when the gate
+        passed, controller.json.
     notes : tuple of str
         Spec defaults lowered for this axis (:func:`commission.tune.resolve_spec`).
     """

@@ -80,10 +80,13 @@ PID_FRICTION_SLOPE = 900.0
 class TrueRun:
     """One simulation on the true plant.
 
+    Only the numbers the judgement reads (:attr:`ok`, and e_rms against the true-plant PID's in
+    the same run) are kept, not the traces: an axis is judged on many runs.
+
     Attributes
     ----------
     case : str
-        ``"case1"`` or ``"case2"``.
+        Validate's default trajectory it ran: ``"case1"`` or ``"case2"``.
     extra_delay : float
         Input delay added to the true plant's, samples.
     diverged : bool

@@ -24,12 +24,13 @@ from commission.controllers.arc import RUNTIME_GUARDS, ArcGains
 from commission.controllers.design import ObserverDesign, Theorem1Check
 from commission.controllers.metrics import SCORE_NAMES, Indexes
 from commission.controllers.pid import PidGains
-from commission.controllers.plant import NP, PLANT_NAMES, plant_vector
+from commission.controllers.plant import PLANT_NAMES, plant_vector
 from commission.errors import SchemaError
 from commission.formats.json_table import check_header, json_error
 from commission.formats.tuning_json import TUNING_FIELDS, TUNING_KIND, TUNING_SCHEMA_VERSION, TuningJson
 from commission.jsonio import read_json, write_json_atomic
 from commission.robustness import BoxRobustness, LoopMargins, MarginFloors
+from commission.scenarios.scenario import read_only_plant
 from commission.spec import RANGES, Spec, spec_from_mapping
 
 
@@ -72,11 +73,16 @@ class Provenance:
 class FeasibilitySummary:
     """Discrete feasibility of one controller (see :func:`controllers.design.discrete_feasibility`).
 
+    What tuning.json keeps of a :class:`controllers.design.FeasibilityReport`: the worst point
+    and the counts, not every radius checked.
+
     Attributes
     ----------
     holds : bool
         Every spectral radius < 1 - margin.
     margin : float
+        Required margin of the frozen-estimate loop, dimensionless: each radius must be
+        below ``1 - margin``.
     rho_max : float
         Largest spectral radius found (``inf``, stored as null, if a nominal run blew up).
     worst_corner : tuple of 3 float
@@ -125,6 +131,9 @@ class Guarantee:
 class SearchRecord:
     """Summary of the gain search.
 
+    tuning.json's ``search``: every candidate's objective, level and violation in evaluation
+    order, but not its gains (only the chosen ones are kept, in ``arc``).
+
     Attributes
     ----------
     n_evaluations : int
@@ -132,6 +141,7 @@ class SearchRecord:
     budget : int
         Requested budget (spec ``tune.budget``).
     seed : int
+        Seed of the search's Generator (the same as ``provenance.seed``).
     cost_initial, cost_best : float
         Objective of the starting point and of the chosen gains (lower is better; nan: not
         simulated because a stability constraint failed first).
@@ -146,6 +156,7 @@ class SearchRecord:
     optimiser : str
         The optimiser and its constraint handling.
     generations : int
+        CMA-ES generations run (each one asks, simulates and tells one population).
     n_feasible : int
         Candidates that met every constraint.
     violations : tuple of float
@@ -156,6 +167,7 @@ class SearchRecord:
     chosen_level : int
         The chosen gains' level (0 unless no candidate met every constraint).
     chosen_violation : float
+        The chosen gains' constraint violation, dimensionless (0: met every constraint).
     screened : tuple of bool
         Each candidate was far off the gate on the screening scenarios
         (:data:`commission.tune.optimiser.SCREEN_EXCESS`) and was simulated on those only (its
@@ -228,7 +240,9 @@ class Tuning:
     Attributes
     ----------
     provenance : Provenance
+        The inputs' hashes, this tool's version, the time and the seed (key ``provenance``).
     spec : Spec
+        The tuning spec tune ran with (its defaults fitted to the axis: :func:`commission.tune.resolve_spec`).
     identification : Identification
         The identification the gains were tuned for.
     plant : numpy.ndarray
@@ -245,7 +259,9 @@ class Tuning:
     pid_design_mass : float
         M_min = 1/theta_max[0], u-unit s^2/m.
     observer : ObserverDesign
+        The velocity observer of (10): its pole (rad/s), gains and Lyapunov matrix.
     theorem1 : Theorem1Check
+        The paper's Theorem 1 condition on the chosen gains (holds, and its smallest ratio).
     feasibility : dict
         ``{"arc": FeasibilitySummary, "pid": FeasibilitySummary}``.
     guarantees : dict
@@ -253,6 +269,7 @@ class Tuning:
     scores : dict
         scenario -> ``{"arc": Indexes, "pid": Indexes}``.
     search : SearchRecord
+        How the gains were found (:class:`SearchRecord`).
     margins : tuple of LoopMargins
         Stability margins of both loops per plant (:mod:`commission.robustness`);
         empty in a tuning.json written before they were recorded.
@@ -291,11 +308,7 @@ class Tuning:
     pid_yardstick: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        p = np.array(self.plant, dtype=np.float64)
-        if p.shape != (NP,):
-            raise ValueError(f"Tuning.plant: expected {NP} entries, got shape {p.shape}")
-        p.setflags(write=False)
-        object.__setattr__(self, "plant", p)
+        object.__setattr__(self, "plant", read_only_plant(self.plant, "Tuning"))
 
     @property
     def delta_d(self) -> float:

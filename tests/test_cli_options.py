@@ -1,4 +1,5 @@
-"""The identify flags declared once and given to a command by with_identify_flags (commission.cli.options)."""
+"""The identify and validation flags declared once and given to a command by with_identify_flags and
+with_validate_flags (commission.cli.options)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,14 @@ import re
 from pathlib import Path
 from typing import Optional
 
+import pytest
 import typer
 from typer.testing import CliRunner
 
 from commission.cli.main import run
-from commission.cli.options import _IDENTIFY, with_identify_flags
+from commission.cli.options import _IDENTIFY, ValidateFlags, validate_flags, with_identify_flags, with_validate_flags
 from commission.identification import IdentifyOptions
+from commission.validate import DEFAULT_MONTE_CARLO
 
 runner = CliRunner()
 
@@ -22,9 +25,12 @@ def _options_in_help(capsys, command: str) -> list[str]:
     return re.findall(r"^\S[ *]{1,6}(--[a-z][a-z0-9-]*)", capsys.readouterr().out, re.M)
 
 
-def test_identify_and_run_list_every_identify_flag_together_in_the_table_order(capsys):
-    order = list(_IDENTIFY)
-    for command in ("identify", "run"):
+@pytest.mark.parametrize("table, commands", [(_IDENTIFY, ("identify", "run")),
+                                             (validate_flags("seed", "plants"), ("validate", "run"))],
+                         ids=["identify flags", "validation flags"])
+def test_the_commands_list_every_shared_flag_together_in_the_table_order(capsys, table, commands):
+    order = list(table)
+    for command in commands:
         shown = _options_in_help(capsys, command)
         i = shown.index(order[0])
         assert shown[i:i + len(order)] == order, command
@@ -59,3 +65,22 @@ def test_a_bad_identify_flag_is_refused_by_run_before_anything_is_written(tmp_pa
     err = capsys.readouterr().err
     assert "--input-gain" in err and "--u-unit" in err
     assert not out.exists()
+
+
+def test_the_command_receives_the_validation_flags_as_one_record():
+    seen: dict[str, object] = {}
+    demo = typer.Typer()
+
+    @demo.command()
+    @with_validate_flags(seed_help="seed", monte_carlo_help="plants")
+    def cmd(out: Path = typer.Option(Path("x.json"), "--out"), v: ValidateFlags = None) -> None:  # type: ignore[assignment]
+        seen.update(out=out, v=v)
+
+    r = runner.invoke(demo, ["--gate", "g.toml", "--force", "--seed", "7", "--monte-carlo", "3", "--workers", "2",
+                             "--scheduler", "tcp://h:1", "--out", "y.json"])
+    assert r.exit_code == 0, r.output
+    assert seen["v"] == ValidateFlags(Path("g.toml"), True, 7, 3, 2, None, "tcp://h:1")
+    assert seen["out"] == Path("y.json")
+    r = runner.invoke(demo, [])  # the table's defaults
+    assert r.exit_code == 0, r.output
+    assert seen["v"] == ValidateFlags(None, False, 0, DEFAULT_MONTE_CARLO, None, None, None)

@@ -23,6 +23,10 @@ MODE_BAND_FACTOR = 1.5
 class BandPrediction:
     """The band a recording of the plan is expected to back, before it is run (:func:`predict_band`).
 
+    The prediction runs identify's own band rule on an expected coherence (the plan's
+    injection against the encoder floor through the rigid model), so that a plan too short
+    or too weak for its target is said before machine time is spent on it.
+
     Attributes
     ----------
     f_hz : ndarray
@@ -38,11 +42,18 @@ class BandPrediction:
     mass : float
         Mass of the rigid model predicted on, u s^2/q.
     encoder_step, encoder_noise : float
-        The encoder floor used, q-unit (step, rms noise), and whether each was given.
+        The encoder floor used, q-unit (step, rms noise).
+    step_given, noise_given : bool
+        ``[axis] encoder_step`` / ``encoder_noise`` was given (False: the assumed value).
     floor_psd : float
         One-sided density of the floor, q^2/Hz.
     target_hz : float or None
-        The band's top that is needed, Hz, and ``target_source`` what set it.
+        The band's top that is needed, Hz (None: no target set).
+    target_source : str or None
+        What set it: ``"evidence.band_hz"`` or ``"1.5 x evidence.first_mode_hz"``.
+    remedies : mapping
+        When the band misses the target: what would reach it (:func:`predict_band`); empty
+        otherwise.
     """
 
     f_hz: np.ndarray

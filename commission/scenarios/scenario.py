@@ -93,9 +93,28 @@ class StepDisturbance:
 NO_DISTURBANCE = StepDisturbance()
 
 
+def read_only_plant(plant: Any, owner: str) -> np.ndarray:
+    """A read-only float64 copy of a plant vector (:mod:`commission.controllers.plant` layout).
+
+    The frozen records that hold a plant (:class:`Scenario`, :class:`commission.tuning.Tuning`)
+    store this copy, so that neither the caller's array nor anyone after can change what the
+    record says.  A vector that is not ``NP`` entries long is a :class:`ValueError` naming
+    ``owner`` and the shape.
+    """
+    p = np.array(plant, dtype=np.float64)
+    if p.shape != (NP,):
+        raise ValueError(f"{owner}: plant must have {NP} entries, got shape {p.shape}")
+    p.setflags(write=False)
+    return p
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One closed-loop run of the matrix.
+
+    Plain data -- the plant, the motion, the disturbance and the encoder -- with the encoder
+    noise seeded by the name (:meth:`noise`), so that ``tune`` and ``validate`` simulate a
+    scenario of the same name alike.
 
     Attributes
     ----------
@@ -137,11 +156,7 @@ class Scenario:
         return np.random.default_rng(seed).normal(0.0, self.noise_std, n)
 
     def __post_init__(self) -> None:
-        p = np.array(self.plant, dtype=np.float64)
-        if p.shape != (NP,):
-            raise ValueError(f"Scenario {self.name}: plant must have {NP} entries, got shape {p.shape}")
-        p.setflags(write=False)
-        object.__setattr__(self, "plant", p)
+        object.__setattr__(self, "plant", read_only_plant(self.plant, f"Scenario {self.name}"))
         object.__setattr__(self, "tags", tuple(self.tags))
 
     def reference(self, Ts: float):

@@ -37,6 +37,10 @@ class Leg:
 class Reference:
     """A sampled reference trajectory and where its parts are.
 
+    The arrays are what the synthetic loop tracks (:func:`commission.synth.simulation.simulate_excitation`
+    feeds ``q``, ``qd``, ``qdd`` forward); the windows are kept beside them so that a test can
+    read each fit's segment of the log by time, without re-deriving the plan's schedule.
+
     Attributes
     ----------
     t : ndarray

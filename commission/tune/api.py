@@ -254,6 +254,7 @@ class ResolvedSpec:
     Attributes
     ----------
     spec : Spec
+        The spec with its defaults fitted to the axis (rates, horizons, budget).
     ident : Identification
         The identification tune designs for: the input one, or a copy whose theta3 box was
         narrowed to the drive (:func:`fit_disturbance_to_drive`).

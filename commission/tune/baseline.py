@@ -51,6 +51,7 @@ class PidBaseline:
     Attributes
     ----------
     gains : PidGains
+        The PID of (57) at ``pole``: Kp (u-unit/m), Ki, Kd and its friction compensation.
     pole : float
         Triple closed-loop pole of (56), rad/s.
     design_mass : float
@@ -122,14 +123,18 @@ def pid_within_evidence(baseline: PidBaseline, ident: Identification, spec: Spec
 class PidChatter:
     """Where the PID baseline exceeds the default gate's c_u on the tuning scenarios.
 
+    ``tune`` warns with it when its gains still fail the gate on the hold-out plants: if the
+    paper's PID itself chatters beyond the limit, the encoder's step at this sample rate, not
+    the ARC's tuning, sets the chattering floor.
+
     Attributes
     ----------
     limit : float
-        The gate's c_u limit.
+        The gate's c_u limit (du_rms / u_rms, dimensionless).
     count : int
         Scenarios where the PID's c_u exceeds it.
     worst : float
-        The PID's largest c_u.
+        The PID's largest c_u, dimensionless.
     scenario : str
         Where it occurs.
     """

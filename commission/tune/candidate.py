@@ -41,6 +41,7 @@ class Candidate:
     observer_factor : float
         Factor on the spec's observer pole.
     gains : ArcGains
+        The ARC that ``x`` and ``observer_factor`` give (the gains simulated).
     level : int
         :data:`FEASIBLE`, :data:`GATE_MISSED` or :data:`STABILITY_MISSED`.
     violation : float

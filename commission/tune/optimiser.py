@@ -388,6 +388,7 @@ class HoldoutChoice:
     Attributes
     ----------
     chosen : Candidate
+        The winner: its gains, objective, violation and level.
     n_plants : int
         Hold-out plants simulated (0: nothing feasible to judge).
     failures : tuple of int

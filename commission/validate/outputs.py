@@ -32,7 +32,9 @@ class ValidateOutcome:
     Attributes
     ----------
     result : ValidationResult
+        Everything validate computed: every scenario's run, the traces and the gate's verdict.
     tuning : Tuning
+        The tuning.json that was validated, as loaded.
     written : tuple of Path
         Every file written, in order.
     controller : Path or None

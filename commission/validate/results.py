@@ -121,10 +121,13 @@ class ValidationResult:
     traces : dict
         Scenario name -> :class:`Trace`, for the fixed scenarios.
     verdict : GateVerdict
+        The gate's criteria, each with its limit and measured value, and whether it passed.
     units : dict
         ``{"u": command unit, "q": "m"}``.
     seed : int
+        Seed of the Monte-Carlo plants.
     n_monte_carlo : int
+        Monte-Carlo plants drawn from the theta box.
     arc_gains : ArcGains
         The gains simulated (read back from the controller.json layout).
     quantization : float
