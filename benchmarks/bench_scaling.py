@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from commission.executor import DaskExecutor, LocalExecutor
+from commission.infra.executor import DaskExecutor, LocalExecutor
 from commission.paper import reference_identification
 from commission.spec import spec_from_mapping
 from commission.tune import tune

@@ -22,9 +22,9 @@ def cli_errors(fn: F) -> F:
     The message already names the file, field or flag; no traceback is shown.
     Commands write their outputs only after all checks pass, so nothing is
     half-written when this fires: a failure to write (a full disk) comes here as
-    :class:`commission.errors.OutputError` once :class:`commission.files.Outputs`
+    :class:`commission.errors.OutputError` once :class:`commission.infra.files.Outputs`
     has put everything back.  An :class:`OSError` that says the disk cannot take a
-    file (:data:`commission.files.WRITE_ERRNOS`) but escaped ``Outputs`` is
+    file (:data:`commission.infra.files.WRITE_ERRNOS`) but escaped ``Outputs`` is
     reported the same way, as one line, rather than as an internal error.
     """
 
@@ -36,7 +36,7 @@ def cli_errors(fn: F) -> F:
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(EXIT_BAD_INPUT) from None
         except OSError as exc:
-            from commission.files import WRITE_ERRNOS
+            from commission.infra.files import WRITE_ERRNOS
 
             if exc.errno not in WRITE_ERRNOS:
                 raise

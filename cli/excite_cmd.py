@@ -12,7 +12,7 @@ from rich.markup import escape
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.excite import band_lines, load_excite_spec, plan_run, write_plan_csv, write_plan_h5
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.formats.limits_toml import LIMITS_KEYS
 from commission.formats.table import Key, sections
 from commission.jsonio import write_json_atomic

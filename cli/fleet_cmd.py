@@ -35,7 +35,7 @@ def fleet_command(
     from commission.cli.plots import identification_plots
     from commission.cli.plots_fleet import fleet_plot
     from commission.cli.plots_validate import validation_plots
-    from commission.executor import LocalExecutor, make_executor, resolve_scheduler
+    from commission.infra.executor import LocalExecutor, make_executor, resolve_scheduler
     from commission.fleet import load_manifest, run_fleet
 
     err = Console(stderr=True)

@@ -16,7 +16,7 @@ from commission.units import mass_wording, parameter_label, parameter_units, uni
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.errors import UsageError
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.cli.options import with_identify_flags
 from commission.identification import (IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome, LegsOutcome,
                                        expand_log_paths, identify_files, identify_log)

@@ -17,8 +17,8 @@ imported only when that command runs or its own help is asked for
   on stderr (``--verbose`` adds it);
 * Ctrl-C exits ``130`` and SIGTERM ``143`` (128 + the signal) with one line,
   at any moment including start-up, and then nothing was written or replaced
-  (:class:`commission.files.Outputs` removes its staging folder and lock).  Once
-  the command's outputs are in place (:func:`commission.files.committed_outputs`)
+  (:class:`commission.infra.files.Outputs` removes its staging folder and lock).  Once
+  the command's outputs are in place (:func:`commission.infra.files.committed_outputs`)
   the command is done as far as the files go: a signal arriving from then on (or
   during the final move, which holds it) is noted on stderr and the command ends
   with its own code, 0 or 1.  The exit code thus always tells the truth: 130/143
@@ -221,7 +221,7 @@ def _internal_error(exc: BaseException) -> int:
 
 def run(argv: list[str] | None = None) -> int:
     """Run the command line on ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
-    from commission import files
+    from commission.infra import files
 
     files.forget_commits()
     outer = files.unfinished()  # a caller's own (run() called in-process): not this command's to abort

@@ -9,7 +9,7 @@ import typer
 
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.jsonio import write_json_atomic
 from commission.paper import format_table, run_paper_table
 

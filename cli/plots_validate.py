@@ -274,11 +274,11 @@ def validation_plots(result: ValidationResult, out_dir: str | Path) -> list[Path
 
     The tracking figures and the theta_hat figure (each about as long to draw as all the
     others together) are drawn in two forked child processes
-    (:class:`commission.background.ChildJob`) while this process draws the others:
+    (:class:`commission.infra.background.ChildJob`) while this process draws the others:
     matplotlib holds the interpreter lock, so a thread would not run beside it.  Without
     ``fork`` the children's parts run here, as before.  The same files either way.
     """
-    from commission.background import ChildJob
+    from commission.infra.background import ChildJob
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

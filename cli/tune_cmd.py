@@ -14,7 +14,7 @@ from rich.table import Table
 from commission.cli.errors import cli_errors
 from commission.cli.main import app
 from commission.cli.progress import StageProgress
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.formats.spec_toml import SPEC_KEYS
 from commission.formats.table import Key, help_lines
 from commission.spec import MAX_OMEGA_T, check_flags

@@ -444,7 +444,7 @@ def load_sign_key(path: str | os.PathLike[str] | None = None, *, flag: str = "--
     UsageError
         The key is shorter than :data:`MIN_KEY_BYTES`.
     """
-    from commission.files import read_input_bytes
+    from commission.infra.files import read_input_bytes
 
     if path is None:
         env = os.environ.get(SIGN_KEY_ENV)

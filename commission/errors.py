@@ -50,7 +50,7 @@ class InputFileError(CommissionError, FileNotFoundError):
 class OutputError(CommissionError, OSError):
     """An output could not be written or moved into place (a full disk, a read-only file system).
 
-    Raised by :class:`commission.files.Outputs` after it has put everything back: the
+    Raised by :class:`commission.infra.files.Outputs` after it has put everything back: the
     message says which output and why, and nothing was written or replaced.
     """
 

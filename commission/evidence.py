@@ -66,7 +66,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from commission.artifacts import Identification
-from commission.blas import one_blas_thread
+from commission.infra.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import LinearController, frequency_grid, linearize_arc, linearize_pid

@@ -14,7 +14,7 @@ Design
   before any axis runs (exit 2).
 * **Exit code** (:func:`exit_code`): 0 when every axis passed its gate, 1 when any gate
   failed or any axis ended in an error.
-* **Where the axes run**: on the executor (:mod:`commission.executor`).  Locally the axes
+* **Where the axes run**: on the executor (:mod:`commission.infra.executor`).  Locally the axes
   run one after another, each on every core (tune and validate are parallel inside); on a
   Dask cluster each axis is one task, and its run uses the worker's cores.  The rows are
   gathered in manifest order whatever the engine.
@@ -49,7 +49,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import commission
 from commission.errors import SchemaError, UsageError
-from commission.executor import Executor, LocalExecutor
+from commission.infra.executor import Executor, LocalExecutor
 from commission.formats.validation_json import check_validation
 from commission.jsonio import read_json, sha256_file
 
@@ -463,7 +463,7 @@ def run_fleet(manifest: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     SchemaError, InputFileError, UsageError
         A bad manifest or output folder (exit 2); no axis has run.
     """
-    from commission.files import Outputs
+    from commission.infra.files import Outputs
     from commission.jsonio import write_json_atomic, write_text_atomic
     from commission.validate import DEFAULT_MONTE_CARLO
     from commission.spec import check_flags

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from commission.errors import SchemaError, UsageError
-from commission.files import MAX_JSON_BYTES, read_input_bytes
+from commission.infra.files import MAX_JSON_BYTES, read_input_bytes
 
 
 def sha256_file(path: str | os.PathLike[str]) -> str:
@@ -170,7 +170,7 @@ def read_json(path: str | os.PathLike[str]) -> Any:
     Raises
     ------
     InputFileError
-        Missing, a folder, FIFO or device, or larger than :data:`commission.files.MAX_JSON_BYTES`.
+        Missing, a folder, FIFO or device, or larger than :data:`commission.infra.files.MAX_JSON_BYTES`.
     SchemaError
         Not UTF-8, not JSON, nested deeper than the parser's recursion limit, or holding one
         of the values above (``x.json: $.bounds.u_max: duplicate key ...``).

@@ -1,7 +1,7 @@
 """Streaming summary of validate's Monte-Carlo plants: quantiles and the worst plants.
 
 ``validate --monte-carlo N`` simulates the N plants in chunked tasks on the executor
-(:mod:`commission.executor`); the chunks come back in task order and are folded here one
+(:mod:`commission.infra.executor`); the chunks come back in task order and are folded here one
 at a time.  What is kept per plant is a handful of floats (the indexes summarised below);
 the simulations' time histories are dropped in the worker, so a run of 10 000 plants holds
 10 000 x 6 floats here, not 10 000 simulations.  The worst plants are a bounded heap

@@ -252,7 +252,7 @@ def read_profile_file(name: str, source: str, key_path: str, base_dir: str,
         header as row 1, and the column), a profile that does not start and end at rest, or
         a changed file.
     """
-    from commission.files import read_input_bytes  # the project's checked reader
+    from commission.infra.files import read_input_bytes  # the project's checked reader
 
     path = os.path.abspath(os.path.join(base_dir, os.path.expanduser(name)))
     data = read_input_bytes(path, MAX_PROFILE_BYTES)

@@ -13,17 +13,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from commission.background import ChildJob
+from commission.infra.background import ChildJob
 from commission.errors import SpecError, UsageError
 from commission.gate import load_gate, resolve_gate
 from commission.jsonio import write_json_atomic
 from commission.scenarios import resolve_quantization
 from commission.tuning import Tuning
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.identification import IDENT_FIGURE_NAMES, IdentifyOptions, IdentifyOutcome
 from commission.spec import check_flags
-from commission.blas import on_one_blas_thread
-from commission.executor import Executor, compute_scheduler, make_executor, resolve_scheduler
+from commission.infra.blas import on_one_blas_thread
+from commission.infra.executor import Executor, compute_scheduler, make_executor, resolve_scheduler
 from commission.validate import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FigureWriter, Progress, ValidateOutcome,
                                  output_names, validate, write_outputs)
 
@@ -71,7 +71,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     happens before anything is written; the three stages then run in memory
     and the files -- ident.json, tuning.json, validation.json, the figures,
     report.md and (gate and floors passed) controller.json -- are moved into
-    place together at the end (:class:`commission.files.Outputs`).  The files are byte for byte
+    place together at the end (:class:`commission.infra.files.Outputs`).  The files are byte for byte
     what ``commission identify``, ``tune`` and ``validate`` would write (up to
     time stamps): ident.json and tuning.json are round-tripped through their
     JSON form before the next stage uses them, and their sha256 are those of
@@ -106,8 +106,8 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
         Signs controller.json (HMAC-SHA256).
     scheduler : str, optional
         ``--scheduler`` (else ``COMMISSION_SCHEDULER``, else the spec's ``[compute] scheduler``):
-        validate's simulations run there (:mod:`commission.executor`).
-    executor : commission.executor.Executor, optional
+        validate's simulations run there (:mod:`commission.infra.executor`).
+    executor : commission.infra.executor.Executor, optional
         An open executor for validate's simulations instead (not closed here).
 
     Raises
@@ -164,7 +164,7 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
         kw["validate_on"] = expand_log_paths([str(kw["validate_on"])])
     ident_out = identify_log(log_path, **kw)  # type: ignore[arg-type]
     stage("identify")(1, 1)
-    # The identification figures are drawn beside the tuning (commission.background).
+    # The identification figures are drawn beside the tuning (commission.infra.background).
     ident_job = ChildJob(ident_figures, ident_out, staging) if ident_figures is not None else None
     try:
         return _after_identify(ident_out, ident_job, out, staging, spec_data=spec_data, spec_src=spec_src, gate=gate,

@@ -43,7 +43,7 @@ from typing import Any, Mapping
 from pydantic import ValidationError
 
 from commission.errors import SpecError, UsageError
-from commission.files import read_toml
+from commission.infra.files import read_toml
 from commission.formats.spec_toml import (DEFAULT_QUANTIZATION, MAX_SAMPLE_RATE, OBSERVER_POLE_FRACTION,
                                           PID_POLE_FRACTION, SPEC_FIELDS, SPEC_KEYS, SpecToml)
 from commission.formats.table import Key, Scaled, first_error, sections
@@ -342,7 +342,7 @@ def spec_from_mapping(data: Mapping[str, Any], source: str = "spec.toml", *, pre
 def _given_values(data: Mapping[str, Any], source: str, prefix: str) -> dict[tuple[str, str], Any]:
     """The keys the file gives, (section, key) -> value, checked one by one against the table's model.
 
-    ``[compute]`` (where the work runs: :func:`commission.executor.compute_scheduler`) and the
+    ``[compute]`` (where the work runs: :func:`commission.infra.executor.compute_scheduler`) and the
     machine's moves (:func:`commission.moves.parse_profile`) are read by their own readers.
 
     Raises

@@ -8,7 +8,7 @@ from __future__ import annotations
 import os as _os
 
 
-def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",)) -> None:
+def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",), dependants_root: str | None = None) -> None:
     """Remove numba's on-disk kernels when any source of this package changed.
 
     numba keys a cached kernel on the time stamp of the file that defines it, not on
@@ -17,8 +17,10 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",))
     every source of this package and of its subpackages (``arc/``, ...) is kept beside the
     cache; when it differs, the cached kernels of this package, of its subpackages and of
     the modules that inline it (``commission.synth``, a module ``<name>.py`` or a package
-    ``<name>/`` beside this one: ``dependants`` names them) are dropped and recompiled on
-    first use.  Costs one read of the sources per import.  A read-only install (where
+    ``<name>/`` beside this one, or in ``dependants_root`` when given: ``dependants`` names them)
+    are dropped and recompiled on first use.  In an installed tree ``commission.synth`` sits beside
+    this package; in an editable install this package is the repository's ``controllers/`` and
+    ``commission.synth`` is under ``commission/``, hence ``dependants_root``.  Costs one read of the sources per import.  A read-only install (where
     numba cannot cache either) is left alone.
     """
     import hashlib
@@ -44,7 +46,7 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",))
             pass
         parent = os.path.dirname(here)
         caches = [os.path.join(here, "__pycache__"), os.path.join(parent, "__pycache__"),
-                  *(os.path.join(parent, d, "__pycache__") for d in dependants),
+                  *(os.path.join(dependants_root or parent, d, "__pycache__") for d in dependants),
                   *(os.path.join(f, "__pycache__") for f in folders[1:])]
         prefixes = tuple(f"{d}." for d in dependants)
         for cache in caches:
@@ -65,4 +67,12 @@ def drop_stale_kernel_cache(here: str, dependants: tuple[str, ...] = ("synth",))
         return
 
 
-drop_stale_kernel_cache(_os.path.dirname(_os.path.abspath(__file__)))
+def _commission_dir() -> str | None:
+    """Where the ``commission`` package is (imported before this subpackage), or None."""
+    import sys
+
+    top = getattr(sys.modules.get("commission"), "__file__", None)
+    return _os.path.dirname(_os.path.abspath(top)) if top else None
+
+
+drop_stale_kernel_cache(_os.path.dirname(_os.path.abspath(__file__)), dependants_root=_commission_dir())

@@ -1,4 +1,4 @@
-"""commission.background.ChildJob: the writer's result and errors come back to the parent."""
+"""commission.infra.background.ChildJob: the writer's result and errors come back to the parent."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from commission.background import ChildJob
+from commission.infra.background import ChildJob
 from commission.errors import DataError
 
 

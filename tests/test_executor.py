@@ -1,4 +1,4 @@
-"""The executor interface (commission.executor) and validate's answer on every engine.
+"""The executor interface (commission.infra.executor) and validate's answer on every engine.
 
 Issue 33, must show 1: validate's Monte Carlo on the local executor, on a Dask LocalCluster of
 2 worker processes, and on a LocalCluster of 1 worker whose process is killed mid-run gives
@@ -16,7 +16,7 @@ import time
 import numpy as np
 import pytest
 
-from commission.executor import (ENV_SCHEDULER, LocalExecutor, SchedulerError, compute_scheduler, make_executor,
+from commission.infra.executor import (ENV_SCHEDULER, LocalExecutor, SchedulerError, compute_scheduler, make_executor,
                                  resolve_scheduler)
 from commission.montecarlo import WORST_KEPT, MonteCarloSummary
 from commission.controllers.metrics import Indexes
@@ -90,7 +90,7 @@ def test_local_default_imports_no_dask():
     import subprocess
     import sys
 
-    code = ("import sys, commission.validate, commission.executor as e; e.make_executor(None, 2);"
+    code = ("import sys, commission.validate, commission.infra.executor as e; e.make_executor(None, 2);"
             "print(any(m.split('.')[0] in ('dask', 'distributed') for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + "/tests")
@@ -156,7 +156,7 @@ def test_validation_identical_local_dask_and_dask_with_a_killed_worker(tmp_path)
     local = _validation(tmp_path, tuning, "local", LocalExecutor(2), n_mc)
     assert local["monte_carlo_summary"]["plants"] == n_mc
 
-    from commission.executor import DaskExecutor
+    from commission.infra.executor import DaskExecutor
 
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c, \
             distributed.Client(c) as client:
@@ -226,7 +226,7 @@ def test_run_reads_the_compute_section_and_the_flag_overrides_it(tmp_path):
 
 def test_dask_executor_by_address_maps_in_order_with_its_own_client():
     distributed = pytest.importorskip("distributed")
-    from commission.executor import DaskExecutor
+    from commission.infra.executor import DaskExecutor
 
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c:
         with DaskExecutor(c.scheduler_address) as ex:  # a client of its own, not the process default

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import errno
 import json
+import math
 import signal
 import subprocess
 import time
@@ -44,7 +45,7 @@ from commission.errors import SchemaError
 from commission.export import export_c, output_names, render
 from commission.export.build import build_replay, find_cc
 from commission.export.text import ESCAPED, SAFE, c_comment, markdown_code, st_comment
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.gate import GateSpec, resolve_gate
 from commission.jsonio import sha256_json, write_json_atomic
 from commission.paper import reference_identification
@@ -449,10 +450,12 @@ def _commission(*args, cwd):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_during_an_export_leaves_nothing_or_the_whole_set(controller, tmp_path, sig):
     """Issue 29 found 3 of 6 files after a Ctrl-C: now the folder is empty (exit 128 + sig) or complete."""
-    t0 = time.perf_counter()
-    p = _commission("export", controller, "--out-dir", tmp_path / "ref", cwd=tmp_path)
-    assert p.wait(timeout=300) == 0, p.communicate()
-    took = time.perf_counter() - t0
+    took = math.inf
+    for k in range(2):  # the faster of two (the first may pay cold caches: its signals would all land late)
+        t0 = time.perf_counter()
+        p = _commission("export", controller, "--out-dir", tmp_path / f"ref{k}", cwd=tmp_path)
+        assert p.wait(timeout=300) == 0, p.communicate()
+        took = min(took, time.perf_counter() - t0)
     full = sorted(output_names("arc"))
     codes = []
     for k, frac in enumerate((0.3, 0.6, 0.9)):

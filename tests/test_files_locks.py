@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from commission import files
+from commission.infra import files
 from commission.cli.main import app, run
 from commission.errors import OutputError, UsageError
-from commission.files import Outputs
+from commission.infra.files import Outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "axis_excitation.h5"

@@ -6,6 +6,8 @@ is edited (commission.controllers.drop_stale_kernel_cache)."""
 
 from __future__ import annotations
 
+import os
+
 from pathlib import Path
 
 from commission.controllers import drop_stale_kernel_cache
@@ -68,6 +70,26 @@ def test_a_dependant_package_beside_it_loses_its_kernels_too(tmp_path):
     (pkg / "plant.py").write_text("def f(x):\n    return 3 * x\n")
     drop_stale_kernel_cache(str(pkg))
     assert _kernels(dep) == []
+
+
+def test_a_dependant_elsewhere_is_found_under_its_root(tmp_path):
+    """An editable install: ``controllers/`` is the repository's, ``commission/synth`` sits under ``commission/``."""
+    pkg, own, parent = _layout(tmp_path)
+    root = tmp_path / "commission"
+    dep = root / "synth" / "__pycache__"
+    dep.mkdir(parents=True)
+    drop_stale_kernel_cache(str(pkg), dependants_root=str(root))
+    (dep / "simulation._closed_loop-19.py311.nbi").write_bytes(b"x")
+    (pkg / "plant.py").write_text("def f(x):\n    return 5 * x\n")
+    drop_stale_kernel_cache(str(pkg), dependants_root=str(root))
+    assert _kernels(dep) == []
+
+
+def test_the_installed_guard_points_at_the_commission_package():
+    import commission
+    import commission.controllers as C
+
+    assert C._commission_dir() == os.path.dirname(os.path.abspath(commission.__file__))
 
 
 def test_an_edit_in_a_subpackage_drops_its_kernels_and_the_package_s(tmp_path):

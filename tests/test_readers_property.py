@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 from commission.artifacts import Identification
 from commission.controller_config import ControllerConfig, ControllerProvenance
 from commission.errors import CommissionError
-from commission.files import read_toml
+from commission.infra.files import read_toml
 from commission.gate import gate_from_mapping, resolve_gate
 from commission.jsonio import canonical_json, read_json
 from commission.logs import load_log

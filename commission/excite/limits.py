@@ -18,7 +18,7 @@ from typing import Any, Mapping
 from pydantic import ValidationError
 
 from commission.errors import SpecError
-from commission.files import read_toml
+from commission.infra.files import read_toml
 from commission.formats.limits_toml import INJECTIONS, LIMITS_KEYS, Q_UNITS, U_UNITS, LimitsToml
 from commission.formats.plan_json import PLAN_SCHEMA_VERSION  # noqa: F401  (re-exported: plan.json's version)
 from commission.formats.table import Key, first_error

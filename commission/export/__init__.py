@@ -15,7 +15,7 @@ records).  The controller is loaded exactly as :func:`commission.runtime.load_co
 loads it, the site's signing key included, so ``export`` refuses what the
 runtime refuses; every input and the output folder are checked before anything
 is written, and the files are written as every command writes them
-(:class:`commission.files.Outputs`: locked, staged, moved into place together).
+(:class:`commission.infra.files.Outputs`: locked, staged, moved into place together).
 
 The generated files are code a compiler or PLC IDE reads, so no string of
 controller.json is copied into them unchecked (:mod:`commission.export.text`):
@@ -57,7 +57,7 @@ from commission.errors import CommissionError, UsageError
 from commission.export import c_target
 from commission.export.c_target import CFLAGS, TARGETS, Target
 from commission.export.text import c_comment, check_comment_line, checked_provenance, markdown_code, st_comment
-from commission.files import Outputs
+from commission.infra.files import Outputs
 from commission.jsonio import read_json, sha256_file, write_text_atomic
 from commission.scenarios import case1_trajectory, case2_trajectory, identified_plant, plant_substeps
 from commission.spec import default_spec
@@ -276,7 +276,7 @@ def export_c(controller_path: str | os.PathLike[str], out_dir: str | os.PathLike
     :func:`commission.runtime.load_controller` loads it, ``key`` included),
     its provenance strings (:func:`commission.export.text.checked_provenance`),
     the tuning, and the output folder.  The files are then written the way
-    every command writes (:class:`commission.files.Outputs`): under a lock on
+    every command writes (:class:`commission.infra.files.Outputs`): under a lock on
     the folder, into a staging folder beside it, and moved into place
     together, so that an interruption (Ctrl-C, SIGTERM) or a write error (a
     full disk) leaves the folder as it was, with no staging folder behind.

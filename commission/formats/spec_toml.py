@@ -110,7 +110,7 @@ SPEC_KEYS: tuple[Key, ...] = (
         attr="evidence_damping"),
     # [compute]: where the work runs, not what is computed (not part of tuning.json's spec)
     Key("compute", "scheduler", str, None, None, "", "Dask scheduler address tcp://HOST:PORT of run's simulations",
-        rule="local threads", checked_by="commission.executor.compute_scheduler"),
+        rule="local threads", checked_by="commission.infra.executor.compute_scheduler"),
 )
 
 #: The keys the ``Spec`` dataclass holds (read by the table's model, not by another reader).

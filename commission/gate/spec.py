@@ -18,7 +18,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from commission.files import read_toml
+from commission.infra.files import read_toml
 from commission.formats.gate_toml import GATE, MARGIN_KEYS, read_gate
 from commission.formats.table import Length
 

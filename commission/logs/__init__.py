@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from commission.errors import InputFileError, UsageError
-from commission.files import MAX_LOG_BYTES, check_input_file, read_input_bytes
+from commission.infra.files import MAX_LOG_BYTES, check_input_file, read_input_bytes
 from commission.logs.csvfile import _read_csv
 from commission.logs.epos import looks_like_epos
 from commission.logs.eposfile import _read_epos

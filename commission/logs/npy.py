@@ -19,7 +19,7 @@ Safety
 ------
 Arrays are loaded with ``allow_pickle=False``: an object array (which only pickle can
 rebuild) is refused, named, instead of running code from the file.  The file's bytes
-are already bounded by :data:`commission.files.MAX_LOG_BYTES`; an ``.npz`` is a zip
+are already bounded by :data:`commission.infra.files.MAX_LOG_BYTES`; an ``.npz`` is a zip
 archive, so the uncompressed sizes its directory declares for the members to be read
 are checked against the same limit before anything is decompressed, and each member's
 ``.npy`` header is checked against the size it declares.
@@ -34,7 +34,7 @@ from typing import Mapping
 import numpy as np
 
 from commission.errors import DataError, InputFileError
-from commission.files import MAX_LOG_BYTES
+from commission.infra.files import MAX_LOG_BYTES
 from commission.logs.model import CHANNELS
 from commission.logs.raw import _KIND_NAMES, _Raw, _plan, _vector, _why
 

@@ -57,7 +57,7 @@ from commission.tune.optimiser import HoldoutChoice, Problem, search, select_on_
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 from commission.tune.guarantees import _summary, guarantees
 from commission.tune.box import box_guarantees, fit_force_to_drive, fit_payload_to_drive, narrow_default_payload, validity_of
-from commission.blas import on_one_blas_thread
+from commission.infra.blas import on_one_blas_thread
 
 
 @dataclass(frozen=True)

@@ -279,7 +279,7 @@ def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) ->
     included), the floors the spec's ``[margins]`` (:class:`commission.robustness.MarginFloors`):
     the same loop and the same floors the ARC is held to.  Linear checks only (no simulation).
     """
-    from commission.blas import one_blas_thread
+    from commission.infra.blas import one_blas_thread
     from commission.controllers.linear import sampled_plant
     from commission.controllers.margins import closed_loop_radius, frequency_grid, linearize_pid, loop_margins
     from commission.robustness import MarginFloors, floor_violations

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
-from commission.executor import Executor, make_executor, resolve_scheduler
-from commission.files import Outputs
+from commission.infra.executor import Executor, make_executor, resolve_scheduler
+from commission.infra.files import Outputs
 from commission.gate import load_gate, resolve_gate, safe_not_better
 from commission.jsonio import read_json, sha256_file, write_json_atomic, write_text_atomic
 from commission.report import report_markdown
@@ -65,7 +65,7 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
     Every input check runs before any simulation (the flags' ranges, the gate,
     tuning.json and its provenance, the trajectories' length, the output
     folder, which is then locked), and the files are moved into place together
-    when the simulations are done (:class:`commission.files.Outputs`).
+    when the simulations are done (:class:`commission.infra.files.Outputs`).
 
     Parameters
     ----------
@@ -85,16 +85,16 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
         Signs controller.json with HMAC-SHA256 (:mod:`commission.controller_config`).
     scheduler : str, optional
         ``--scheduler``: a Dask scheduler address; else ``COMMISSION_SCHEDULER``; else local
-        threads (:func:`commission.executor.resolve_scheduler`).  Connected to after the input
+        threads (:func:`commission.infra.executor.resolve_scheduler`).  Connected to after the input
         checks and before any simulation.
-    executor : commission.executor.Executor, optional
+    executor : commission.infra.executor.Executor, optional
         An open executor instead (a library caller's; not closed here).
 
     Raises
     ------
     InputFileError, SchemaError, SpecError, UsageError
         Bad input (exit 2); nothing is written.  An unreachable scheduler is a
-        :class:`commission.executor.SchedulerError` (a UsageError) naming its address.
+        :class:`commission.infra.executor.SchedulerError` (a UsageError) naming its address.
     """
     check_flags(seed=seed, monte_carlo=n_monte_carlo, workers=workers)
     gate = load_gate(gate_path)
@@ -130,7 +130,7 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
                   sign_key: bytes | None = None, extra_figures: Sequence[Path] = ()) -> list[Path]:
     """Write validation.json, the figures, report.md and (gate and floors passed) controller.json into ``out``.
 
-    ``out`` is the staging folder of :class:`commission.files.Outputs` in the commands;
+    ``out`` is the staging folder of :class:`commission.infra.files.Outputs` in the commands;
     ``extra_figures`` are figures already written there (``run``'s identification
     figures), which the report links.
     """

@@ -153,7 +153,7 @@ class ValidationResult:
         The part of ``verdict`` on the robustness scenarios and the stability margins (required
         like every other check; listed apart in the report).
     executor : dict or None
-        Where the simulations ran (:meth:`commission.executor.Executor.describe`); varies with the
+        Where the simulations ran (:meth:`commission.infra.executor.Executor.describe`); varies with the
         machine, so it is not written to validation.json (which is the same on every executor).
     monte_carlo_summary : dict or None
         Quantiles and worst plants of the Monte-Carlo sample (:mod:`commission.montecarlo`).

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from commission.blas import on_one_blas_thread
+from commission.infra.blas import on_one_blas_thread
 from commission.artifacts import Identification
 from commission.controllers.arc import arc_pack
 from commission.controllers.plant import P_B, P_M, P_OFFSET
@@ -21,7 +21,7 @@ from commission.controllers.pid import pid_pack
 from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
 from commission.controllers.trajectory import Trajectory
 from commission.errors import UsageError
-from commission.executor import Executor, LocalExecutor
+from commission.infra.executor import Executor, LocalExecutor
 from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, box_checks,
                              margin_checks, resolve_gate, safety_failures)
 from commission.montecarlo import MonteCarloSummary
@@ -183,7 +183,7 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
         calling thread.
     workers : int, optional
         Threads of the local executor (default: ``os.cpu_count()``); ignored with ``executor``.
-    executor : commission.executor.Executor, optional
+    executor : commission.infra.executor.Executor, optional
         Where the simulations run (default: local threads).  The result does not depend on it
         (:func:`_simulate_matrix`).
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 @dataclass
 class Target:
-    """One output of :class:`commission.files.Outputs`: where it goes, and what this run holds for it."""
+    """One output of :class:`commission.infra.files.Outputs`: where it goes, and what this run holds for it."""
 
     dest: Path          # the output file, or the output folder, as the user spelled it
     names: tuple[str, ...]  # files of a folder target; (dest.name,) for a file target

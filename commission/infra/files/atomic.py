@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Sequence
 
 from commission.errors import CommissionError, OutputError
-from commission.files.target import Target
+from commission.infra.files.target import Target
 
 #: errno values that say the output location cannot take the files (full disk, quota, size limit,
 #: read-only file system): whatever file the error names, it is the writing that failed.

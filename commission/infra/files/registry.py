@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterable
 
 if TYPE_CHECKING:
-    from commission.files.outputs import Outputs
+    from commission.infra.files.outputs import Outputs
 
 #: Outputs opened and neither committed nor aborted (:func:`abort_unfinished`).
 LIVE: list["Outputs"] = []

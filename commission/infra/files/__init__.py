@@ -43,27 +43,27 @@ Outputs
 
 Modules
 -------
-:mod:`~commission.files.inputs`
+:mod:`~commission.infra.files.inputs`
     The bounded readers and their size limits.
-:mod:`~commission.files.outputs`
+:mod:`~commission.infra.files.outputs`
     :class:`Outputs` (declaration, staging, commit, abort).
-:mod:`~commission.files.locks`
+:mod:`~commission.infra.files.locks`
     The per-output lock file and its holder line.
-:mod:`~commission.files.atomic`
+:mod:`~commission.infra.files.atomic`
     The all-or-nothing moves of the commit and :data:`WRITE_ERRNOS`.
-:mod:`~commission.files.signals`
+:mod:`~commission.infra.files.signals`
     SIGINT and SIGTERM held during a commit or an abort.
-:mod:`~commission.files.registry`
+:mod:`~commission.infra.files.registry`
     The outputs open and committed in this process (asked by the CLI).
-:mod:`~commission.files.target`
+:mod:`~commission.infra.files.target`
     One declared output and its lock, staging and backup state.
 """
 
-from commission.files.atomic import WRITE_ERRNOS
-from commission.files.inputs import (MAX_JSON_BYTES, MAX_LOG_BYTES, MAX_TOML_BYTES, check_input_file,
+from commission.infra.files.atomic import WRITE_ERRNOS
+from commission.infra.files.inputs import (MAX_JSON_BYTES, MAX_LOG_BYTES, MAX_TOML_BYTES, check_input_file,
                                      read_input_bytes, read_toml)
-from commission.files.outputs import Outputs, same_file
-from commission.files.registry import abort_unfinished, committed_outputs, forget_commits, unfinished
+from commission.infra.files.outputs import Outputs, same_file
+from commission.infra.files.registry import abort_unfinished, committed_outputs, forget_commits, unfinished
 
 __all__ = ["MAX_LOG_BYTES", "MAX_JSON_BYTES", "MAX_TOML_BYTES", "check_input_file", "read_input_bytes",
            "read_toml", "same_file", "Outputs", "WRITE_ERRNOS", "committed_outputs", "forget_commits",

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from commission.errors import OutputError, UsageError
-from commission.files.target import Target
+from commission.infra.files.target import Target
 
 
 def make_dirs(t: Target, folder: Path) -> None:
@@ -41,7 +41,7 @@ def take_lock(t: Target) -> None:
     """Take the exclusive lock of ``t`` and write the holder line into it.
 
     The lock file is ``.NAME.lock`` beside the resolved target, or inside an existing
-    output folder whose parent is not writable (:class:`commission.files.Outputs` notes).
+    output folder whose parent is not writable (:class:`commission.infra.files.Outputs` notes).
     """
     make_dirs(t, t.real.parent)
     parent = t.real.parent

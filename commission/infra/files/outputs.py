@@ -1,9 +1,9 @@
 """The checked, locked, all-or-nothing set of files one command writes (:class:`Outputs`).
 
-The steps are described in :mod:`commission.files`; the lock is in
-:mod:`commission.files.locks`, the moves of the commit and the error a failed write
-becomes in :mod:`commission.files.atomic`, and the record of open and committed
-outputs in :mod:`commission.files.registry`.
+The steps are described in :mod:`commission.infra.files`; the lock is in
+:mod:`commission.infra.files.locks`, the moves of the commit and the error a failed write
+becomes in :mod:`commission.infra.files.atomic`, and the record of open and committed
+outputs in :mod:`commission.infra.files.registry`.
 """
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from commission.errors import OutputError, UsageError
-from commission.files import registry
-from commission.files.atomic import move_all, output_error, put_back
-from commission.files.locks import drop_lock, take_lock
-from commission.files.signals import signals_held
-from commission.files.target import Target, resolved
+from commission.infra.files import registry
+from commission.infra.files.atomic import move_all, output_error, put_back
+from commission.infra.files.locks import drop_lock, take_lock
+from commission.infra.files.signals import signals_held
+from commission.infra.files.target import Target, resolved
 
 
 def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
