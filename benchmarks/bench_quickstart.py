@@ -10,7 +10,9 @@ cores, aim 5 s).
 
 * ``run``: ``commission run sample_data/axis_excitation.h5 --out-dir TMP`` in a
   fresh process each time, as a user types it (the numba cache warmed by one
-  untimed run first, as on a machine where the tool has run once).
+  untimed run first, as on a machine where the tool has run once).  The CPU
+  seconds are printed as user + sys too, and the load average again at the end:
+  on a shared machine the wall time follows the other work, the CPU seconds much less.
 * ``tests``: the default ``pytest`` (the suite without the ``slow`` marker) and
   ``pytest -m slow``, each once (``--runs`` does not apply: they take minutes).
 
@@ -53,15 +55,16 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} logical cores, load average {load:.2f} at start, Python {platform.python_version()}"
 
 
-def timed(argv: list[str], cwd: Path) -> tuple[float, float, int]:
-    """Run ``argv``; (wall s, CPU s of the children, exit code)."""
+def timed(argv: list[str], cwd: Path) -> tuple[float, float, int, float, float]:
+    """Run ``argv``; (wall s, CPU s of the children, exit code, user s, sys s)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     rc = subprocess.run(argv, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return wall, cpu, rc
+    user = after.ru_utime - before.ru_utime
+    sys_ = after.ru_stime - before.ru_stime
+    return wall, user + sys_, rc, user, sys_
 
 
 def script() -> str:
@@ -77,17 +80,22 @@ def script() -> str:
 def bench_run(runs: int) -> None:
     cmd = script()
     with tempfile.TemporaryDirectory() as tmp:
-        def once(i: int) -> tuple[float, float, int]:
+        def once(i: int) -> tuple[float, float, int, float, float]:
             return timed([cmd, "-q", "run", str(SAMPLE), "--out-dir", str(Path(tmp) / f"r{i}")], ROOT)
-        _, _, rc = once(-1)  # warm the compiled-kernel cache
+        rc = once(-1)[2]  # warm the compiled-kernel cache
         if rc not in (0, 1):
             raise SystemExit(f"commission run exited {rc}")
         res = [once(i) for i in range(runs)]
     wall = statistics.median(r[0] for r in res)
     cpu = statistics.median(r[1] for r in res)
     met = "met" if wall <= RUN_TARGET_S else "NOT met"
+    user = statistics.median(r[3] for r in res)
+    sys_ = statistics.median(r[4] for r in res)
     print(f"commission run sample_data/axis_excitation.h5: median {wall:.1f} s wall, {cpu:.1f} s CPU "
-          f"(CPU/wall {cpu / wall:.2f}) over {runs} runs; exit codes {[r[2] for r in res]}")
+          f"(user {user:.1f} s + sys {sys_:.1f} s; CPU/wall {cpu / wall:.2f}) over {runs} runs; "
+          f"exit codes {[r[2] for r in res]}")
+    print(f"  each run (wall s / CPU s): {', '.join(f'{r[0]:.1f}/{r[1]:.1f}' for r in res)}; load average "
+          f"{os.getloadavg()[0]:.2f} at the end")
     print(f"  target (issue 33): <= {RUN_TARGET_S:.0f} s wall median on 2 cores, aim {RUN_AIM_S:.0f} s: {met} "
           f"(wall depends on the machine's load: see the load average above; the CPU seconds do much less)")
 
@@ -97,7 +105,7 @@ def bench_tests() -> None:
     if not Path(pytest).is_file():
         pytest = shutil.which("pytest") or "pytest"
     for label, argv in (("pytest (default)", [pytest, "-q"]), ("pytest -m slow", [pytest, "-q", "-m", "slow"])):
-        wall, cpu, rc = timed(argv, ROOT)
+        wall, cpu, rc, _, _ = timed(argv, ROOT)
         print(f"{label}: {wall:.0f} s wall, {cpu:.0f} s CPU (CPU/wall {cpu / wall:.2f}); exit code {rc}")
 
 

@@ -170,13 +170,19 @@ def _unit_circle(f: np.ndarray, Ts: float) -> np.ndarray:
     return z
 
 
+#: Frequencies :func:`_triangular_response` carries through the whole back-substitution at a time.
+TRI_BLOCK = 256
+
+
 @njit(cache=True, nogil=True)
 def _triangular_response(T, bt, ct, D, z):
     """``ct (zI - T)^-1 bt + D`` for upper-triangular ``T`` at every ``z``, by back-substitution.
 
     ``(z - T_kk) x_k - sum_{j>k} T_kj x_j = bt_k``, k from the last state up; at each frequency
     the sums run in the same order (j up from k + 1, then k up for the output), but each step
-    sweeps the whole grid in a contiguous inner loop (compiled: no temporaries, no BLAS threads).
+    sweeps a block of :data:`TRI_BLOCK` frequencies in a contiguous inner loop (compiled: no
+    temporaries, no BLAS threads), the block's states staying in the first-level cache through
+    the whole substitution.  Every frequency's operations are the same whatever the block.
 
     The complex values are held as separate real and imaginary arrays, and the products,
     sums and quotients are written out as numba's complex arithmetic computes them (the
@@ -185,66 +191,71 @@ def _triangular_response(T, bt, ct, D, z):
     """
     n = T.shape[0]
     nf = z.size
-    zr = np.empty(nf)
-    zi = np.empty(nf)
-    for i in range(nf):
-        zr[i] = z[i].real
-        zi[i] = z[i].imag
-    xr = np.empty((n, nf))
-    xi = np.empty((n, nf))
-    for k in range(n - 1, -1, -1):
-        ar = xr[k]
-        ai = xi[k]
-        b = bt[k]
-        for i in range(nf):
-            ar[i] = b.real
-            ai[i] = b.imag
-        for j in range(k + 1, n):
-            t = T[k, j]
-            tr = t.real
-            ti = t.imag
-            br = xr[j]
-            bi = xi[j]
-            for i in range(nf):  # x_k += T_kj x_j
-                ar[i] = ar[i] + (tr * br[i] - ti * bi[i])
-                ai[i] = ai[i] + (tr * bi[i] + ti * br[i])
-        dr = T[k, k].real
-        di = T[k, k].imag
-        for i in range(nf):
-            if zr[i] - dr == 0.0 and zi[i] - di == 0.0:
-                raise ZeroDivisionError("complex division by zero")
-        for i in range(nf):  # x_k /= z - T_kk (CPython's _Py_c_quot, as numba divides)
-            er = zr[i] - dr
-            ei = zi[i] - di
-            pr = ar[i]
-            pi = ai[i]
-            if abs(er) >= abs(ei):
-                ratio = ei / er
-                den = er + ei * ratio
-                ar[i] = (pr + pi * ratio) / den
-                ai[i] = (pi - pr * ratio) / den
-            elif abs(ei) >= abs(er):
-                ratio = er / ei
-                den = er * ratio + ei
-                ar[i] = (pr * ratio + pi) / den
-                ai[i] = (pi * ratio - pr) / den
-            else:  # a NaN in the denominator
-                ar[i] = np.nan
-                ai[i] = np.nan
-    orr = np.full(nf, D.real)
-    oi = np.full(nf, D.imag)
-    for k in range(n):  # out += x_k ct_k
-        c = ct[k]
-        cr = c.real
-        ci = c.imag
-        ar = xr[k]
-        ai = xi[k]
-        for i in range(nf):
-            orr[i] = orr[i] + (ar[i] * cr - ai[i] * ci)
-            oi[i] = oi[i] + (ar[i] * ci + ai[i] * cr)
     out = np.empty(nf, dtype=np.complex128)
-    for i in range(nf):
-        out[i] = complex(orr[i], oi[i])
+    xr = np.empty((n, TRI_BLOCK))
+    xi = np.empty((n, TRI_BLOCK))
+    zr = np.empty(TRI_BLOCK)
+    zi = np.empty(TRI_BLOCK)
+    orr = np.empty(TRI_BLOCK)
+    oi = np.empty(TRI_BLOCK)
+    for i0 in range(0, nf, TRI_BLOCK):
+        nb = min(TRI_BLOCK, nf - i0)
+        for i in range(nb):
+            zr[i] = z[i0 + i].real
+            zi[i] = z[i0 + i].imag
+        for k in range(n - 1, -1, -1):
+            ar = xr[k]
+            ai = xi[k]
+            b = bt[k]
+            for i in range(nb):
+                ar[i] = b.real
+                ai[i] = b.imag
+            for j in range(k + 1, n):
+                t = T[k, j]
+                tr = t.real
+                ti = t.imag
+                br = xr[j]
+                bi = xi[j]
+                for i in range(nb):  # x_k += T_kj x_j
+                    ar[i] = ar[i] + (tr * br[i] - ti * bi[i])
+                    ai[i] = ai[i] + (tr * bi[i] + ti * br[i])
+            dr = T[k, k].real
+            di = T[k, k].imag
+            for i in range(nb):
+                if zr[i] - dr == 0.0 and zi[i] - di == 0.0:
+                    raise ZeroDivisionError("complex division by zero")
+            for i in range(nb):  # x_k /= z - T_kk (CPython's _Py_c_quot, as numba divides)
+                er = zr[i] - dr
+                ei = zi[i] - di
+                pr = ar[i]
+                pi = ai[i]
+                if abs(er) >= abs(ei):
+                    ratio = ei / er
+                    den = er + ei * ratio
+                    ar[i] = (pr + pi * ratio) / den
+                    ai[i] = (pi - pr * ratio) / den
+                elif abs(ei) >= abs(er):
+                    ratio = er / ei
+                    den = er * ratio + ei
+                    ar[i] = (pr * ratio + pi) / den
+                    ai[i] = (pi * ratio - pr) / den
+                else:  # a NaN in the denominator
+                    ar[i] = np.nan
+                    ai[i] = np.nan
+        for i in range(nb):
+            orr[i] = D.real
+            oi[i] = D.imag
+        for k in range(n):  # out += x_k ct_k
+            c = ct[k]
+            cr = c.real
+            ci = c.imag
+            ar = xr[k]
+            ai = xi[k]
+            for i in range(nb):
+                orr[i] = orr[i] + (ar[i] * cr - ai[i] * ci)
+                oi[i] = oi[i] + (ar[i] * ci + ai[i] * cr)
+        for i in range(nb):
+            out[i0 + i] = complex(orr[i], oi[i])
     return out
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -107,7 +108,8 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     """Run the loop; fill the first ``n_done`` rows of the outputs.
 
     ``dist`` and ``noise`` have length N or 0 (none).  ``th_out`` has shape
-    (N, 3) and is written only for ARC.  Returns ``(n_done, diverged)``.
+    (N, 3), or (1, 3) when only the last estimate is wanted (its one row is
+    overwritten at every sample); it is written only for ARC.  Returns ``(n_done, diverged)``.
 
     The input delay is the plant's ``P_DELAY`` plus one sample when ``delay``:
     with ``tau = (n_d + f) Ts`` (``0 <= f < 1``) the plant receives
@@ -139,6 +141,7 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     i_now = 0
     i_late = (-n_d) % nh
     i_early = (-n_d - 1) % nh
+    th_rows = th_out.shape[0]
     plant_start(plant_p, st, y0)
     y = _quantize(plant_output(plant_p, st) + (noise[0] if has_n else 0.0), quant)
     if kind == 0:
@@ -167,8 +170,9 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
         y_out[k] = y
         q_out[k] = x
         if kind == 1:
+            kt = k if th_rows > 1 else 0
             for j in range(3):
-                th_out[k, j] = s[S_THETA + j]
+                th_out[kt, j] = s[S_THETA + j]
         _held(plant_p, st, c_early, u_sat, d, h_early, m_early, v_cut)
         u_out[k] = _held(plant_p, st, c_late, u_sat, d, h_late, m_late, v_cut)
     return n, False
@@ -441,7 +445,13 @@ def simulate(plant_p: np.ndarray, kind: int, ctrl_p: np.ndarray, traj: Trajector
 @njit(cache=True, nogil=True)
 def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps, quant, dists, noises,
                   delay, y0, u_sat, e_abort, u_abort, final_window, Y, Q, U, out_idx, out_div, out_n, out_th,
-                  out_peak):
+                  out_peak, work):
+    """Scenario ``i`` of :func:`simulate_batch` into row ``i`` of the outputs.
+
+    ``work`` (shape (4, N)) is the calling thread's scratch for the traces that are not kept and
+    the error: every run of a thread reuses it instead of allocating (and first touching) a
+    megabyte of fresh pages.  Nothing is read from it that this run did not write.
+    """
     n = qd.shape[0]
     keep = Y.shape[0] > 0
     if keep:
@@ -449,10 +459,10 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
         q_o = Q[i]
         u_o = U[i]
     else:
-        y_o = np.empty(n)
-        q_o = np.empty(n)
-        u_o = np.empty(n)
-    th_o = np.empty((n, 3))
+        y_o = work[0]
+        q_o = work[1]
+        u_o = work[2]
+    th_o = np.empty((1, 3))  # the last estimate is all a batch records
     d = dists[i] if dists.shape[0] > 1 else dists[0]
     nz = noises[i] if noises.shape[0] > 1 else noises[0]
     n_done, div = closed_loop_kernel(plants[i], kind, ctrl_ps[i], states[i], qd, dqd, ddqd, Ts, substeps,
@@ -466,7 +476,7 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
         out_peak[i] = peak
     if kind == 1 and n_done > 0:
         for j in range(3):
-            out_th[i, j] = th_o[n_done - 1, j]
+            out_th[i, j] = th_o[0, j]  # written at sample n_done - 1, the last recorded
     if div:
         if keep:
             for k in range(n_done, n):
@@ -474,7 +484,7 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
                 q_o[k] = np.nan
                 u_o[k] = np.nan
         return
-    e = np.empty(n)
+    e = work[3]
     for k in range(n):
         e[k] = y_o[k] - qd[k]
     r = indexes_kernel(e, u_o, Ts * (n - 1), Ts, n, final_window)
@@ -552,11 +562,20 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
             float(u_abort), float(final_window), Y, Q, U, out_idx, out_div, out_n, out_th, out_peak)
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if workers <= 1 or m == 1:
+        work = np.empty((4, n))
         for i in range(m):
-            _one_of_batch(i, *args)
+            _one_of_batch(i, *args, work)
     else:
+        local = threading.local()  # one scratch per pool thread, reused by all its runs
+
+        def one(i: int) -> None:
+            work = getattr(local, "work", None)
+            if work is None:
+                work = local.work = np.empty((4, n))
+            _one_of_batch(i, *args, work)
+
         with ThreadPoolExecutor(max_workers=workers) as ex:
-            list(ex.map(lambda i: _one_of_batch(i, *args), range(m)))
+            list(ex.map(one, range(m)))
     return BatchResult(e_M=out_idx[:, 0], e_F=out_idx[:, 1], e_rms=out_idx[:, 2], u_rms=out_idx[:, 3],
                        du_rms=out_idx[:, 4], c_u=out_idx[:, 5], diverged=out_div, n_steps=out_n,
                        theta_final=out_th, u_peak=out_peak, y=Y if return_traces else None, q=Q if return_traces else None,

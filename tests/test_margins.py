@@ -273,10 +273,11 @@ def test_compiled_back_substitution_equals_python_complex_arithmetic_to_the_last
     """The response's compiled back-substitution (real and imaginary parts in separate arrays) gives
     the values Python's own complex product, sum and quotient (CPython's ``_Py_c_quot``) give in the
     same order: on the linearised ARC's Schur form, and on a random triangular one with poles on
-    either side of the diagonal of the complex plane (both branches of the quotient)."""
+    either side of the diagonal of the complex plane (both branches of the quotient), on a grid longer
+    than one block of the substitution (``TRI_BLOCK``)."""
     from scipy.linalg import matrix_balance, schur
 
-    from commission.controllers.linear import _triangular_response
+    from commission.controllers.linear import TRI_BLOCK, _triangular_response
 
     def python_complex(T, bt, ct, D, z):
         n = T.shape[0]
@@ -295,7 +296,7 @@ def test_compiled_back_substitution_equals_python_complex_arithmetic_to_the_last
         return np.array(out)
 
     rng = np.random.default_rng(5)
-    f = frequency_grid(TS, 300)
+    f = frequency_grid(TS, TRI_BLOCK + 44)
     z = np.exp(1j * 2.0 * np.pi * f * TS)
     lin = linearize_arc(arc_pack(paper_gains_implementable(TS)), (30.0, 10.0, 0.5))
     Ab, (scale, _) = matrix_balance(lin.Ac, permute=False, separate=True)

@@ -228,3 +228,25 @@ def test_arc_path_records_estimates_and_batches_like_single_runs():
         assert not np.array_equal(r.theta_hat[-1], np.array(g.theta0))  # it adapts
         np.testing.assert_array_equal(b.theta_final[i], r.theta_hat[-1])
         assert b.indexes(i) == r.indexes
+
+
+def test_batch_scratch_reuse_and_theta_at_abort_match_single_runs():
+    """One thread runs every row on the same scratch (workers=1): a row aborted early, two full
+    rows, a row aborted later; each row's indexes, peak and last estimate are the single run's."""
+    from commission.controllers.arc import arc_pack, paper_gains_implementable
+    from commission.controllers.simulate import KIND_ARC
+
+    traj = sinusoid(2.0, TS)
+    ctrl = arc_pack(paper_gains_implementable(TS))
+    plants = plants_grid(4)
+    kick = [step_disturbance(traj.t, [(0.1, 2.5, 50.0)]), np.zeros(traj.n), np.zeros(traj.n),
+            step_disturbance(traj.t, [(1.5, 2.5, 50.0)])]  # a push of 50 u drives the axis off by 1 m
+    single = [simulate(plants[i], KIND_ARC, ctrl, traj, disturbance=kick[i]) for i in range(4)]
+    assert [r.diverged for r in single] == [True, False, False, True]
+    assert 0 < single[0].n_steps < single[3].n_steps < traj.n
+    b = simulate_batch(plants, KIND_ARC, ctrl, traj, disturbance=np.stack(kick), workers=1)
+    for i, r in enumerate(single):
+        assert b.diverged[i] == r.diverged and b.n_steps[i] == r.n_steps
+        assert b.indexes(i) == r.indexes
+        assert b.u_peak[i] == np.abs(r.u).max()
+        np.testing.assert_array_equal(b.theta_final[i], r.theta_hat[-1])
