@@ -6,9 +6,10 @@ emits (controller.json, runtime guards included); the plant is the
 the model validate simulates; not ``sample_data/truth.json``), run with the
 validated encoder step, its input delay and ``plant_substeps`` sub-steps per sample,
 like ``validate``'s simulator (:func:`closed_loop`; pinned to
-:func:`commission.controllers.simulate.simulate` by ``tests/test_bench_frozen_encoder.py``).  The desired motion is Case 2 (moves of the whole
-stroke at v_max, a_max).  Each case corrupts the measurement the compiled
-step receives (the same ``arc_step`` the runtime and the exported C run):
+:func:`commission.controllers.simulate.simulate` by ``tests/test_bench_frozen_encoder.py``).
+The desired motion is Case 2 (moves of the whole stroke at v_max, a_max).  Each case
+corrupts the measurement the compiled step receives (the same ``arc_step`` the runtime
+and the exported C run):
 
 * ``frozen 20 ms @ 1 m/s``: the encoder repeats its last reading for 20 ms
   during the first move's cruise at v_max (must-show 4);

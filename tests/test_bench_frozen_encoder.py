@@ -3,10 +3,11 @@
 The benchmark steps the compiled ARC step in its own Python loop (it must corrupt the reading
 between the encoder and the step, which the compiled simulator cannot express), so it restates
 the simulator's input-delay schedule.  Here, with a clean reading, that loop and
-:func:`commission.controllers.simulate.simulate` run the same guarded controller on the paper's
-identified plant given an input delay (a fraction of a sample, as on the sample, and more than one
-sample) and a structural mode read on the load side (as the sample's identified plant): the
-readings and the held commands must agree sample by sample.
+:func:`commission.controllers.simulate.simulate` run the same guarded controller (the axis of
+``tests/test_runtime_guards.py``) on the paper's identified plant given an input delay (a
+fraction of a sample, as on the sample, and more than one sample) and a structural mode read
+on the load side (as the sample's identified plant): the readings, the true positions and the
+held commands must agree sample by sample.
 """
 
 import importlib.util
@@ -19,14 +20,9 @@ import pytest
 from commission.controllers import arc as A
 from commission.controllers.plant import P_DELAY, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE, P_MODE_RATIO
 from commission.controllers.simulate import KIND_ARC, simulate
-from commission.gate import GateSpec, resolve_gate
-from commission.paper import reference_identification
-from commission.scenarios import case2_trajectory, identified_plant, plant_substeps
-from commission.spec import default_spec
-from commission.tune.gains import base_arc_gains
-from commission.validate import deployable_gains, envelope_acceleration, guard_values, holding_force
+from commission.scenarios import plant_substeps
+from test_runtime_guards import LSB, axis  # noqa: F401  (the guarded paper axis: a fixture used below)
 
-LSB = 1e-6
 N = 3000  # samples compared: the start, the first acceleration and the cruise of Case 2's first move
 
 
@@ -39,21 +35,13 @@ def _bench():
 
 
 @pytest.fixture(scope="module")
-def axis():
-    spec = default_spec()
-    ident = reference_identification(delta_d=0.5)
-    raw = base_arc_gains(ident, spec)
-    plant = identified_plant(ident)
-    limits = resolve_gate(GateSpec(), lsb=LSB, travel=spec.travel, u_max=spec.u_max)
-    guards = guard_values(raw.Ts, LSB, spec.v_max, spec.travel, limits.e_M, a_max=envelope_acceleration(spec, raw.Ts),
-                          theta1_min=raw.theta_min[0], u_max=raw.u_max, u_free=holding_force(ident, plant))
-    g = deployable_gains(raw, guards)
-    return dict(g=g, plant=plant, traj=case2_trajectory(spec).render(g.Ts, 0.0), bench=_bench())
+def bench():
+    return _bench()
 
 
 @pytest.mark.parametrize("delay_samples", [0.4665, 1.3])
-def test_bench_loop_is_the_simulator_on_a_delayed_plant(axis, delay_samples):
-    g, traj, bench = axis["g"], axis["traj"], axis["bench"]
+def test_bench_loop_is_the_simulator_on_a_delayed_plant(axis, bench, delay_samples):
+    g, traj = axis["g"], axis["trajs"]["case2"]
     plant = axis["plant"].copy()
     plant[P_DELAY] = delay_samples * g.Ts
     plant[P_MODE_HZ], plant[P_MODE_DAMPING], plant[P_MODE_RATIO], plant[P_MODE_LOAD_SIDE] = 500.0, 0.05, 0.5, 1.0
@@ -72,9 +60,9 @@ def test_bench_loop_is_the_simulator_on_a_delayed_plant(axis, delay_samples):
     np.testing.assert_array_equal(r["u_held"][:n_d], 0.0)
 
 
-def test_bench_loop_delay_matters(axis):
+def test_bench_loop_delay_matters(axis, bench):
     """The comparison can fail: the delay-free loop departs from the delayed simulation."""
-    g, traj, bench = axis["g"], axis["traj"], axis["bench"]
+    g, traj = axis["g"], axis["trajs"]["case2"]
     plant = axis["plant"].copy()
     plant[P_DELAY] = 0.4665 * g.Ts
     sim = simulate(plant, KIND_ARC, A.arc_pack(g), traj, substeps=plant_substeps(1.0 / g.Ts), quant=LSB,
