@@ -162,7 +162,7 @@ class SearchRecord:
     violations : tuple of float
         Each candidate's constraint violation (0: met), evaluation order.
     levels : tuple of int
-        Each candidate's constraint level (:data:`commission.tune.optimiser.FEASIBLE` = 0,
+        Each candidate's constraint level (:data:`commission.tune.candidate.FEASIBLE` = 0,
         ``GATE_MISSED`` = 1, ``STABILITY_MISSED`` = 2).
     chosen_level : int
         The chosen gains' level (0 unless no candidate met every constraint).
@@ -170,7 +170,7 @@ class SearchRecord:
         The chosen gains' constraint violation, dimensionless (0: met every constraint).
     screened : tuple of bool
         Each candidate was far off the gate on the screening scenarios
-        (:data:`commission.tune.optimiser.SCREEN_EXCESS`) and was simulated on those only (its
+        (:attr:`commission.tune.settings.TuneSettings.screen_excess`) and was simulated on those only (its
         violation is the excess there).
     """
 

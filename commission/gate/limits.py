@@ -140,7 +140,7 @@ def absolute_mode(yardstick: Mapping[str, Any] | None) -> str:
 
     * :data:`ABSOLUTE_YARDSTICK` -- the yardstick is the fastest PID of (57) that the margin floors
       admit (``method`` ``"margin_search"``, admissible, and the first candidate simulated -- the
-      candidates are simulated one at a time from the fastest, ``YARDSTICK_BATCH`` = 1 -- was kept):
+      candidates are simulated one at a time from the fastest, ``TuneSettings.yardstick_batch`` = 1 -- was kept):
       its bandwidth is what this axis's modes, delay and evidence allow a fixed-gain loop under the
       floors, so its error on a scenario is a level this axis can be asked for;
     * :data:`ABSOLUTE_REPORTED` -- no PID of (57) keeps the floors (``is_yardstick`` false): there is
