@@ -324,8 +324,8 @@ class Problem:
 
     def _linear_workers(self) -> int:
         """Threads for a generation's linear checks: as many as the simulations get (the
-        evaluator's ``workers``; every CPU when it has none or leaves them at the default)."""
-        w = getattr(self.ev, "workers", None)
+        evaluator's ``workers``, default every CPU)."""
+        w = self.ev.workers
         return max(1, (os.cpu_count() or 1) if w is None else int(w))
 
     def _simulate_candidate(self, pack: np.ndarray,
