@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -62,7 +61,6 @@ from commission.artifacts import Identification
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.design import KIND_ARC, FeasibilityReport, observer_design
 from commission.gate import GateLimits
-from commission.infra.blas import one_blas_thread
 from commission.evidence import EvidenceBound
 from commission.robustness import BoxArcCheck, IdentifiedPlantArcMargins, MarginFloors
 from commission.scenarios import screening_indices
@@ -268,24 +266,17 @@ class Problem:
         parts = [self.gains(np.asarray(z)) for z in Z]
         ref_screen = [self.reference[i] for i in self.screen]
         mv: list[float] = []
-        checks: list = []
         pending = {}
-        # BLAS held to one thread for the whole generation, here on the calling thread: the
-        # checks' own (nested) limits on the pool threads then set and restore the same value,
-        # so no thread's exit can lift another's limit mid-call.
-        with one_blas_thread(), ThreadPoolExecutor(max_workers=self._linear_workers()) as linear, \
-                ThreadPoolExecutor(max_workers=1) as pool:
+        with ThreadPoolExecutor(max_workers=1) as pool:
             try:
-                # The whole box only where the identified plant's hold (inside stability_violation).
-                checks = [linear.submit(self.stability_violation, g) for _, _, g in parts]
-                for i, chk in enumerate(checks):  # in candidate order, whatever order they finish in
-                    v = chk.result()
+                for i, (_, _, g) in enumerate(parts):
+                    v = self.stability_violation(g)  # the whole box only where the identified plant's hold
                     mv.append(v)
                     if v == 0.0:
-                        pending[i] = pool.submit(self._simulate_candidate, arc_pack(parts[i][2]), ref_screen)
+                        pending[i] = pool.submit(self._simulate_candidate, arc_pack(g), ref_screen)
                 done = {i: fut.result() for i, fut in pending.items()}
-            except BaseException:  # Ctrl-C or an error: the queued checks and candidates are not run
-                for fut in (*checks, *pending.values()):
+            except BaseException:  # Ctrl-C or an error: the queued candidates are not simulated
+                for fut in pending.values():
                     fut.cancel()
                 raise
         first: dict[int, list[Indexes]] = {i: r[0] for i, r in done.items()}
@@ -321,12 +312,6 @@ class Problem:
             fv = feasibility_violation(rep)
             out.append(Candidate(x, f, g, FEASIBLE if fv == 0 else STABILITY_MISSED, fv, obj, sc, rep))
         return out
-
-    def _linear_workers(self) -> int:
-        """Threads for a generation's linear checks: as many as the simulations get (the
-        evaluator's ``workers``, default every CPU)."""
-        w = self.ev.workers
-        return max(1, (os.cpu_count() or 1) if w is None else int(w))
 
     def _simulate_candidate(self, pack: np.ndarray,
                             ref_screen: Sequence[Indexes]) -> tuple[list[Indexes], float, list[Indexes] | None]:
