@@ -63,7 +63,8 @@ Modules
 
 from __future__ import annotations
 
-from commission.excite.limits import (PLAN_SCHEMA_VERSION, MAX_INJECTION_RETRIES, MAX_OMEGA_T, LOOP_DAMPING,
+from commission.formats.plan_json import PLAN_SCHEMA_VERSION
+from commission.excite.limits import (MAX_INJECTION_RETRIES, MAX_OMEGA_T, LOOP_DAMPING,
     PRESIM_SUBSTEPS, Q_UNITS, U_UNITS, INJECTIONS, ExciteSpec, excite_spec_from_mapping, load_excite_spec,
     SKETCH_BANDWIDTH_HZ, limits_toml_sketch)
 from commission.excite.plan import (Segment, Plan, mass_bracket, loop_gains_for, ladder_speeds, design_plan)

@@ -9,7 +9,6 @@ below Nyquist, v_min below v_max).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -20,7 +19,6 @@ from pydantic import ValidationError
 from commission.errors import SpecError
 from commission.infra.files import read_toml
 from commission.formats.limits_toml import INJECTIONS, LIMITS_KEYS, Q_UNITS, U_UNITS, LimitsToml
-from commission.formats.plan_json import PLAN_SCHEMA_VERSION  # noqa: F401  (re-exported: plan.json's version)
 from commission.formats.table import Key, first_error
 
 #: Pre-simulation: how often the injection is lowered before a plan is refused.

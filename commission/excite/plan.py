@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping
@@ -11,7 +10,8 @@ import numpy as np
 
 from commission.controllers.trajectory import Move, scurve_schedule, scurve_segments
 from commission.errors import SpecError
-from commission.excite.limits import ExciteSpec, LOOP_DAMPING, PLAN_SCHEMA_VERSION
+from commission.excite.limits import ExciteSpec, LOOP_DAMPING
+from commission.formats.plan_json import PLAN_SCHEMA_VERSION
 if TYPE_CHECKING:
     from commission.excite.band import BandPrediction
 

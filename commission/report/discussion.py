@@ -112,8 +112,8 @@ def discussion_markdown(result: Any, tuning: Tuning) -> list[str]:
                  f"0 = a direction of theta not excited, 1 = fully): {pe_text}. "
                  + (f"theta_hat closed at least 90 % of its initial error in {len(done)} of {len(conv)} fixed "
                     f"scenarios ({', '.join(done)}). " if done else
-                    f"theta_hat did not converge in any fixed scenario within its run (closed 90 % of its initial "
-                    f"error in none); ")
+                    "theta_hat did not converge in any fixed scenario within its run (closed 90 % of its initial "
+                    "error in none); ")
                  + (f"theta_hat_1 closed between {num(min(f1) * 100, 2)} % and {num(max(f1) * 100, 2)} % of its initial "
                     f"error. " if f1 else "")
                  + "The figure theta_hat.png shows what this trajectory does in its duration, not the limit; the "
