@@ -87,3 +87,38 @@ def test_a_yardstick_slowed_by_its_own_chattering_sets_no_level():
     assert absolute_mode(None) == ABSOLUTE_FIXED and absolute_mode(NONE) == ABSOLUTE_REPORTED
     lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=SLOWED)
     assert failed(lim, score(22e-6, e_F=65e-6), score(33e-6, e_F=197e-6)) == {"e_rms", "e_F"}
+
+
+def _comparison_runs(arc_e, pid_e):
+    names = ["case1/nominal", "case1/delay+1", "case2/nominal", "case2/delay+1"]
+    return [(n, score(arc_e), score(pid_e), NAN) for n in names]
+
+
+def test_without_a_yardstick_the_comparison_is_reported_not_gated():
+    """No PID of (57) keeps the floors (``none_admissible``): losing to the PID that tune simulated says
+    nothing about the machine; the ARC at 1.5 x that PID passes the comparison criteria, which say why."""
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=NONE)
+    assert set(lim.comparison_reported) == {"arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal"}
+    v = evaluate_gate(lim, _comparison_runs(3e-6, 2e-6), compare_nominal=True)
+    comp = [c for c in v.checks if c.criterion.startswith("arc_vs_pid")]
+    assert {c.criterion for c in comp} == {"arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal"}
+    assert all(c.passed and math.isinf(c.limit) and "reported, not gated" in c.detail for c in comp)
+    assert math.isclose(next(c for c in comp if c.criterion == "arc_vs_pid_nominal").value, 1.5)
+    assert "reported, not gated" in lim.basis["arc_vs_pid_median"]
+    assert lim.to_dict()["comparison_reported"] == list(lim.comparison_reported)
+
+
+def test_a_yardstick_or_a_given_limit_keeps_the_comparison_gated():
+    """The same runs fail the comparison against a yardstick at the floors, against a ``[pid] pole`` the user
+    set (even one that misses the floors), and on a limit gate.toml gives without a yardstick."""
+    runs = _comparison_runs(3e-6, 2e-6)
+    spec_pole = {"method": "spec_pole", "is_yardstick": False, "simulated": 1, "admissible": 0, "pole": 300.0}
+    for ys in (AT_FLOORS, spec_pole):
+        lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=ys)
+        assert lim.comparison_reported == ()
+        failed_now = {c.criterion for c in evaluate_gate(lim, runs, compare_nominal=True).failures}
+        assert {"arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal"} <= failed_now
+    lim = resolve_gate(gate_from_mapping({"gate": {"arc_vs_pid_nominal": 1.0}}), lsb=1e-6, travel=0.4, u_max=10.0,
+                       yardstick=NONE)
+    assert lim.comparison_reported == ("arc_vs_pid_median", "arc_vs_pid_p90")
+    assert {c.criterion for c in evaluate_gate(lim, runs, compare_nominal=True).failures} == {"arc_vs_pid_nominal"}

@@ -126,3 +126,22 @@ def test_the_recorded_yardstick_is_the_final_pid_where_the_evidence_bounds_the_l
     assert bound.pid_row(base.gains).holds
     final = pid_within_evidence(base, ident, spec, _evaluator(1e-6), True)
     assert final is base
+
+
+def test_a_fallback_beyond_the_evidence_is_never_recorded_as_a_yardstick():
+    """A rigid log backed to 6 Hz only: every PID of the grid reaches beyond the evidence, so none is
+    admissible and the paper's pole is the fallback.  That PID keeps every margin floor on the identified
+    plant (the floors alone would call it a yardstick), but its ||W T|| is far above 1: the record names
+    the evidence it misses and is no yardstick, so validate does not hold the ARC to it."""
+    from commission.evidence import EvidenceBound
+
+    ident = reference_identification(delta_d=0.5, frequency_response={"source": "whole_log", "band_hz": [3.0, 6.0]})
+    spec = spec_from_mapping({})
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert choice.method == "none_admissible" and choice.admissible == 0
+    floors_only = pid_candidates(ident, spec, [base.pole])[0]
+    assert floors_only.admissible  # the margin floors alone would accept it
+    row = EvidenceBound(ident, spec).pid_row(base.gains)
+    assert not row.holds and row.peak > 1.0
+    assert not choice.is_yardstick
+    assert choice.violations == (f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",)

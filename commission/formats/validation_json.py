@@ -109,6 +109,8 @@ gate.basis               | string map | - | -
     limit -> where its value came from (gate.toml, a default's rule)
 gate.defaulted_limits    | strings    | - | -
     the limits that took their default
+gate.comparison_reported | strings    | - | -
+    comparison criteria reported, not gated: no PID keeps the margin floors (no yardstick)
 failures                 | objects    | - | required
     every check that failed, in the order checked (empty: passed)
 """, {"units.u": dict(choices=UNIT_VOCABULARY_U), "units.q": dict(choices=UNIT_VOCABULARY_Q)}),

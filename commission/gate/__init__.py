@@ -18,7 +18,8 @@ Which module holds what
 * :mod:`commission.gate.spec` -- what a gate.toml says (:class:`GateSpec`, :class:`ErrorLimit`,
   :func:`gate_from_mapping`, :func:`load_gate`);
 * :mod:`commission.gate.limits` -- the gate resolved for one axis (:class:`GateLimits`,
-  :func:`resolve_gate`, :func:`absolute_mode`, :func:`scenario_error_limit`) and what the defaults mean;
+  :func:`resolve_gate`, :func:`absolute_mode`, :func:`scenario_error_limit`,
+  :func:`comparison_reported`) and what the defaults mean;
 * :mod:`commission.gate.check` -- one check (:class:`Check`) and the criterion names (:data:`CRITERIA`);
 * :mod:`commission.gate.verdict` -- every criterion on every scenario (:func:`evaluate_gate`,
   :class:`GateVerdict`, :func:`performance_scenarios`, :func:`safety_failures`, :func:`safe_not_better`);
@@ -66,7 +67,8 @@ from commission.gate.floors import FLOORS, GATED_PLANT, Floor, FloorContext, box
 from commission.gate.limits import (ABSOLUTE_FIXED, ABSOLUTE_REPORTED, ABSOLUTE_YARDSTICK, DEFAULT_ARC_VS_PID,
                                     DEFAULT_ARC_VS_PID_MEDIAN, DEFAULT_ARC_VS_PID_NOMINAL, DEFAULT_ARC_VS_PID_P90,
                                     DEFAULT_ARC_VS_PID_SLACK_LSB, DEFAULT_C_U, SATURATION_TOL, TARGET_FACTOR,
-                                    GateLimits, absolute_mode, resolve_gate, scenario_error_limit)
+                                    GateLimits, absolute_mode, comparison_reported, resolve_gate,
+                                    scenario_error_limit)
 from commission.gate.search import (SEARCH_FEASIBLE, SEARCH_GATE_MISSED, SEARCH_STABILITY_MISSED,
                                     search_infeasible_line)
 from commission.gate.spec import ErrorLimit, GateSpec, gate_from_mapping, load_gate
@@ -80,6 +82,7 @@ __all__ = ["ABSOLUTE_FIXED", "ABSOLUTE_REPORTED", "ABSOLUTE_YARDSTICK", "ARC_VS_
            "NOMINAL_COMPARISON_VARIANTS", "PERFORMANCE_VARIANTS", "SAFETY_CRITERIA", "SATURATION_TOL",
            "SEARCH_FEASIBLE", "SEARCH_GATE_MISSED", "SEARCH_STABILITY_MISSED", "TARGET_FACTOR", "absolute_mode",
            "arc_vs_pid_nominal_checks", "arc_vs_pid_quantile_checks", "box_checks", "check_floors",
+           "comparison_reported",
            "evaluate_gate", "gate_from_mapping", "load_gate", "margin_checks", "performance_scenarios",
            "required_factor", "resolve_gate", "safe_not_better", "safety_failures", "scenario_error_limit",
            "scenario_group", "search_infeasible_line"]

@@ -74,16 +74,28 @@ def arc_vs_pid_quantile_checks(limits: GateLimits, runs: Sequence[tuple[str, Ind
         raw = (f"ARC {um(worst[2].e_rms)} vs PID {um(worst[3].e_rms)}" if not worst[2].diverged
                else "ARC diverged")
         for key, q in ARC_VS_PID_QUANTILES.items():
-            lim = getattr(limits, key)
+            lim, note = _comparison_limit(limits, key)
             val = float(np.quantile(f, q, method="higher"))
             ok = bool(val <= lim)
             slack = f" + {um(limits.arc_vs_pid_slack)} slack" if limits.arc_vs_pid_slack > 0 else ""
             out.append(Check(key, group, val, lim, ok,
                              f"{int(round(q * 100))}th percentile of ARC e_rms <= f x PID e_rms{slack} over "
-                             f"{len(rows)} {group.replace('_', '-')} scenarios: f = {val:.3g} (limit {lim:.3g}); "
+                             f"{len(rows)} {group.replace('_', '-')} scenarios: f = {val:.3g} "
+                             f"(limit {getattr(limits, key):.3g}{note}); "
                              f"{int(np.sum(f <= 1.0))} of {len(rows)} at f <= 1; worst {worst[1]}: f = "
                              f"{worst[0]:.3g} ({raw})"))
     return out
+
+
+#: How a comparison reported, not gated, says so (:attr:`commission.gate.limits.GateLimits.comparison_reported`).
+REPORTED_NOTE = "; reported, not gated: no PID of (57) keeps the margin floors, so there is no yardstick"
+
+
+def _comparison_limit(limits: GateLimits, key: str) -> tuple[float, str]:
+    """The limit a comparison criterion is checked against (inf: reported only) and the note saying so."""
+    if key in limits.comparison_reported:
+        return math.inf, REPORTED_NOTE
+    return float(getattr(limits, key)), ""
 
 
 def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]]) -> list[Check]:
@@ -116,11 +128,12 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Inde
         if variant in NOMINAL_COMPARISON_VARIANTS:
             per_case.setdefault(case, []).append((name, arc, pid))
     out = []
-    lim = limits.arc_vs_pid_nominal
+    lim, note = _comparison_limit(limits, "arc_vs_pid_nominal")
+    shown = limits.arc_vs_pid_nominal
     for case in sorted(per_case):
         rows = per_case[case]
         if any(a.diverged or not math.isfinite(a.e_rms) for _n, a, _p in rows):
-            out.append(Check("arc_vs_pid_nominal", case, math.inf, lim, False,
+            out.append(Check("arc_vs_pid_nominal", case, math.inf, shown, False,
                              "ARC diverged on the identified plant"))
             continue
         rows = [r for r in rows if not r[2].diverged and math.isfinite(r[2].e_rms)]
@@ -132,9 +145,9 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Inde
         each = "; ".join(f"{n} ARC {um(a.e_rms)} vs PID {um(p.e_rms)}" for n, a, p in rows)
         floor = ""
         if limits.lsb > 0 and max(a_sum, p_sum) / len(rows) <= limits.lsb:
-            floor = " (both within an encoder step" + (")" if val < lim else ": a tie there is not a win)")
+            floor = " (both within an encoder step" + (")" if val < shown else ": a tie there is not a win)")
         out.append(Check("arc_vs_pid_nominal", case, val, lim, bool(val < lim),
                          f"identified plant, ARC e_rms / PID e_rms summed over {len(rows)} run(s): "
-                         f"{val:.3g} (below {lim:.3g}, no slack){floor}: {each}"))
+                         f"{val:.3g} (below {shown:.3g}, no slack{note}){floor}: {each}"))
     return out
 

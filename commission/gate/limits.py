@@ -105,6 +105,10 @@ class GateLimits:
         :data:`ABSOLUTE_REPORTED` (no admissible yardstick: measured and reported, not gated).
     defaulted : tuple of str
         The error keys (``e_F``, ``e_M``, ``e_rms``) that gate.toml left at their default.
+    comparison_reported : tuple of str
+        The comparison criteria (``arc_vs_pid_median``, ``arc_vs_pid_p90``, ``arc_vs_pid_nominal``)
+        measured and reported, not gated (:func:`comparison_reported`): their pole was defaulted and no
+        PID of (57) keeps the floors, so there is no yardstick to beat.  Empty: all gated.
     """
 
     e_F: float
@@ -124,6 +128,7 @@ class GateLimits:
     arc_vs_pid_nominal: float = DEFAULT_ARC_VS_PID_NOMINAL
     absolute: str = ABSOLUTE_FIXED
     defaulted: tuple[str, ...] = ()
+    comparison_reported: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return {"e_F": self.e_F, "e_M": self.e_M, "e_rms": self.e_rms, "c_u": self.c_u, "u_max": self.u_max,
@@ -131,7 +136,8 @@ class GateLimits:
                 "arc_vs_pid_slack": self.arc_vs_pid_slack, "arc_vs_pid_every": self.arc_vs_pid_every,
                 "arc_vs_pid_median": self.arc_vs_pid_median, "arc_vs_pid_p90": self.arc_vs_pid_p90,
                 "arc_vs_pid_nominal": self.arc_vs_pid_nominal, "basis": dict(self.basis), "lsb": self.lsb,
-                "travel": self.travel, "absolute_limits": self.absolute, "defaulted_limits": list(self.defaulted)}
+                "travel": self.travel, "absolute_limits": self.absolute, "defaulted_limits": list(self.defaulted),
+                "comparison_reported": list(self.comparison_reported)}
 
 
 
@@ -156,6 +162,27 @@ def absolute_mode(yardstick: Mapping[str, Any] | None) -> str:
     if yardstick.get("method") == "margin_search" and int(yardstick.get("simulated", 0)) == 1:
         return ABSOLUTE_YARDSTICK
     return ABSOLUTE_FIXED
+
+
+#: The comparison criteria whose defaulted limit :func:`comparison_reported` may turn into a report.
+REPORTABLE_COMPARISONS = ("arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal")
+
+
+def comparison_reported(yardstick: Mapping[str, Any] | None, gate: GateSpec) -> tuple[str, ...]:
+    """The comparison criteria reported, not gated, for tuning.json's ``pid_yardstick`` record.
+
+    The ARC is judged against a PID only when that PID is a yardstick: one a drive vendor's auto-tuner
+    could deliver, keeping the margin floors on the identified plant, stable with one more sample of
+    delay and within the evidence (:func:`commission.tune.baseline.pid_yardstick`).  When the pole was
+    defaulted and no PID of (57) does (``method`` ``"none_admissible"``, ``is_yardstick`` false), the
+    PID that tune simulated is one nobody could certify -- faster than the evidence or the floors
+    allow -- and losing to it says nothing about the machine: the defaulted comparison criteria are
+    measured and reported, not gated; the safety criteria, the floors and the margins over the box
+    stay.  A limit gate.toml gives, and a ``[pid] pole`` the user set, keep the comparison gated.
+    """
+    if not yardstick or yardstick.get("method") != "none_admissible" or yardstick.get("is_yardstick", True):
+        return ()
+    return tuple(k for k in REPORTABLE_COMPARISONS if getattr(gate, k) is None)
 
 
 def _given_metres(source: str, key: str, given: ErrorLimit, lsb: float, travel: float, what: str) -> float:
@@ -241,11 +268,15 @@ def resolve_gate(gate: GateSpec, *, lsb: float, travel: float, u_max: float,
             basis[key] += ", or the PID yardstick's value on the same scenario where larger"
         elif absolute == ABSOLUTE_REPORTED:
             basis[key] += "; reported, not gated: no PID keeps the margin floors (no yardstick)"
+    reported = comparison_reported(yardstick, gate)
+    for key in reported:
+        basis[key] += "; reported, not gated: no PID of (57) keeps the margin floors (no yardstick)"
     return GateLimits(e_F=limits["e_F"], e_M=limits["e_M"], e_rms=limits["e_rms"], c_u=c_u, u_max=um,
                       no_divergence=gate.no_divergence, arc_vs_pid_e_rms=factor, basis=basis,
                       lsb=lsb, travel=travel, arc_vs_pid_slack=slack, arc_vs_pid_every=every,
                       arc_vs_pid_median=q_lim["arc_vs_pid_median"], arc_vs_pid_p90=q_lim["arc_vs_pid_p90"],
-                      arc_vs_pid_nominal=q_lim["arc_vs_pid_nominal"], absolute=absolute, defaulted=defaulted)
+                      arc_vs_pid_nominal=q_lim["arc_vs_pid_nominal"], absolute=absolute, defaulted=defaulted,
+                      comparison_reported=reported)
 
 
 def scenario_error_limit(limits: GateLimits, key: str, pid: Indexes) -> tuple[float, str]:

@@ -102,10 +102,13 @@ def _limit_text(key: str, limits: Any) -> str:
         return f"{limits.u_max:.4g}"
     if key in ("margins", "margins_box"):
         return "1 (every floor met)" if key == "margins" else "1 (every floor met; radius < 1)"
+    reported = key in getattr(limits, "comparison_reported", ())
     if key in ("arc_vs_pid_median", "arc_vs_pid_p90"):
-        return f"{getattr(limits, key):.3g}"
+        text = f"{getattr(limits, key):.3g}"
+        return f"reported (default {text})" if reported else text
     if key == "arc_vs_pid_nominal":
-        return f"below {getattr(limits, key, DEFAULT_ARC_VS_PID_NOMINAL):.3g} (no slack)"
+        text = f"below {getattr(limits, key, DEFAULT_ARC_VS_PID_NOMINAL):.3g} (no slack)"
+        return f"reported (default {text})" if reported else text
     slack = getattr(limits, "arc_vs_pid_slack", 0.0)
     return f"{limits.arc_vs_pid_e_rms:.3g} x PID" + (f" + {slack * 1e6:.3g} {unit_of('small')}" if slack > 0 else "")
 

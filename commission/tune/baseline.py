@@ -359,8 +359,12 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     cands = _within_evidence(pid_candidates(ident, spec, poles), ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
     if not ok:
+        # The fallback is checked as its candidates were (floors, +1 sample, and the evidence bound after
+        # pid_within_evidence has lowered it), so that the record never calls a PID beyond the evidence a
+        # yardstick.
         base = deployable_pid(ident, spec, ev, c_u_limit, True, settings)
-        c = pid_candidates(ident, spec, [base.pole])[0]
+        base = pid_within_evidence(base, ident, spec, ev, True, settings)
+        c = _within_evidence(pid_candidates(ident, spec, [base.pole]), ident, spec)[0]
         return base, YardstickChoice("none_admissible", base.pole, len(cands), 0, 1, c.margins,
                                      c.radius_plus_one, c.violations)
     m_min = 1.0 / ident.theta.max[0]

@@ -8,7 +8,9 @@ Method
    to encoder noise, a background that is there whenever the axis moves.  The
    command is high-passed at ``fs / 10`` (zero-phase Butterworth) and its RMS
    taken over 0.1-s blocks; a block is broadband when that RMS is at least
-   ``BROADBAND_FACTOR`` times the median of the moving blocks and holds at
+   ``BROADBAND_FACTOR`` times the median of the moving blocks
+   (``BROADBAND_FACTOR_LONG`` on blocks of ``BROADBAND_LONG_BLOCK`` samples or
+   more, where that background is steady) and holds at
    least a quarter of the block's command variance.  Runs of such blocks at
    least ``MIN_SEGMENT_S`` long are the segments.
 2. **Estimate.**  H1 = P_uq / P_uu with coherence (Welch averaging of
@@ -81,7 +83,8 @@ Modules
 from __future__ import annotations
 
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, BAND_PHASE_TOL_DEG, BLOCK_S,
-    BROADBAND_FACTOR, BROADBAND_FRACTION, COHERENCE_CAP, DEPARTURE_ALPHA, FIT_COHERENCE, MAX_DAMPING,
+    BROADBAND_FACTOR, BROADBAND_FACTOR_LONG, BROADBAND_FRACTION, BROADBAND_LONG_BLOCK, COHERENCE_CAP,
+    DEPARTURE_ALPHA, FIT_COHERENCE, MAX_DAMPING,
     MAX_DELAY_SAMPLES, MAX_MODES, MEASURED_POINTS, MIN_FIT_BINS, MIN_SEGMENT_S, RESOLUTION_HZ, SCREEN_KEEP,
     SCREEN_NFEV, STRUCTURES, WHOLE_LOG_RESOLUTION_HZ)
 from commission.identify.frf.model import ExtraMode, StructureFit
@@ -93,6 +96,7 @@ from commission.identify.frf.response import frequency_response
 from commission.identify.frf.noise import NOISE_BAND, EncoderNoise, encoder_noise
 
 __all__ = ["BAND_COHERENCE", "BAND_GAIN_TOL", "BAND_PHASE_TOL_DEG", "BLOCK_S", "BROADBAND_FACTOR",
+           "BROADBAND_FACTOR_LONG", "BROADBAND_LONG_BLOCK",
            "BROADBAND_FRACTION", "COHERENCE_CAP", "DEPARTURE_ALPHA", "FIT_COHERENCE", "MAX_DAMPING",
            "MAX_DELAY_SAMPLES", "MAX_MODES", "MEASURED_POINTS", "MIN_FIT_BINS", "MIN_SEGMENT_S", "RESOLUTION_HZ",
            "SCREEN_KEEP", "SCREEN_NFEV", "STRUCTURES", "WHOLE_LOG_RESOLUTION_HZ", "ExtraMode", "StructureFit",

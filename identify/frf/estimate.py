@@ -15,7 +15,8 @@ import numpy as np
 from scipy import signal
 
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, BAND_PHASE_TOL_DEG, BLOCK_S,
-                                              BROADBAND_FACTOR, BROADBAND_FRACTION, FIT_COHERENCE, MIN_SEGMENT_S)
+                                              BROADBAND_FACTOR, BROADBAND_FACTOR_LONG, BROADBAND_FRACTION,
+                                              BROADBAND_LONG_BLOCK, FIT_COHERENCE, MIN_SEGMENT_S)
 
 
 def _weighted_rms(H: np.ndarray, Hm: np.ndarray | None, coh: np.ndarray) -> float | None:
@@ -52,7 +53,8 @@ def broadband_segments(u: np.ndarray, fs: float) -> list[tuple[int, int]]:
     if not np.any(moving):
         return []
     background = float(np.median(rms[moving]))
-    flag = (rms >= BROADBAND_FACTOR * background) & (rms**2 >= BROADBAND_FRACTION * np.maximum(var, 1e-300))
+    factor = BROADBAND_FACTOR_LONG if nb >= BROADBAND_LONG_BLOCK else BROADBAND_FACTOR
+    flag = (rms >= factor * background) & (rms**2 >= BROADBAND_FRACTION * np.maximum(var, 1e-300))
     segs = []
     i = 0
     min_blocks = int(math.ceil(MIN_SEGMENT_S / BLOCK_S))
