@@ -360,12 +360,11 @@ def _at(a: np.ndarray, fi: float) -> float:
 
 
 @njit(cache=True)
-def _unwrap(p):
-    """``numpy.unwrap(p)`` of a 1-D float64 array (period 2 pi), the same operations in the same order."""
+def _unwrap_into(p, up):
+    """``up[:] = numpy.unwrap(p)`` of a 1-D float64 array (period 2 pi), the same operations in the same order."""
     n = p.size
-    up = np.empty(n)
     if n == 0:
-        return up
+        return
     period = 2.0 * math.pi
     hi = period / 2
     lo = -hi
@@ -381,6 +380,22 @@ def _unwrap(p):
             corr = ddmod - dd
         acc += corr
         up[i] = p[i] + acc
+
+
+@njit(cache=True)
+def _unwrap(p):
+    """``numpy.unwrap(p)`` of a 1-D float64 array (period 2 pi), the same operations in the same order."""
+    up = np.empty(p.size)
+    _unwrap_into(p, up)
+    return up
+
+
+@njit(cache=True)
+def _unwrap_rows(p):
+    """:func:`_unwrap` of every row of a 2-D float64 array (the loops of :func:`loop_margins_batch`)."""
+    up = np.empty_like(p)
+    for r in range(p.shape[0]):
+        _unwrap_into(p[r], up[r])
     return up
 
 
@@ -432,14 +447,27 @@ def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray |
     L = loop_response(ctrl, plant, f_hz, plant_response, ctrl_response)
     mag_db = 20 * np.log10(np.maximum(np.abs(L), 1e-300))
     phase = _unwrap(np.ascontiguousarray(np.angle(L)))
-    w = 2 * np.pi * f_hz
-    gc = _crossings(mag_db)
+    return _margins_of(f_hz, plant.Ts, mag_db, phase, closed_loop_radius(ctrl, plant), _crossings(mag_db),
+                       float(np.abs(1 + L).min()))
+
+
+def _margins_of(f_hz: np.ndarray, Ts: float, mag_db: np.ndarray, phase: np.ndarray, radius: float,
+                gc: np.ndarray, modulus: float, w: np.ndarray | None = None, k: np.ndarray | None = None,
+                finite: bool | None = None) -> Margins:
+    """:class:`Margins` of one loop from its ``mag_db`` (dB) and unwrapped ``phase``
+    (rad) on ``f_hz``, its closed-loop spectral ``radius``, the gain crossovers ``gc`` (fractional
+    grid indices, :func:`_crossings` of ``mag_db``) and ``min |1 + L|`` (:func:`loop_margins` and
+    :func:`loop_margins_batch` share it, so both give the same values).  ``w`` (``2 pi f_hz``), ``k``
+    (the phase's branches) and ``finite`` (``phase`` all finite), when already computed for many loops."""
+    if w is None:
+        w = 2 * np.pi * f_hz
     pm = np.array([math.remainder(_at(phase, g) + math.pi, 2 * math.pi) for g in gc])
     wc = np.array([_at(w, g) for g in gc])
     # phase crossovers: phase = -pi (mod 2 pi), on every branch the unwrapped phase visits
-    k = np.round((phase + math.pi) / (2 * math.pi))
+    if k is None:
+        k = np.round((phase + math.pi) / (2 * math.pi))
     first_gc = gc.min() if gc.size else -1.0
-    if np.all(np.isfinite(phase)):
+    if (np.all(np.isfinite(phase)) if finite is None else finite):
         has_gm, gm = _phase_crossover_gain_margin(phase, k, mag_db, float(first_gc))
     else:  # a non-finite response: the array form (np.unique sorts NaN branches out)
         pc = []
@@ -447,17 +475,77 @@ def loop_margins(ctrl: LinearController, plant: SampledPlant, f_hz: np.ndarray |
             pc.extend(_crossings(phase + math.pi - 2 * math.pi * kk).tolist())
         gm_vals = [-_at(mag_db, c) for c in pc if c > first_gc]
         has_gm, gm = bool(gm_vals), (min(gm_vals) if gm_vals else math.inf)
-    radius = closed_loop_radius(ctrl, plant)
     stable = radius < 1.0 + NEUTRAL_TOL
     if not gc.size:
         dm = math.inf
     elif stable:  # the extra lag that brings a crossover's phase to -180 deg
-        dm = float((np.mod(pm, 2 * math.pi) / (wc * plant.Ts)).min())
+        dm = float((np.mod(pm, 2 * math.pi) / (wc * Ts)).min())
     else:  # signed: the lag that would have to be removed
-        dm = -float((np.mod(-pm, 2 * math.pi) / (wc * plant.Ts)).min())
+        dm = -float((np.mod(-pm, 2 * math.pi) / (wc * Ts)).min())
     return Margins(gain_margin_db=float(gm) if has_gm else math.inf,
                    phase_margin_deg=float(np.degrees(pm[np.argmin(gc)])) if gc.size else math.inf,
                    delay_margin_samples=dm,
-                   modulus_margin=float(np.abs(1 + L).min()),
+                   modulus_margin=modulus,
                    crossover_hz=float(_at(f_hz, gc.min())) if gc.size else math.nan,
                    spectral_radius=radius, stable=bool(stable))
+
+
+def closed_loop_radii(ctrls: list[LinearController], realisations: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+                      ) -> np.ndarray:
+    """Spectral radii of the loops ``u = c`` of ``ctrls[i]`` closed on ``realisations[i]`` (a plant's
+    :meth:`~commission.controllers.linear.SampledPlant.state_space`), dimensionless.
+
+    :func:`closed_loop_radius` (``gain`` 1) of each pair, with the matrices of equal size stacked
+    into one call of ``numpy.linalg.eigvals`` (which runs the same LAPACK routine on each matrix of a
+    stack): a box check closes some eighty loops per gain set, and the wrapper's fixed cost per call
+    was a visible share of them.
+    """
+    out = np.empty(len(ctrls))
+    groups: dict[int, list[int]] = {}
+    for i, (c, ss) in enumerate(zip(ctrls, realisations)):
+        groups.setdefault(ss[0].shape[0] + c.Ac.shape[0], []).append(i)
+    for size, idx in groups.items():
+        A = np.zeros((len(idx), size, size))
+        for j, i in enumerate(idx):
+            c, (Ap, Bp, Cp) = ctrls[i], realisations[i]
+            n_p = Ap.shape[0]
+            A[j, :n_p, :n_p] = Ap + c.Dc * (Bp @ Cp)  # gain 1: the same entries as closed_loop_radius's
+            A[j, :n_p, n_p:] = Bp @ c.Cc
+            A[j, n_p:, :n_p] = c.Bc @ Cp
+            A[j, n_p:, n_p:] = c.Ac
+        out[idx] = np.abs(np.linalg.eigvals(A)).max(axis=1)
+    return out
+
+
+def loop_margins_batch(ctrl_responses: list[np.ndarray], plant_responses: list[np.ndarray], f_hz: np.ndarray,
+                       Ts: float, radii: np.ndarray) -> list[Margins]:
+    """:func:`loop_margins` of many loops on one grid at once, the same values to the last bit.
+
+    Loop ``i`` is the controller with response ``ctrl_responses[i]`` (``K``, u-unit per m) on the
+    plant with ``plant_responses[i]`` (``P``, m per u-unit), both on ``f_hz`` (Hz), period ``Ts``
+    (s), closed-loop spectral radius ``radii[i]`` (:func:`closed_loop_radii`).  The responses,
+    magnitudes, phases and crossings of all loops are computed as ``(loops, frequencies)``
+    arrays, element by element as :func:`loop_margins` computes each row (the same ufuncs on
+    contiguous rows; the minima are exact whatever the order), so that a box check's thirty-odd
+    loops per gain set pay numpy's fixed cost per call once, not once per loop.
+    """
+    n, nf = len(ctrl_responses), f_hz.size
+    if n == 0:
+        return []
+    L = np.empty((n, nf), dtype=complex)
+    for i, (K, P) in enumerate(zip(ctrl_responses, plant_responses)):
+        np.negative(K, out=L[i])
+        np.multiply(L[i], P, out=L[i])
+    mag_db = 20 * np.log10(np.maximum(np.abs(L), 1e-300))
+    phase = _unwrap_rows(np.ascontiguousarray(np.angle(L)))
+    modulus = np.abs(1 + L).min(axis=1)
+    # gain crossovers of every row: _crossings, the sign changes found over the whole array
+    rows, cols = np.nonzero(np.sign(mag_db[:, :-1]) * np.sign(mag_db[:, 1:]) < 0)
+    x0, x1 = mag_db[rows, cols], mag_db[rows, cols + 1]
+    gc_all = cols + x0 / (x0 - x1)
+    bounds = np.searchsorted(rows, np.arange(n + 1))
+    w = 2 * np.pi * f_hz
+    k = np.round((phase + math.pi) / (2 * math.pi))
+    finite = np.isfinite(phase).all(axis=1)
+    return [_margins_of(f_hz, Ts, mag_db[i], phase[i], float(radii[i]), gc_all[bounds[i]:bounds[i + 1]],
+                        float(modulus[i]), w, k[i], bool(finite[i])) for i in range(n)]

@@ -16,7 +16,8 @@ from commission.artifacts import Identification
 from commission.infra.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
-from commission.controllers.margins import NEUTRAL_TOL, frequency_grid, linearize_arc, loop_margins
+from commission.controllers.margins import (NEUTRAL_TOL, closed_loop_radii, frequency_grid, linearize_arc, loop_margins,
+                                            loop_margins_batch)
 from commission.robustness.margins import (LoopMargins, MarginFloors, one_thread, corner_name, corner_plant,
                                            floor_violations)
 from commission.scenarios import identified_plant
@@ -217,9 +218,7 @@ class BoxArcCheck:
     @one_thread
     def __call__(self, arc: ArcGains, floors_only_if_stable: bool = False) -> BoxRobustness:
         """(a) and (b) for ``arc`` (class docstring)."""
-        out = self._check(arc, None)
-        assert out is not None
-        return out
+        return self._check_all(arc)
 
     @one_thread
     def holds(self, arc: ArcGains, floors: MarginFloors) -> bool:
@@ -231,6 +230,59 @@ class BoxArcCheck:
         """
         out = self._check(arc, floors)
         return out is not None and out.holds(floors)
+
+    def _check_all(self, arc: ArcGains) -> BoxRobustness:
+        """:meth:`__call__`: what :meth:`_check` computes without ``stop``, the same values to the last
+        bit, with the loops batched: (a)'s margins in one :func:`loop_margins_batch`, every closed
+        loop's spectral radius ((a)'s and (b)'s) in one :func:`closed_loop_radii` per matrix size.
+        The search checks every candidate to the end, so stopping early saves it nothing, and one
+        call per kind of work instead of one per loop cuts numpy's and LAPACK's fixed cost per call
+        (docs/scaling.md, "Fourth pass")."""
+        ap = arc_pack(arc)
+        th0 = tuple(float(x) for x in arc.theta0)
+        ests: list[tuple[str, tuple[float, float, float]]] = [
+            (f"box corner {n}", (t1, t2, th0[2])) for n, (t1, t2) in zip(self.corner_names, self.corners)]
+        ests.append(("initial", th0))
+        lin = {th: linearize_arc(ap, th) for _, th in ests}
+        a_rows: list[tuple[int, str, tuple[float, float, float]]] = []  # (plant, row name, theta_hat)
+        b_groups: list[tuple[int, str, bool, list]] = []  # (plant, name, one more sample, estimates)
+        for i, (name, _) in enumerate(self.plants):
+            corner = name.split("/")[0] + "/" + name.split("/")[1]
+            th_p = ests[self.corner_names.index(corner)][1]
+            for end, d in zip(("load_min", "load_max"), self.loads):
+                th_l = (th_p[0], th_p[1], float(np.clip(d * th_p[0], self.theta_min[2], self.theta_max[2])))
+                if th_l not in lin:
+                    lin[th_l] = linearize_arc(ap, th_l)
+                a_rows.append((i, f"{name}/{end}", th_l))
+            every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
+            delayed = every if self.delay_any_estimate else [e for e in every if e[1] in (th0, th_p)]
+            b_groups.append((i, name, False, every))
+            b_groups.append((i, name + " +1 sample", True, delayed))
+        lin_of = [lin[th] for _, _, th in a_rows]
+        ctrls = [*lin_of]
+        reals = [self.ss[i] for i, _, _ in a_rows]
+        for i, _, late, use in b_groups:
+            for _, th in use:
+                ctrls.append(lin.get(th) or linearize_arc(ap, th))
+                reals.append(self.ss_delay[i] if late else self.ss[i])
+        radii = closed_loop_radii(ctrls, reals)
+        margins = loop_margins_batch([c.frequency_response(self.f_hz) for c in lin_of],
+                                     [self.responses[i] for i, _, _ in a_rows], self.f_hz, self.sampled[0].Ts,
+                                     radii[:len(a_rows)])
+        at_plant = tuple(LoopMargins(row, "arc", th_l, "plant", m) for (_, row, th_l), m in zip(a_rows, margins))
+        worst = (-math.inf, "", ests[0][1], "")
+        n, at_b = 0, len(a_rows)
+        for i, label, _, use in b_groups:
+            rho = radii[at_b:at_b + len(use)]
+            at_b += len(use)
+            n += rho.size
+            k = int(np.argmax(rho))
+            if rho[k] > worst[0]:
+                th_p = ests[self.corner_names.index(self.plants[i][0].split("/")[0] + "/"
+                                                    + self.plants[i][0].split("/")[1])][1]
+                at = "plant" if use[k][1] == th_p else use[k][0]
+                worst = (float(rho[k]), label, use[k][1], at)
+        return BoxRobustness(at_plant, AnyEstimateWorst(worst[1], worst[2], worst[3], worst[0], n))
 
     def _check(self, arc: ArcGains, stop: MarginFloors | None) -> BoxRobustness | None:
         """:meth:`__call__`; with ``stop``, None as soon as the check cannot hold for those floors."""
