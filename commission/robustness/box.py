@@ -231,6 +231,29 @@ class BoxArcCheck:
         out = self._check(arc, floors)
         return out is not None and out.holds(floors)
 
+    def _estimates(self, arc: ArcGains) -> tuple[np.ndarray, tuple[float, ...], list, dict]:
+        """The packed gains, theta_hat(0), the estimates (b) holds at every plant (the projection box's
+        four (theta1, theta2) corners with theta_hat3(0), and theta_hat(0)) and their linearisations."""
+        ap = arc_pack(arc)
+        th0 = tuple(float(x) for x in arc.theta0)
+        ests: list[tuple[str, tuple[float, float, float]]] = [
+            (f"box corner {n}", (t1, t2, th0[2])) for n, (t1, t2) in zip(self.corner_names, self.corners)]
+        ests.append(("initial", th0))
+        return ap, th0, ests, {th: linearize_arc(ap, th) for _, th in ests}
+
+    def _at_plant(self, name: str, ests: list, th0: tuple[float, ...]) -> tuple[tuple[float, ...], list, list, list]:
+        """For box plant ``name``: its theta, (a)'s estimates (its load force at both ends of the range,
+        theta3 = d_n M^-1: the robust gain at rest grows with the load the model terms carry, so both ends
+        are checked), (b)'s estimates, and those (b) checks with one more sample of delay (theta_hat(0)
+        and the plant's theta only, unless ``delay_any_estimate``: class docstring)."""
+        corner = name.split("/")[0] + "/" + name.split("/")[1]
+        th_p = ests[self.corner_names.index(corner)][1]
+        loads = [(end, (th_p[0], th_p[1], float(np.clip(d * th_p[0], self.theta_min[2], self.theta_max[2]))))
+                 for end, d in zip(("load_min", "load_max"), self.loads)]
+        every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
+        delayed = every if self.delay_any_estimate else [e for e in every if e[1] in (th0, th_p)]
+        return th_p, loads, every, delayed
+
     def _check_all(self, arc: ArcGains) -> BoxRobustness:
         """:meth:`__call__`: what :meth:`_check` computes without ``stop``, the same values to the last
         bit, with the loops batched: (a)'s margins in one :func:`loop_margins_batch`, every closed
@@ -238,24 +261,15 @@ class BoxArcCheck:
         The search checks every candidate to the end, so stopping early saves it nothing, and one
         call per kind of work instead of one per loop cuts numpy's and LAPACK's fixed cost per call
         (docs/scaling.md, "Fourth pass")."""
-        ap = arc_pack(arc)
-        th0 = tuple(float(x) for x in arc.theta0)
-        ests: list[tuple[str, tuple[float, float, float]]] = [
-            (f"box corner {n}", (t1, t2, th0[2])) for n, (t1, t2) in zip(self.corner_names, self.corners)]
-        ests.append(("initial", th0))
-        lin = {th: linearize_arc(ap, th) for _, th in ests}
+        ap, th0, ests, lin = self._estimates(arc)
         a_rows: list[tuple[int, str, tuple[float, float, float]]] = []  # (plant, row name, theta_hat)
         b_groups: list[tuple[int, str, bool, list]] = []  # (plant, name, one more sample, estimates)
         for i, (name, _) in enumerate(self.plants):
-            corner = name.split("/")[0] + "/" + name.split("/")[1]
-            th_p = ests[self.corner_names.index(corner)][1]
-            for end, d in zip(("load_min", "load_max"), self.loads):
-                th_l = (th_p[0], th_p[1], float(np.clip(d * th_p[0], self.theta_min[2], self.theta_max[2])))
+            th_p, loads, every, delayed = self._at_plant(name, ests, th0)
+            for end, th_l in loads:
                 if th_l not in lin:
                     lin[th_l] = linearize_arc(ap, th_l)
                 a_rows.append((i, f"{name}/{end}", th_l))
-            every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
-            delayed = every if self.delay_any_estimate else [e for e in every if e[1] in (th0, th_p)]
             b_groups.append((i, name, False, every))
             b_groups.append((i, name + " +1 sample", True, delayed))
         lin_of = [lin[th] for _, _, th in a_rows]
@@ -278,31 +292,21 @@ class BoxArcCheck:
             n += rho.size
             k = int(np.argmax(rho))
             if rho[k] > worst[0]:
-                th_p = ests[self.corner_names.index(self.plants[i][0].split("/")[0] + "/"
-                                                    + self.plants[i][0].split("/")[1])][1]
+                th_p = self._at_plant(self.plants[i][0], ests, th0)[0]
                 at = "plant" if use[k][1] == th_p else use[k][0]
                 worst = (float(rho[k]), label, use[k][1], at)
         return BoxRobustness(at_plant, AnyEstimateWorst(worst[1], worst[2], worst[3], worst[0], n))
 
     def _check(self, arc: ArcGains, stop: MarginFloors | None) -> BoxRobustness | None:
         """:meth:`__call__`; with ``stop``, None as soon as the check cannot hold for those floors."""
-        ap = arc_pack(arc)
-        th0 = tuple(float(x) for x in arc.theta0)
-        ests: list[tuple[str, tuple[float, float, float]]] = [
-            (f"box corner {n}", (t1, t2, th0[2])) for n, (t1, t2) in zip(self.corner_names, self.corners)]
-        ests.append(("initial", th0))
-        lin = {th: linearize_arc(ap, th) for _, th in ests}
+        ap, th0, ests, lin = self._estimates(arc)
         resp: dict[tuple[float, ...], np.ndarray] = {}  # K(f) once per estimate, for every plant it meets
         at_plant = []
         worst = (-math.inf, "", ests[0][1], "")
         n = 0
         for (name, p), sp, presp, ss, ssd in zip(self.plants, self.sampled, self.responses, self.ss, self.ss_delay):
-            corner = name.split("/")[0] + "/" + name.split("/")[1]
-            th_p = ests[self.corner_names.index(corner)][1]
-            # (a) at the plant's theta, its load force at both ends of the range (theta3 = d_n M^-1): the
-            # robust gain at rest grows with the load the model terms carry, so both ends are checked.
-            for end, d in zip(("load_min", "load_max"), self.loads):
-                th_l = (th_p[0], th_p[1], float(np.clip(d * th_p[0], self.theta_min[2], self.theta_max[2])))
+            th_p, loads, every, delayed = self._at_plant(name, ests, th0)
+            for end, th_l in loads:
                 if th_l not in lin:
                     lin[th_l] = linearize_arc(ap, th_l)
                 if th_l not in resp:
@@ -311,10 +315,6 @@ class BoxArcCheck:
                                             loop_margins(lin[th_l], sp, self.f_hz, presp, resp[th_l])))
                 if stop is not None and floor_violations(at_plant[-1].margins, stop):
                     return None
-            every = ests if th_p in (th for _, th in ests[:4]) else [*ests, ("plant", th_p)]
-            # With one more sample of delay: theta_hat(0) and the plant's theta only, unless
-            # delay_any_estimate (class docstring).
-            delayed = every if self.delay_any_estimate else [e for e in every if e[1] in (th0, th_p)]
             for tag, real, use in (("", ss, every), (" +1 sample", ssd, delayed)):
                 rho = _closed_loops([lin.get(th) or linearize_arc(ap, th) for _, th in use], real)
                 n += rho.size
