@@ -122,3 +122,16 @@ def test_a_yardstick_or_a_given_limit_keeps_the_comparison_gated():
                        yardstick=NONE)
     assert lim.comparison_reported == ("arc_vs_pid_median", "arc_vs_pid_p90")
     assert {c.criterion for c in evaluate_gate(lim, runs, compare_nominal=True).failures} == {"arc_vs_pid_nominal"}
+
+
+def test_the_report_table_says_the_comparison_is_reported():
+    from commission.report.tables import gate_table_markdown
+
+    lim = resolve_gate(GateSpec(), lsb=1e-6, travel=0.4, u_max=10.0, yardstick=NONE)
+    table = gate_table_markdown(evaluate_gate(lim, _comparison_runs(3e-6, 2e-6), compare_nominal=True))
+    rows = [line for line in table.splitlines() if line.startswith("| ARC")]
+    assert len(rows) == 3  # median, 90th percentile, identified plant
+    assert "| reported (default 1) |" in rows[0] and "| reported (default 1.2) |" in rows[1]
+    assert "| reported (default below 1 (no slack)) |" in rows[2]
+    assert all("no yardstick" in r for r in rows)
+    assert [r.rsplit("|", 2)[1].strip() for r in rows] == ["0 of 1", "0 of 1", "0 of 2"]  # nothing failed
