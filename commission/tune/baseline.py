@@ -347,8 +347,10 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
 
     With ``pole_free`` False (``[pid] pole`` given) the paper's PID at that pole is kept (today's
     behaviour, eq. (57)) and its margins are recorded; when no pole is admissible the previous
-    default (:func:`deployable_pid`) is kept.  Either way the choice says whether the PID is a
-    yardstick (:attr:`YardstickChoice.is_yardstick`).
+    default (:func:`deployable_pid`), lowered into the evidence where it can be
+    (:func:`pid_within_evidence`), is kept and checked as the grid is, the evidence bound included.
+    Either way the choice says whether the PID is a yardstick (:attr:`YardstickChoice.is_yardstick`);
+    validate holds the ARC to no PID that is not one (:func:`commission.gate.comparison_reported`).
     """
     if not pole_free:
         base = deployable_pid(ident, spec, ev, c_u_limit, False, settings)
