@@ -225,7 +225,8 @@ class YardstickChoice:
         plant, is stable with one more sample of delay and stays within the gate's c_u),
         ``"spec_pole"`` (``[pid] pole`` given in the spec: the paper's formula (57) at that pole,
         today's behaviour) or ``"none_admissible"`` (no pole of the family keeps the floors: the
-        paper's pole, lowered for chattering as before and into the evidence where it can be, is kept and flagged).
+        paper's pole, lowered for chattering as before and into the evidence where it can be, is
+        kept and flagged).
     pole : float
         The chosen pole, rad/s.
     candidates : int
