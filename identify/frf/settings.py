@@ -9,19 +9,17 @@ detection, resolution, the band's tolerances, the fit's bounds and starts, how m
 #: The median is the holding loop's answer to the encoder's noise and quantization: on a noisy or coarse
 #: encoder an injection within a_max stands only 4-6 times above it (a 1 um-noise 2.5 kHz axis, a 5 um
 #: 1 kHz one: tests/test_excite.py), which a factor of 10 missed; the real logs without injection
-#: (EMPS, ODrive, the screw drive) show no block at 3 times.
+#: (EMPS, ODrive, the screw drive) show no segment at 3 times.
 BROADBAND_FACTOR = 3.0
 #: ... or this many times where a block holds at least :data:`BROADBAND_LONG_BLOCK` samples.  At high
 #: rates the holding loop turns the encoder's noise into a command whose high-passed RMS grows with the
-#: rate (the derivative action), so an injection within a_max stands only 2-3 times above it (a 20 kHz
-#: axis with 1 count of noise, the yield sweep's generator); over blocks that long the background's RMS
-#: is steady (its moving blocks stay within 1.6 times their median there), while the short blocks of a
-#: low-rate log scatter to 2 times by chance (a 24 Hz TRO2021 start-stop log:
-#: tests/test_identify_frf_broadband.py).
+#: rate (the derivative action), so an injection within a_max may stand only a few times above it; over
+#: blocks that long the background's RMS is steady, while the short blocks of a low-rate log scatter
+#: widely by chance (measured in docs/interface.md §1 and pinned by tests/test_identify_frf_broadband.py).
 BROADBAND_FACTOR_LONG = 2.0
 #: Samples per detection block from which :data:`BROADBAND_FACTOR_LONG` applies.
 BROADBAND_LONG_BLOCK = 200
-#: ... and holds at least this fraction of the block's (detrended) command variance.
+#: A broadband block also holds at least this fraction of the block's (detrended) command variance.
 BROADBAND_FRACTION = 0.25
 #: Block length of the detection, s.
 BLOCK_S = 0.1
