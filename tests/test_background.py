@@ -46,3 +46,31 @@ def test_a_cancelled_job_writes_nothing_more(tmp_path):
     job.cancel()
     time.sleep(0.2)
     assert not (tmp_path / "late").exists()
+
+
+class _Raised(Exception):
+    pass
+
+
+def _raise_on_signal(signum, frame):
+    raise _Raised(f"signal {signum}")
+
+
+@pytest.mark.skipif(not (os.name == "posix" and os.uname().sysname == "Linux"), reason="the child is forked on Linux")
+def test_a_stopped_child_ends_by_the_signal_not_in_the_parents_handler(tmp_path, capfd):
+    """The CLI's SIGTERM/SIGINT handlers raise; the child does not inherit them: cancel() ends it by the
+    signal's default action, silently, instead of raising in the middle of whatever it was doing."""
+    import signal
+
+    old = {s: signal.signal(s, _raise_on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        job = ChildJob(_slow, tmp_path)
+        time.sleep(0.5)
+        job.cancel()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    assert job._proc.exitcode == -signal.SIGTERM
+    assert not (tmp_path / "late").exists()
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "_Raised" not in err

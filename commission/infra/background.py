@@ -16,11 +16,22 @@ interleave with the tuning, not run beside it.
 from __future__ import annotations
 
 import multiprocessing as mp
+import signal
 import sys
 from typing import Any, Callable
 
+#: The signals whose handlers the child does not inherit: the CLI's handlers raise in the main
+#: thread to write nothing half-done, which in the child (stopped by :meth:`ChildJob.cancel`, or
+#: sent the terminal's Ctrl-C beside its parent) would print a traceback from wherever it was.
+_DEFAULT_IN_CHILD = (signal.SIGINT, signal.SIGTERM)
+
 
 def _child(send: Any, fn: Callable[..., Any], args: tuple) -> None:
+    # The parent blocked these signals around the fork: reset their handlers, then let them in, so
+    # that no signal reaches the inherited handler; a stopped child ends quietly (its files are not kept).
+    for sig in _DEFAULT_IN_CHILD:
+        signal.signal(sig, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _DEFAULT_IN_CHILD)
     try:
         out = fn(*args)
         send.send(("ok", out))
@@ -52,7 +63,11 @@ class ChildJob:
             ctx = mp.get_context("fork")
             self._recv, send = ctx.Pipe(duplex=False)
             self._proc = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
-            self._proc.start()
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFAULT_IN_CHILD)  # until the child resets them
+            try:
+                self._proc.start()
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
             send.close()
 
     def result(self) -> Any:
