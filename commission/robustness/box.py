@@ -149,19 +149,6 @@ def box_plants(ident: Identification, spec: Spec,
     return out
 
 
-def _closed_loops(ctrls: list[Any], ss: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
-    """Spectral radii of ``u = c`` closed on one plant realisation, one per controller (batched eig)."""
-    Ap, Bp, Cp = ss
-    n_p, n_c = Ap.shape[0], ctrls[0].Ac.shape[0]
-    A = np.zeros((len(ctrls), n_p + n_c, n_p + n_c))
-    for i, c in enumerate(ctrls):
-        A[i, :n_p, :n_p] = Ap + c.Dc * (Bp @ Cp)
-        A[i, :n_p, n_p:] = Bp @ c.Cc
-        A[i, n_p:, :n_p] = c.Bc @ Cp
-        A[i, n_p:, n_p:] = c.Ac
-    return np.abs(np.linalg.eigvals(A)).max(axis=1)
-
-
 class BoxArcCheck:
     """The box check of one axis, for many gain sets (the search's constraint and the gate's check).
 
@@ -316,7 +303,7 @@ class BoxArcCheck:
                 if stop is not None and floor_violations(at_plant[-1].margins, stop):
                     return None
             for tag, real, use in (("", ss, every), (" +1 sample", ssd, delayed)):
-                rho = _closed_loops([lin.get(th) or linearize_arc(ap, th) for _, th in use], real)
+                rho = closed_loop_radii([lin.get(th) or linearize_arc(ap, th) for _, th in use], [real] * len(use))
                 n += rho.size
                 k = int(np.argmax(rho))
                 if rho[k] > worst[0]:
