@@ -50,7 +50,7 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import pid_candidates, pid_within_evidence, pid_yardstick
+from commission.tune.baseline import bandwidth_factor, pid_candidates, pid_within_evidence, pid_yardstick
 from commission.tune.budget import work_scaled_budget
 from commission.tune.candidate import SearchResult
 from commission.tune.optimiser import HoldoutChoice, Problem, search, select_on_holdout
@@ -142,8 +142,11 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free, settings)
     pid, pid_scores = baseline.gains, baseline.scores
     runs = _Runs.of(ident, spec)
-    problem = Problem(base_arc_gains(ident, spec), ev, spec, ident, pid_scores, gate, runs.arc,
+    # A yardstick below the rate-scaled grid says the plant, not the rate, sets the bandwidth.
+    bw = bandwidth_factor(yardstick, spec, settings)
+    problem = Problem(base_arc_gains(ident, spec, bw), ev, spec, ident, pid_scores, gate, runs.arc,
                       observer_free=observer_free, settings=settings,
+                      observer_scale=bw,
                       target_crossover_hz=pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz)
     res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total, settings)
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers, settings=settings)

@@ -273,6 +273,23 @@ class YardstickChoice:
                    violations=tuple(str(v) for v in d.get("violations", ())))
 
 
+def bandwidth_factor(choice: YardstickChoice, spec: Spec, settings: TuneSettings = DEFAULT_SETTINGS) -> float:
+    """How far below the rate-scaled design this axis' yardstick sits (1: not below), dimensionless.
+
+    The ARC's carried-over gains (:func:`commission.tune.gains.base_arc_gains`) and its default
+    observer pole scale with the sample rate, as the paper's PID pole does.  When no PID of the
+    rate-scaled grid (``settings.yardstick_pole_fractions``) keeps the floors and a slower one
+    below it does (``settings.yardstick_low_fractions``), the axis' bandwidth is set by its
+    plant (a heavy load, a low structural mode), and the ARC's gains, adaptation rates and
+    observer are scaled by the same factor: the yardstick's pole over the grid's lowest.
+    Otherwise (a yardstick on the grid, a ``[pid] pole`` given, none admissible) 1.
+    """
+    low = settings.yardstick_pole_fractions[0] * spec.sample_rate
+    if choice.method != "margin_search" or not choice.is_yardstick or choice.pole >= low:
+        return 1.0
+    return choice.pole / low
+
+
 def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) -> list[PidCandidate]:
     """Check the PID of (57) at each pole on the identified plant and with one more sample of delay.
 
@@ -336,7 +353,8 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     A drive vendor's auto-tuner delivers the fastest PID that keeps its margins on the
     identified plant; that, not a fixed pole, is what the ARC has to beat.  The family is the
     paper's (57) with the triple pole of (56) at M_min, its pole swept over
-    ``settings.yardstick_pole_fractions`` x f_s.  A pole is admissible when the PID keeps every floor
+    ``settings.yardstick_pole_fractions`` x f_s, and below it (``settings.yardstick_low_fractions``)
+    when none of those is admissible.  A pole is admissible when the PID keeps every floor
     of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
     is stable with one more sample of delay (:func:`pid_candidates`) and, where the log backs the
     model only up to a band, holds the evidence bound ``||W T|| < 1`` (:func:`_within_evidence`,
@@ -361,6 +379,10 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     poles = [fr * spec.sample_rate for fr in settings.yardstick_pole_fractions]
     cands = _within_evidence(pid_candidates(ident, spec, poles), ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
+    if not ok:  # the plant, not the rate, sets this axis' bandwidth: continue the grid below
+        low = [fr * spec.sample_rate for fr in settings.yardstick_low_fractions]
+        cands = cands + _within_evidence(pid_candidates(ident, spec, low), ident, spec)
+        ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
     if not ok:
         # The fallback is checked as its candidates were (floors, +1 sample, and the evidence bound after
         # pid_within_evidence has lowered it), so that the record never calls a PID beyond the evidence a

@@ -73,7 +73,7 @@ N_FREE = 9
 I_THETA1_0 = 8
 
 
-def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
+def base_arc_gains(ident: Identification, spec: Spec, bandwidth: float = 1.0) -> ArcGains:
     """The paper's §4.3 ARC gains carried over to this axis (module docstring, step 3).
 
     With c = 37 / theta1_nominal (command-unit scale) and r = f_s / 2500 Hz:
@@ -82,17 +82,21 @@ def base_arc_gains(ident: Identification, spec: Spec) -> ArcGains:
     C_theta2 = 1e5 [1/c^2, 1/c, 1/c]; Gamma = 1e5 [5/c^2, 3, 20]; caps k1s_max = g1,
     k2s_max = g2 (the robust terms bounded: see
     :attr:`commission.tune.settings.TuneSettings.free_start`).
+
+    ``bandwidth`` (dimensionless, at most 1) scales g1, g2 and Gamma down with the axis'
+    achievable bandwidth when its plant, not its rate, sets it
+    (:func:`commission.tune.baseline.bandwidth_factor`); the search box is relative to these.
     """
     c = PAPER_THETA1 / ident.theta.nominal[0]
     r = spec.sample_rate / PAPER_RATE
     ob = observer_design(spec.observer_pole, spec.period)
-    g1, g2 = 600.0 * r, 850.0 * r
+    g1, g2 = 600.0 * r * bandwidth, 850.0 * r * bandwidth
     return ArcGains(
         Ts=spec.period, k1=ob.k1, k2=ob.k2, w1=1.0, w2=0.1 / c ** 2, g1=g1, g2=g2,
         eps11=5e-5, eps12=5e-5 / r, eps21=1e-3, eps22=c ** 2 * r,
         C_phi1=(5e-5 * c, 5e-6, 1e-4), C_phi2=(5e-5, 5e-6 / c, 1e-4 / c),
         C_theta2=(1e5 / c ** 2, 1e5 / c, 1e5 / c),
-        Gamma=(5e5 / c ** 2, 3e5, 2e6),
+        Gamma=(5e5 / c ** 2 * bandwidth, 3e5 * bandwidth, 2e6 * bandwidth),
         theta_min=tuple(ident.theta.min), theta_max=tuple(ident.theta.max),  # type: ignore[arg-type]
         theta0=tuple(ident.theta.nominal),  # type: ignore[arg-type]
         fric_level=ident.fric_level, fric_slope=ident.fric_slope,

@@ -96,6 +96,11 @@ class Problem:
     target_crossover_hz : float, optional
         The PID yardstick's crossover on the identified plant, Hz: :meth:`matched_starts` looks
         for ARC gains with the same bandwidth (None: no such start).
+    observer_scale : float
+        Factor on the default observer pole that the observer coordinate is centred on (its
+        bounds ``observer_factor_bounds`` x this), dimensionless: the
+        :func:`commission.tune.baseline.bandwidth_factor` of an axis whose plant sets its
+        bandwidth.  Ignored when the observer is pinned by the spec.
     settings : TuneSettings
         The search's knobs (:data:`commission.tune.settings.DEFAULT_SETTINGS`).
     """
@@ -103,8 +108,10 @@ class Problem:
     def __init__(self, base: ArcGains, ev: Evaluator, spec: Spec, ident: Identification,
                  reference: Sequence[Indexes], gate: GateLimits,
                  feasible: Callable[[ArcGains], FeasibilityReport], *, observer_free: bool,
-                 target_crossover_hz: float | None = None, settings: TuneSettings = DEFAULT_SETTINGS) -> None:
+                 target_crossover_hz: float | None = None, observer_scale: float = 1.0,
+                 settings: TuneSettings = DEFAULT_SETTINGS) -> None:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
+        self.observer_scale = observer_scale if observer_free else 1.0
         self.settings = st = settings
         self.target_crossover_hz = target_crossover_hz
         self.reference, self.gate, self.feasible = list(reference), gate, feasible
@@ -115,9 +122,10 @@ class Problem:
         self.margins = IdentifiedPlantArcMargins(ident, spec)
         self.box = BoxArcCheck(ident, spec)
         self.evidence = EvidenceBound(ident, spec)
-        lo = np.append(st.free_log_lo, math.log(st.observer_factor_bounds[0]))
-        hi = np.append(st.free_log_hi, math.log(st.observer_factor_bounds[1]))
-        start = np.append(np.log(st.free_start), 0.0)
+        o = math.log(self.observer_scale)
+        lo = np.append(st.free_log_lo, o + math.log(st.observer_factor_bounds[0]))
+        hi = np.append(st.free_log_hi, o + math.log(st.observer_factor_bounds[1]))
+        start = np.append(np.log(st.free_start), o)
         if spec.theta1_0 is not None:  # theta_hat1(0) pinned by the spec
             start[I_THETA1_0] = math.log(spec.theta1_0 / base.theta0[0])
         self.active = [i for i in range(N_FREE + 1)
@@ -135,7 +143,7 @@ class Problem:
 
     def z_of(self, x: Sequence[float], observer_factor: float = 1.0) -> np.ndarray:
         """The search vector of relative free gains ``x`` (clipped to the bounds)."""
-        v = np.append(np.log(np.asarray(x, dtype=np.float64)), math.log(observer_factor))
+        v = np.append(np.log(np.asarray(x, dtype=np.float64)), math.log(observer_factor * self.observer_scale))
         return np.clip(v[self.active], self.lo, self.hi)
 
     def gains(self, z: np.ndarray) -> tuple[np.ndarray, float, ArcGains]:
@@ -171,7 +179,8 @@ class Problem:
         crosses over at most ``match_crossover_room`` x the target, then lowered to the first that keeps every linear constraint
         (:meth:`stability_violation`: the floors on the identified plant and over the whole box,
         the evidence bound), and its theta3 adaptation raised while they hold
-        (:meth:`_integral_matched`): one start per direction.  Only linearisations, no
+        (:meth:`_integral_matched`): one start per direction.  When no direction gives one, the
+        slowest gains that keep them (:meth:`_slowest_matched`).  Only linearisations, no
         simulation.
         """
         target = self.target_crossover_hz
@@ -219,11 +228,40 @@ class Problem:
                     z, xo = self._integral_matched(x, f, z, xo, room, g3)
                     found.append((abs(math.log(xo / target)), z))
                     break
+        if not found:
+            found = self._slowest_matched(target)
         found.sort(key=lambda t: t[0])
         out: list[np.ndarray] = []
         for _, z in found:  # directions clipped to the same bounds give the same start: once
             if not any(np.allclose(z, o) for o in out):
                 out.append(z)
+        return out
+
+    def _slowest_matched(self, target: float) -> list[tuple[float, np.ndarray]]:
+        """The slowest gains along ``match_directions`` that keep every linear constraint, when
+        no scale crosses over within the room of ``target`` (Hz): ``(log distance, search vector)``.
+
+        An axis whose yardstick is far slower than the carried-over gains (a heavy axis with a
+        low structural mode) can leave every cap scale above the yardstick's crossover: the ARC's
+        adaptation and observer keep some loop gain whatever the caps.  The closest match is then
+        the slowest loop that holds the floors, scanned from the lowest scale up.
+        """
+        st = self.settings
+        scales = st.match_scales
+        out: list[tuple[float, np.ndarray]] = []
+        for f, ratio in st.match_directions:
+            if f != 1.0 and N_FREE not in self.active:
+                continue
+            for k in range(len(scales) - 1, -1, -1):
+                x = list(st.free_start)
+                x[0], x[1] = scales[k], scales[k] * ratio
+                z = self.z_of(x, f)
+                _, _, g = self.gains(z)
+                xo = self.crossover_hz(g)
+                if math.isfinite(xo) and self.stability_violation(g) == 0.0:
+                    z, xo = self._integral_matched(x, f, z, xo, xo * st.match_crossover_room, st.match_g3)
+                    out.append((abs(math.log(xo / target)), z))
+                    break
         return out
 
     def _integral_matched(self, x: list[float], f: float, z: np.ndarray, xo: float,

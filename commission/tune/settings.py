@@ -179,6 +179,11 @@ class TuneSettings:
     #: to 0.4 f_s, geometric (the paper's 300 rad/s at 2.5 kHz is 0.12 f_s; 0.5 f_s is the spec's
     #: bandwidth rule :data:`commission.spec.MAX_OMEGA_T`).
     yardstick_pole_fractions: tuple[float, ...] = tuple(float(x) for x in np.geomspace(0.02, 0.4, 33))
+    #: Poles tried below that grid, fastest first, when none of it is admissible (fractions of the
+    #: sample rate, the same geometric step continued down to 5e-4 f_s): an axis whose bandwidth a
+    #: low structural mode or a heavy load sets, not its sample rate.  Its yardstick then scales
+    #: the ARC's carried-over gains and observer (:func:`commission.tune.baseline.bandwidth_factor`).
+    yardstick_low_fractions: tuple[float, ...] = tuple(float(x) for x in np.geomspace(0.02, 0.0005, 41)[1:])
     #: Yardstick candidates simulated at once (fastest first) when looking for one within the
     #: gate's c_u: one, so that the search stops at the first that is (usually the fastest
     #: admissible pole).  Each candidate's scenarios run in parallel all the same.
