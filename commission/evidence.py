@@ -69,7 +69,8 @@ from commission.artifacts import Identification
 from commission.infra.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
-from commission.controllers.margins import LinearController, frequency_grid, linearize_arc, linearize_pid
+from commission.controllers.margins import (LinearController, closed_loop_radius, frequency_grid, linearize_arc,
+                                            linearize_pid)
 from commission.controllers.pid import PidGains, pid_pack
 from commission.controllers.plant import P_B, P_M
 from commission.identify.frf import BAND_COHERENCE
@@ -370,27 +371,36 @@ class EvidenceBound:
         _, p = margin_plants(ident, spec)[0]
         self.theta_plant = (1.0 / float(p[P_M]), float(p[P_B]) / float(p[P_M]), float(ident.theta.nominal[2]))
         with one_blas_thread():
-            self.P = sampled_plant(p, self.Ts).frequency_response(self.f_hz)
+            self.plant = sampled_plant(p, self.Ts)
+            self.P = self.plant.frequency_response(self.f_hz)
         self.W = self.evidence.weight(self.f_hz)
         self.modulus_floor = float(spec.min_modulus_margin)
 
-    def row(self, K: LinearController, controller: str, at: str) -> RobustStability:
+    def row(self, K: LinearController, controller: str, at: str, stability: bool = False) -> RobustStability:
+        """The row of loop ``K``; with ``stability`` its nominal closed loop is checked first.
+
+        ``||W T|| < 1`` proves robust stability only of a loop that is stable on the model: an
+        unstable one gets an infinite peak (no bound holds).  The search and the yardstick call
+        this on loops whose stability the margin checks already judge, so they skip it.
+        """
         peak, fpk, fc = weighted_peak(K, self.P, self.W, self.f_hz)
+        if stability and not closed_loop_radius(K, self.plant) < 1.0:
+            peak, fpk = math.inf, math.nan
         mod = pm = up = high = math.nan
         if self.evidence.measured is not None:
             mod, pm, up, high = measured_margins(K, self.evidence.measured)
         return RobustStability(controller, at, peak, fpk, fc, mod, pm, up, high)
 
-    def arc_rows(self, arc: ArcGains) -> tuple[RobustStability, ...]:
-        """The ARC at its initial estimate and at the identified theta."""
+    def arc_rows(self, arc: ArcGains, stability: bool = False) -> tuple[RobustStability, ...]:
+        """The ARC at its initial estimate and at the identified theta (``stability``: :meth:`row`)."""
         ap = arc_pack(arc)
         with one_blas_thread():
-            return tuple(self.row(linearize_arc(ap, th), "arc", at)
+            return tuple(self.row(linearize_arc(ap, th), "arc", at, stability)
                          for at, th in (("initial", tuple(arc.theta0)), ("plant", self.theta_plant)))
 
-    def pid_row(self, pid: PidGains) -> RobustStability:
+    def pid_row(self, pid: PidGains, stability: bool = False) -> RobustStability:
         with one_blas_thread():
-            return self.row(linearize_pid(pid_pack(pid)), "pid", "")
+            return self.row(linearize_pid(pid_pack(pid)), "pid", "", stability)
 
     def violation(self, arc: ArcGains) -> float:
         """Search constraint (0: met, or no band): what the gate's ``evidence`` and ``measured`` checks need.
@@ -412,9 +422,10 @@ class EvidenceBound:
 
 def evidence_table(arc: ArcGains, pid: PidGains, ident: Identification,
                    spec: Spec) -> tuple[Evidence, tuple[RobustStability, ...]]:
-    """The evidence and the robust-stability rows of both loops (ARC twice, PID once)."""
+    """The evidence and the robust-stability rows of both loops (ARC twice, PID once); a loop
+    unstable on the model holds no bound (:meth:`EvidenceBound.row`)."""
     b = EvidenceBound(ident, spec)
-    return b.evidence, b.arc_rows(arc) + (b.pid_row(pid),)
+    return b.evidence, b.arc_rows(arc, stability=True) + (b.pid_row(pid, stability=True),)
 
 
 def evidence_checks(rows: tuple[RobustStability, ...] | list[RobustStability], evidence: Evidence,
@@ -433,9 +444,12 @@ def evidence_checks(rows: tuple[RobustStability, ...] | list[RobustStability], e
             continue
         where = (f"evidence/nominal/arc(theta_hat {r.theta_hat_at})" if r.controller == "arc"
                  else "evidence/nominal/pid")
-        out.append(Check("margins", where, r.peak, 1.0, r.holds,
-                         f"robust stability above the backed band (to {evidence.top_hz:.3g} Hz): peak |W T| "
-                         f"{r.peak:.3g} at {r.peak_hz:.4g} Hz (limit 1; |W| = 1 at {evidence.unity_hz:.4g} Hz)"))
+        detail = (f"robust stability above the backed band (to {evidence.top_hz:.3g} Hz): peak |W T| "
+                  f"{r.peak:.3g} at {r.peak_hz:.4g} Hz (limit 1; |W| = 1 at {evidence.unity_hz:.4g} Hz)"
+                  if math.isfinite(r.peak) else
+                  f"robust stability above the backed band (to {evidence.top_hz:.3g} Hz): none, the closed "
+                  f"loop is UNSTABLE on the identified model")
+        out.append(Check("margins", where, r.peak, 1.0, r.holds, detail))
         if r.controller == "arc" and math.isfinite(r.measured_modulus):
             # As on the model, the ARC's margins are gated and the PID's reported; the measurement's own
             # error is allowed for (measured_margins): refused only where the data show the floor missed.
@@ -471,7 +485,8 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
     for r in rows:
         who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
         s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "
-             f"crossover {r.crossover_hz:.4g} Hz")
+             f"crossover {r.crossover_hz:.4g} Hz" if math.isfinite(r.peak) else
+             f"{who}: closed loop UNSTABLE on the identified model, no robust-stability bound")
         if math.isfinite(r.measured_modulus):
             s += (f"; on the measured response (coherent up to {r.measured_up_to_hz:.4g} Hz) modulus margin "
                   f"{r.measured_modulus:.3g}")

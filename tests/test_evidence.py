@@ -240,3 +240,32 @@ def test_a_departure_bound_refuses_the_loop_a_decade_would_have_let_through():
     departing = EvidenceBound(_ident({**WHOLE_LOG, "coherent_up_to_hz": 400.0, "resolution_hz": 2.0}), SPEC)
     assert departing.evidence.factor_basis == "departure"
     assert not departing.row(K, "pid", "").holds
+
+
+def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report():
+    """||W T|| < 1 proves robust stability only of a loop that is stable on the model.  The paper's PID
+    with its gains' signs flipped and scaled down (Kp x 1e-3, Ki x 1e-6, Kd x 0.03) is unstable on the
+    reference plant (closed-loop eigenvalues), yet its |W T| on the grid is below 1 (its |T| is large
+    only at low frequency, where |W| is small): the gate's rows (evidence_table)
+    give it no bound, the check fails and says why, and the report's evidence line says UNSTABLE; the
+    stable PID's row is the grid's peak either way."""
+    from commission.controllers.margins import closed_loop_radius
+    from commission.evidence import evidence_lines, evidence_table
+
+    ident = _ident(WHOLE_LOG)
+    pid = paper_pid_gains()
+    flipped = dataclasses.replace(pid, Kp=-pid.Kp * 1e-3, Ki=-pid.Ki * 1e-6, Kd=-pid.Kd * 1e-3 ** 0.5)
+    b = EvidenceBound(ident, SPEC)
+    assert closed_loop_radius(linearize_pid(pid_pack(flipped)), b.plant) > 1.0
+    grid_only = b.pid_row(flipped)
+    assert grid_only.holds  # the grid alone would call it robust
+    tuning = Tuning.load(str(DATA / "tuning_paper_budget8.json"))
+    evidence, rows = evidence_table(tuning.arc, flipped, ident, SPEC)
+    row = rows[-1]
+    assert row.controller == "pid" and math.isinf(row.peak) and not row.holds
+    assert row.to_dict()["peak_wt"] is None and row.to_dict()["holds"] is False
+    check = evidence_checks(rows, evidence, 0.5)[-1]
+    assert check.scenario == "evidence/nominal/pid" and not check.passed and "UNSTABLE" in check.detail
+    assert any(line.startswith("PID: closed loop UNSTABLE") for line in evidence_lines(evidence, rows))
+    stable = evidence_table(tuning.arc, pid, ident, SPEC)[1][-1]
+    assert stable.peak == b.pid_row(pid).peak

@@ -18,7 +18,8 @@ from commission.paper import reference_identification
 from commission.robustness import MarginFloors
 from commission.scenarios import identified_plant
 from commission.spec import spec_from_mapping
-from commission.tune.baseline import YardstickChoice, pid_baseline, pid_candidates, pid_yardstick
+from commission.tune.baseline import (YardstickChoice, bandwidth_factor, pid_baseline, pid_candidates,
+                                      pid_yardstick)
 from commission.tune.settings import DEFAULT_SETTINGS
 
 #: The yardstick's pole grid of the default settings, as fractions of the sample rate.
@@ -129,19 +130,49 @@ def test_the_recorded_yardstick_is_the_final_pid_where_the_evidence_bounds_the_l
 
 
 def test_a_fallback_beyond_the_evidence_is_never_recorded_as_a_yardstick():
-    """A rigid log backed to 6 Hz only: every PID of the grid reaches beyond the evidence, so none is
-    admissible and the paper's pole is the fallback.  That PID keeps every margin floor on the identified
+    """A rigid log backed to 0.2 Hz only: every PID of the grid and of its continuation below 0.02 f_s
+    reaches beyond the evidence, so none is admissible and the paper's pole is the fallback.  That PID keeps every margin floor on the identified
     plant (the floors alone would call it a yardstick), but its ||W T|| is far above 1: the record names
     the evidence it misses and is no yardstick, so validate does not hold the ARC to it."""
     from commission.evidence import EvidenceBound
 
-    ident = reference_identification(delta_d=0.5, frequency_response={"source": "whole_log", "band_hz": [3.0, 6.0]})
+    ident = reference_identification(delta_d=0.5, frequency_response={"source": "whole_log", "band_hz": [0.1, 0.2]})
     spec = spec_from_mapping({})
     base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
     assert choice.method == "none_admissible" and choice.admissible == 0
+    assert choice.candidates == len(FRACTIONS) + len(DEFAULT_SETTINGS.yardstick_low_fractions)
+    assert bandwidth_factor(choice, spec) == 1.0  # no yardstick: the rate-scaled design stays
     floors_only = pid_candidates(ident, spec, [base.pole])[0]
     assert floors_only.admissible  # the margin floors alone would accept it
     row = EvidenceBound(ident, spec).pid_row(base.gains)
     assert not row.holds and row.peak > 1.0
     assert not choice.is_yardstick
     assert choice.violations == (f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",)
+
+
+def test_an_axis_whose_plant_sets_its_bandwidth_gets_a_yardstick_below_the_rate_grid():
+    """A load-side mode at 60 Hz (damping 0.02) on the reference axis: no PID of the rate-scaled grid
+    (0.02-0.4 f_s, 50-1000 rad/s) keeps the floors, so the grid is continued below it.  The yardstick
+    found there keeps every floor and +1 sample (recomputed independently), the next faster pole of the
+    continued grid does not, and the ARC's carried-over design is scaled by its pole over the grid's
+    lowest (the rigid axis keeps factor 1)."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({"plant": {"mode_hz": 60.0, "mode_damping": 0.02, "mode_ratio": 0.2,
+                                        "encoder": "load"}})
+    grid = [f * spec.sample_rate for f in FRACTIONS]
+    assert not any(c.admissible for c in pid_candidates(ident, spec, grid))
+    base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert choice.method == "margin_search" and choice.is_yardstick and base.pole == choice.pole < grid[0]
+    r0, r1 = _independent_check(ident, spec, base.pole)
+    assert r0 < 1.0 and r1 < 1.0
+    floors = MarginFloors.from_spec(spec)
+    m = choice.margins
+    assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
+    assert m.modulus_margin >= floors.modulus and m.delay_margin_samples >= floors.delay_samples
+    low = [f * spec.sample_rate for f in DEFAULT_SETTINGS.yardstick_low_fractions]
+    i = min(range(len(low)), key=lambda k: abs(low[k] - base.pole))
+    assert i > 0 and not pid_candidates(ident, spec, [low[i - 1]])[0].admissible
+    assert math.isclose(bandwidth_factor(choice, spec), base.pole / grid[0])
+    rigid = spec_from_mapping({})
+    _, on_grid = pid_yardstick(ident, rigid, _evaluator(1e-6), 1.0, pole_free=True)
+    assert on_grid.pole >= grid[0] and bandwidth_factor(on_grid, rigid) == 1.0

@@ -31,13 +31,14 @@ class _NoScenarios:
     weights: list = []
 
 
-def _problem(target, settings=DEFAULT_SETTINGS):
+def _problem(target, settings=DEFAULT_SETTINGS, observer_scale=1.0):
     ident = reference_identification(delta_d=0.5)
     spec = spec_from_mapping({}, "spec (defaults)")
     gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=spec.u_max, no_divergence=True,
                       arc_vs_pid_e_rms=1.0, basis={}, lsb=1e-6, travel=1.0)
     return ident, spec, Problem(_base(ident, spec), _NoScenarios(), spec, ident, [], gate, lambda g: None,
-                                observer_free=True, target_crossover_hz=target, settings=settings)
+                                observer_free=True, target_crossover_hz=target, settings=settings,
+                                observer_scale=observer_scale)
 
 
 def _base(ident, spec):
@@ -137,3 +138,57 @@ def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_direct
         assert max(r.margins.crossover_hz for r in rows) <= DEFAULT_SETTINGS.match_crossover_room * pid
         assert margin_violation(rows, floors) == 0.0
         assert box_violation(box(g), floors) == 0.0
+
+
+def test_a_target_below_every_cap_scale_gets_the_slowest_gains_that_keep_the_constraints():
+    """A yardstick crossing over at 0.1 Hz, far below any loop the ARC's caps give on the reference
+    plant: no scale is within the room, so each first direction gives the slowest gains that keep every
+    linear constraint (checked again through the public classes), and the next lower cap scale along it,
+    where there is one, does not."""
+    ident, spec, prob = _problem(0.1)
+    starts = prob.matched_starts()
+    assert starts
+    floors = MarginFloors.from_spec(spec)
+    pm, box = IdentifiedPlantArcMargins(ident, spec), BoxArcCheck(ident, spec)
+    scales = DEFAULT_SETTINGS.match_scales
+    for z in starts:
+        x, f, g = prob.gains(z)
+        rows = pm(g)
+        assert max(r.margins.crossover_hz for r in rows) > DEFAULT_SETTINGS.match_crossover_room * 0.1
+        assert margin_violation(rows, floors) == 0.0 and box_violation(box(g), floors) == 0.0
+        k = int(np.argmin(np.abs(np.log(scales) - math.log(x[0]))))
+        assert math.isclose(x[0], scales[k], rel_tol=1e-9)
+        if k + 1 < len(scales):
+            lower = list(x)
+            lower[0], lower[1] = scales[k + 1], scales[k + 1] * x[1] / x[0]
+            _, _, gl = prob.gains(prob.z_of([float(v) for v in lower], f / prob.observer_scale))
+            rl = pm(gl)
+            assert margin_violation(rl, floors) > 0.0 or box_violation(box(gl), floors) > 0.0
+
+
+def test_the_observer_coordinate_is_centred_on_the_bandwidth_scale():
+    """An axis whose plant sets its bandwidth (:func:`commission.tune.baseline.bandwidth_factor` 0.25):
+    the observer coordinate starts at 0.25 x the default pole and its bounds are the settings' factors
+    times 0.25; at scale 1 (every other axis) the default pole and the settings' bounds."""
+    lo_f, hi_f = DEFAULT_SETTINGS.observer_factor_bounds
+    for scale in (1.0, 0.25):
+        ident, spec, prob = _problem(None, observer_scale=scale)
+        x0, f0, g0 = prob.gains(prob.z_of(DEFAULT_SETTINGS.free_start))
+        assert math.isclose(f0, scale) and math.isclose(g0.k1, 2.0 * spec.observer_pole * scale)
+        assert math.isclose(math.exp(prob.lo[-1]), lo_f * scale) and math.isclose(math.exp(prob.hi[-1]), hi_f * scale)
+        assert math.isclose(prob.gains(np.full(len(prob.lo), 50.0))[1], hi_f * scale)
+
+
+def test_the_carried_over_gains_scale_with_the_bandwidth_factor():
+    """base_arc_gains at factor 0.25: g1, g2, their caps and Gamma a quarter of the rate-scaled ones;
+    everything else (observer, eps, C terms, theta box) unchanged."""
+    from commission.tune.gains import base_arc_gains
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({}, "spec (defaults)")
+    one, low = base_arc_gains(ident, spec), base_arc_gains(ident, spec, 0.25)
+    for name in ("g1", "g2", "k1s_max", "k2s_max"):
+        assert math.isclose(getattr(low, name), 0.25 * getattr(one, name))
+    assert np.allclose(low.Gamma, 0.25 * np.asarray(one.Gamma), rtol=1e-12, atol=0.0)
+    scaled = {"g1", "g2", "k1s_max", "k2s_max", "Gamma"}
+    assert {k: v for k, v in dataclasses.asdict(low).items() if k not in scaled} == \
+        {k: v for k, v in dataclasses.asdict(one).items() if k not in scaled}
