@@ -69,8 +69,8 @@ from commission.artifacts import Identification
 from commission.infra.blas import one_blas_thread
 from commission.controllers.arc import ArcGains, arc_pack
 from commission.controllers.linear import sampled_plant
-from commission.controllers.margins import (LinearController, closed_loop_radius, frequency_grid, linearize_arc,
-                                            linearize_pid)
+from commission.controllers.margins import (NEUTRAL_TOL, LinearController, closed_loop_radius, frequency_grid,
+                                            linearize_arc, linearize_pid)
 from commission.controllers.pid import PidGains, pid_pack
 from commission.controllers.plant import P_B, P_M
 from commission.identify.frf import BAND_COHERENCE
@@ -377,14 +377,16 @@ class EvidenceBound:
         self.modulus_floor = float(spec.min_modulus_margin)
 
     def row(self, K: LinearController, controller: str, at: str, stability: bool = False) -> RobustStability:
-        """The row of loop ``K``; with ``stability`` its nominal closed loop is checked first.
+        """The row of loop ``K``; with ``stability`` its nominal closed loop is checked first (as the
+        margin table checks it: :class:`commission.controllers.margins.Margins` ``stable``).
 
         ``||W T|| < 1`` proves robust stability only of a loop that is stable on the model: an
         unstable one gets an infinite peak (no bound holds).  The search and the yardstick call
         this on loops whose stability the margin checks already judge, so they skip it.
         """
         peak, fpk, fc = weighted_peak(K, self.P, self.W, self.f_hz)
-        if stability and not closed_loop_radius(K, self.plant) < 1.0:
+        # The margin table's test: the adaptation's neutral modes sit on the unit circle.
+        if stability and not closed_loop_radius(K, self.plant) < 1.0 + NEUTRAL_TOL:
             peak, fpk = math.inf, math.nan
         mod = pm = up = high = math.nan
         if self.evidence.measured is not None:
