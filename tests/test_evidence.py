@@ -269,3 +269,8 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     assert any(line.startswith("PID: closed loop UNSTABLE") for line in evidence_lines(evidence, rows))
     stable = evidence_table(tuning.arc, pid, ident, SPEC)[1][-1]
     assert stable.peak == b.pid_row(pid).peak
+    # The ARC's adaptation leaves neutral modes on the unit circle (spectral radius 1 + ~1e-10 here):
+    # stable as the margin table counts it, so its rows keep the grid's peaks.
+    K = linearize_arc(arc_pack(tuning.arc), tuple(tuning.arc.theta0))
+    assert 1.0 <= closed_loop_radius(K, b.plant) < 1.0 + 1e-7
+    assert [r.peak for r in rows[:2]] == [r.peak for r in b.arc_rows(tuning.arc)]
