@@ -49,6 +49,17 @@ def _independent_check(ident, spec, pole):
             closed_loop_radius(lin, sampled_plant(p, spec.period, extra_delay=1.0)))
 
 
+def _assert_a_yardstick(ident, spec, base, choice):
+    """The chosen PID is stable on the identified plant and with +1 sample (recomputed here) and its
+    recorded margins keep every floor of the spec."""
+    r0, r1 = _independent_check(ident, spec, base.pole)
+    assert r0 < 1.0 and r1 < 1.0
+    floors = MarginFloors.from_spec(spec)
+    m = choice.margins
+    assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
+    assert m.delay_margin_samples >= floors.delay_samples and m.modulus_margin >= floors.modulus
+
+
 def test_yardstick_keeps_the_floors_and_plus_one_sample_where_eq57_is_unstable():
     """Four samples of drive delay: the paper's PID at 0.12 f_s = 300 rad/s is unstable on the
     identified plant; the yardstick is stable there and with a fifth sample, and keeps every floor."""
@@ -59,12 +70,7 @@ def test_yardstick_keeps_the_floors_and_plus_one_sample_where_eq57_is_unstable()
     base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
     assert choice.method == "margin_search" and choice.is_yardstick and choice.violations == ()
     assert base.pole == choice.pole < spec.pid_pole
-    r0, r1 = _independent_check(ident, spec, base.pole)
-    assert r0 < 1.0 and r1 < 1.0
-    floors = MarginFloors.from_spec(spec)
-    m = choice.margins
-    assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
-    assert m.delay_margin_samples >= floors.delay_samples and m.modulus_margin >= floors.modulus
+    _assert_a_yardstick(ident, spec, base, choice)
     # the fastest admissible pole of the grid: the next one up misses a floor
     grid = [f * spec.sample_rate for f in FRACTIONS]
     i = min(range(len(grid)), key=lambda k: abs(grid[k] - base.pole))
@@ -163,12 +169,7 @@ def test_an_axis_whose_plant_sets_its_bandwidth_gets_a_yardstick_below_the_rate_
     assert not any(c.admissible for c in pid_candidates(ident, spec, grid))
     base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
     assert choice.method == "margin_search" and choice.is_yardstick and base.pole == choice.pole < grid[0]
-    r0, r1 = _independent_check(ident, spec, base.pole)
-    assert r0 < 1.0 and r1 < 1.0
-    floors = MarginFloors.from_spec(spec)
-    m = choice.margins
-    assert m.gain_margin_db >= floors.gain_db and m.phase_margin_deg >= floors.phase_deg
-    assert m.modulus_margin >= floors.modulus and m.delay_margin_samples >= floors.delay_samples
+    _assert_a_yardstick(ident, spec, base, choice)
     low = [f * spec.sample_rate for f in DEFAULT_SETTINGS.yardstick_low_fractions]
     i = min(range(len(low)), key=lambda k: abs(low[k] - base.pole))
     assert i > 0 and not pid_candidates(ident, spec, [low[i - 1]])[0].admissible
