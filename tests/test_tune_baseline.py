@@ -4,6 +4,7 @@ sample of delay.  Linear checks are exact; the simulation is stubbed (c_u propor
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from types import SimpleNamespace
 
@@ -136,17 +137,21 @@ def test_the_recorded_yardstick_is_the_final_pid_where_the_evidence_bounds_the_l
 
 
 def test_a_fallback_beyond_the_evidence_is_never_recorded_as_a_yardstick():
-    """A rigid log backed to 0.2 Hz only: every PID of the grid and of its continuation below 0.02 f_s
-    reaches beyond the evidence, so none is admissible and the paper's pole is the fallback.  That PID keeps every margin floor on the identified
-    plant (the floors alone would call it a yardstick), but its ||W T|| is far above 1: the record names
-    the evidence it misses and is no yardstick, so validate does not hold the ARC to it."""
+    """A rigid log backed to 6 Hz only: every PID of the grid keeps the floors on the identified plant
+    but reaches beyond the evidence.  The evidence, not the plant, limits this axis, so the grid is not
+    continued below 0.02 f_s (a PID slowed to the log's band measures the log, not the machine) and the
+    paper's pole is the fallback.  That PID keeps every margin floor on the identified plant (the floors
+    alone would call it a yardstick), but its ||W T|| is far above 1: the record names the evidence it
+    misses and is no yardstick, so validate does not hold the ARC to it."""
     from commission.evidence import EvidenceBound
 
-    ident = reference_identification(delta_d=0.5, frequency_response={"source": "whole_log", "band_hz": [0.1, 0.2]})
+    ident = reference_identification(delta_d=0.5, frequency_response={"source": "whole_log", "band_hz": [3.0, 6.0]})
     spec = spec_from_mapping({})
+    grid = [f * spec.sample_rate for f in FRACTIONS]
+    assert any(c.admissible for c in pid_candidates(ident, spec, grid))  # the model admits the grid
     base, choice = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
     assert choice.method == "none_admissible" and choice.admissible == 0
-    assert choice.candidates == len(FRACTIONS) + len(DEFAULT_SETTINGS.yardstick_low_fractions)
+    assert choice.candidates == len(FRACTIONS)  # not continued below the grid
     assert bandwidth_factor(choice, spec) == 1.0  # no yardstick: the rate-scaled design stays
     floors_only = pid_candidates(ident, spec, [base.pole])[0]
     assert floors_only.admissible  # the margin floors alone would accept it
@@ -154,6 +159,11 @@ def test_a_fallback_beyond_the_evidence_is_never_recorded_as_a_yardstick():
     assert not row.holds and row.peak > 1.0
     assert not choice.is_yardstick
     assert choice.violations == (f"beyond the evidence (peak ||W T|| {row.peak:.3g} >= 1)",)
+    # the continued grid would have admitted a PID of the log's band: the rule, not the grid, stops it
+    low = [f * spec.sample_rate for f in DEFAULT_SETTINGS.yardstick_low_fractions]
+    bound = EvidenceBound(ident, spec)
+    slow = [pid_baseline(ident, dataclasses.replace(spec, pid_pole=w))[0] for w in low]
+    assert any(bound.pid_row(g).holds for g in slow)
 
 
 def test_an_axis_whose_plant_sets_its_bandwidth_gets_a_yardstick_below_the_rate_grid():
