@@ -187,3 +187,31 @@ def test_an_axis_whose_plant_sets_its_bandwidth_gets_a_yardstick_below_the_rate_
     rigid = spec_from_mapping({})
     _, on_grid = pid_yardstick(ident, rigid, _evaluator(1e-6), 1.0, pole_free=True)
     assert on_grid.pole >= grid[0] and bandwidth_factor(on_grid, rigid) == 1.0
+
+
+def _mode_ident(n_modes):
+    """The reference axis with a 60-Hz load-side mode found in its log's response by a fit of ``n_modes``
+    modes (the simulator's plant holds the first)."""
+    model = {"mode_hz": 60.0, "mode_damping": 0.02, "mode_ratio": 0.2, "mode_load_side": True, "n_modes": n_modes}
+    return reference_identification(delta_d=0.5, frequency_response={"source": "broadband", "model": model})
+
+
+def test_the_grid_is_continued_only_on_a_plant_that_holds_every_fitted_mode():
+    """The 60-Hz load mode rules out every pole of the grid.  Fitted alone, the plant is the fit and the
+    grid is continued below it (as with the spec's [plant] mode above); fitted among three modes the
+    simulator cannot hold, the plant is neither the data nor the fit, its missed floors no measure of
+    the machine, and the grid is not continued: no yardstick, factor 1."""
+    from commission.scenarios import plant_holds_fit
+
+    spec = spec_from_mapping({})
+    grid = [f * spec.sample_rate for f in FRACTIONS]
+    held, dropped = _mode_ident(1), _mode_ident(3)
+    assert plant_holds_fit(held, spec) and not plant_holds_fit(dropped, spec)
+    assert plant_holds_fit(reference_identification(delta_d=0.5), spec)  # no fitted response: nothing dropped
+    for ident in (held, dropped):  # the same plant either way: the grid's floors fail on both
+        assert not any(c.admissible for c in pid_candidates(ident, spec, grid))
+    base, choice = pid_yardstick(held, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert choice.method == "margin_search" and choice.is_yardstick and base.pole < grid[0]
+    _, refused = pid_yardstick(dropped, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    assert refused.method == "none_admissible" and refused.candidates == len(FRACTIONS)
+    assert not refused.is_yardstick and bandwidth_factor(refused, spec) == 1.0

@@ -89,7 +89,7 @@ Modules
 
 from commission.scenarios.box import (clip_to_box, force_range, monte_carlo_plants, monte_carlo_support,
                                       viscous_range)
-from commission.scenarios.identified import identified_plant, plant_dynamics
+from commission.scenarios.identified import identified_plant, plant_dynamics, plant_holds_fit
 from commission.scenarios.matrix import (FRICTION_SCALE, MODE_DAMPING_FACTOR, MODE_FREQUENCY_FACTORS, VARIANTS,
                                          corner_scenarios, offset_scenarios, payload_scenarios, robustness_scenarios,
                                          scenario_matrix, screening_indices, tuning_scenarios)
@@ -101,7 +101,7 @@ from commission.scenarios.trajectories import (CASE1_DURATION, CASE1_SPEED_FRACT
                                                check_user_length, horizon_notes, max_horizon, trajectories)
 
 __all__ = [
-    "Scenario", "TrajectorySpec", "StepDisturbance", "NO_DISTURBANCE", "identified_plant", "plant_dynamics",
+    "Scenario", "TrajectorySpec", "StepDisturbance", "NO_DISTURBANCE", "identified_plant", "plant_dynamics", "plant_holds_fit",
     "plant_substeps", "resolve_quantization", "resolve_encoder_noise", "CASES", "CASE1_DURATION",
     "CASE1_SPEED_FRACTION", "CASE2_TAIL", "case1_trajectory", "case2_trajectory", "case_names", "trajectories",
     "max_horizon", "horizon_notes", "check_run_length", "check_user_length", "force_range", "viscous_range",

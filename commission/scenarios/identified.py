@@ -97,6 +97,28 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
     return out
 
 
+def plant_holds_fit(ident: Identification, spec: Spec | None = None) -> bool:
+    """The plant of :func:`plant_dynamics` holds every structural mode the log's response was fitted with.
+
+    The simulator's plant holds one mode, or two as two appendages on the motor.  A fit with more
+    modes, or two that no such plant shows (``frequency_response.model.n_modes`` above the modes
+    ``mode_hz``/``mode2_hz`` keep; identify's ``note`` says which it kept), leaves a plant that is
+    neither the data nor the fit: a margin it misses may be the dropped modes' absence, not the
+    machine's.  True without a fitted response (nothing dropped) and where the spec's ``[plant]``
+    states the mode (the user's plant, not the log's).
+    """
+    if spec is not None and any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio,
+                                                        spec.plant_encoder)):
+        return True
+    fr = ident.extra.get("frequency_response")
+    model = fr.get("model") if isinstance(fr, dict) else None
+    fitted = finite_number(model.get("n_modes")) if isinstance(model, dict) else None
+    if fitted is None:
+        return True
+    held = sum(1 for m in ("mode", "mode2") if f"{m}_hz" in plant_dynamics(ident, spec))
+    return held >= fitted
+
+
 def identified_plant(ident: Identification, spec: Spec | None = None) -> np.ndarray:
     """The plant vector of the identified model (CONTRACT §2 parameters).
 

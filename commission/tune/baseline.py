@@ -15,6 +15,7 @@ from commission.artifacts import Identification
 from commission.controllers.design import KIND_PID
 from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.spec import Spec
+from commission.scenarios.identified import plant_holds_fit
 from commission.controllers.metrics import Indexes
 from commission.tuning import Tuning
 from commission.tune.defaults import default_gate_limits
@@ -355,8 +356,9 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     paper's (57) with the triple pole of (56) at M_min, its pole swept over
     ``settings.yardstick_pole_fractions`` x f_s, and below it (``settings.yardstick_low_fractions``)
     when none of those keeps the floors on the identified plant (the plant sets the bandwidth; not
-    when only the evidence bound excludes them: a PID slowed to the log's band is no measure of
-    the machine's).  A pole is admissible when the PID keeps every floor
+    when only the evidence bound excludes them, a PID slowed to the log's band being no measure of
+    the machine's, nor when that plant dropped modes of the fit,
+    :func:`commission.scenarios.identified.plant_holds_fit`).  A pole is admissible when the PID keeps every floor
     of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
     is stable with one more sample of delay (:func:`pid_candidates`) and, where the log backs the
     model only up to a band, holds the evidence bound ``||W T|| < 1`` (:func:`_within_evidence`,
@@ -382,12 +384,14 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     on_model = pid_candidates(ident, spec, poles)
     cands = _within_evidence(on_model, ident, spec)
     ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
-    if not ok and not any(c.admissible for c in on_model):
+    if not ok and not any(c.admissible for c in on_model) and plant_holds_fit(ident, spec):
         # The identified plant itself, not the evidence, rules out every pole of the grid: the plant, not
         # the rate, sets this axis' bandwidth, so the grid is continued below.  Where the model admits a
         # pole of the grid and only the evidence bound excludes it, a slower PID would be a yardstick of
         # the log's band, not of the machine (whose own PID may run faster than the log can back): the
         # grid stops there, and the remedy is a log that backs a higher band (``commission excite``).
+        # Nor where the simulator's plant dropped modes of the fit: its missed floors may be that
+        # plant's, not the machine's, and a yardstick slowed to them would be as weak.
         low = [fr * spec.sample_rate for fr in settings.yardstick_low_fractions]
         cands = cands + _within_evidence(pid_candidates(ident, spec, low), ident, spec)
         ok = sorted((c for c in cands if c.admissible), key=lambda c: -c.pole)
