@@ -101,7 +101,8 @@ from commission.scenarios.trajectories import (CASE1_DURATION, CASE1_SPEED_FRACT
                                                check_user_length, horizon_notes, max_horizon, trajectories)
 
 __all__ = [
-    "Scenario", "TrajectorySpec", "StepDisturbance", "NO_DISTURBANCE", "identified_plant", "plant_dynamics", "plant_holds_fit",
+    "Scenario", "TrajectorySpec", "StepDisturbance", "NO_DISTURBANCE", "identified_plant", "plant_dynamics",
+    "plant_holds_fit",
     "plant_substeps", "resolve_quantization", "resolve_encoder_noise", "CASES", "CASE1_DURATION",
     "CASE1_SPEED_FRACTION", "CASE2_TAIL", "case1_trajectory", "case2_trajectory", "case_names", "trajectories",
     "max_horizon", "horizon_notes", "check_run_length", "check_user_length", "force_range", "viscous_range",

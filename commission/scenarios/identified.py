@@ -41,6 +41,11 @@ def _ripple(ident: Identification) -> tuple[float, float]:
     return 0.0, 0.0
 
 
+def _spec_states_mode(spec: Spec) -> bool:
+    """The spec's ``[plant]`` states its own mode (frequency, load fraction or encoder side)."""
+    return any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio, spec.plant_encoder))
+
+
 def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]:
     """The structural modes and input delay of the plant (:func:`plant_vector` keywords).
 
@@ -80,7 +85,7 @@ def plant_dynamics(ident: Identification, spec: Spec | None) -> dict[str, float]
             if d is not None and d > 0:
                 out["delay"] = d
     if spec is not None:
-        if any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio, spec.plant_encoder)):
+        if _spec_states_mode(spec):
             # The spec states its own mode: the log's second mode belonged to the log's first.
             for key in ("mode2_hz", "mode2_damping", "mode2_ratio", "mode2_load_side"):
                 out.pop(key, None)
@@ -107,8 +112,7 @@ def plant_holds_fit(ident: Identification, spec: Spec | None = None) -> bool:
     machine's.  True without a fitted response (nothing dropped) and where the spec's ``[plant]``
     states the mode (the user's plant, not the log's).
     """
-    if spec is not None and any(v is not None for v in (spec.plant_mode_hz, spec.plant_mode_ratio,
-                                                        spec.plant_encoder)):
+    if spec is not None and _spec_states_mode(spec):
         return True
     fr = ident.extra.get("frequency_response")
     model = fr.get("model") if isinstance(fr, dict) else None
