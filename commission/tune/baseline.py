@@ -358,8 +358,8 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     when none of those keeps the floors on the identified plant (the plant sets the bandwidth; not
     when only the evidence bound excludes them, a PID slowed to the log's band being no measure of
     the machine's, nor when that plant dropped modes of the fit,
-    :func:`commission.scenarios.identified.plant_holds_fit`).  A pole is admissible when the PID keeps every floor
-    of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
+    :func:`commission.scenarios.identified.plant_holds_fit`).  A pole is admissible when the PID
+    keeps every floor of the spec's ``[margins]`` on the identified plant (mode and delay included) and the loop
     is stable with one more sample of delay (:func:`pid_candidates`) and, where the log backs the
     model only up to a band, holds the evidence bound ``||W T|| < 1`` (:func:`_within_evidence`,
     the test :func:`pid_within_evidence` applies after the choice, so the two agree); a PID that
