@@ -31,14 +31,14 @@ class _NoScenarios:
     weights: list = []
 
 
-def _problem(target, settings=DEFAULT_SETTINGS, observer_scale=1.0):
+def _problem(target, settings=DEFAULT_SETTINGS, observer_scale=1.0, plant_sets_bandwidth=False):
     ident = reference_identification(delta_d=0.5)
     spec = spec_from_mapping({}, "spec (defaults)")
     gate = GateLimits(e_F=1.0, e_M=1.0, e_rms=1.0, c_u=1.0, u_max=spec.u_max, no_divergence=True,
                       arc_vs_pid_e_rms=1.0, basis={}, lsb=1e-6, travel=1.0)
     return ident, spec, Problem(_base(ident, spec), _NoScenarios(), spec, ident, [], gate, lambda g: None,
                                 observer_free=True, target_crossover_hz=target, settings=settings,
-                                observer_scale=observer_scale)
+                                observer_scale=observer_scale, plant_sets_bandwidth=plant_sets_bandwidth)
 
 
 def _base(ident, spec):
@@ -142,10 +142,10 @@ def test_matched_starts_fall_back_to_wide_cap_ratios_only_where_the_first_direct
 
 def test_a_target_below_every_cap_scale_gets_the_slowest_gains_that_keep_the_constraints():
     """A yardstick crossing over at 0.1 Hz, far below any loop the ARC's caps give on the reference
-    plant: no scale is within the room, so each first direction gives the slowest gains that keep every
-    linear constraint (checked again through the public classes), and the next lower cap scale along it,
-    where there is one, does not."""
-    ident, spec, prob = _problem(0.1)
+    plant, on an axis whose plant sets its bandwidth: no scale is within the room, so each first
+    direction gives the slowest gains that keep every linear constraint (checked again through the
+    public classes), and the next lower cap scale along it, where there is one, does not."""
+    ident, spec, prob = _problem(0.1, plant_sets_bandwidth=True)
     starts = prob.matched_starts()
     assert starts
     floors = MarginFloors.from_spec(spec)
@@ -164,6 +164,16 @@ def test_a_target_below_every_cap_scale_gets_the_slowest_gains_that_keep_the_con
             _, _, gl = prob.gains(prob.z_of([float(v) for v in lower], f / prob.observer_scale))
             rl = pm(gl)
             assert margin_violation(rl, floors) > 0.0 or box_violation(box(gl), floors) > 0.0
+
+
+def test_a_yardstick_on_the_grid_that_no_cap_scale_matches_gives_no_start():
+    """The same 0.1-Hz yardstick on an axis whose yardstick came from the rate-scaled grid: the
+    identified plant, not the axis, holds it down, so no start is made (the search begins at the
+    carried-over gains) -- while a yardstick the caps can match still gets its matched starts."""
+    assert _problem(0.1, plant_sets_bandwidth=False)[2].matched_starts() == []
+    ident0, spec0, _ = _problem(None)
+    pid = pid_candidates(ident0, spec0, [0.1 * spec0.sample_rate])[0].margins.crossover_hz
+    assert _problem(pid, plant_sets_bandwidth=False)[2].matched_starts()
 
 
 def test_the_observer_coordinate_is_centred_on_the_bandwidth_scale():

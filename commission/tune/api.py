@@ -146,7 +146,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     bw = bandwidth_factor(yardstick, spec, settings)
     problem = Problem(base_arc_gains(ident, spec, bw), ev, spec, ident, pid_scores, gate, runs.arc,
                       observer_free=observer_free, settings=settings,
-                      observer_scale=bw,
+                      observer_scale=bw, plant_sets_bandwidth=bw < 1.0,
                       target_crossover_hz=pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz)
     res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total, settings)
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers, settings=settings)

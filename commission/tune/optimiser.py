@@ -101,6 +101,11 @@ class Problem:
         bounds ``observer_factor_bounds`` x this), dimensionless: the
         :func:`commission.tune.baseline.bandwidth_factor` of an axis whose plant sets its
         bandwidth.  Ignored when the observer is pinned by the spec.
+    plant_sets_bandwidth : bool
+        The yardstick sits below the rate-scaled grid (that bandwidth factor < 1): the carried-over
+        gains were scaled down to it, and :meth:`matched_starts` may fall back to the slowest
+        gains that keep every linear constraint (:meth:`_slowest_matched`).  On any other axis a
+        yardstick the caps cannot match is left to the search from the carried-over gains.
     settings : TuneSettings
         The search's knobs (:data:`commission.tune.settings.DEFAULT_SETTINGS`).
     """
@@ -109,8 +114,9 @@ class Problem:
                  reference: Sequence[Indexes], gate: GateLimits,
                  feasible: Callable[[ArcGains], FeasibilityReport], *, observer_free: bool,
                  target_crossover_hz: float | None = None, observer_scale: float = 1.0,
-                 settings: TuneSettings = DEFAULT_SETTINGS) -> None:
+                 plant_sets_bandwidth: bool = False, settings: TuneSettings = DEFAULT_SETTINGS) -> None:
         self.base, self.ev, self.spec, self.ident = base, ev, spec, ident
+        self.plant_sets_bandwidth = plant_sets_bandwidth
         self.observer_scale = observer_scale if observer_free else 1.0
         self.settings = st = settings
         self.target_crossover_hz = target_crossover_hz
@@ -179,9 +185,9 @@ class Problem:
         crosses over at most ``match_crossover_room`` x the target, then lowered to the first that keeps every linear constraint
         (:meth:`stability_violation`: the floors on the identified plant and over the whole box,
         the evidence bound), and its theta3 adaptation raised while they hold
-        (:meth:`_integral_matched`): one start per direction.  When no direction gives one, the
-        slowest gains that keep them (:meth:`_slowest_matched`).  Only linearisations, no
-        simulation.
+        (:meth:`_integral_matched`): one start per direction.  When no direction gives one on an
+        axis whose plant sets its bandwidth, the slowest gains that keep them
+        (:meth:`_slowest_matched`).  Only linearisations, no simulation.
         """
         target = self.target_crossover_hz
         if target is None or not (math.isfinite(target) and target > 0):
@@ -228,7 +234,11 @@ class Problem:
                     z, xo = self._integral_matched(x, f, z, xo, room, g3)
                     found.append((abs(math.log(xo / target)), z))
                     break
-        if not found:
+        if not found and self.plant_sets_bandwidth:
+            # Only where the yardstick came from below the grid: on the grid, a yardstick slower
+            # than every cap scale's loop is one the identified plant holds down (a mode or delay
+            # fitted heavier than the axis' own), and starting the search at the slowest loop
+            # would hand it an ARC that ties that yardstick rather than the machine's PID.
             found = self._slowest_matched(target)
         found.sort(key=lambda t: t[0])
         out: list[np.ndarray] = []
