@@ -215,3 +215,48 @@ def test_the_grid_is_continued_only_on_a_plant_that_holds_every_fitted_mode():
     _, refused = pid_yardstick(dropped, spec, _evaluator(1e-6), 1.0, pole_free=True)
     assert refused.method == "none_admissible" and refused.candidates == len(FRACTIONS)
     assert not refused.is_yardstick and bandwidth_factor(refused, spec) == 1.0
+
+
+@pytest.mark.parametrize("where", ["grid", "below"])
+def test_a_yardstick_whose_fastest_poles_chatter_is_the_fastest_admissible_pole_within_c_u(where):
+    """c_u (stubbed: proportional to Kd = 3 M w) above the limit on the eight fastest admissible poles
+    and on more: the yardstick is still the fastest admissible pole within c_u -- further down the
+    grid, or below it, where its pole then scales the ARC (bandwidth_factor < 1) -- found by
+    bisection, not by simulating every pole; never a chattering PID while one within c_u exists."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({})
+    st = DEFAULT_SETTINGS
+    fs = spec.sample_rate
+    grid = pid_candidates(ident, spec, [f * fs for f in FRACTIONS])
+    ok = sorted((c.pole for c in grid if c.admissible), reverse=True)
+    low = pid_candidates(ident, spec, [f * fs for f in st.yardstick_low_fractions])
+    allowed = sorted([c.pole for c in grid + low if c.admissible], reverse=True)
+    n_tried = st.yardstick_batch * st.yardstick_batches
+    assert len(ok) > n_tried + 3
+    w_lim = 1.0001 * ok[n_tried + 3] if where == "grid" else 0.6 * min(ok)
+    _, m_min = pid_baseline(ident, spec)
+    k = 1.0 / (1.2 * 3.0 * m_min * w_lim)  # the worst scenario's c_u reaches 1 at w_lim
+    ev = _evaluator(k)
+    base, choice = pid_yardstick(ident, spec, ev, 1.0, pole_free=True)
+    expected = max(w for w in allowed if w <= w_lim)
+    assert base.pole == pytest.approx(expected, rel=1e-12) and choice.pole == base.pole
+    assert max(s.c_u for s in base.scores) <= 1.0 and choice.is_yardstick
+    faster = [w for w in allowed if w > expected]
+    assert 1.2 * k * 3.0 * m_min * min(faster) > 1.0  # the next faster admissible pole chatters
+    assert n_tried < choice.simulated < n_tried + 10 and sum(ev.calls) == choice.simulated
+    assert (bandwidth_factor(choice, spec) < 1.0) == (where == "below")
+    _assert_a_yardstick(ident, spec, base, choice)
+
+
+def test_when_no_admissible_pole_is_within_c_u_the_slowest_simulated_is_kept():
+    """A c_u limit no pole of the family meets, down to the slowest below the grid: the fallback is the
+    slowest of the first batches, as before, after one more simulation (the slowest of all)."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({})
+    st = DEFAULT_SETTINGS
+    ok = sorted((c.pole for c in pid_candidates(ident, spec, [f * spec.sample_rate for f in FRACTIONS])
+                 if c.admissible), reverse=True)
+    n_tried = st.yardstick_batch * st.yardstick_batches
+    ev = _evaluator(1e6)
+    base, choice = pid_yardstick(ident, spec, ev, 1.0, pole_free=True)
+    assert base.pole == pytest.approx(ok[n_tried - 1]) and choice.simulated == n_tried + 1

@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from commission.artifacts import Identification
 from commission.controllers.design import KIND_PID
@@ -366,7 +366,11 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     is unstable on the identified model or with +1 sample is never the yardstick.  Of the admissible poles the
     fastest (the largest bandwidth) whose simulated PID stays within ``c_u_limit`` and bounded on
     every tuning scenario is chosen (up to ``settings.yardstick_batches`` batches of
-    ``settings.yardstick_batch``, simulated together); when none of those does, the slowest of them.
+    ``settings.yardstick_batch``, simulated together).  When none of those does, the PID is held to
+    the ARC's own c_u all the same -- a chattering PID is no controller a user could deploy, and
+    an ARC refused for losing to one is refused for nothing -- so the fastest admissible pole within
+    it is bisected among the slower ones, on the grid and below it (``yardstick_low_fractions``,
+    :func:`_fastest_within_c_u`); only when not even the slowest is within, the slowest simulated.
 
     With ``pole_free`` False (``[pid] pole`` given) the paper's PID at that pole is kept (today's
     behaviour, eq. (57)) and its margins are recorded; when no pole is admissible the previous
@@ -421,6 +425,62 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
                 return (PidBaseline(g, c.pole, m_min, list(sc)),
                         YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins,
                                         c.radius_plus_one))
+    # None of the fastest is within c_u: a chattering PID is no yardstick, the ARC being held to the same
+    # c_u.  The fastest admissible pole within it is looked for further down, on the grid and below it.
+    slowest = min(c.pole for c in ok)
+    below = [fr * spec.sample_rate for fr in settings.yardstick_low_fractions if fr * spec.sample_rate < slowest]
+    low_ok = sorted((c for c in _within_evidence(pid_candidates(ident, spec, below), ident, spec) if c.admissible),
+                    key=lambda c: -c.pole)
+    pool = ok[len(tried):] + low_ok
+    hit = _fastest_within_c_u(pool, lambda c: ev.scores(KIND_PID, [pid_pack(_pid_at(ident, spec, c.pole))])[0],
+                              c_u_limit)
+    simulated += hit.simulated
+    if hit.index is not None:
+        c = pool[hit.index]
+        return (PidBaseline(_pid_at(ident, spec, c.pole), c.pole, m_min, hit.scores),
+                YardstickChoice("margin_search", c.pole, len(cands) + len(below), len(ok) + len(low_ok), simulated,
+                                c.margins, c.radius_plus_one))
     c, g, sc = tried[-1]
     return (PidBaseline(g, c.pole, m_min, sc),
             YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins, c.radius_plus_one))
+
+
+@dataclass(frozen=True)
+class _CuHit:
+    index: int | None
+    scores: list
+    simulated: int
+
+
+def _fastest_within_c_u(pool: Sequence[PidCandidate], simulate: Callable[[PidCandidate], Sequence[Indexes]],
+                        c_u_limit: float) -> _CuHit:
+    """The first of ``pool`` (fastest first) whose simulated PID is within ``c_u_limit``, bisected.
+
+    The PID of (57) amplifies the encoder's noise into the command in proportion to its gains, so
+    its c_u falls as its pole does: the slowest candidate is simulated first (none within: no
+    index), then the boundary is bisected, a handful of simulations for a pool of dozens.  A pool
+    whose c_u is not monotone gets a pole within the limit all the same, if not the fastest.
+    """
+    if not pool:
+        return _CuHit(None, [], 0)
+    n = 0
+    memo: dict[int, list] = {}
+
+    def within(i: int) -> bool:
+        nonlocal n
+        if i not in memo:
+            memo[i] = list(simulate(pool[i]))
+            n += 1
+        return _within_c_u(memo[i], c_u_limit)
+
+    hi = len(pool) - 1
+    if not within(hi):
+        return _CuHit(None, [], n)
+    lo = -1  # every index <= lo is known (or taken) to exceed the limit
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if within(mid):
+            hi = mid
+        else:
+            lo = mid
+    return _CuHit(hi, memo[hi], n)

@@ -188,8 +188,8 @@ class TuneSettings:
     #: gate's c_u: one, so that the search stops at the first that is (usually the fastest
     #: admissible pole).  Each candidate's scenarios run in parallel all the same.
     yardstick_batch: int = 1
-    #: Batches simulated at most before the yardstick falls back to the slowest pole that keeps
-    #: the floors.
+    #: Batches simulated, fastest first, before the yardstick's c_u boundary is bisected among the
+    #: slower admissible poles (:func:`commission.tune.baseline.pid_yardstick`).
     yardstick_batches: int = 8
 
     # ---- a defaulted spec fitted to the axis (commission.tune.defaults, commission.tune.box)
