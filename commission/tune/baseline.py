@@ -454,33 +454,36 @@ class _CuHit:
 
 def _fastest_within_c_u(pool: Sequence[PidCandidate], simulate: Callable[[PidCandidate], Sequence[Indexes]],
                         c_u_limit: float) -> _CuHit:
-    """The first of ``pool`` (fastest first) whose simulated PID is within ``c_u_limit``, bisected.
+    """The fastest of ``pool`` (ordered fastest first) whose simulated PID is within ``c_u_limit``.
 
     The PID of (57) amplifies the encoder's noise into the command in proportion to its gains, so
-    its c_u falls as its pole does: the slowest candidate is simulated first (none within: no
-    index), then the boundary is bisected, a handful of simulations for a pool of dozens.  A pool
-    whose c_u is not monotone gets a pole within the limit all the same, if not the fastest.
+    its c_u falls as its pole does, while a pole slow enough loses the trajectory (a run that
+    diverges or leaves the travel).  The boundary between the poles that chatter and those that do
+    not is bisected, a handful of simulations for a pool of dozens, and the first pole past it is
+    taken when it is also bounded; otherwise none (no index).  A pool whose c_u is not monotone
+    gets a pole within the limit all the same, if not the fastest.
     """
-    if not pool:
-        return _CuHit(None, [], 0)
     n = 0
     memo: dict[int, list] = {}
 
-    def within(i: int) -> bool:
+    def run(i: int) -> list:
         nonlocal n
         if i not in memo:
             memo[i] = list(simulate(pool[i]))
             n += 1
-        return _within_c_u(memo[i], c_u_limit)
+        return memo[i]
 
-    hi = len(pool) - 1
-    if not within(hi):
-        return _CuHit(None, [], n)
-    lo = -1  # every index <= lo is known (or taken) to exceed the limit
+    def chatters(i: int) -> bool:
+        sc = run(i)
+        return all(not s.diverged and math.isfinite(s.c_u) for s in sc) and not _within_c_u(sc, c_u_limit)
+
+    lo, hi = -1, len(pool)  # every index <= lo chatters (the simulated ones, or taken to); hi: not known to
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if within(mid):
-            hi = mid
-        else:
+        if chatters(mid):
             lo = mid
-    return _CuHit(hi, memo[hi], n)
+        else:
+            hi = mid
+    if hi < len(pool) and _within_c_u(run(hi), c_u_limit):
+        return _CuHit(hi, memo[hi], n)
+    return _CuHit(None, [], n)
