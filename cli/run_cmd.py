@@ -19,29 +19,13 @@ from commission.cli.validate_cmd import print_outcome
 from commission.controller_config import load_sign_key
 from commission.formats.gate_toml import gate_help
 from commission.identification import IdentifyOptions
+from commission.tune import pid_pole_note
 from commission.pipeline import run_all
 
 
 RUN_HELP = f"""Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1.
 
 {escape(gate_help())}"""
-
-
-# The figure modules (matplotlib) and the tuning (cma, which imports matplotlib) are imported
-# where they are used, not here: run_all identifies the log in a child process while this one
-# imports them (commission.pipeline), and the identification figures are drawn in that child.
-
-
-def _identification_plots(outcome, out_dir):
-    from commission.cli.plots import identification_plots
-
-    return identification_plots(outcome, out_dir)
-
-
-def _validation_plots(result, out_dir):
-    from commission.cli.plots_validate import validation_plots
-
-    return validation_plots(result, out_dir)
 
 
 @app.command("run", help=RUN_HELP)
@@ -63,6 +47,9 @@ def run_command(
         "the LOG's plan).")),
 ) -> None:
     """Identify, tune and validate (the command's help is :data:`RUN_HELP`)."""
+    from commission.cli.plots import identification_plots
+    from commission.cli.plots_validate import validation_plots
+
     err = Console(stderr=True)
     if plan is not None:
         from commission.errors import UsageError
@@ -80,12 +67,10 @@ def run_command(
             bar.update(stages.get(stage, stage), done, total)
 
         outcome = run_all(logs, out_dir, identify=o, spec_path=spec, gate_path=v.gate, force=v.force, seed=v.seed,
-                          n_monte_carlo=v.monte_carlo, progress=cb, workers=v.workers, figures=_validation_plots,
-                          sign_key=key, ident_figures=_identification_plots, scheduler=v.scheduler)
+                          n_monte_carlo=v.monte_carlo, progress=cb, workers=v.workers, figures=validation_plots,
+                          sign_key=key, ident_figures=identification_plots, scheduler=v.scheduler)
     for w in json.loads(Path(outcome.ident).read_text()).get("warnings", []):
         err.print(f"warning: {w}", highlight=False)
-    from commission.tune import pid_pole_note
-
     pid_note = pid_pole_note(outcome.validation.tuning)
     for note in (*outcome.notes, *(() if pid_note is None else (pid_note,))):
         err.print(f"note: {note}", highlight=False)

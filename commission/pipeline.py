@@ -162,25 +162,10 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
     kw = opts.kwargs()
     if kw["validate_on"] is not None:  # a folder of validation logs, as identify's --validate-on
         kw["validate_on"] = expand_log_paths([str(kw["validate_on"])])
-    ident_job = None
-    if ident_figures is not None:
-        # Identified and drawn in a child (commission.infra.background) while this process loads
-        # the tuning's modules and compiled kernels; the figures are drawn beside the tuning.
-        job = ChildJob(_identify_and_draw, log_path, kw, ident_figures, staging, steps=2)
-        try:
-            _load_tuning()
-            ident_out = job.result()
-            ident_job = job
-        except Exception:
-            # Identified again below, here, so that its error is raised with its own traceback.
-            job.cancel()
-        except BaseException:
-            job.cancel()
-            raise
-    if ident_job is None:
-        ident_out = identify_log(log_path, **kw)  # type: ignore[arg-type]
-        ident_job = ChildJob(ident_figures, ident_out, staging) if ident_figures is not None else None
+    ident_out = identify_log(log_path, **kw)  # type: ignore[arg-type]
     stage("identify")(1, 1)
+    # The identification figures are drawn beside the tuning (commission.infra.background).
+    ident_job = ChildJob(ident_figures, ident_out, staging) if ident_figures is not None else None
     try:
         return _after_identify(ident_out, ident_job, out, staging, spec_data=spec_data, spec_src=spec_src, gate=gate,
                                gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, stage=stage,
@@ -190,32 +175,6 @@ def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, ga
         if ident_job is not None:
             ident_job.cancel()
         raise
-
-
-def _identify_and_draw(log_path, kw, ident_figures: IdentFigureWriter, staging: Path):
-    """:func:`identify_log`, then its figures into ``staging``: the two results of ``run``'s child."""
-    from commission.identification import identify_log
-
-    ident_out = identify_log(log_path, **kw)
-    yield ident_out
-    yield ident_figures(ident_out, staging)
-
-
-def _load_tuning() -> None:
-    """Import the tuning (cma, and matplotlib through it) and load numba's compiler state.
-
-    Both would otherwise come first in :func:`_after_identify`: the first compiled call of a
-    process (any kernel, from the on-disk cache) sets numba's compiler up, ~0.25 s.  Called
-    while the child identifies, they cost no time on the way to the tuning.  ``_unwrap`` is
-    called with the argument type the margins give it, so the cached kernel is loaded, not a
-    new one compiled.
-    """
-    import numpy as np
-
-    import commission.tune  # noqa: F401
-    from commission.controllers.margins import _unwrap
-
-    _unwrap(np.zeros(2))
 
 
 @on_one_blas_thread

@@ -74,36 +74,3 @@ def test_a_stopped_child_ends_by_the_signal_not_in_the_parents_handler(tmp_path,
     assert not (tmp_path / "late").exists()
     err = capfd.readouterr().err
     assert "Traceback" not in err and "_Raised" not in err
-
-
-def _two_steps(folder: Path):
-    yield os.getpid()
-    yield _write(folder, "fig.png")
-
-
-def _second_step_fails(message: str):
-    yield 1
-    raise DataError(message)
-
-
-def test_a_job_with_steps_hands_back_its_values_in_turn(tmp_path):
-    job = ChildJob(_two_steps, tmp_path, steps=2)
-    first = job.result()
-    assert job.result() == [tmp_path / "fig.png"] and (tmp_path / "fig.png").exists()
-    if os.name == "posix" and os.uname().sysname == "Linux":
-        assert first != os.getpid() and job._proc.exitcode == 0
-
-
-def test_a_job_with_steps_raises_the_error_of_the_step_that_failed(tmp_path):
-    job = ChildJob(_second_step_fails, "figure: bad sample 12", steps=2)
-    assert job.result() == 1
-    with pytest.raises(DataError, match="figure: bad sample 12"):
-        job.result()
-
-
-def test_without_fork_a_job_with_steps_runs_each_step_when_asked(tmp_path, monkeypatch):
-    monkeypatch.setattr("commission.infra.background.sys.platform", "win32")
-    job = ChildJob(_two_steps, tmp_path, steps=2)
-    assert job._proc is None and not (tmp_path / "fig.png").exists()
-    assert job.result() == os.getpid() and not (tmp_path / "fig.png").exists()
-    assert job.result() == [tmp_path / "fig.png"]

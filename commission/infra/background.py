@@ -7,11 +7,6 @@ The child touches nothing but the files the writer writes; the parent collects t
 (or re-raises the child's error) before it moves any file into place, and stops the child
 if a stage fails first.
 
-A job may also hand back several results in turn (``steps``; the function is then a
-generator): ``run`` identifies the log in the child, sends the outcome back as soon as it is
-there, and draws its figures from it while the parent tunes.  The parent meanwhile loads
-what the tuning needs, so the two overlap on a machine with two cores.
-
 Where ``fork`` is not available (Windows; macOS defaults to ``spawn``, which would re-import
 and pickle everything) the writer runs in the parent when the result is asked for, exactly
 as before.  Why not a thread: matplotlib's drawing holds the GIL, so a thread would only
@@ -31,7 +26,7 @@ from typing import Any, Callable
 _DEFAULT_IN_CHILD = (signal.SIGINT, signal.SIGTERM)
 
 
-def _child(send: Any, fn: Callable[..., Any], args: tuple, steps: int) -> None:
+def _child(send: Any, fn: Callable[..., Any], args: tuple) -> None:
     # The parent blocked these signals around the fork: reset their handlers, then let them in, so
     # that no signal reaches the inherited handler; a stopped child ends quietly (its files are not kept).
     for sig in _DEFAULT_IN_CHILD:
@@ -39,8 +34,7 @@ def _child(send: Any, fn: Callable[..., Any], args: tuple, steps: int) -> None:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, _DEFAULT_IN_CHILD)
     try:
         out = fn(*args)
-        for value in (out if steps > 1 else (out,)):  # a generator's values as they come
-            send.send(("ok", value))
+        send.send(("ok", out))
     except BaseException as exc:  # reported to the parent, which raises it
         try:
             send.send(("error", exc))
@@ -56,24 +50,19 @@ class ChildJob:
     Parameters
     ----------
     fn : callable
-        Writes files and returns something picklable (a list of paths); with ``steps`` > 1
-        a generator function that yields ``steps`` picklable values.
+        Writes files and returns something picklable (a list of paths).
     *args
         Its arguments (inherited by the fork, not pickled).
-    steps : int, optional
-        How many values ``fn`` hands back; :meth:`result` returns the next one per call, in the
-        order they were yielded.  Default 1: ``fn``'s return value.
     """
 
-    def __init__(self, fn: Callable[..., Any], *args: Any, steps: int = 1) -> None:
-        self._fn, self._args, self._steps = fn, args, steps
+    def __init__(self, fn: Callable[..., Any], *args: Any) -> None:
+        self._fn, self._args = fn, args
         self._proc: Any = None
-        self._gen: Any = None  # without fork: the generator, advanced one step per result()
         # A daemonic process (a Dask worker running a fleet's axis) may not start children.
         if sys.platform.startswith("linux") and not mp.current_process().daemon:
             ctx = mp.get_context("fork")
             self._recv, send = ctx.Pipe(duplex=False)
-            self._proc = ctx.Process(target=_child, args=(send, fn, args, steps), daemon=True)
+            self._proc = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
             held = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFAULT_IN_CHILD)  # until the child resets them
             try:
                 self._proc.start()
@@ -82,24 +71,15 @@ class ChildJob:
             send.close()
 
     def result(self) -> Any:
-        """The writer's return value (its next value, with ``steps``); its exception, re-raised, if it failed.
-
-        After the last value or an error the child has ended and no further call is allowed.
-        """
+        """The writer's return value; its exception, re-raised, if it failed."""
         if self._proc is None:
-            if self._steps == 1:
-                return self._fn(*self._args)
-            if self._gen is None:
-                self._gen = self._fn(*self._args)
-            return next(self._gen)
-        self._steps -= 1
+            return self._fn(*self._args)
         try:
             status, value = self._recv.recv()
         except EOFError:
             status, value = "error", RuntimeError(
                 f"the figure process ended without a result (exit code {self._proc.exitcode})")
-        # (A signal raised while waiting leaves the child to cancel(), which stops it instead of waiting.)
-        if status == "error" or self._steps == 0:  # the child has ended or is ending
+        finally:
             self._proc.join()
             self._recv.close()
         if status == "error":
