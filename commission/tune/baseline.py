@@ -370,7 +370,7 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     the ARC's own c_u all the same -- a chattering PID is no controller a user could deploy, and
     an ARC refused for losing to one is refused for nothing -- so the fastest admissible pole within
     it is bisected among the slower ones, on the grid and below it (``yardstick_low_fractions``,
-    :func:`_fastest_within_c_u`); only when not even the slowest is within, the slowest simulated.
+    :func:`_fastest_within_c_u`); only when none is found there, the slowest of the first ones.
 
     With ``pole_free`` False (``[pid] pole`` given) the paper's PID at that pole is kept (today's
     behaviour, eq. (57)) and its margins are recorded; when no pole is admissible the previous
@@ -460,8 +460,8 @@ def _fastest_within_c_u(pool: Sequence[PidCandidate], simulate: Callable[[PidCan
     its c_u falls as its pole does, while a pole slow enough loses the trajectory (a run that
     diverges or leaves the travel).  The boundary between the poles that chatter and those that do
     not is bisected, a handful of simulations for a pool of dozens, and the first pole past it is
-    taken when it is also bounded; otherwise none (no index).  A pool whose c_u is not monotone
-    gets a pole within the limit all the same, if not the fastest.
+    taken when it is also bounded; otherwise none (no index).  Where c_u is not monotone in the
+    pole, the pole taken is past a boundary of the bisection, not necessarily the fastest within.
     """
     n = 0
     memo: dict[int, list] = {}
