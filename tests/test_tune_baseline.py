@@ -221,8 +221,9 @@ def test_the_grid_is_continued_only_on_a_plant_that_holds_every_fitted_mode():
 def test_a_yardstick_whose_fastest_poles_chatter_is_the_fastest_admissible_pole_within_c_u(where):
     """c_u (stubbed: proportional to Kd = 3 M w) above the limit on the eight fastest admissible poles
     and on more: the yardstick is still the fastest admissible pole within c_u -- further down the
-    grid, or below it, where its pole then scales the ARC (bandwidth_factor < 1) -- found by
-    bisection, not by simulating every pole; never a chattering PID while one within c_u exists."""
+    grid, or below it -- found by bisection, not by simulating every pole; never a chattering PID
+    while one within c_u exists.  The floors admit the grid here, so the ARC's rate-scaled design is
+    kept either way (bandwidth_factor 1): the encoder's noise, not the plant, held the PID down."""
     ident = reference_identification(delta_d=0.5)
     spec = spec_from_mapping({})
     st = DEFAULT_SETTINGS
@@ -244,8 +245,38 @@ def test_a_yardstick_whose_fastest_poles_chatter_is_the_fastest_admissible_pole_
     faster = [w for w in allowed if w > expected]
     assert 1.2 * k * 3.0 * m_min * min(faster) > 1.0  # the next faster admissible pole chatters
     assert n_tried < choice.simulated < n_tried + 10 and sum(ev.calls) == choice.simulated
-    assert (bandwidth_factor(choice, spec) < 1.0) == (where == "below")
+    assert choice.fastest_admissible == pytest.approx(ok[0], rel=1e-12)
+    assert (base.pole < ok[-1]) == (where == "below") and bandwidth_factor(choice, spec) == 1.0
     _assert_a_yardstick(ident, spec, base, choice)
+
+
+def test_a_plant_limited_yardstick_held_further_down_by_c_u_scales_the_arc_by_the_floors_pole():
+    """The 60-Hz load mode of the test above rules out the grid; the fastest pole below it that keeps
+    the floors chatters (stubbed c_u reaching the limit at 0.6 of that pole), so the yardstick is a
+    slower pole.  The ARC's design is scaled by what the floors allow -- the fastest admissible pole
+    over the grid's lowest -- not by the noise-held pole, and the record says both."""
+    ident = reference_identification(delta_d=0.5)
+    spec = spec_from_mapping({"plant": {"mode_hz": 60.0, "mode_damping": 0.02, "mode_ratio": 0.2,
+                                        "encoder": "load"}})
+    grid = [f * spec.sample_rate for f in FRACTIONS]
+    _, free = pid_yardstick(ident, spec, _evaluator(1e-6), 1.0, pole_free=True)
+    w_floor = free.pole  # within c_u with a negligible noise: the fastest the floors admit
+    assert free.fastest_admissible == pytest.approx(w_floor) and w_floor < grid[0]
+    _, m_min = pid_baseline(ident, spec)
+    held_base, held = pid_yardstick(ident, spec, _evaluator(1.0 / (1.2 * 3.0 * m_min * 0.6 * w_floor)), 1.0,
+                                    pole_free=True)
+    assert held.is_yardstick and held.pole < 0.6 * w_floor * 1.0001
+    assert max(s.c_u for s in held_base.scores) <= 1.0
+    assert held.fastest_admissible == pytest.approx(w_floor, rel=1e-12)
+    assert math.isclose(bandwidth_factor(held, spec), w_floor / grid[0])
+    assert not math.isclose(bandwidth_factor(held, spec), held.pole / grid[0])
+    # the record keeps it, and a record written before it was kept reads as the chosen pole
+    d = held.to_dict()
+    assert d["fastest_admissible_pole"] == pytest.approx(w_floor)
+    assert YardstickChoice.from_dict(d) == held
+    old = {k: v for k, v in d.items() if k != "fastest_admissible_pole"}
+    assert YardstickChoice.from_dict(old).fastest_admissible is None
+    assert math.isclose(bandwidth_factor(YardstickChoice.from_dict(old), spec), held.pole / grid[0])
 
 
 def test_when_no_admissible_pole_is_within_c_u_the_slowest_simulated_is_kept():

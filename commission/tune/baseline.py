@@ -242,6 +242,11 @@ class YardstickChoice:
         Its closed-loop spectral radius with one more sample of delay.
     violations : tuple of str
         The floors the chosen PID misses (empty for ``margin_search``).
+    fastest_admissible : float or None
+        For ``margin_search``, the fastest pole that keeps the floors, rad/s: the bandwidth the
+        plant allows a PID of (57).  The chosen pole sits below it when the gate's c_u (the
+        encoder's noise in the command) held the PID down.  None for the other methods and in
+        records written before it was kept.
     """
 
     method: str
@@ -252,6 +257,7 @@ class YardstickChoice:
     margins: Any
     radius_plus_one: float
     violations: tuple[str, ...] = ()
+    fastest_admissible: float | None = None
 
     @property
     def is_yardstick(self) -> bool:
@@ -262,7 +268,9 @@ class YardstickChoice:
         return {"method": self.method, "pole": self.pole, "candidates": self.candidates,
                 "admissible": self.admissible, "simulated": self.simulated,
                 "margins": self.margins.to_dict(), "radius_plus_one_sample": float(self.radius_plus_one),
-                "violations": list(self.violations), "is_yardstick": self.is_yardstick}
+                "violations": list(self.violations), "is_yardstick": self.is_yardstick,
+                **({} if self.fastest_admissible is None
+                   else {"fastest_admissible_pole": float(self.fastest_admissible)})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "YardstickChoice":
@@ -271,7 +279,9 @@ class YardstickChoice:
         return cls(method=str(d["method"]), pole=float(d["pole"]), candidates=int(d["candidates"]),
                    admissible=int(d["admissible"]), simulated=int(d["simulated"]), margins=m,
                    radius_plus_one=float(d["radius_plus_one_sample"]),
-                   violations=tuple(str(v) for v in d.get("violations", ())))
+                   violations=tuple(str(v) for v in d.get("violations", ())),
+                   fastest_admissible=(None if d.get("fastest_admissible_pole") is None
+                                       else float(d["fastest_admissible_pole"])))
 
 
 def bandwidth_factor(choice: YardstickChoice, spec: Spec, settings: TuneSettings = DEFAULT_SETTINGS) -> float:
@@ -282,13 +292,17 @@ def bandwidth_factor(choice: YardstickChoice, spec: Spec, settings: TuneSettings
     rate-scaled grid (``settings.yardstick_pole_fractions``) keeps the floors and a slower one
     below it does (``settings.yardstick_low_fractions``), the axis' bandwidth is set by its
     plant (a heavy load, a low structural mode), and the ARC's gains, adaptation rates and
-    observer are scaled by the same factor: the yardstick's pole over the grid's lowest.
-    Otherwise (a yardstick on the grid, a ``[pid] pole`` given, none admissible) 1.
+    observer are scaled by the same factor: the fastest pole that keeps the floors over the
+    grid's lowest.  A PID held further down by the gate's c_u does not scale the ARC: the
+    encoder's noise limits a PID of (57), whose gains all grow with its pole, not the plant's
+    bandwidth, and the ARC's search holds its own gains to the same c_u.  Otherwise (the floors
+    admit a pole of the grid, a ``[pid] pole`` given, none admissible) 1.
     """
     low = settings.yardstick_pole_fractions[0] * spec.sample_rate
-    if choice.method != "margin_search" or not choice.is_yardstick or choice.pole >= low:
+    floors = choice.pole if choice.fastest_admissible is None else choice.fastest_admissible
+    if choice.method != "margin_search" or not choice.is_yardstick or floors >= low:
         return 1.0
-    return choice.pole / low
+    return floors / low
 
 
 def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) -> list[PidCandidate]:
@@ -424,7 +438,7 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
             if _within_c_u(sc, c_u_limit):
                 return (PidBaseline(g, c.pole, m_min, list(sc)),
                         YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins,
-                                        c.radius_plus_one))
+                                        c.radius_plus_one, fastest_admissible=ok[0].pole))
     # None of the fastest is within c_u: a chattering PID is no yardstick, the ARC being held to the same
     # c_u.  The fastest admissible pole within it is looked for further down, on the grid and below it.
     slowest = min(c.pole for c in ok)
@@ -439,10 +453,11 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
         c = pool[hit.index]
         return (PidBaseline(_pid_at(ident, spec, c.pole), c.pole, m_min, hit.scores),
                 YardstickChoice("margin_search", c.pole, len(cands) + len(below), len(ok) + len(low_ok), simulated,
-                                c.margins, c.radius_plus_one))
+                                c.margins, c.radius_plus_one, fastest_admissible=ok[0].pole))
     c, g, sc = tried[-1]
     return (PidBaseline(g, c.pole, m_min, sc),
-            YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins, c.radius_plus_one))
+            YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins, c.radius_plus_one,
+                            fastest_admissible=ok[0].pole))
 
 
 @dataclass(frozen=True)
