@@ -172,6 +172,13 @@ class SearchRecord:
         Each candidate was far off the gate on the screening scenarios
         (:attr:`commission.tune.settings.TuneSettings.screen_excess`) and was simulated on those only (its
         violation is the excess there).
+    bandwidth_factor : float
+        The factor the ARC's carried-over gains, adaptation rates and observer were scaled by in this
+        search, dimensionless (1: the rate-scaled design; :func:`commission.tune.baseline.bandwidth_factor`).
+    other_search : mapping or None
+        A search at another factor whose result was not kept (``bandwidth_factor``, ``n_evaluations``,
+        ``n_feasible``): the floors' bandwidth found no feasible gains and the noise-held yardstick's
+        was searched too (:func:`commission.tune.baseline.noise_bandwidth_factor`).  None: one search.
     """
 
     n_evaluations: int
@@ -191,6 +198,8 @@ class SearchRecord:
     chosen_level: int = 0
     chosen_violation: float = 0.0
     screened: tuple[bool, ...] = ()
+    bandwidth_factor: float = 1.0
+    other_search: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"n_evaluations": self.n_evaluations, "budget": self.budget, "seed": self.seed,
@@ -201,7 +210,8 @@ class SearchRecord:
                 "optimiser": self.optimiser, "generations": self.generations, "n_feasible": self.n_feasible,
                 "violations": [_num_or_null(v) for v in self.violations], "levels": list(self.levels),
                 "chosen_level": self.chosen_level, "chosen_violation": _num_or_null(self.chosen_violation),
-                "screened": [bool(b) for b in self.screened]}
+                "screened": [bool(b) for b in self.screened], "bandwidth_factor": float(self.bandwidth_factor),
+                **({} if self.other_search is None else {"other_search": dict(self.other_search)})}
 
 
 def _gains_to_dict(g: Any) -> dict[str, Any]:
@@ -408,7 +418,9 @@ class Tuning:
                               violations=_floats(se.violations), levels=tuple(se.levels or ()),
                               chosen_level=se.chosen_level or 0,
                               chosen_violation=0.0 if se.chosen_violation is None else se.chosen_violation,
-                              screened=tuple(se.screened or ()))
+                              screened=tuple(se.screened or ()),
+                              bandwidth_factor=1.0 if se.bandwidth_factor is None else se.bandwidth_factor,
+                              other_search=None if se.other_search is None else dict(se.other_search))
         if not math.isclose(m.pid.design_mass, 1.0 / ident.theta.max[0], rel_tol=1e-9):  # type: ignore[union-attr]
             raise fail("$.pid.design_mass", "does not equal 1/theta_max[0] of the identification")
         for k in ("k1", "k2"):  # the controller runs arc.k1, arc.k2: the observer record must describe them

@@ -261,6 +261,10 @@ search.chosen_violation | number     | - | -
     the chosen gains' violation
 search.screened         | any        | - | -
     each candidate was simulated on the screening scenarios only
+search.bandwidth_factor | number     | - | -
+    the factor the ARC's carried-over design was scaled by in the search kept (1: rate-scaled)
+search.other_search     | any        | - | -
+    a search at another factor, not kept: bandwidth_factor, n_evaluations, n_feasible
 margins                 | any        | - | -
     stability margins of both loops per plant (commission.robustness.LoopMargins)
 box_robustness          | any        | - | -
@@ -275,6 +279,7 @@ pid_yardstick           | any        | - | -
       "search.violations": dict(check=nullable_numbers),
       "search.levels": dict(check=_NONNEG_INT),
       "search.screened": dict(check=_BOOLS),
+      "search.other_search": dict(check=object_value),
       "margins": dict(check=_list),
       "box_robustness": dict(check=object_value),
       "validity": dict(check=validity_record)}),

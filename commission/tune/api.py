@@ -50,7 +50,8 @@ from commission.tune.defaults import (
 )
 from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
-from commission.tune.baseline import bandwidth_factor, pid_candidates, pid_within_evidence, pid_yardstick
+from commission.tune.baseline import (bandwidth_factor, noise_bandwidth_factor, pid_candidates, pid_within_evidence,
+                                      pid_yardstick)
 from commission.tune.budget import work_scaled_budget
 from commission.tune.candidate import SearchResult
 from commission.tune.optimiser import HoldoutChoice, Problem, search, select_on_holdout
@@ -142,20 +143,43 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     baseline = pid_within_evidence(baseline, ident, spec, ev, pid_free, settings)
     pid, pid_scores = baseline.gains, baseline.scores
     runs = _Runs.of(ident, spec)
-    # A yardstick below the rate-scaled grid says the plant, not the rate, sets the bandwidth.
+    # A floors' pole below the rate-scaled grid says the plant, not the rate, sets the bandwidth.
     bw = bandwidth_factor(yardstick, spec, settings)
-    problem = Problem(base_arc_gains(ident, spec, bw), ev, spec, ident, pid_scores, gate, runs.arc,
-                      observer_free=observer_free, settings=settings,
-                      observer_scale=bw, plant_sets_bandwidth=bw < 1.0,
-                      target_crossover_hz=pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz)
-    res = search(problem, spec.budget, int(rng.integers(1, 2 ** 31 - 1)), progress, total, settings)
+    target_hz = pid_candidates(ident, spec, [baseline.pole])[0].margins.crossover_hz
+    search_seed = int(rng.integers(1, 2 ** 31 - 1))
+
+    def search_at(factor: float, prog: Progress | None, prog_total: int) -> SearchResult:
+        problem = Problem(base_arc_gains(ident, spec, factor), ev, spec, ident, pid_scores, gate, runs.arc,
+                          observer_free=observer_free, settings=settings,
+                          observer_scale=factor, plant_sets_bandwidth=factor < 1.0, target_crossover_hz=target_hz)
+        return search(problem, spec.budget, search_seed, prog, prog_total, settings)
+
+    res = search_at(bw, progress, total)
+    searched = spec.budget
+    other: dict[str, Any] | None = None
+    noise_bw = noise_bandwidth_factor(yardstick, spec, settings)
+    if res.n_feasible == 0 and noise_bw is not None:
+        # No gains at the floors' bandwidth are feasible, and the encoder's noise held the PID yardstick
+        # further down: the noise, not the plant, may limit this axis, so the ARC is searched again where it
+        # limited the PID (the same seed, a second budget; the progress total grows by it).  The search
+        # kept is the one with feasible gains (the floors' when neither has); the other is recorded.
+        total += spec.budget
+        again = search_at(noise_bw, None if progress is None else (lambda d, t: progress(d + searched, total)),
+                          spec.budget)
+        searched += spec.budget
+        if again.n_feasible > 0:
+            other = {"bandwidth_factor": bw, "n_evaluations": len(res.candidates), "n_feasible": res.n_feasible}
+            res, bw = again, noise_bw
+        else:
+            other = {"bandwidth_factor": noise_bw, "n_evaluations": len(again.candidates),
+                     "n_feasible": again.n_feasible}
     hg = HoldoutGate(ident, spec, ev, pid, pid_scores, rng=rng, workers=workers, settings=settings)
     choice = select_on_holdout(res, hg, settings)
     best = choice.chosen
     chosen = best.gains
     arc_scores = best.scores if best.scores is not None else ev.scores(KIND_ARC, [arc_pack(chosen)])[0]
     chosen_rep = best.feasibility or runs.arc(chosen)
-    _report(progress, spec.budget + 1, total)
+    _report(progress, searched + 1, total)
     pid_rep = runs.feasibility(KIND_PID, pid_pack(pid))
     _report(progress, total - 1, total)
     t1 = theorem1_check(chosen.w1, chosen.w2, chosen.C_phi1, chosen.C_phi2, chosen.C_theta2)
@@ -163,7 +187,7 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
     feas = {"arc": _summary(chosen_rep, runs.names, robust), "pid": _summary(pid_rep, runs.names)}
     cost_best = best.objective if best.scores is not None else cost(arc_scores, spec, pid_scores, ev.weights, gate,
                                                                      settings)
-    record = _search_record(res, choice, spec, seed, cost_best)
+    record = _search_record(res, choice, spec, seed, cost_best, bw, other)
     # The whole box (a defaulted payload range was narrowed before the search, resolve_spec).
     box = BoxArcCheck(ident, spec)(chosen)
     validity = validity_of(ident)
@@ -190,11 +214,13 @@ def _provenance(ident_sha256: str, log_sha256: str | None, created_utc: str | No
                       seed=int(seed), ident_path=ident_path)
 
 
-def _search_record(res: SearchResult, choice: HoldoutChoice, spec: Spec, seed: int, cost_best: float) -> SearchRecord:
+def _search_record(res: SearchResult, choice: HoldoutChoice, spec: Spec, seed: int, cost_best: float,
+                   bandwidth: float = 1.0, other: dict[str, Any] | None = None) -> SearchRecord:
     """tuning.json's ``search``: every candidate's objective, violation and level, and the choice.
 
     ``cost_best`` is the chosen gains' objective (computed on their scores when the search did not
-    simulate them on every tuning scenario).
+    simulate them on every tuning scenario); ``bandwidth`` the factor the ARC's carried-over design
+    was scaled by in the search kept, ``other`` the summary of a search at another factor, not kept.
     """
     best = choice.chosen
     return SearchRecord(n_evaluations=len(res.candidates), budget=spec.budget, seed=int(seed),
@@ -207,7 +233,8 @@ def _search_record(res: SearchResult, choice: HoldoutChoice, spec: Spec, seed: i
                         violations=tuple(c.violation for c in res.candidates),
                         levels=tuple(c.level for c in res.candidates),
                         chosen_level=best.level, chosen_violation=best.violation,
-                        screened=tuple(c.screened for c in res.candidates))
+                        screened=tuple(c.screened for c in res.candidates),
+                        bandwidth_factor=float(bandwidth), other_search=other)
 
 
 def _search_guarantee(record: SearchRecord) -> Guarantee:

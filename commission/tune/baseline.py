@@ -305,6 +305,24 @@ def bandwidth_factor(choice: YardstickChoice, spec: Spec, settings: TuneSettings
     return floors / low
 
 
+def noise_bandwidth_factor(choice: YardstickChoice, spec: Spec,
+                           settings: TuneSettings = DEFAULT_SETTINGS) -> float | None:
+    """The factor of a yardstick the gate's c_u held below the grid and below the floors' pole, or None.
+
+    When the encoder's noise, not the floors, holds the PID yardstick down (its pole below
+    :attr:`YardstickChoice.fastest_admissible` and below the rate-scaled grid), the ARC's design
+    stays at the floors' bandwidth (:func:`bandwidth_factor`); this factor -- the yardstick's pole
+    over the grid's lowest -- is where the ARC's search goes only when no gains at the floors'
+    bandwidth are feasible (:func:`commission.tune.api.tune_from`): the noise then limits the ARC
+    as it limited the PID.  None when the yardstick is not noise-held below the grid.
+    """
+    low = settings.yardstick_pole_fractions[0] * spec.sample_rate
+    if (choice.method != "margin_search" or not choice.is_yardstick or choice.fastest_admissible is None
+            or not choice.pole < min(low, choice.fastest_admissible)):
+        return None
+    return choice.pole / low
+
+
 def pid_candidates(ident: Identification, spec: Spec, poles: Sequence[float]) -> list[PidCandidate]:
     """Check the PID of (57) at each pole on the identified plant and with one more sample of delay.
 
