@@ -262,9 +262,9 @@ search.chosen_violation | number     | - | -
 search.screened         | any        | - | -
     each candidate was simulated on the screening scenarios only
 search.bandwidth_factor | number     | - | -
-    the factor the ARC's carried-over design was scaled by in the search kept (1: rate-scaled)
+    *added*: the factor the ARC's carried-over design was scaled by in the search kept (1: rate-scaled)
 search.other_search     | any        | - | -
-    a search at another factor, not kept: bandwidth_factor, n_evaluations, n_feasible
+    *added*: a search at another factor, not kept: bandwidth_factor, n_evaluations, n_feasible
 margins                 | any        | - | -
     stability margins of both loops per plant (commission.robustness.LoopMargins)
 box_robustness          | any        | - | -

@@ -202,11 +202,38 @@ def yardstick_lines(tuning: Tuning) -> list[str]:
            "none_admissible": "no pole of (57) keeps the margin floors on the identified plant: the paper's "
                               "default pole"}.get(str(ys.get("method")), str(ys.get("method")))
     flag = "" if ys.get("is_yardstick") else (" -- **not a fair yardstick**: " + "; ".join(ys.get("violations", [])))
-    return [f"- PID yardstick: {how}; pole {tuning.pid_pole:.4g} rad/s, crossover {g('crossover_hz', '{:.3g}')} Hz, "
+    fa = ys.get("fastest_admissible_pole")
+    held = (f" (the gate's c_u held it below {float(fa):.4g} rad/s, the fastest pole the floors admit)"
+            if fa is not None and float(fa) > tuning.pid_pole * (1 + 1e-9) else "")
+    return [f"- PID yardstick: {how}; pole {tuning.pid_pole:.4g} rad/s{held}, crossover "
+            f"{g('crossover_hz', '{:.3g}')} Hz, "
             f"gain margin {g('gain_margin_db', '{:.3g}')} dB, phase margin {g('phase_margin_deg', '{:.3g}')} deg, "
             f"delay margin {g('delay_margin_samples', '{:.3g}')} samples, modulus margin "
             f"{g('modulus_margin', '{:.3g}')}, spectral radius with +1 sample "
-            f"{float(ys.get('radius_plus_one_sample', float('nan'))):.4f}{flag}"]
+            f"{float(ys.get('radius_plus_one_sample', float('nan'))):.4f}{flag}", *arc_bandwidth_lines(tuning)]
+
+
+def arc_bandwidth_lines(tuning: Tuning) -> list[str]:
+    """The report's line on the ARC's design bandwidth when its carried-over design was scaled down
+    (tuning.json ``search.bandwidth_factor`` < 1, ``search.other_search``); none at the rate-scaled design."""
+    se = tuning.search
+    bw = float(getattr(se, "bandwidth_factor", 1.0))
+    other = getattr(se, "other_search", None)
+    if bw >= 1.0 and not other:
+        return []
+    line = f"- ARC design bandwidth: the carried-over gains, adaptation rates and observer scaled by {bw:.3g}"
+    if other and float(other["bandwidth_factor"]) > bw:
+        line += (f" -- the PID yardstick's, held down by the encoder's noise: at the floors' bandwidth (factor "
+                 f"{float(other['bandwidth_factor']):.3g}) no gains met every constraint in "
+                 f"{int(other['n_evaluations'])} candidates, and the search at this bandwidth came closer (feasible "
+                 f"gains, or a smaller violation)")
+    elif other:
+        line += (f" (the floors' bandwidth, where no gains met every constraint); a second search at the noise-held "
+                 f"yardstick's (factor {float(other['bandwidth_factor']):.3g}, {int(other['n_evaluations'])} "
+                 f"candidates) came no closer")
+    else:
+        line += " -- the fastest PID the margin floors admit lies below the rate-scaled grid: the plant sets the bandwidth"
+    return [line]
 
 
 def _robustness_paragraph(result: Any) -> list[str]:

@@ -162,12 +162,13 @@ def tune(ident: Identification, spec: Spec, *, rng: np.random.Generator, seed: i
         # No gains at the floors' bandwidth are feasible, and the encoder's noise held the PID yardstick
         # further down: the noise, not the plant, may limit this axis, so the ARC is searched again where it
         # limited the PID (the same seed, a second budget; the progress total grows by it).  The search
-        # kept is the one with feasible gains (the floors' when neither has); the other is recorded.
+        # kept is the one whose best candidate comes first in the search's own feasibility-first order
+        # (feasible before not, then the smaller violation; the floors' on a tie); the other is recorded.
         total += spec.budget
         again = search_at(noise_bw, None if progress is None else (lambda d, t: progress(d + searched, total)),
                           spec.budget)
         searched += spec.budget
-        if again.n_feasible > 0:
+        if min(c.rank_key() for c in again.candidates) < min(c.rank_key() for c in res.candidates):
             other = {"bandwidth_factor": bw, "n_evaluations": len(res.candidates), "n_feasible": res.n_feasible}
             res, bw = again, noise_bw
         else:
