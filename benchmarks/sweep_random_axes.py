@@ -17,9 +17,9 @@ exception that is not an exit-2 refusal), the worst ARC/PID e_rms ratio over the
 it took (wall and this process's CPU) -- then the totals and the median ratio over the emitted axes.
 
 Seeds 0-29 are the development set.  A held-out set is run once, on final code, by the lead, and
-is no longer held out once a change has been made after seeing its failures: 100-129 and 200-229
-have been seen so, 300-329 is the current estimate, and the next change needs seeds nobody has run
-(docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
+is no longer held out once a change has been made after seeing its failures: 100-129, 200-229
+and 300-329 have been seen so, 400-429 is the current estimate, and the next change needs seeds nobody
+has run (docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
 Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
