@@ -103,6 +103,18 @@ def validity_record(v: Any) -> None:
                           else f"expected a string, got {v['unit']!r}"))
 
 
+def other_search_record(v: Any) -> None:
+    """``search.other_search``: a positive finite ``bandwidth_factor`` and non-negative integer counts."""
+    object_value(v)
+    f = v.get("bandwidth_factor")
+    if not (is_finite_number(f) and f > 0):
+        raise ValueError((".bandwidth_factor", f"expected a positive finite number, got {f!r}"))
+    for k in ("n_evaluations", "n_feasible"):
+        n = v.get(k)
+        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 0):
+            raise ValueError((f".{k}", f"expected a non-negative integer, got {n!r}"))
+
+
 _NONNEG_INT = _list_of(lambda x: isinstance(x, int) and not isinstance(x, bool) and x >= 0, "non-negative integer")
 _BOOLS = _list_of(lambda x: isinstance(x, bool), "boolean")
 
@@ -279,7 +291,7 @@ pid_yardstick           | any        | - | -
       "search.violations": dict(check=nullable_numbers),
       "search.levels": dict(check=_NONNEG_INT),
       "search.screened": dict(check=_BOOLS),
-      "search.other_search": dict(check=object_value),
+      "search.other_search": dict(check=other_search_record),
       "margins": dict(check=_list),
       "box_robustness": dict(check=object_value),
       "validity": dict(check=validity_record)}),

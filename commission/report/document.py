@@ -217,8 +217,7 @@ def arc_bandwidth_lines(tuning: Tuning) -> list[str]:
     """The report's line on the ARC's design bandwidth when its carried-over design was scaled down
     (tuning.json ``search.bandwidth_factor`` < 1, ``search.other_search``); none at the rate-scaled design."""
     se = tuning.search
-    bw = float(getattr(se, "bandwidth_factor", 1.0))
-    other = getattr(se, "other_search", None)
+    bw, other = float(se.bandwidth_factor), se.other_search
     if bw >= 1.0 and not other:
         return []
     line = f"- ARC design bandwidth: the carried-over gains, adaptation rates and observer scaled by {bw:.3g}"
