@@ -25,6 +25,24 @@ from commission.identify.fit.result import _ordered
 PAIR_SPEED_TOLERANCE = 0.1
 
 
+#: Why a friction map's viscous coefficient is bounded below by 0.  Viscous friction dissipates
+#: (B >= 0), but a map fitted where the friction still falls with speed -- a ladder whose fastest
+#: leg lies inside the Stribeck dip, as on an axis whose whole speed range does -- gives the least
+#: squares a negative slope; the theta box then has theta2 = B/M < 0 and identification refused
+#: the axis.  The least squares under the bound: a convex quadratic whose free optimum has B < 0
+#: has its bounded optimum on B = 0, so the other coefficients are refitted with B held there
+#: (and ``B``'s std is the free fit's).  Over the speeds the legs cover the map is then the
+#: level friction of those speeds; the robust terms carry the rest.
+VISCOUS_BOUND_NOTE = "viscous friction B >= 0"
+
+
+def _viscous_note(model: str, b_free: float, v_top: float) -> str:
+    """The warning of a map fit whose B was held at 0 (:data:`VISCOUS_BOUND_NOTE`)."""
+    return (f"{model}: the legs' friction falls with speed up to the fastest leg ({v_top:.3g} {unit('v')}): "
+            f"the free fit gives B = {b_free:.4g} {unit('B')}, and viscous friction cannot be negative, so B "
+            "is held at 0 (the legs do not reach past the Stribeck dip; faster legs would measure B)")
+
+
 #: Least number of distinct leg speeds per direction for a friction ladder.
 MIN_LADDER_SPEEDS = {"coulomb": 3, "stribeck": 4}
 
@@ -45,9 +63,18 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
     def jacobian(vs: float, xi: float) -> tuple[np.ndarray, np.ndarray]:
         return stribeck_shape_derivatives(v, vs, xi)[1:]
 
-    sep = fit_separable(Phi0, ("B", "fc", "offset"), lambda vs, xi: stribeck_shape(v, vs, xi), jacobian, F,
-                        vs_bounds=(0.3 * speed.min(), 0.5 * speed.max()))
+    def fit(cols: slice, names: tuple[str, ...]):
+        return fit_separable(Phi0[:, cols], names, lambda vs, xi: stribeck_shape(v, vs, xi), jacobian, F,
+                             vs_bounds=(0.3 * speed.min(), 0.5 * speed.max()))
+
+    sep = fit(slice(None), ("B", "fc", "offset"))
+    b_free = (float(sep.value[0]), float(sep.std[0]))
+    if b_free[0] < 0.0:  # B >= 0 (:data:`VISCOUS_BOUND_NOTE`): the bounded optimum has B = 0
+        sep = fit(slice(1, None), ("fc", "offset"))
     params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
+    if b_free[0] < 0.0:
+        params = {"B": (0.0, b_free[1]), **params}
+        warnings.append(_viscous_note("stribeck", b_free[0], float(speed.max())))
     _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
                     f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} {unit('v')}",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
@@ -156,6 +183,11 @@ def _map_fit_coulomb(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[
             warnings.append(f"coulomb: {int(np.sum(~fast))} constant-velocity legs below {knee:.3g} {unit('v')} "
                             "(3 vs of the map's Stribeck hump) left out of the Coulomb fit")
     res = solve(np.column_stack([v[keep], np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
+    if res.theta[0] < 0.0:  # B >= 0 (:data:`VISCOUS_BOUND_NOTE`): the bounded optimum has B = 0
+        held = solve(np.column_stack([np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
+        warnings.append(_viscous_note("coulomb", float(res.theta[0]), float(np.max(np.abs(v[keep])))))
+        return {"B": (0.0, float(res.std[0])), "fc": (float(held.theta[0]), float(held.std[0])),
+                "offset": (float(held.theta[1]), float(held.std[1]))}
     return {nm: (float(th), float(sd)) for nm, th, sd in zip(("B", "fc", "offset"), res.theta, res.std)}
 
 
