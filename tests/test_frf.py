@@ -272,3 +272,44 @@ def test_backed_band_ends_at_two_consecutive_disagreeing_coherent_bins():
     R[7] = np.exp(1j * np.radians(45.0))
     assert backed_band(f, R, coh) == (2.0, 6.0)
     assert backed_band(f, R, np.zeros(f.size)) is None
+
+
+def test_a_run_with_one_agreeing_bin_is_not_the_backed_band():
+    """One bin that agrees amid a departure starts nothing: the next run is the band.
+
+    The pattern of random axis 411 (a low-frequency departure whose phase swings through the
+    tolerance at one bin): agreeing bins ``+``, disagreeing ``-``, incoherent ``.``.
+    """
+    from commission.identify.frf import backed_band
+
+    def band(pattern):
+        f = 5.0 * np.arange(1, len(pattern) + 1)
+        R = np.array([0.5 if c == "-" else 1.0 for c in pattern], complex)
+        coh = np.array([0.1 if c == "." else 0.95 for c in pattern])
+        return backed_band(f, R, coh)
+
+    # the lone "+" at 30 Hz ends at the next two misses; the run from 45 Hz keeps through one miss
+    # and the incoherent bins up to the last coherent bin (the lone bin would have made it (30, 30))
+    assert band("..---+--++++-+++++..+++") == (45.0, 115.0)
+    assert band("+-++++--+") == (5.0, 30.0)  # a first bin followed by one miss still starts the band
+    assert band("-+--+--+") == (10.0, 10.0)  # every run holds one agreeing bin: the lowest
+
+
+def test_a_low_frequency_departure_does_not_empty_the_band_the_log_backs(tmp_path):
+    """Random axis 411 recorded the recommended way (its `excite` plan on the simulated axis: modes at 1070
+    and 1542 Hz, friction 3.3-4.4 N answering the injection on a slow cruise below 80 Hz).
+
+    The departure at 25-80 Hz once left one agreeing bin as the whole evidence band (70-70 Hz); the band
+    the log backs reaches past both true modes.
+    """
+    from commission.synth import random_axis
+    from commission.synth.record import record_random_axis_log
+
+    truth = random_axis(np.random.default_rng(411))
+    log = tmp_path / "log.h5"
+    record_random_axis_log(411, log)
+    fr = identify_log(str(log)).ident.to_dict()["frequency_response"]
+    assert fr["source"] == "broadband"
+    assert any(d["high_hz"] <= 100.0 for d in fr["departures"])  # the departure is still reported
+    low, high = fr["evidence_band_hz"]
+    assert low < 100.0 and high > truth.mode2_hz > truth.mode_hz, fr["evidence_band_hz"]

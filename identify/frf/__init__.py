@@ -29,7 +29,8 @@ Method
    the data back is the run of coherent bins (``gamma^2 >= BAND_COHERENCE``),
    from the lowest, in which ``|R|`` is within ``BAND_GAIN_TOL`` and its phase
    within ``BAND_PHASE_TOL_DEG``; it ends at the first two consecutive
-   coherent bins outside.
+   coherent bins outside.  A run with only one bin inside is not a band: the
+   next run is taken (:func:`backed_band`).
 4. **Fit.**  Candidate plants (rigid; a mode seen on the load side; a mode
    seen on the motor side, with its anti-resonance at ``f_r sqrt(1 - r)``),
    each with an input delay and a scale on the mass, are evaluated with the

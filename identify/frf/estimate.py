@@ -118,24 +118,38 @@ def estimate(q: np.ndarray, u: np.ndarray, fs: float, ranges: list[tuple[int, in
 
 
 def backed_band(f: np.ndarray, R: np.ndarray, coh: np.ndarray) -> tuple[float, float] | None:
-    """Band in which the coherent data agree with the rigid model (module docstring, step 3), Hz."""
+    """Band in which the coherent data agree with the rigid model (module docstring, step 3), Hz.
+
+    The run of coherent bins from the lowest that agrees until two consecutive coherent bins
+    disagree; a run that holds only one agreeing bin is not a band, and the next run is taken.
+    (A departure at low frequency -- the response of friction to an injection on a slow
+    cruise -- swings its phase through the tolerance, and one bin on its way agreed by chance:
+    that bin started the run, the departure's next bins ended it, and the band of the whole
+    log was that one bin.)  When every run holds one agreeing bin, the lowest.
+    """
     coherent = np.flatnonzero(coh >= BAND_COHERENCE)
     if coherent.size == 0:
         return None
     ok = ((np.abs(np.log(np.abs(R) + 1e-300)) <= math.log(BAND_GAIN_TOL))
           & (np.abs(np.degrees(np.angle(R))) <= BAND_PHASE_TOL_DEG))
-    agree = [i for i in coherent if ok[i]]
-    if not agree:
-        return None
-    low = agree[0]
-    high = low
+    runs: list[tuple[int, int, int]] = []  # (first, last, agreeing bins) of each run
+    run: list[int] | None = None
     misses = 0
-    for i in coherent[coherent >= low]:
+    for i in coherent:
+        if run is None:
+            if ok[i]:
+                run, misses = [i, i, 1], 0
+            continue
         if ok[i]:
-            high = i
-            misses = 0
+            run[1], run[2], misses = i, run[2] + 1, 0
         else:
             misses += 1
             if misses >= 2:
-                break
+                runs.append((run[0], run[1], run[2]))
+                run = None
+    if run is not None:
+        runs.append((run[0], run[1], run[2]))
+    if not runs:
+        return None
+    low, high, _ = next((r for r in runs if r[2] >= 2), runs[0])
     return round(float(f[low]), 6), round(float(f[high]), 6)  # Hz; drops the round-off of 1 / median(dt)

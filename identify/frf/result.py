@@ -195,7 +195,8 @@ class FrequencyResponse:
         """The band the log backs for the model that tune and validate use, Hz (None: none).
 
         One definition for every log: the rule of :func:`backed_band` (the run of coherent
-        bins, from the lowest that agrees, until two consecutive coherent bins disagree),
+        bins, from the lowest that agrees, until two consecutive coherent bins disagree; a run
+        of one agreeing bin is not a band),
         applied to the measured response over the **model handed downstream**: the fitted
         structure (mode and delay included) where a broadband segment gave one, else the
         rigid body, so that without broadband content it is ``band_hz``.  Above its top
