@@ -23,6 +23,7 @@ from commission.identify.errors import NotIdentifiableError, SignalError, Stribe
 from commission.identify.fit import AxisFit, evaluate_segments, fit_segments
 from commission.identify.frf import FrequencyResponse
 from commission.identify.ls import ripple_name
+from commission.identify.units import unit
 from commission.logs import ExcitationLog
 from commission.units import axis_units_context
 
@@ -208,6 +209,13 @@ def _fit_step(logs: Sequence[ExcitationLog], *, friction: str, ripple_pitch: flo
                                                    allowed=richer.TERMS if allowed is None else allowed)
             except (NotIdentifiableError, SignalError) as exc:
                 notes.append(f"terms: the delay-aware model was not fitted ({exc})")
+                rich_fit = None
+            if rich_fit is not None and rich_fit.parameters["B"][0] < 0.0:
+                # Viscous friction dissipates (VISCOUS_BOUND_NOTE): a delay-aware model that needs B < 0
+                # to explain the log is not the plant's; the least squares, fitted under B >= 0, stand.
+                notes.append(f"terms: the delay-aware model ({', '.join(selection.fit.terms)}) is not carried on: "  # type: ignore[union-attr]
+                             f"its viscous coefficient B = {rich_fit.parameters['B'][0]:.4g} {unit('B')} is negative "
+                             "(not physical); the least-squares fit, with B >= 0, stands")
                 rich_fit = None
             if rich_fit is not None:
                 fit = rich_fit

@@ -63,10 +63,11 @@ def _clip_negative_viscous(tb: ThetaBounds, params: dict[str, Estimate | None], 
     physical part, and the box is kept.  ``bounds.viscous_clipped`` records the estimate and a warning
     says so.  An interval entirely below zero (upper end 0) is still refused by :func:`_theta_box`.
 
-    A friction map (the steady+dynamic method's legs) never reaches here with B < 0: its fit is the
-    least squares under B >= 0, the other coefficients refitted with B held at 0
-    (:data:`commission.identify.fit.friction_map.VISCOUS_BOUND_NOTE`).  This clip is what is left for
-    the whole-log regression, whose B shares one regression with M.
+    The least-squares fits of :mod:`commission.identify.fit` (the friction map and the whole-log
+    regression) never reach here with B < 0: each is solved under B >= 0, the other coefficients
+    refitted with B held at 0 (:data:`commission.identify.fit.friction_map.VISCOUS_BOUND_NOTE`).
+    This clip is what is left for the delay-aware model (:mod:`commission.identify.richer`), whose B
+    is fitted free.
     """
     est = params.get("B")
     if est is None or not tb.nominal[1] < tb.theta_min[1] or not tb.theta_max[1] > 0:

@@ -8,7 +8,8 @@ from commission.identify.friction import fit_separable, stribeck_shape_derivativ
 from commission.identify.ls import FrictionModel, regressor, ripple_name, ripple_pitches, solve, stribeck_shape
 from commission.identify.signals import Preprocessed
 from commission.identify.fit.checks import MIN_STRIBECK_ROWS, _check_mass, _check_reversals, _check_stribeck
-from commission.identify.fit.result import _ripple_params
+from commission.identify.fit.friction_map import viscous_note
+from commission.identify.fit.result import _ordered, _ripple_params
 
 
 def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float | tuple[float, ...] | None, v_noise: float,
@@ -24,8 +25,14 @@ def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float 
     v_dec = pp.decimate(pp.qd)
     cond = float(np.linalg.cond(Phi))
     _check_reversals(v_dec, v_noise, cond)
+    i_b = names.index("B")
     if friction == "coulomb":
         res = solve(Phi, y)
+        b_free = (float(res.theta[i_b]), float(res.std[i_b]))
+        if b_free[0] < 0.0:  # B >= 0 (VISCOUS_BOUND_NOTE): the bounded optimum has B = 0
+            names = names[:i_b] + names[i_b + 1:]
+            Phi = np.delete(Phi, i_b, axis=1)
+            res = solve(Phi, y)
         params = {nm: (float(th), float(sd)) for nm, th, sd in zip(names, res.theta, res.std)}
         cov, cond = res.cov, res.condition_number
         idx = {nm: i for i, nm in enumerate(names)}
@@ -43,8 +50,16 @@ def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float 
             d = pp.decimate(np.column_stack([dvs, dxi]))
             return d[:, 0], d[:, 1]
 
-        sep = fit_separable(Phi, names, column, jacobian, y, vs_bounds=(vs_lo, vs_hi),
-                            grid_column=lambda vs, xi: stribeck_shape(v_dec, vs, xi))
+        def separable(cols: np.ndarray, nms: tuple[str, ...]):
+            return fit_separable(cols, nms, column, jacobian, y, vs_bounds=(vs_lo, vs_hi),
+                                 grid_column=lambda vs, xi: stribeck_shape(v_dec, vs, xi))
+
+        sep = separable(Phi, tuple(names))
+        b_free = (float(sep.value[i_b]), float(sep.std[i_b]))
+        if b_free[0] < 0.0:  # B >= 0 (VISCOUS_BOUND_NOTE): the bounded optimum has B = 0
+            names = names[:i_b] + names[i_b + 1:]
+            Phi = np.delete(Phi, i_b, axis=1)
+            sep = separable(Phi, tuple(names))
         params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
         _check_stribeck(sep, np.abs(v_dec), MIN_STRIBECK_ROWS, "decimated rows",
                         "excite slow motion or use friction='coulomb'", warnings)
@@ -55,6 +70,9 @@ def _dynamic_fit(pp: Preprocessed, friction: FrictionModel, ripple_pitch: float 
         i, j = idx[ns], idx[nc]
         params.update(_ripple_params(params[ns][0], params[nc][0], cov[np.ix_([i, j], [i, j])], k))
         del params[ns], params[nc]
+    if b_free[0] < 0.0:
+        params = _ordered({**params, "B": (0.0, b_free[1])})
+        warnings.append(viscous_note("whole-log", b_free[0], float(np.max(np.abs(v_dec)))))
     if mass is None:
         _check_mass(params["M"][0], params["M"][1], cond)
     return params, cond

@@ -36,11 +36,11 @@ PAIR_SPEED_TOLERANCE = 0.1
 VISCOUS_BOUND_NOTE = "viscous friction B >= 0"
 
 
-def _viscous_note(model: str, b_free: float, v_top: float) -> str:
-    """The warning of a map fit whose B was held at 0 (:data:`VISCOUS_BOUND_NOTE`)."""
-    return (f"{model}: the legs' friction falls with speed up to the fastest leg ({v_top:.3g} {unit('v')}): "
+def viscous_note(model: str, b_free: float, v_top: float) -> str:
+    """The warning of a fit whose B was held at 0 (:data:`VISCOUS_BOUND_NOTE`); ``v_top``: its fastest speed."""
+    return (f"{model}: the friction falls with speed up to the fastest speed fitted ({v_top:.3g} {unit('v')}): "
             f"the free fit gives B = {b_free:.4g} {unit('B')}, and viscous friction cannot be negative, so B "
-            "is held at 0 (the legs do not reach past the Stribeck dip; faster legs would measure B)")
+            "is held at 0 (the motion does not reach past the Stribeck dip; faster legs would measure B)")
 
 
 #: Least number of distinct leg speeds per direction for a friction ladder.
@@ -74,7 +74,7 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
     params = {nm: (float(val), float(sd)) for nm, val, sd in zip(sep.names, sep.value, sep.std)}
     if b_free[0] < 0.0:
         params = {"B": (0.0, b_free[1]), **params}
-        warnings.append(_viscous_note("stribeck", b_free[0], float(speed.max())))
+        warnings.append(viscous_note("stribeck", b_free[0], float(speed.max())))
     _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
                     f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} {unit('v')}",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
@@ -185,7 +185,7 @@ def _map_fit_coulomb(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict[
     res = solve(np.column_stack([v[keep], np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
     if res.theta[0] < 0.0:  # B >= 0 (:data:`VISCOUS_BOUND_NOTE`): the bounded optimum has B = 0
         held = solve(np.column_stack([np.sign(v[keep]), np.ones(int(keep.sum()))]), F[keep])
-        warnings.append(_viscous_note("coulomb", float(res.theta[0]), float(np.max(np.abs(v[keep])))))
+        warnings.append(viscous_note("coulomb", float(res.theta[0]), float(np.max(np.abs(v[keep])))))
         return {"B": (0.0, float(res.std[0])), "fc": (float(held.theta[0]), float(held.std[0])),
                 "offset": (float(held.theta[1]), float(held.std[1]))}
     return {nm: (float(th), float(sd)) for nm, th, sd in zip(("B", "fc", "offset"), res.theta, res.std)}
