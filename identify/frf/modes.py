@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 from commission.controllers.linear import continuous_model
 from commission.controllers.plant import plant_vector
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, FIT_COHERENCE, MAX_DAMPING,
-                                              MAX_DELAY_SAMPLES)
+                                              MAX_DELAY_SAMPLES, MIN_DAMPING)
 from commission.identify.frf.model import ExtraMode, StructureFit, _sampled_response
 from commission.identify.frf.structfit import _parameter_std, _weights, departures, fit_structure
 
@@ -66,7 +66,9 @@ def _pack(fit: StructureFit) -> np.ndarray:
 
 
 def _on_edge(hz: float, damping: float, fmin: float, fs: float) -> bool:
-    return damping >= 0.99 * MAX_DAMPING or hz <= 1.01 * fmin or hz >= 0.99 * 0.5 * fs
+    """The mode's frequency or damping sits on the fit's bounds (the data do not place it)."""
+    return (damping >= 0.99 * MAX_DAMPING or damping <= 1.01 * MIN_DAMPING or hz <= 1.01 * fmin
+            or hz >= 0.99 * 0.5 * fs)
 
 
 def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
@@ -233,7 +235,7 @@ def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
         return np.concatenate([sw * e.real, sw * np.angle(np.exp(1j * e.imag))])
 
     fmin = float(ff[0])
-    lo = [-1.0, 0.0, math.log(fmin), math.log(0.002), 0.02, math.log(fmin), math.log(0.002), 0.02]
+    lo = [-1.0, 0.0, math.log(fmin), math.log(MIN_DAMPING), 0.02, math.log(fmin), math.log(MIN_DAMPING), 0.02]
     hi = [1.0, MAX_DELAY_SAMPLES, math.log(0.5 / Ts), math.log(MAX_DAMPING), 0.9, math.log(0.5 / Ts),
           math.log(MAX_DAMPING), 0.95]
     starts = []

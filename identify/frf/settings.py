@@ -43,6 +43,9 @@ COHERENCE_CAP = 0.995
 MAX_DELAY_SAMPLES = 6.0
 #: Largest damping ratio fitted (a mode damped more than this is no resonance to report).
 MAX_DAMPING = 0.7
+#: Least damping ratio fitted: a fit that wants less is resolving a peak the estimate cannot (its
+#: resolution and averaging bound how sharp a peak it measures), not a mode.
+MIN_DAMPING = 0.002
 #: Coherent bins the fit needs.
 MIN_FIT_BINS = 12
 #: Probability that a right model shows a departure somewhere in the measured response (:func:`departures`).
