@@ -18,8 +18,9 @@ it took (wall and this process's CPU) -- then the totals and the median ratio ov
 
 Seeds 0-29 are the development set.  A held-out set is run once, on final code, by the lead, and
 is no longer held out once a change has been made after seeing its failures: 100-129, 200-229
-and 300-329 have been seen so, 400-429 is the current estimate, and the next change needs seeds nobody
-has run (docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
+300-329, 400-429 and 500-529 have been seen so (500-529 is the last estimate, run once before the
+changes made after seeing it), and the next change needs seeds nobody has run, 600-629
+(docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
 Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
