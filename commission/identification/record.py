@@ -63,11 +63,12 @@ def _clip_negative_viscous(tb: ThetaBounds, params: dict[str, Estimate | None], 
     physical part, and the box is kept.  ``bounds.viscous_clipped`` records the estimate and a warning
     says so.  An interval entirely below zero (upper end 0) is still refused by :func:`_theta_box`.
 
-    The least-squares fits of :mod:`commission.identify.fit` (the friction map and the whole-log
-    regression) never reach here with B < 0: each is solved under B >= 0, the other coefficients
-    refitted with B held at 0 (:data:`commission.identify.fit.friction_map.VISCOUS_BOUND_NOTE`).
-    This clip is what is left for the delay-aware model (:mod:`commission.identify.richer`), whose B
-    is fitted free.
+    No fit of identify's reaches here with B < 0 any more: the least squares of
+    :mod:`commission.identify.fit` (the friction map and the whole-log regression) are solved under
+    B >= 0, the other coefficients refitted with B held at 0
+    (:data:`commission.identify.fit.friction_map.VISCOUS_BOUND_NOTE`), and a delay-aware model
+    (:mod:`commission.identify.richer`) that needs B < 0 is not carried on.  The clip stays as the
+    guard of the theta box's physical end.
     """
     est = params.get("B")
     if est is None or not tb.nominal[1] < tb.theta_min[1] or not tb.theta_max[1] > 0:
