@@ -51,6 +51,7 @@ def test_a_ladder_past_the_dip_keeps_its_free_viscous_slope():
     assert fit.parameters["B"][0] == pytest.approx(B, rel=0.1)
 
 
+@pytest.mark.slow
 def test_identify_writes_a_physical_model_of_an_axis_whose_speed_range_lies_in_its_stribeck_dip(tmp_path):
     """Random axis 406: v_max 0.062 m/s against vs 0.030 m/s and friction a third of the drive.
 
@@ -69,6 +70,7 @@ def test_identify_writes_a_physical_model_of_an_axis_whose_speed_range_lies_in_i
     assert any("B is held at 0" in w for w in out.ident.extra["warnings"]), out.ident.extra["warnings"]
 
 
+@pytest.mark.slow
 def test_the_whole_log_regression_and_the_delay_aware_choice_keep_b_physical(tmp_path):
     """Random axis 504: 10 kHz, 0.47 kg, v_max 0.021 m/s below its Stribeck speed (0.022 m/s).
 
