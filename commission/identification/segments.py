@@ -29,7 +29,7 @@ from commission.identification.frequency import _evidence, _frequency_step
 from commission.identification.inputs import (_conversion_record, _file_q_unit, _joined, _name, _same_axis_units,
                                               _units, convert_axis, resample_log)
 from commission.identification.options import BoundsOptions, check_input_gain, parse_terms
-from commission.identification.record import (_bounds_record, _clip_negative_viscous, _estimates, _maybe, _stamp,
+from commission.identification.record import (_bounds_record, _estimates, _maybe, _stamp,
                                               _theta_box)
 from commission.identify import richer
 from commission.identify.bounds import ThetaBounds, friction_compensation, theta_bounds
@@ -316,8 +316,6 @@ def identify_log(
                            plan_path=plan_path, u_max=u_max, units=units, warnings=warnings)
     _add_model_records(extra, inp, fit, idim_fit, selection, fix=fix, has_box=tb is not None,
                        conversion=(lead, gear, counts_per_rev))
-    if tb is not None:
-        tb = _clip_negative_viscous(tb, params, extra, warnings)
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
     ident = Identification(units=units, parameters=params, relative_error=fit.relative_error,
                            condition_number=fit.condition_number, validation_relative_error=val_err, theta=theta,
