@@ -13,8 +13,12 @@ plant (docs/robustness.md, "Yield on the true axis").
 One line per axis -- rate, mass (kg, with the command unit and its gain), modes, delay,
 noise, the tool's verdict, the count it falls in (works / FALSE-CERT / FALSE-REFUSAL /
 refused-ok / no-candidate, which says whether a true-plant PID works there; CRASH for an
-exception that is not an exit-2 refusal), the worst ARC/PID e_rms ratio over the four runs and the seconds
-it took (wall and this process's CPU) -- then the totals and the median ratio over the emitted axes.
+exception that is not an exit-2 refusal), the worst ARC/PID e_rms ratio over the four runs, the tool's
+own PID yardstick judged on the true plant (:class:`commission.true_axis.ToolYardstick`: does the PID
+the gate compared the ARC with keep the floors there, and how its e_rms compares with the true-plant
+PID's) and the seconds it took (wall and this process's CPU) -- then the totals, the median ratio over
+the emitted axes, and how many false refusals and false certifications had a tool yardstick that
+misses the floors or a run on the true plant.
 
 Seeds 0-29 are the development set.  A held-out set is run once, on final code, by the lead, and
 is no longer held out once a change has been made after seeing its failures: 100-129, 200-229
@@ -92,8 +96,10 @@ def category(j: Judgement) -> str:
 
 
 def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
-               logs_from: str | None = None) -> tuple[int, str, str, float, bool, str]:
-    """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written)``.
+               logs_from: str | None = None) -> tuple[int, str, str, float, bool, str, str]:
+    """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written,
+    tool yardstick)``, the last ``"ok"``, ``"floors"`` (misses them on the true plant), ``"runs"`` (a run
+    diverges, chatters or faults) or ``"-"`` (none: refused before tuning).
 
     ``logs_from``: a previous sweep's ``--workdir``; its ``axisN/log.h5`` is judged again (the truth
     re-drawn with :func:`commission.synth.random_axis`) instead of recording a new log.
@@ -117,7 +123,7 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
     except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
         dt = time.perf_counter() - t0
         return seed, f"axis {seed:3d}: {describe(truth)} | {how} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
-            "CRASH", math.nan, False, log if logs_from is None else "reused"
+            "CRASH", math.nan, False, log if logs_from is None else "reused", "-"
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
@@ -128,9 +134,13 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
         return f"{r.e_rms * 1e6:.3g}um/cu{r.c_u:.2f}{stop}"
 
     runs = " ".join(f"{r.case}{'+1' if r.extra_delay else ''}:{run_text(r)}" for r in j.arc_runs)
+    tool, tool_text = "-", ""
+    if j.tool_pid is not None:
+        tool = "ok" if j.tool_pid.ok else ("floors" if j.tool_pid.violations else "runs")
+        tool_text = f" | {j.tool_pid.describe(j.pid)}"
     line = (f"axis {seed:3d}: {describe(truth)} | {how} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
-            f"| {runs} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
-    return seed, line, cat, j.ratio, j.emitted, log if logs_from is None else "reused"
+            f"| {runs}{tool_text} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
+    return seed, line, cat, j.ratio, j.emitted, log if logs_from is None else "reused", tool
 
 
 def main() -> None:
@@ -175,6 +185,12 @@ def main() -> None:
           f"{len(emitted)} emitted" + (f"; {cats.count('CRASH')} CRASHED" if "CRASH" in cats else ""))
     print(f"median ARC/PID e_rms ratio over the {len(ratios)} emitted axes (worst of the four runs each): "
           f"{statistics.median(ratios):.2f}" if ratios else "median ARC/PID e_rms ratio: no axis emitted")
+    for name, label in (("FALSE-REFUSAL", "false refusals"), ("FALSE-CERT", "false certifications")):
+        tools = [r[6] for r in results if r[2] == name]
+        if tools:
+            print(f"of the {len(tools)} {label}, the tool's PID yardstick on the true plant: "
+                  f"{tools.count('floors')} miss the floors, {tools.count('runs')} keep them but a run diverges, "
+                  f"chatters or faults, {tools.count('ok')} run")
     print(f"{time.perf_counter() - t0:.0f} s wall for {n} axes ({args.workers} worker(s)); logs: --log {args.log}, "
           f"{sum(r[5] == 'excite' for r in results)} excite-planned, {sum(r[5] == 'legacy' for r in results)} legacy")
 

@@ -41,6 +41,13 @@ truth's.
 
 When the tool refuses before tuning (an exit-2 error), the yardstick is still computed, on
 the default spec at the axis's rate and rail, to say whether a working controller existed.
+
+Why a verdict missed, :class:`ToolYardstick`: the PID the *tool* held the ARC to
+(tuning.json's ``pid``, chosen on the identified model) is run on the true plant too -- the
+same floors, the same four runs.  A false refusal whose tool yardstick misses the floors on the
+true plant was refused against a PID the machine could not run (the identified model flattered
+it); one whose tool yardstick runs as well as the true-plant PID was refused by the gate's
+robustness checks, not by its comparison.  It is a diagnosis only: the counts do not read it.
 """
 
 from __future__ import annotations
@@ -135,6 +142,59 @@ class TruePid:
 
 
 @dataclass(frozen=True)
+class ToolYardstick:
+    """The tool's own PID yardstick (tuning.json's ``pid``) on the true plant (module docstring).
+
+    Attributes
+    ----------
+    pole : float
+        Its triple pole, rad/s (tuning.json's ``pid_pole``).
+    violations : tuple of str
+        Validate's default margin floors it misses on the TRUE sampled plant (empty: none).
+    runs : tuple of TrueRun
+        Its four runs on the true plant, in :func:`true_runs` order.
+    """
+
+    pole: float
+    violations: tuple[str, ...]
+    runs: tuple[TrueRun, ...]
+
+    @property
+    def ok(self) -> bool:
+        """Keeps the floors on the true plant and its four runs are :attr:`TrueRun.ok`."""
+        return not self.violations and all(r.ok for r in self.runs)
+
+    def ratio_to(self, pid: TruePid) -> float:
+        """Worst e_rms of this PID over the true-plant PID's, run by run (NaN without the latter;
+        inf when this one diverged)."""
+        if not self.runs or not pid.runs:
+            return math.nan
+        return max((math.inf if a.diverged else a.e_rms / p.e_rms) for a, p in zip(self.runs, pid.runs))
+
+    def describe(self, pid: TruePid) -> str:
+        """One line: ``"tool PID 68 rad/s on the true plant: unstable (...); runs 1.9 x the true-plant PID's"``."""
+        if self.violations:
+            how = "misses the floors (" + self.violations[0] + ")"
+        elif any(r.diverged for r in self.runs):
+            how = "keeps the floors, diverges"
+        elif not all(r.ok for r in self.runs):
+            how = f"keeps the floors, c_u {max(r.c_u for r in self.runs):.2f} or a fault"
+        else:
+            how = "keeps the floors"
+        return f"tool PID {self.pole:.0f} rad/s on the true plant: {how}; e_rms x{self.ratio_to(pid):.2f} of the true-plant PID's"
+
+
+def tool_yardstick(truth: AxisTruth, pid: PidGains, pole: float, spec: Spec, *, trajectories=None,
+                   noise_seed: int = 0, floors: MarginFloors | None = None) -> ToolYardstick:
+    """The tool's PID yardstick ``pid`` (pole ``pole`` rad/s) judged on the true plant: floors and runs."""
+    floors = MarginFloors() if floors is None else floors
+    plant = sampled_plant(truth.plant(), truth.period)
+    v = floor_violations(loop_margins(linearize_pid(pid_pack(pid)), plant), floors)
+    runs = true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajectories, noise_seed=noise_seed)
+    return ToolYardstick(float(pole), tuple(v), runs)
+
+
+@dataclass(frozen=True)
 class Judgement:
     """What the tool did on one axis, judged on the true plant.
 
@@ -150,6 +210,9 @@ class Judgement:
         The emitted (or forced-through) ARC's four runs on the true plant.
     pid : TruePid
         The yardstick.
+    tool_pid : ToolYardstick or None
+        The PID the tool held the ARC to, on the true plant (a diagnosis; None when not asked or
+        refused before tuning).
     """
 
     emitted: bool
@@ -157,6 +220,7 @@ class Judgement:
     candidate: bool
     arc_runs: tuple[TrueRun, ...] = ()
     pid: TruePid = field(default_factory=lambda: TruePid(None, math.nan))
+    tool_pid: ToolYardstick | None = None
 
     @property
     def arc_works(self) -> bool:
@@ -312,7 +376,8 @@ def true_pid(truth: AxisTruth, spec: Spec, *, floors: MarginFloors | None = None
 
 
 def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, verdict: str,
-                noise_seed: int = 0, feedforward: Feedforward | None = None) -> Judgement:
+                noise_seed: int = 0, feedforward: Feedforward | None = None,
+                tool_pid: tuple[PidGains, float] | None = None) -> Judgement:
     """Judge ARC gains (emitted or forced through) on the true axis against :func:`true_pid`.
 
     Parameters
@@ -329,6 +394,8 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
     noise_seed : int
     feedforward : Feedforward, optional
         The yardstick's (default: the truth's).
+    tool_pid : (PidGains, float), optional
+        The tool's PID yardstick and its pole, rad/s: judged too (:attr:`Judgement.tool_pid`).
 
     Returns
     -------
@@ -339,7 +406,9 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
     trajs = _trajectories(spec, truth.period)
     runs = true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed)
     pid = true_pid(truth, spec, trajectories=trajs, noise_seed=noise_seed, feedforward=feedforward)
-    return Judgement(emitted=emitted, verdict=verdict, candidate=True, arc_runs=runs, pid=pid)
+    tool = (None if tool_pid is None else
+            tool_yardstick(truth, tool_pid[0], tool_pid[1], spec, trajectories=trajs, noise_seed=noise_seed))
+    return Judgement(emitted=emitted, verdict=verdict, candidate=True, arc_runs=runs, pid=pid, tool_pid=tool)
 
 
 def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: str | os.PathLike[str] | None = None,
@@ -390,14 +459,16 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
         vo = ro.validation
         spec = vo.tuning.spec
         ff = Feedforward.identified(vo.tuning.identification)
+        tool = (vo.tuning.pid, vo.tuning.pid_pole)
         if vo.controller is not None:
             gains = load_controller(vo.controller).config.gains
-            return judge_gains(truth, gains, spec, emitted=True, verdict="emitted", noise_seed=seed, feedforward=ff)
+            return judge_gains(truth, gains, spec, emitted=True, verdict="emitted", noise_seed=seed, feedforward=ff,
+                               tool_pid=tool)
         fails = vo.result.verdict.failures
         first = f"{fails[0].scenario} {fails[0].criterion}" if fails else "gate"
         return judge_gains(truth, vo.result.arc_gains, spec, emitted=False, verdict=f"refused: {first}",
-                           noise_seed=seed, feedforward=ff)
+                           noise_seed=seed, feedforward=ff, tool_pid=tool)
 
 
-__all__ = ["TrueRun", "TruePid", "Judgement", "Feedforward", "true_runs", "true_pid", "true_pid_gains", "judge_gains",
+__all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid", "true_pid_gains", "judge_gains",
            "judge_axis", "EXTRA_DELAYS"]

@@ -122,3 +122,28 @@ def test_a_run_whose_command_stops_for_good_is_a_fault_not_a_success():
     assert not stopped.ok
     j = Judgement(True, "emitted", True, (stopped,) + _runs(1e-6)[1:], PID)
     assert j.false_certification
+
+
+def test_the_tool_yardstick_is_judged_on_the_true_plant_as_the_true_pid_is():
+    # Known answers: the true-plant PID of the rigid plant, given as the tool's yardstick on that same
+    # plant, is the true-plant PID itself (ratio 1, every floor kept); on the plant with the 400 Hz
+    # mode that no rigid model shows, the same PID is unstable -- the case of a yardstick the
+    # identified model flattered, which the sweep's diagnosis names.
+    from commission.true_axis import tool_yardstick
+
+    g = paper_gains_implementable(SPEC.period)
+    rigid = judge_gains(RIGID, g, SPEC, emitted=True, verdict="emitted")
+    assert rigid.tool_pid is None  # not asked for
+    tool = (rigid.pid.gains, rigid.pid.pole)
+    same = judge_gains(RIGID, g, SPEC, emitted=True, verdict="emitted", tool_pid=tool)
+    assert same.tool_pid.ok and same.tool_pid.violations == ()
+    assert same.tool_pid.runs == rigid.pid.runs and same.tool_pid.ratio_to(rigid.pid) == 1.0
+    mode = judge_gains(MODE, g, SPEC, emitted=True, verdict="emitted", tool_pid=tool)
+    assert not mode.tool_pid.ok
+    assert mode.tool_pid.violations[0].startswith("unstable (spectral radius 1.")
+    assert mode.tool_pid.ratio_to(mode.pid) > 2.0
+    assert "misses the floors (unstable" in mode.tool_pid.describe(mode.pid)
+    # the counts do not read the diagnosis
+    assert (mode.works, mode.false_certification) == (dataclasses.replace(mode, tool_pid=None).works,
+                                                      dataclasses.replace(mode, tool_pid=None).false_certification)
+    assert tool_yardstick(MODE, *tool, SPEC).violations == mode.tool_pid.violations
