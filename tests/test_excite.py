@@ -260,8 +260,11 @@ def test_known_truth_loop_identify_recovers_axis(tmp_path, name):
           f"; modes {[(round(f, 1), round(z, 4)) for f, z in res]} (truth {[(round(f, 1), round(z, 4)) for f, z in true]});"
           f" delay {fr['delay_samples']:.3f} samples (truth {truth.delay * truth.sample_rate:g}); band {band} Hz;"
           f" noise {enc['noise_std']:.3g} m (truth {truth.noise_std:g})")
-    for k in ("M", "B", "fc"):
-        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=0.01), k
+    # M within 1.5 %: the injection's cruise now runs above the mass regression's reversal speed, so its
+    # rows enter that regression, and axis C's 130 Hz motor-side mode, just above the regression's 100 Hz
+    # cutoff, moves its M by 1.0 % (0.3 % on the slow cruise excite planned before); B and fc within 1 %.
+    for k, tol in (("M", 0.015), ("B", 0.01), ("fc", 0.01)):
+        assert p[k]["value"] == pytest.approx(getattr(truth, k), rel=tol), k
     assert len(res) == len(true), (res, true)
     for (f, z), (ft, zt) in zip(res, true):
         assert f == pytest.approx(ft, rel=0.05) and z == pytest.approx(zt, rel=0.30), (res, true)
@@ -510,10 +513,17 @@ def test_predicted_band_agrees_with_identify_on_known_truth(tmp_path, name, mode
         truth = dataclasses.replace(truth, M=pred["mass"], B=spec_d["axis"].get("viscous", 0.0), mode_hz=0.0,
                                     mode2_hz=0.0, delay=0.0)
     write_log_h5(plan_dir / "log.h5", simulate_plan(plan, truth, np.random.default_rng(1)), u_unit=truth.u_unit)
-    band = identify_log(str(plan_dir / "log.h5"), u_unit=truth.u_unit).ident.to_dict()[
-        "frequency_response"]["evidence_band_hz"]
-    print(f"predicted band, {name} ({model}): {top:g} Hz; identify's {band} Hz: {100 * (top / band[1] - 1):+.1f} %")
-    assert top == pytest.approx(band[1], rel=0.20)
+    fr = identify_log(str(plan_dir / "log.h5"), u_unit=truth.u_unit).ident.to_dict()["frequency_response"]
+    band, rigid = fr["evidence_band_hz"], fr["band_hz"]
+    print(f"predicted band, {name} ({model}): {top:g} Hz; identify's {band} Hz: {100 * (top / band[1] - 1):+.1f} %; "
+          f"its rigid band {rigid} Hz: {100 * (top / rigid[1] - 1):+.1f} %")
+    if model == "rigid":
+        assert top == pytest.approx(band[1], rel=0.20)
+    else:
+        # The prediction is the rigid body's band: the band where the data back the rigid model.  The
+        # axis's motor-side mode raises the motor's response above the rigid body's, so identify's fitted
+        # model is backed further (the coarse axis: to its 300 Hz resonance): the prediction is a floor.
+        assert top == pytest.approx(rigid[1], rel=0.20) and top <= band[1]
     if name == "coarse":
         # short of 1.5 x 300 Hz: warned, naming the frequency reached and the remedies with figures
         assert pred["short"] and pred["target_hz"] == pytest.approx(450.0)

@@ -563,7 +563,12 @@ def test_an_excite_planned_random_axis_log_stays_within_rail_and_travel(tmp_path
 def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_log(tmp_path, seed):
     """`identify` on the excite-planned log measures a frequency response on its injection: backed well
     above the legacy run's rigid band (its multisine tops at 20 Hz and its ident.json says 14-22 Hz),
-    with the true axis's mode within 5 % and its delay within 0.2 sample."""
+    coherent up to the mode (the injection's cruise keeps friction one-signed, so the response is
+    linear), with its delay within 0.2 sample and the true axis's mode within 5 % -- or, where
+    the mode sits in the last 2 % below Nyquist (seed 27: 492.7 Hz at 1 kHz), no resonance
+    claimed: the best fit lies on the edge of what the bins can show and is reported as rigid.
+    (On the slow cruise excite planned before, friction crossing zero damped seed 27's peak down
+    to a 484 Hz, zeta 0.062 "resonance" and held the coherence near the mode at 0.65.)"""
     from commission.identification import identify_log
     from commission.synth import record_random_axis_log
 
@@ -572,8 +577,14 @@ def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_l
     fr = identify_log(str(tmp_path / "log.h5"), u_unit=t.u_unit).ident.to_dict()["frequency_response"]
     assert fr["source"] == "broadband"
     assert fr["band_hz"][1] >= 5 * max(ExcitationPlan().ms_freqs)
+    f = np.asarray(fr["measured"]["frequency_hz"])
+    coh = np.asarray(fr["measured"]["coherence"])
+    assert np.min(coh[(f >= 20.0) & (f <= 1.05 * t.mode_hz)]) > 0.9  # up to the mode (the encoder's floor ends it higher)
     res = [m["frequency_hz"] for m in fr["modes"] if m["kind"] == "resonance"]
-    assert any(abs(f / t.mode_hz - 1) < 0.05 for f in res), (res, t.mode_hz)
+    if t.mode_hz > 0.98 * t.sample_rate / 2:
+        assert res == [] and "on the edge of what the data can show" in fr["note"], (res, fr["note"])
+    else:
+        assert any(abs(f / t.mode_hz - 1) < 0.05 for f in res), (res, t.mode_hz)
     assert fr["delay_samples"] == pytest.approx(t.delay * t.sample_rate, abs=0.2)
 
 

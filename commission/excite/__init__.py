@@ -11,10 +11,13 @@ sequence of segments, each made for one purpose:
 * ``moves``: back-and-forth S-curve moves (:func:`commission.controllers.trajectory.scurve_schedule`)
   at the largest acceleration the command budget allows, for M;
 * ``injection``: a broadband command added to the holding loop's while the axis
-  cruises slowly (friction keeps one sign): a Schroeder-phase multisine whose line
-  amplitudes rise as ``f**shaping`` over ``band_hz``, or a PRBS of one bit per sample,
-  for the frequency response, the modes and the delay;
-* ``sine``: optionally, a stepped sine at chosen frequencies, on slow cruises too.
+  cruises (friction keeps one sign and acts as a constant force): a Schroeder-phase
+  multisine whose line amplitudes rise as ``f**shaping`` over ``band_hz``, or a PRBS of
+  one bit per sample, for the frequency response, the modes and the delay.  The cruise
+  is raised where the pre-simulation shows the injection's own velocity swing reaching
+  it (the velocity would cross zero, and Coulomb friction would damp the modes it is
+  there to measure), unless ``plan.injection_speed`` sets it;
+* ``sine``: optionally, a stepped sine at chosen frequencies, on the same cruises.
 
 Every move is an S-curve of the project's trajectory generator; the position stays
 within ``+-(1 - margin) travel / 2`` of the start.

@@ -23,6 +23,16 @@ from commission.formats.table import Key, first_error
 
 #: Pre-simulation: how often the injection is lowered before a plan is refused.
 MAX_INJECTION_RETRIES = 4
+#: Largest swing of the velocity about the injection's cruise on the pre-simulation's *light* model,
+#: as a fraction of the cruise speed (:func:`commission.excite.presim.plan_run`).  The injection rides
+#: on a cruise so that friction keeps one sign and acts as a constant force; where the injection's own
+#: velocity swing reaches the cruise speed the velocity crosses zero and Coulomb friction acts on the
+#: modes as a nonlinear damper (the identified damping reads high, the frequency low).  The holding
+#: loop's gains scale with the model's mass, so the swing scales as 1/M: on the light model
+#: (``mass / plan.mass_range``) it is ``mass_range`` times the stated mass's, and a swing kept within
+#: the cruise there stays within half of it (the default range 2) on an axis of the stated mass --
+#: room for a motor-side mode's resonance, which the rigid models do not hold.
+INJECTION_SWING_FRACTION = 1.0
 #: Largest accepted 2 pi bandwidth_hz / sample_rate (Åström & Wittenmark's omega h <= 0.5, as spec.py).
 MAX_OMEGA_T = 0.5
 #: Damping ratio assumed for a loop given by its bandwidth.

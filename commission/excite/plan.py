@@ -232,8 +232,26 @@ def _cruise_end(pos: float, cruise: float, v_inj: float, t_ramp: float) -> float
     return pos + (-1 if pos > 0 else 1) * (cruise * v_inj + v_inj * t_ramp)
 
 
-def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float) -> _Moves:
-    """The bump, approach, friction ladder, moves, injection and stepped-sine legs and the return, in order."""
+def injection_speed_bounds(spec: ExciteSpec, motion_scale: float = 1.0) -> tuple[float, float]:
+    """The injection's default cruise speed and the fastest it may be raised to, q/s.
+
+    The default is a quarter of the way (in log) from the ladder's slowest speed to its fastest
+    (:func:`ladder_speeds`), just past stiction; the fastest is the ladder's top speed, whose legs
+    the plan already drives.
+    """
+    speeds, _ = ladder_speeds(spec, motion_scale)
+    return float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25), float(speeds[-1])
+
+
+def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float,
+                injection_speed: float | None = None) -> _Moves:
+    """The bump, approach, friction ladder, moves, injection and stepped-sine legs and the return, in order.
+
+    ``injection_speed`` (q/s): the cruise of the injection and stepped-sine legs; default
+    ``plan.injection_speed``, else the first of :func:`injection_speed_bounds`
+    (:func:`commission.excite.presim.plan_run` raises the latter where the injection's velocity
+    swing would reach the cruise).
+    """
     p = spec.plan
     fs = spec.sample_rate
     s = _half_span(spec)
@@ -275,9 +293,12 @@ def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float) -
     seg_moves.append(("moves", "acceleration-rich back-and-forth S-curves (M and B)",
                       {"speed": v_acc, "acceleration": a_acc, "count": int(p["moves"])}, int(p["moves"])))
     pos = s if int(p["moves"]) % 2 == 1 else -s
-    # Slow cruises for the injection, just past stiction: a quarter of the way (in log) from the ladder's
-    # slowest speed to its fastest, whatever the number of speeds; both directions.
-    v_inj = float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25)
+    # Cruises for the injection, just past stiction by default (injection_speed_bounds), faster when the
+    # injection's velocity swing needs it (plan_run); both directions.
+    if injection_speed is None:
+        injection_speed = p.get("injection_speed")  # plan.injection_speed, when the user set it
+    v_inj = (float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25) if injection_speed is None
+             else float(injection_speed))
     t_ramp = _ramp_time(v_inj, a_mv, a_mv / jt)
     inj_legs = []
     remaining = p["injection_s"]
@@ -294,7 +315,7 @@ def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float) -
         if len(inj_legs) > 200:
             break
     moves += inj_legs
-    seg_moves.append(("injection", "broadband injection on slow cruises (frequency response, modes, delay)",
+    seg_moves.append(("injection", "broadband injection on cruises (frequency response, modes, delay)",
                       {"speed": v_inj, "kind": p["injection"], "band_hz": list(p["band_hz"])
                        if p["injection"] == "multisine" else [0.0, fs / 2.0],
                        "shaping": p["shaping"] if p["injection"] == "multisine" else 0.0}, len(inj_legs)))
@@ -307,7 +328,7 @@ def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float) -
         target = _cruise_end(pos, cruise, v_inj, t_ramp)
         moves.append(mv(target, v_inj, a_mv, dwell))
         sine_legs.append((f, cruise))
-        seg_moves.append((f"sine {f:g} Hz", "stepped sine on a slow cruise (frequency response at one frequency)",
+        seg_moves.append((f"sine {f:g} Hz", "stepped sine on a cruise (frequency response at one frequency)",
                           {"frequency_hz": f, "speed": v_inj}, 1))
         pos = target
     moves.append(mv(0.0, 0.5 * speeds[-1], a_mv, dwell))
@@ -328,7 +349,8 @@ def _move_ends(moves: list[Move]) -> list[tuple[float, float, float]]:
     return ends
 
 
-def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale: float = 1.0) -> Plan:
+def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale: float = 1.0,
+                injection_speed: float | None = None) -> Plan:
     """The plan's segments and samples (no pre-simulation: :func:`plan_run` does both).
 
     Parameters
@@ -338,10 +360,13 @@ def design_plan(spec: ExciteSpec, *, injection_scale: float = 1.0, motion_scale:
         Fraction of the designed injection (and bump) amplitude (the pre-simulation lowers it).
     motion_scale : float
         Fraction of the designed top speed and acceleration of the moves (the pre-simulation lowers it).
+    injection_speed : float, optional
+        Cruise of the injection and stepped-sine legs, q/s (default: :func:`injection_speed_bounds`'s
+        first; the pre-simulation raises it).
     """
     p = spec.plan
     fs = spec.sample_rate
-    legs = _plan_moves(spec, injection_scale, motion_scale)
+    legs = _plan_moves(spec, injection_scale, motion_scale, injection_speed)
     moves, seg_moves, sine_legs, u_bump, t_ramp = (legs.moves, legs.seg_moves, legs.sine_legs, legs.u_bump,
                                                    legs.t_ramp)
     a_mv, light, heavy = legs.a_mv, legs.light, legs.heavy

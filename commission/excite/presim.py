@@ -9,8 +9,8 @@ import numpy as np
 
 from commission.errors import SpecError
 from commission.excite.band import predict_band
-from commission.excite.limits import ExciteSpec, MAX_INJECTION_RETRIES, PRESIM_SUBSTEPS
-from commission.excite.plan import Plan, design_plan, loop_gains_for, mass_bracket
+from commission.excite.limits import ExciteSpec, INJECTION_SWING_FRACTION, MAX_INJECTION_RETRIES, PRESIM_SUBSTEPS
+from commission.excite.plan import Plan, design_plan, injection_speed_bounds, loop_gains_for, mass_bracket
 
 
 def _model_truth(spec: ExciteSpec, M: float, *, lsb: float = 1e-12, u_max: float | None = None):
@@ -69,6 +69,10 @@ def _peaks(log: Mapping[str, np.ndarray], T: float) -> dict[str, np.ndarray]:
     return {"u": np.abs(log["u"]), "q": q, "v": np.abs(v), "a": np.abs(a)}
 
 
+#: Raises of the injection's cruise speed (:func:`plan_run`) at most.
+MAX_SPEED_RAISES = 3
+
+
 class PlanRefused(SpecError):
     """The limits cannot be met by any plan, or the pre-simulation breaks one."""
 
@@ -78,8 +82,33 @@ def presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], s
     return _presimulate(plan)[:3]
 
 
-def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], str | None, float]:
-    """:func:`presimulate`, and the broken limit over its peak (1 when none is broken)."""
+def _injection_windows(plan: Plan) -> np.ndarray:
+    """Samples of the injection and stepped-sine cruises (boolean mask over ``plan.t``)."""
+    m = np.zeros(plan.t.size, bool)
+    for g in plan.segments:
+        if g.name == "injection" or g.name.startswith("sine "):
+            for a, b in g.info.get("windows_s", ()):
+                m |= (plan.t >= a) & (plan.t < b)
+    return m
+
+
+def injection_swing(plan: Plan, log: Mapping[str, np.ndarray]) -> float:
+    """Largest ``|v - v_ref|`` over the injection's cruises of a played ``plan``, q/s (0 without any).
+
+    ``v`` is the backward difference of the log's position (the pre-simulation has no encoder
+    step), ``v_ref`` the plan's cruise: the velocity the injection adds to the cruise.
+    """
+    m = _injection_windows(plan)
+    m[0] = False
+    if not m.any():
+        return 0.0
+    v = np.diff(log["q"]) * plan.spec.sample_rate
+    return float(np.max(np.abs(v[m[1:]] - plan.v_ref[1:][m[1:]])))
+
+
+def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], str | None, float, float]:
+    """:func:`presimulate`, the broken limit over its peak (1 when none is broken), and the
+    injection's largest velocity swing over the models (:func:`injection_swing`, q/s)."""
     s = plan.spec
     T = 1.0 / s.sample_rate
     half = s.travel / 2.0
@@ -87,10 +116,12 @@ def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], 
     models = []
     violation = None
     ratio = 1.0
+    swing = 0.0
     for label, M in zip(("light", "heavy"), mass_bracket(s)):
         gains = loop_gains_for(s, M)
         truth = _model_truth(s, M)
         log = play(plan, truth, gains)
+        swing = max(swing, injection_swing(plan, log))
         pk = _peaks(log, T)
         # The pre-simulation clips the command at 1e6 u_max only: a command past 1e5 u_max is a loop
         # that diverges, not a plan that asks too much.
@@ -130,11 +161,25 @@ def _presimulate(plan: Plan) -> tuple[dict[str, float], list[dict[str, float]], 
                              f"(sample {k}): {what} = {float(np.max(x)):.4g} {unit} > {lim_s}, on the {label} "
                              f"model (M = {M:.4g} {s.u_unit} s^2/{s.q_unit})")
                 break
-    return peaks, models, violation, ratio
+    return peaks, models, violation, ratio, swing
 
 
 def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
     """Design the plan and pre-simulate it, lowering the injection (or the moves) while it breaks a limit.
+
+    The injection rides on a cruise so that friction keeps one sign.  Where the pre-simulation's
+    velocity swing about the cruise (:func:`injection_swing`, the larger over the two models: the
+    light one's) exceeds ``INJECTION_SWING_FRACTION`` of the cruise speed, the velocity would come near zero
+    and Coulomb friction would damp the modes the injection is there to measure; the cruise is
+    then raised to ``swing / INJECTION_SWING_FRACTION`` (at least 10 % up) and the plan
+    pre-simulated again, up to ``MAX_SPEED_RAISES`` times.  The cruise stays below the ladder's top
+    speed (:func:`commission.excite.plan.injection_speed_bounds`) by the room the swing needs
+    above it: ``top / (1 + INJECTION_SWING_FRACTION)``; a soft holding loop that swings more than
+    that keeps the injection (the limits alone lower it, as for any plan): the signal is worth more
+    than the last of the linearity.  On a linear loop with one-signed friction the
+    swing hardly depends on the cruise (only the legs' layout moves it, where the injection starts
+    and stops), so one raise mostly suffices.  A raise is not one of the ``MAX_INJECTION_RETRIES``.  A cruise the
+    user set (``plan.injection_speed``) is kept.
 
     Raises
     ------
@@ -142,16 +187,34 @@ def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
         No plan keeps within the limits (named, with the segment).
     """
     scale = motion = 1.0
-    for attempt in range(MAX_INJECTION_RETRIES + 1):
+    speed: float | None = None  # the injection's cruise, once raised
+    raised = 0
+    attempt = -1
+    while attempt < MAX_INJECTION_RETRIES + raised:  # the raises of the cruise are not retries
+        attempt += 1
         try:
-            plan = design_plan(spec, injection_scale=scale, motion_scale=motion)
+            plan = design_plan(spec, injection_scale=scale, motion_scale=motion, injection_speed=speed)
         except SpecError:
             if attempt == 0:
                 raise
+            if speed is not None:  # the raised cruise does not fit the travel: back to the default one
+                speed = None
+                continue
             break  # slower moves no longer fit the travel: refuse with the violation that asked for them
         if progress is not None:
             progress(f"pre-simulating {plan.duration:.1f} s of plan (attempt {attempt + 1}) ...")
-        peaks, models, violation, ratio = _presimulate(plan)
+        peaks, models, violation, ratio, swing = _presimulate(plan)
+        if violation is None and raised < MAX_SPEED_RAISES and spec.plan.get("injection_speed") is None:
+            default, top = injection_speed_bounds(spec, motion)
+            cruise = default if speed is None else speed
+            if swing > INJECTION_SWING_FRACTION * cruise:
+                # The fastest cruise that leaves the swing room below the ladder's top speed.
+                cap = max(top / (1.0 + INJECTION_SWING_FRACTION), default)
+                if cruise < cap:
+                    # at least 10 % up each time: the legs' layout moves the swing a little with the cruise
+                    speed = min(max(swing / INJECTION_SWING_FRACTION, 1.1 * cruise), cap)
+                    raised += 1
+                    continue
         if violation is None:
             done = Plan(t=plan.t, q_ref=plan.q_ref, v_ref=plan.v_ref, a_ref=plan.a_ref, u_inject=plan.u_inject,
                         segments=plan.segments, spec=spec, models=tuple(models), peaks=peaks, injection_scale=scale,

@@ -76,7 +76,10 @@ plan.jerk_time          | number  | 0.02     | (0, inf)    | s           | -
 plan.injection          | string  | 'prbs'   | -           | -           | -
     prbs: one maximal-length-sequence bit per sample, flat to Nyquist; multisine: Schroeder phases
 plan.injection_s        | number  | 8.0      | (0, inf)    | s           | -
-    total cruise time carrying the injection (slow legs both ways)
+    total cruise time carrying the injection (legs both ways)
+plan.injection_speed    | number  | -        | (0, inf)    | {q}/s       | raised until friction keeps one sign
+    cruise of the injection and stepped-sine legs; by default a quarter of the way (in log) up the ladder, raised
+    where the injection's velocity swing on the light model would reach it (up to the ladder's top speed)
 plan.injection_fraction | number  | 0.5      | (0, 1)      | -           | -
     injection peak as a fraction of the light model's mass x a_max (and of the command left after friction and the
     moves)
@@ -85,7 +88,7 @@ plan.band_hz            | list    | -        | (0, inf)    | Hz          | [min(
 plan.shaping            | number  | 1.0      | (-inf, inf) | -           | -
     multisine line amplitude ~ f^shaping
 plan.stepped_sine_hz    | list    | ()       | (0, inf)    | Hz          | -
-    frequencies of an optional stepped sine, each on its own slow cruise, below Nyquist
+    frequencies of an optional stepped sine, each on its own cruise, below Nyquist
 plan.sine_cycles        | number  | 20.0     | (0, inf)    | -           | -
     cycles per stepped-sine frequency (at least 0.1 s)
 plan.margin             | number  | 0.1      | (0, 1)      | -           | -
