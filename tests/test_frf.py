@@ -295,34 +295,24 @@ def test_a_run_with_one_agreeing_bin_is_not_the_backed_band():
     assert band("-+--+--+") == (10.0, 10.0)  # every run holds one agreeing bin: the lowest
 
 
-def test_a_low_frequency_departure_does_not_empty_the_band_the_log_backs(tmp_path, monkeypatch):
+def test_a_low_frequency_departure_does_not_empty_the_band_the_log_backs(tmp_path):
     """Random axis 411 recorded the recommended way (its `excite` plan on the simulated axis: modes at 1070
     and 1542 Hz, friction 3.3-4.4 N).
 
-    On the slow cruise excite first planned (a quarter of the way up the ladder, stated here as
-    ``plan.injection_speed``) friction crossed zero under the injection and answered it below 80 Hz:
+    On the slow cruise excite first planned (a quarter of the way up the ladder, :mod:`slow_cruise`)
+    friction crossed zero under the injection and answered it below 80 Hz:
     a departure at 25-80 Hz that once left one agreeing bin as the whole evidence band (70-70 Hz);
     the band the log backs reaches past both true modes.  On the cruise excite plans now (raised
     until the injection's velocity swing stays within it) friction keeps one sign: no departure
     there, and the same band.
     """
-    import commission.synth.record as record
-    from commission.excite import excite_spec_from_mapping
-    from commission.excite.plan import injection_speed_bounds
     from commission.synth import random_axis
+    from commission.synth.record import record_random_axis_log
+    from slow_cruise import record_on_the_slow_cruise
 
     truth = random_axis(np.random.default_rng(411))
-    limits_of = record.random_axis_limits
-
-    def slow_cruise(t, rng):
-        lim = limits_of(t, rng)
-        default, _ = injection_speed_bounds(excite_spec_from_mapping(lim, "limits.toml"))
-        return {**lim, "plan": {**lim.get("plan", {}), "injection_speed": default}}
-
-    with monkeypatch.context() as m:
-        m.setattr(record, "random_axis_limits", slow_cruise)
-        record.record_random_axis_log(411, tmp_path / "slow.h5")
-    record.record_random_axis_log(411, tmp_path / "log.h5")
+    record_on_the_slow_cruise(411, tmp_path / "slow.h5")
+    record_random_axis_log(411, tmp_path / "log.h5")
     slow = identify_log(str(tmp_path / "slow.h5")).ident.to_dict()["frequency_response"]
     now = identify_log(str(tmp_path / "log.h5")).ident.to_dict()["frequency_response"]
     for fr in (slow, now):

@@ -162,11 +162,13 @@ def test_a_delay_aware_model_that_needs_a_negative_viscous_coefficient_is_not_ca
     The delay-aware model chosen on its log (a Stribeck and a drag term) explains it with B = -1.56 u-unit s/m;
     identify used to refuse the log ("no usable theta box"), then clipped that B to the box's lower end (0),
     whose box left out the true B = 2.97.  Viscous friction cannot be negative: that model is not carried on,
-    the least squares (fitted under B >= 0) stand, and their box holds the truth."""
+    the least squares (fitted under B >= 0) stand, and their box holds the truth.  The log is the one
+    recorded on excite's former slow injection cruise (:mod:`slow_cruise`): on today's plan friction keeps
+    one sign under the injection and no such model is chosen."""
     from commission.identification import identify_log
-    from commission.synth import record_random_axis_log
+    from slow_cruise import record_on_the_slow_cruise
 
-    rec = record_random_axis_log(6, tmp_path / "log.h5")
+    rec = record_on_the_slow_cruise(6, tmp_path / "log.h5")
     ident = identify_log(str(tmp_path / "log.h5")).ident
     assert "viscous_clipped" not in ident.extra["bounds"]
     assert any("delay-aware model" in w and "not carried on" in w and "negative" in w

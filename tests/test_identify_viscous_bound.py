@@ -78,12 +78,15 @@ def test_the_whole_log_regression_and_the_delay_aware_choice_keep_b_physical(tmp
     negative B there, and the delay-aware model chosen after it (a Stribeck term) B = -36 u-unit s/m:
     identify refused the log.  Both are held to B >= 0 now: the regression is solved with B at 0, and a
     delay-aware model that needs B < 0 is not carried on.  M is within 50 % (the friction the model
-    lacks over the dip biases it: 0.61 against 0.47).
+    lacks over the dip biases it: 0.61 against 0.47).  The log is the one recorded on excite's former slow
+    injection cruise (:mod:`slow_cruise`), whose friction crossed zero under the injection.
     """
+    from slow_cruise import record_on_the_slow_cruise
+
     truth = random_axis(np.random.default_rng(504))
     assert truth.vs > 0.021  # the whole speed range lies in the dip
     log = tmp_path / "log.h5"
-    record_random_axis_log(504, log)
+    record_on_the_slow_cruise(504, log)
     out = identify_files([str(log)])
     p = out.fit.parameters
     assert p["B"][0] == 0.0 and out.ident.theta.nominal[1] == 0.0
