@@ -20,22 +20,9 @@ import pytest
 from commission.excite import excite_spec_from_mapping, loop_gains_for, mass_bracket, plan_run, play
 from commission.excite.plan import design_plan, injection_speed_bounds
 from commission.excite.presim import _model_truth, injection_swing
+from test_excite import SMALL
 
-LIMITS = """\
-[limits]
-travel = 0.2
-v_max = 0.4
-a_max = 20.0
-u_max = 10.0
-[drive]
-sample_rate = 1000.0
-bandwidth_hz = 30.0
-[axis]
-mass = 0.03
-friction = 0.1
-[plan]
-n_speeds = 4
-"""
+LIMITS = SMALL  # test_excite.py's axis: 1 kHz, 0.03 V s^2/m, 0.1 V of friction, a 30 Hz holding loop
 
 
 def _light_swing(plan, spec) -> float:
