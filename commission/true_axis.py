@@ -181,7 +181,9 @@ class ToolYardstick:
             how = f"keeps the floors, c_u {max(r.c_u for r in self.runs):.2f} or a fault"
         else:
             how = "keeps the floors"
-        return f"tool PID {self.pole:.0f} rad/s on the true plant: {how}; e_rms x{self.ratio_to(pid):.2f} of the true-plant PID's"
+        than = (f"e_rms x{self.ratio_to(pid):.2f} of the true-plant PID's" if pid.runs else
+                "no true-plant PID keeps the floors to compare with")
+        return f"tool PID {self.pole:.0f} rad/s on the true plant: {how}; {than}"
 
 
 def tool_yardstick(truth: AxisTruth, pid: PidGains, pole: float, spec: Spec, *, trajectories=None,
