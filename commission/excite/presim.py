@@ -197,8 +197,8 @@ def plan_run(spec: ExciteSpec, progress: Any = None) -> Plan:
         except SpecError:
             if attempt == 0:
                 raise
-            if speed is not None:  # the raised cruise does not fit the travel: back to the default one
-                speed = None
+            if speed is not None:  # the raised cruise does not fit the travel: back to the default one, for good
+                speed, raised = None, MAX_SPEED_RAISES
                 continue
             break  # slower moves no longer fit the travel: refuse with the violation that asked for them
         if progress is not None:
