@@ -240,7 +240,12 @@ def injection_speed_bounds(spec: ExciteSpec, motion_scale: float = 1.0) -> tuple
     the plan already drives.
     """
     speeds, _ = ladder_speeds(spec, motion_scale)
-    return float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25), float(speeds[-1])
+    return _default_cruise(speeds), float(speeds[-1])
+
+
+def _default_cruise(speeds: np.ndarray) -> float:
+    """A quarter of the way (in log) from the ladder's slowest speed to its fastest, q/s."""
+    return float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25)
 
 
 def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float,
@@ -297,8 +302,7 @@ def _plan_moves(spec: ExciteSpec, injection_scale: float, motion_scale: float,
     # injection's velocity swing needs it (plan_run); both directions.
     if injection_speed is None:
         injection_speed = p.get("injection_speed")  # plan.injection_speed, when the user set it
-    v_inj = (float(speeds[0] * (speeds[-1] / speeds[0]) ** 0.25) if injection_speed is None
-             else float(injection_speed))
+    v_inj = _default_cruise(speeds) if injection_speed is None else float(injection_speed)
     t_ramp = _ramp_time(v_inj, a_mv, a_mv / jt)
     inj_legs = []
     remaining = p["injection_s"]
