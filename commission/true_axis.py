@@ -141,6 +141,13 @@ class TruePid:
     runs: tuple[TrueRun, ...] = ()
 
 
+def _worst_ratio(runs: tuple[TrueRun, ...], ref: tuple[TrueRun, ...]) -> float:
+    """Worst e_rms of ``runs`` over ``ref``'s, run by run: NaN without both, inf where one of ``runs`` diverged."""
+    if not runs or not ref:
+        return math.nan
+    return max((math.inf if a.diverged else a.e_rms / p.e_rms) for a, p in zip(runs, ref))
+
+
 @dataclass(frozen=True)
 class ToolYardstick:
     """The tool's own PID yardstick (tuning.json's ``pid``) on the true plant (module docstring).
@@ -167,12 +174,11 @@ class ToolYardstick:
     def ratio_to(self, pid: TruePid) -> float:
         """Worst e_rms of this PID over the true-plant PID's, run by run (NaN without the latter;
         inf when this one diverged)."""
-        if not self.runs or not pid.runs:
-            return math.nan
-        return max((math.inf if a.diverged else a.e_rms / p.e_rms) for a, p in zip(self.runs, pid.runs))
+        return _worst_ratio(self.runs, pid.runs)
 
     def describe(self, pid: TruePid) -> str:
-        """One line: ``"tool PID 68 rad/s on the true plant: unstable (...); runs 1.9 x the true-plant PID's"``."""
+        """One line: ``"tool PID 68 rad/s on the true plant: misses the floors (unstable (...)); e_rms x1.90 of
+        the true-plant PID's"``."""
         if self.violations:
             how = "misses the floors (" + self.violations[0] + ")"
         elif any(r.diverged for r in self.runs):
@@ -251,9 +257,7 @@ class Judgement:
     @property
     def ratio(self) -> float:
         """Worst ARC/PID e_rms ratio over the four runs (NaN without both; inf when the ARC diverged)."""
-        if not self.arc_runs or not self.pid.runs:
-            return math.nan
-        return max((math.inf if a.diverged else a.e_rms / p.e_rms) for a, p in zip(self.arc_runs, self.pid.runs))
+        return _worst_ratio(self.arc_runs, self.pid.runs)
 
 
 def _trajectories(spec: Spec, Ts: float):
