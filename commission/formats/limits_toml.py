@@ -79,7 +79,7 @@ plan.injection_s        | number  | 8.0      | (0, inf)    | s           | -
     total cruise time carrying the injection (legs both ways)
 plan.injection_speed    | number  | -        | (0, inf)    | {q}/s       | raised until friction keeps one sign
     cruise of the injection and stepped-sine legs; by default a quarter of the way (in log) up the ladder, raised
-    where the injection's velocity swing on the light model would reach it (up to the ladder's top speed)
+    where the injection's velocity swing on the light model would reach it (up to half the ladder's top speed)
 plan.injection_fraction | number  | 0.5      | (0, 1)      | -           | -
     injection peak as a fraction of the light model's mass x a_max (and of the command left after friction and the
     moves)
