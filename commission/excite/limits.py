@@ -33,6 +33,8 @@ MAX_INJECTION_RETRIES = 4
 #: the cruise there stays within half of it (the default range 2) on an axis of the stated mass --
 #: room for a motor-side mode's resonance, which the rigid models do not hold.
 INJECTION_SWING_FRACTION = 1.0
+#: Raises of the injection's cruise speed at most (:func:`commission.excite.presim.plan_run`).
+MAX_SPEED_RAISES = 3
 #: Largest accepted 2 pi bandwidth_hz / sample_rate (Åström & Wittenmark's omega h <= 0.5, as spec.py).
 MAX_OMEGA_T = 0.5
 #: Damping ratio assumed for a loop given by its bandwidth.

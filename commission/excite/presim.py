@@ -9,7 +9,8 @@ import numpy as np
 
 from commission.errors import SpecError
 from commission.excite.band import predict_band
-from commission.excite.limits import ExciteSpec, INJECTION_SWING_FRACTION, MAX_INJECTION_RETRIES, PRESIM_SUBSTEPS
+from commission.excite.limits import (ExciteSpec, INJECTION_SWING_FRACTION, MAX_INJECTION_RETRIES, MAX_SPEED_RAISES,
+                                      PRESIM_SUBSTEPS)
 from commission.excite.plan import Plan, design_plan, injection_speed_bounds, loop_gains_for, mass_bracket
 
 
@@ -67,10 +68,6 @@ def _peaks(log: Mapping[str, np.ndarray], T: float) -> dict[str, np.ndarray]:
     a = np.zeros_like(q)
     a[2:] = np.diff(q, 2) / (T * T)
     return {"u": np.abs(log["u"]), "q": q, "v": np.abs(v), "a": np.abs(a)}
-
-
-#: Raises of the injection's cruise speed (:func:`plan_run`) at most.
-MAX_SPEED_RAISES = 3
 
 
 class PlanRefused(SpecError):
