@@ -188,21 +188,28 @@ def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data
 
     ident_doc = ident_out.ident.to_dict()
     ident = Identification.from_dict(json.loads(canonical_json(ident_doc)), source=str(out / IDENT_NAME))
-    rs = resolve_spec(spec_data, spec_src, ident)  # the log's rate, the drive's envelope and load
-    spec, notes = rs.spec, rs.notes
-    resolve_gate(gate, lsb=resolve_quantization(ident, spec), travel=spec.travel, u_max=spec.u_max,
-                 targets=spec.targets)
-    # The same inputs and call as ``commission tune`` on the ident.json written below.
-    inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=sha256_json(ident_doc),
-                         log_sha256=ident_out.log.sha256 if isinstance(log_path, str) else None, seed=seed)
-    try:
-        tuned = tune_from(inputs, progress=stage("tune"), workers=workers)
-    except DesignError as exc:
-        raise SpecError(f"{spec_src}: {exc}") from None
-    tuning_doc = tuned.to_dict()
-    tuning = Tuning.from_dict(json.loads(canonical_json(tuning_doc)), source=str(out / TUNING_NAME))
-    result = validate(tuning, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
-                      workers=workers, executor=executor)
+    ident_sha = sha256_json(ident_doc)
+
+    def attempt(idn: Identification) -> tuple[dict, Tuning, object, tuple[str, ...]]:
+        rs = resolve_spec(spec_data, spec_src, idn)  # the log's rate, the drive's envelope and load
+        resolve_gate(gate, lsb=resolve_quantization(idn, rs.spec), travel=rs.spec.travel, u_max=rs.spec.u_max,
+                     targets=rs.spec.targets)
+        # The same inputs and call as ``commission tune`` on the ident.json written below.
+        inputs = tune_inputs(rs, ident_path=str(out / IDENT_NAME), ident_sha256=ident_sha,
+                             log_sha256=ident_out.log.sha256 if isinstance(log_path, str) else None, seed=seed)
+        try:
+            tuned = tune_from(inputs, progress=stage("tune"), workers=workers)
+        except DesignError as exc:
+            raise SpecError(f"{spec_src}: {exc}") from None
+        doc = tuned.to_dict()
+        tng = Tuning.from_dict(json.loads(canonical_json(doc)), source=str(out / TUNING_NAME))
+        res = validate(tng, gate, seed=seed, n_monte_carlo=n_monte_carlo, progress=stage("validate"),
+                       workers=workers, executor=executor)
+        return doc, tng, res, rs.notes
+
+    tuning_doc, tuning, result, notes = attempt(ident)
+    if not result.passed:
+        tuning_doc, tuning, result, notes = _as_identified(ident, attempt, (tuning_doc, tuning, result, notes))
     write_json_atomic(staging / IDENT_NAME, ident_doc)
     write_json_atomic(staging / TUNING_NAME, tuning_doc)
     ident_figs = list(ident_job.result()) if ident_job is not None else []
@@ -211,6 +218,36 @@ def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data
                                      "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key,
                             extra_figures=ident_figs)
     return written, result, tuning, notes
+
+
+def _as_identified(ident, attempt, first):
+    """``run``'s second try on a defaulted payload box that failed the gate: the axis as identified.
+
+    ``first`` is the first try's ``(tuning doc, tuning, validation result, notes)``; the second
+    (:func:`commission.tune.box.as_identified_box`: the payload range cut to none, stated as the
+    range of validity) replaces it only when it passes the gate; otherwise the first is kept with a
+    note of what the second gave.  A stated payload range, or one already cut to none, is not
+    retried: the first try stands.
+    """
+    from commission.tune.box import as_identified_box
+
+    fails = first[2].verdict.failures
+    said = "; ".join(f"{c.scenario} {c.criterion}" for c in fails[:3]) + (" ..." if len(fails) > 3 else "")
+    pb = (first[1].identification.extra.get("bounds") or {}).get("payload_range")
+    span = f"{pb[0]:.4g}..{pb[1]:.4g}" if isinstance(pb, list) and len(pb) == 2 else "the default range"
+    cut = as_identified_box(ident, f"over the payloads {span} the gate failed ({said})")
+    if cut is None:
+        return first
+    try:
+        second = attempt(cut[0])
+    except SpecError as exc:
+        return (*first[:3], first[3] + (f"the axis as identified (no payload) was tried too and refused: {exc}",))
+    if second[2].passed:
+        return (*second[:3], cut[1] + second[3])
+    fails2 = second[2].verdict.failures
+    said2 = "; ".join(f"{c.scenario} {c.criterion}" for c in fails2[:3]) + (" ..." if len(fails2) > 3 else "")
+    return (*first[:3], first[3] + (f"the axis as identified (no payload) was tuned and validated too and failed the "
+                                    f"gate as well ({said2}); the outputs are the default payload range's",))
 
 
 __all__ = ["run_all", "RunOutcome", "IDENT_NAME", "TUNING_NAME"]

@@ -27,7 +27,7 @@ from commission.gate import box_checks
 from commission.paper import reference_identification
 from commission.robustness import BoxArcCheck, MarginFloors, box_plants, payload_box
 from commission.spec import spec_from_mapping
-from commission.tune.box import narrow_default_payload, start_gains, validity_of
+from commission.tune.box import as_identified_box, narrow_default_payload, start_gains, validity_of
 from commission.tune.constraints import box_violation
 
 SPEC = spec_from_mapping({})
@@ -140,6 +140,31 @@ def test_validate_recognises_tunes_payload_narrowing_and_nothing_else():
     doc["theta"]["min"][0] *= 1.5
     _undo_payload_narrowing(doc)
     assert "payload_narrowed_by_tune" in doc["bounds"] and doc != json.loads(json.dumps(ident.to_dict()))
+
+
+def test_runs_second_try_cuts_a_defaulted_payload_to_the_axis_as_identified_and_validate_can_undo_it():
+    from commission.report.verdict import validity_lines
+    from commission.validate.provenance import _undo_payload_narrowing
+    ident = axis(3 * M, defaulted=True)
+    out, notes = as_identified_box(ident, "over the payloads 0..0.081 the gate failed (fixed arc_vs_pid_median)")
+    lo, hi, m0, defaulted = payload_box(out)
+    assert (lo, hi) == (0.0, 0.0) and defaulted and math.isclose(m0, M0)
+    assert math.isclose(1.0 / out.theta.min[0], M0)  # the heavy end is the identified spread's: no payload
+    assert out.theta.max == ident.theta.max and out.theta.min[2] == ident.theta.min[2]
+    v = validity_of(out)
+    assert v["payload_range"] == [0.0, 0.0] and v["default_payload_range"] == [0.0, 3 * M]
+    assert "arc_vs_pid_median" in v["reason"] and len(notes) == 1 and "--payload-max" in notes[0]
+
+    class Tuned:  # what the report reads of a tuning: its validity record
+        validity = v
+    first = validity_lines(Tuned())[0]
+    assert first.startswith("**Certified for the axis as identified (no payload) only**") and "not the default" in first
+    doc = json.loads(json.dumps(out.to_dict()))
+    _undo_payload_narrowing(doc)  # validate's provenance check gives back ident.json's box
+    assert doc == json.loads(json.dumps(ident.to_dict()))
+    # a stated payload range, or one already cut to none, is not tried again
+    assert as_identified_box(axis(3 * M, defaulted=False), "x") is None
+    assert as_identified_box(out, "x") is None
 
 
 def test_a_stated_payload_is_never_narrowed_and_the_gate_refuses_naming_the_corner():

@@ -131,7 +131,11 @@ def validity_lines(tuning: Any) -> list[str]:
     lo, hi = v["payload_range"]
     dlo, dhi = v.get("default_payload_range", [lo, hi])
     moving = "inertia" if str(v["unit"]).endswith("/rad") else "moving mass"
-    return [f"**Certified for payloads {lo:.4g} to {hi:.4g} {v['unit']} only** ({moving} up to "
+    if hi > lo:
+        what = f"for payloads {lo:.4g} to {hi:.4g} {v['unit']}"
+    else:  # run's second try (commission.tune.box.as_identified_box)
+        what = "for the axis as identified (no payload)" if lo == 0 else f"for a payload of {lo:.4g} {v['unit']}"
+    return [f"**Certified {what} only** ({moving} up to "
             f"{v['mass_range'][1]:.4g} {v['unit']}), not the default {dlo:.4g} to {dhi:.4g} {v['unit']}: "
             f"{md_text(v.get('reason', ''))}. `controller.json` states this range under `validity`; state the "
             f"real payload with `commission identify --payload-max` (a range these gains do not hold is then refused).",

@@ -79,6 +79,38 @@ def narrow_default_payload(ident: Identification, spec: Spec,
     return _narrowed(ident, payload, why)
 
 
+def as_identified_box(ident: Identification, why: str) -> tuple[Identification, tuple[str, ...]] | None:
+    """``ident`` with its *defaulted* payload range cut to none: the axis as identified (``run``'s second try).
+
+    ``commission run`` tunes and validates on the default box first (up to 3 M of payload, narrowed
+    where the start gains or the drive cannot hold it).  An ARC robust over a 4:1 mass range pays
+    for it at the identified mass, where the PID yardstick is tuned and judged: the payload's heavy
+    end bounds the robust gains (alpha_1s = -(K1/theta1_min) z1) and the margin floors at the heavy
+    corner bound the integral action.  When that box is not certified, ``run`` tries once more on
+    the axis as identified -- the box of the identification's spread and model margin alone, where
+    the yardstick is designed -- and states it as the range of validity
+    (``bounds.payload_narrowed_by_tune``, :func:`validity_of`).  Zero payload is no guess: it is
+    what the log measured.  A bisection between the two ends would cost a full tune and
+    validation per step.
+
+    Parameters
+    ----------
+    ident : Identification
+        As ident.json holds it (before tune's own narrowings, which :func:`resolve_spec` redoes).
+    why : str
+        Why the default box was not certified (the first try's verdict), for the record and the note.
+
+    Returns
+    -------
+    (ident, notes) or None
+        None when the payload range was stated, or is already none.
+    """
+    pb = payload_box(ident)
+    if pb is None or not pb[3] or ident.theta is None or not pb[1] > pb[0]:
+        return None
+    return _narrowed(ident, pb[0], why)
+
+
 def _narrowed(ident: Identification, payload: float, why: str) -> tuple[Identification, tuple[str, ...]]:
     """``ident`` with its defaulted payload range cut to ``payload``, the narrowing recorded, and its note.
 
@@ -266,4 +298,4 @@ def box_guarantees(box: BoxRobustness, spec: Spec, validity: dict[str, Any] | No
     }
 
 
-__all__ = ["box_guarantees", "fit_force_to_drive", "mass_unit", "narrow_default_payload", "start_gains", "validity_of"]
+__all__ = ["as_identified_box", "box_guarantees", "fit_force_to_drive", "mass_unit", "narrow_default_payload", "start_gains", "validity_of"]
