@@ -25,6 +25,8 @@ from commission.pipeline import run_all
 
 RUN_HELP = f"""Identify the axis, tune the ARC, validate it; exit 0 with controller.json when every gate passes, else 1.
 
+With no --payload-max, a default payload box that fails the gate is tried once more on the axis as identified (no payload); controller.json's validity then says so.
+
 {escape(gate_help())}"""
 
 
