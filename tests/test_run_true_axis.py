@@ -13,9 +13,11 @@ paper's experiments (:func:`commission.paper.scenario`), against the paper's PID
    without it on every Table-1 scenario.
 
 Every option is the default but one: the mode axis is commissioned for a payload of up to its
-own mass (``--payload-max 0.027``), at three search seeds (:data:`SEEDS`).  With the default box (up to 3 M added) the gate refuses it,
-rightly: at the heaviest payload the margins cap the feedback and the ARC's e_rms exceeds the
-gate's 20 um (the PID's is about twice the ARC's there); a narrower payload box is the remedy.
+own mass (``--payload-max 0.027``), at three search seeds (:data:`SEEDS`).  With the default box (up to 3 M added) the gate
+refused it when this test was written (at the heaviest payload the margins capped the feedback and
+the ARC's e_rms exceeded a fixed 20 um); since the gate's limits follow the yardstick and tune
+narrows a defaulted box, ``run`` with no option passed it at seed 0 (measured in issue 30's last
+session).  A stated payload keeps this test about the range the user names.
 On the rigid axis the default box covers Set 2's M = 0.1.
 """
 
