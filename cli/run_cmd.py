@@ -78,4 +78,4 @@ def run_command(
         err.print(f"note: {note}", highlight=False)
     val = outcome.validation
     print_outcome(val.result, val.tuning, (outcome.ident, outcome.tuning, *val.written), out_dir,
-                  Path(outcome.tuning), signed=key is not None)
+                  Path(outcome.tuning), signed=key is not None, also_tried=outcome.also_tried)

@@ -39,10 +39,10 @@ def print_summary(result: ValidationResult) -> None:
 
 
 def print_next_steps(result: ValidationResult, tuning: Any, out_dir: Path, tuning_path: Path, *,
-                     signed: bool) -> None:
+                     signed: bool, also_tried: str | None = None) -> None:
     """What to do next (commission.next_steps): the export and a first test, or the changes that pass."""
     typer.echo(next_steps(result, tuning, out_dir=str(out_dir), tuning_path=str(tuning_path),
-                          signed=signed).text())
+                          signed=signed, also_tried=also_tried).text())
 
 
 VALIDATE_HELP = f"""Simulate ARC and PID on every scenario; exit 0 and write controller.json only if every gate passes (else exit 1).
@@ -77,7 +77,7 @@ def validate_command(
 
 
 def print_outcome(result: ValidationResult, tuning: Any, written: Sequence[Path], out_dir: Path, tuning_path: Path,
-                  *, signed: bool) -> None:
+                  *, signed: bool, also_tried: str | None = None) -> None:
     """The summary, the files written, the next step, and on a failed gate why, then exit 1.
 
     ``validate`` and ``run`` end the same way (``run`` lists ident.json and tuning.json
@@ -86,7 +86,7 @@ def print_outcome(result: ValidationResult, tuning: Any, written: Sequence[Path]
     print_summary(result)
     for p in written:
         typer.echo(f"wrote {p}")
-    print_next_steps(result, tuning, out_dir, tuning_path, signed=signed)
+    print_next_steps(result, tuning, out_dir, tuning_path, signed=signed, also_tried=also_tried)
     if not result.passed:
         for line in refusal_lines(result, tuning):
             typer.echo(line)

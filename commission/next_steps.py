@@ -48,14 +48,17 @@ class NextSteps:
     gate_toml : str
         On a failure that loosening the gate would cure: the ``[gate]`` table that
         passes with this controller ("" otherwise).
+    preface : str
+        A sentence said before the steps ("" for none): what ``run`` already tried.
     """
 
     lines: tuple[str, ...]
     gate_toml: str = ""
+    preface: str = ""
 
     def text(self) -> str:
-        """The console form: a heading and one numbered line each."""
-        head = "next:"
+        """The console form: a heading, the preface, and one numbered line each."""
+        head = "next:" + (f" {self.preface}" if self.preface else "")
         body = [f"  {i}. {line}" for i, line in enumerate(self.lines, 1)]
         table = [f"       {t}" for t in self.gate_toml.splitlines()]
         return "\n".join([head, *body[:1], *table, *body[1:]])
@@ -63,6 +66,8 @@ class NextSteps:
     def markdown(self) -> list[str]:
         """The report's section."""
         out = ["## Next steps", ""]
+        if self.preface:
+            out += [self.preface, ""]
         out += [f"{i}. {line}" for i, line in enumerate(self.lines, 1)]
         if self.gate_toml:
             out += ["", "```toml", self.gate_toml.rstrip("\n"), "```"]
@@ -122,8 +127,13 @@ def gate_changes(verdict: Any, q_unit: str = "m") -> tuple[list[str], str]:
     return sentences, text
 
 
-def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u") -> list[str]:
-    """Sentences for failed floors (divergence, command at u_max, margins): what to change in the tuning."""
+def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u",
+                  payload_tried: bool = False) -> list[str]:
+    """Sentences for failed floors (divergence, command at u_max, margins): what to change in the tuning.
+
+    ``payload_tried``: ``run`` already tried the axis as identified (no payload), so a narrower
+    payload box is not offered.
+    """
     out: list[str] = []
     spec = tuning.spec
     by = {}
@@ -138,14 +148,16 @@ def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u
                  f"slower machine moves (a_max <= {a_new:g} {q_unit}/s^2 in the profile; now {spec.a_max:g}) or "
                  f"`[trajectory] reference_a_max` for Case 1 and Case 2 (now {spec.case_a_max:.3g})")
         out.append(f"the command reached u_max = {spec.u_max:g} {u_unit} on {len(by['u_peak'])} scenarios "
-                   f"(worst {w.scenario}): tune again with a gentler envelope, {where} in spec.toml, or a narrower "
-                   "payload box (`commission identify --payload-max ...`) if the heaviest load is not needed")
+                   f"(worst {w.scenario}): tune again with a gentler envelope, {where} in spec.toml"
+                   + ("" if payload_tried else ", or a narrower payload box (`commission identify --payload-max ...`)"
+                      " if the heaviest load is not needed"))
     if "divergence" in by:
         names = sorted({c.scenario for c in by["divergence"]})
         shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
         out.append(f"{len(names)} scenarios diverged ({shown}): tune again with a larger search "
-                   f"(`[tune] budget = {min(10000, 2 * spec.budget)}` in spec.toml, now {spec.budget}) "
-                   "or a narrower payload box; no gate setting deploys a diverging controller")
+                   f"(`[tune] budget = {min(10000, 2 * spec.budget)}` in spec.toml, now {spec.budget})"
+                   + ("" if payload_tried else " or a narrower payload box")
+                   + "; no gate setting deploys a diverging controller")
     if "margins" in by:
         w = by["margins"][0]
         out.append(f"stability margins below the floors ({w.scenario}: {w.detail}): tune again "
@@ -156,7 +168,7 @@ def floor_changes(verdict: Any, tuning: Any, q_unit: str = "m", u_unit: str = "u
 
 
 def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str = "tuning.json",
-               signed: bool = False) -> NextSteps:
+               signed: bool = False, also_tried: str | None = None) -> NextSteps:
     """The next step after ``validate`` (module docstring).
 
     Parameters
@@ -170,6 +182,10 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
         The tuning.json validated (for ``export --tuning``).
     signed : bool
         controller.json was signed (the export command then names the key).
+    also_tried : str, optional
+        ``run``'s second try on the axis as identified, failed too
+        (:attr:`commission.pipeline.RunOutcome.also_tried`): said before the steps
+        (:attr:`NextSteps.preface`), which then do not offer a narrower payload box.
     """
     q = result.units.get("q", "m")
     u = result.units.get("u", "u")
@@ -193,7 +209,7 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
         ev = evidence_step(result, tuning)
         return NextSteps(lines + ((ev,) if ev else ()))
     sentences, toml = gate_changes(verdict, q)
-    floors = floor_changes(verdict, tuning, q, u)
+    floors = floor_changes(verdict, tuning, q, u, payload_tried=bool(also_tried))
     lines: list[str] = []
     if toml:
         lines.append("if the machine allows the looser limits, set these keys in the gate.toml and validate "
@@ -201,14 +217,17 @@ def next_steps(result: Any, tuning: Any, *, out_dir: str = ".", tuning_path: str
                      + ", ".join(sentences))
     lines.extend(floors)
     if toml:
-        lines.append("or keep the gate and ask more of the controller: tune again with a larger search or a "
-                     "narrower payload box, then validate again")
+        lines.append("or keep the gate and ask more of the controller: tune again with a larger search"
+                     + ("" if also_tried else " or a narrower payload box") + ", then validate again")
     ev = evidence_step(result, tuning)
     if ev and any(c.scenario.startswith(("evidence/", "measured/")) for c in verdict.failures):
         lines.insert(0, ev)  # the missing evidence is what refused it
     elif ev:
         lines = lines[:3] + [ev]
-    return NextSteps(tuple(lines[:4]), toml)
+    # no payload box is narrower than none: said before the steps, which then do not offer one
+    preface = (f"{also_tried[:1].upper()}{also_tried[1:]}; these outputs are the default payload range's try, and a "
+               "narrower payload box is not the remedy." if also_tried else "")
+    return NextSteps(tuple(lines[:4]), toml, preface)
 
 
 # --------------------------------------------------------------------------- identify's side: missing evidence

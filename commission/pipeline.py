@@ -48,12 +48,17 @@ class RunOutcome:
         passed, controller.json.
     notes : tuple of str
         Spec defaults lowered for this axis (:func:`commission.tune.resolve_spec`).
+    also_tried : str, optional
+        A failed gate on a defaulted payload box whose second try (the axis as identified,
+        :func:`_as_identified`) failed too: what that try gave, one sentence (the report and
+        the next steps say it); None otherwise.
     """
 
     ident: Path
     tuning: Path
     validation: ValidateOutcome
     notes: tuple[str, ...] = ()
+    also_tried: str | None = None
 
 
 def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
@@ -138,7 +143,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
     ex = executor if executor is not None else make_executor(address, workers)  # unreachable: exit 2 now
     try:
         with outputs:  # locked and proved writable before any stage runs; moved into place at the end
-            written, result, tuning, notes = _stages(
+            written, result, tuning, notes, also_tried = _stages(
                 log_path, out, outputs.staging(out), opts=opts, spec_data=spec_data, spec_src=spec_src, gate=gate,
                 gate_path=gate_path, seed=seed, n_monte_carlo=n_monte_carlo, progress=progress, workers=workers,
                 figures=figures, sign_key=sign_key, ident_figures=ident_figures, executor=ex)
@@ -147,7 +152,7 @@ def run_all(log_path: str | os.PathLike[str], out_dir: str | os.PathLike[str], *
             ex.close()
     ctrl = out / CONTROLLER_NAME
     vo = ValidateOutcome(result, tuning, tuple(outputs.final(p) for p in written), ctrl if result.passed else None)
-    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes)
+    return RunOutcome(out / IDENT_NAME, out / TUNING_NAME, vo, notes, also_tried)
 
 
 def _stages(log_path, out: Path, staging: Path, *, opts, spec_data, spec_src, gate, gate_path, seed, n_monte_carlo,
@@ -208,16 +213,24 @@ def _after_identify(ident_out, ident_job, out: Path, staging: Path, *, spec_data
         return doc, tng, res, rs.notes
 
     tuning_doc, tuning, result, notes = attempt(ident)
+    also_tried = None
     if not result.passed:
-        tuning_doc, tuning, result, notes = _as_identified(ident, attempt, (tuning_doc, tuning, result, notes))
+        tuning_doc, tuning, result, notes, also_tried = _as_identified(ident, attempt,
+                                                                       (tuning_doc, tuning, result, notes))
     write_json_atomic(staging / IDENT_NAME, ident_doc)
     write_json_atomic(staging / TUNING_NAME, tuning_doc)
     ident_figs = list(ident_job.result()) if ident_job is not None else []
     written = write_outputs(result, tuning, sha256_json(tuning_doc), staging, figures=figures,
                             sources={"tuning": str(out / TUNING_NAME),
                                      "gate": os.fspath(gate_path) if gate_path else None}, sign_key=sign_key,
-                            extra_figures=ident_figs)
-    return written, result, tuning, notes
+                            extra_figures=ident_figs, also_tried=also_tried)
+    return written, result, tuning, notes, also_tried
+
+
+def _failed_checks(result) -> str:
+    """The first three failed checks of a validation, ``"<scenario> <criterion>; ..."``."""
+    fails = result.verdict.failures
+    return "; ".join(f"{c.scenario} {c.criterion}" for c in fails[:3]) + (" ..." if len(fails) > 3 else "")
 
 
 def _as_identified(ident, attempt, first):
@@ -225,29 +238,26 @@ def _as_identified(ident, attempt, first):
 
     ``first`` is the first try's ``(tuning doc, tuning, validation result, notes)``; the second
     (:func:`commission.tune.box.as_identified_box`: the payload range cut to none, stated as the
-    range of validity) replaces it only when it passes the gate; otherwise the first is kept with a
-    note of what the second gave.  A stated payload range, or one already cut to none, is not
-    retried: the first try stands.
+    range of validity) replaces it only when it passes the gate; otherwise the first is kept, and
+    what the second gave is returned as one sentence (``also_tried``, last of the five), which the
+    report and the next steps say.  A stated payload range, or one already cut to none, is
+    not retried: the first try stands (``also_tried`` None).
     """
     from commission.tune.box import as_identified_box
 
-    fails = first[2].verdict.failures
-    said = "; ".join(f"{c.scenario} {c.criterion}" for c in fails[:3]) + (" ..." if len(fails) > 3 else "")
     pb = (first[1].identification.extra.get("bounds") or {}).get("payload_range")
     span = f"{pb[0]:.4g}..{pb[1]:.4g}" if isinstance(pb, list) and len(pb) == 2 else "the default range"
-    cut = as_identified_box(ident, f"over the payloads {span} the gate failed ({said})")
+    cut = as_identified_box(ident, f"over the payloads {span} the gate failed ({_failed_checks(first[2])})")
     if cut is None:
-        return first
+        return (*first, None)
     try:
         second = attempt(cut[0])
     except SpecError as exc:
-        return (*first[:3], first[3] + (f"the axis as identified (no payload) was tried too and refused: {exc}",))
+        return (*first, f"the axis as identified (no payload) was tried too and refused ({exc})")
     if second[2].passed:
-        return (*second[:3], cut[1] + second[3])
-    fails2 = second[2].verdict.failures
-    said2 = "; ".join(f"{c.scenario} {c.criterion}" for c in fails2[:3]) + (" ..." if len(fails2) > 3 else "")
-    return (*first[:3], first[3] + (f"the axis as identified (no payload) was tuned and validated too and failed the "
-                                    f"gate as well ({said2}); the outputs are the default payload range's",))
+        return (*second[:3], cut[1] + second[3], None)
+    return (*first, f"the axis as identified (no payload) was tuned and validated too and failed the gate as well "
+                    f"({_failed_checks(second[2])})")
 
 
 __all__ = ["run_all", "RunOutcome", "IDENT_NAME", "TUNING_NAME"]

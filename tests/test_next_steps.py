@@ -3,6 +3,7 @@ failure the changes that would pass -- which, followed, do pass."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import tomllib
@@ -89,3 +90,32 @@ def test_on_the_sample_a_tight_gate_names_the_changes_and_following_them_passes(
     spec.write_text("[evidence]\nfirst_mode_hz = 5000.0\n")  # the sample's axis is rigid (truth.json)
     _follow(Path(), {"e_rms": "1 um", "e_F": "2 um", "c_u": 0.2}, tmp_path, 8,
             ["run", str(SAMPLE), "--spec", str(spec)])
+
+
+@pytest.mark.slow
+def test_runs_failed_second_try_is_said_in_the_report_and_the_steps_instead_of_a_narrower_payload_box(tmp_path):
+    """``run`` on a defaulted payload box whose gate no try can pass (a user's gate.toml asking for
+    1 nm rms): the axis as identified is tried too and fails as well; the outputs are the first
+    try's, and the report and the console's next steps say what the second gave instead of
+    offering a narrower payload box, which cannot be narrower than none."""
+    (tmp_path / "spec.toml").write_text("[tune]\nbudget = 3\n")
+    (tmp_path / "gate.toml").write_text('[gate]\ne_rms = "0.001 um"\n')
+    r = runner.invoke(app, ["run", str(SAMPLE), "--out-dir", str(tmp_path / "run"), "--spec",
+                            str(tmp_path / "spec.toml"), "--gate", str(tmp_path / "gate.toml"), "--monte-carlo", "2",
+                            "--workers", "1"])
+    assert r.exit_code == 1, r.output
+    tuning = json.loads((tmp_path / "run" / "tuning.json").read_text())
+    assert not tuning.get("validity")  # the first try's outputs: the default box, no range of validity
+    assert not (tmp_path / "run" / "controller.json").exists()
+    report = (tmp_path / "run" / "report.md").read_text()
+    head, steps = report.split("## Next steps")[0], report.split("## Next steps")[1].split("\n## ")[0]
+    said = "the axis as identified (no payload) was tuned and validated too and failed the gate as well ("
+    assert "**Gate: FAILED**" in head and "axis as identified" not in head  # the default box's verdict
+    preface = steps.strip().splitlines()[0]
+    assert preface.startswith(said.capitalize()) and "e_rms" in preface
+    assert preface.endswith("these outputs are the default payload range's try, and a narrower payload box is not "
+                            "the remedy.")
+    assert steps.strip().splitlines()[2].startswith("1. ")  # the steps follow it
+    assert steps.count("narrower payload box") == 1, steps  # offered nowhere else
+    console = r.output.split("next:")[1].splitlines()
+    assert console[0].strip() == preface and console[1].startswith("  1. ")  # the console says what the report says

@@ -31,7 +31,8 @@ from commission.units import axis_units_context, nominal, unit as unit_of
 
 
 def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
-                    sources: Mapping[str, str | None] | None = None, tuning_sha256: str | None = None) -> str:
+                    sources: Mapping[str, str | None] | None = None, tuning_sha256: str | None = None,
+                    also_tried: str | None = None) -> str:
     """The whole report.md.
 
     Parameters
@@ -44,11 +45,15 @@ def report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str] = (),
         ``{"tuning": path, "gate": path or None}`` as given on the command line.
     tuning_sha256 : str, optional
         sha256 of the tuning.json validated.
+    also_tried : str, optional
+        ``run``'s second try on the axis as identified, failed too (one sentence): the next steps
+        say it first and no longer offer a narrower payload box.
 
     Every unit is the axis's (``result.units``: m or rad, :mod:`commission.units`).
     """
     with axis_units_context(result.units.get("q", "m")):
-        return _report_markdown(result, tuning, figures=figures, sources=sources, tuning_sha256=tuning_sha256)
+        return _report_markdown(result, tuning, figures=figures, sources=sources, tuning_sha256=tuning_sha256,
+                                also_tried=also_tried)
 
 
 def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
@@ -80,10 +85,12 @@ def _search_miss_lines(tuning: Tuning) -> list[str]:
 
 
 def _report_markdown(result: Any, tuning: Tuning, *, figures: Sequence[str],
-                     sources: Mapping[str, str | None] | None, tuning_sha256: str | None) -> str:
+                     sources: Mapping[str, str | None] | None, tuning_sha256: str | None,
+                     also_tried: str | None = None) -> str:
     sources = sources or {}
     L = _verdict_section(result, tuning)
-    L.extend(next_steps(result, tuning, tuning_path=sources.get("tuning") or "tuning.json").markdown())
+    L.extend(next_steps(result, tuning, tuning_path=sources.get("tuning") or "tuning.json",
+                        also_tried=also_tried).markdown())
     L.extend(_axis_section(result, tuning, sources))
     L.extend(identification_markdown(tuning, figures))
     L.extend(discussion_markdown(result, tuning))

@@ -127,12 +127,14 @@ def run_validate(tuning_path: str | os.PathLike[str], out_dir: str | os.PathLike
 
 def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, out: Path, *,
                   figures: FigureWriter | None = None, sources: Mapping[str, str | None] | None = None,
-                  sign_key: bytes | None = None, extra_figures: Sequence[Path] = ()) -> list[Path]:
+                  sign_key: bytes | None = None, extra_figures: Sequence[Path] = (),
+                  also_tried: str | None = None) -> list[Path]:
     """Write validation.json, the figures, report.md and (gate and floors passed) controller.json into ``out``.
 
     ``out`` is the staging folder of :class:`commission.infra.files.Outputs` in the commands;
     ``extra_figures`` are figures already written there (``run``'s identification
-    figures), which the report links.
+    figures), which the report links; ``also_tried`` is ``run``'s failed second try on the axis
+    as identified (:attr:`commission.pipeline.RunOutcome.also_tried`), which the report states.
     """
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
@@ -141,7 +143,7 @@ def write_outputs(result: ValidationResult, tuning: Tuning, tuning_sha256: str, 
     figs = [*extra_figures, *(figures(result, out) if figures is not None else [])]
     written.extend(figs)
     text = report_markdown(result, tuning, figures=[p.name for p in figs], sources=sources or {},
-                           tuning_sha256=tuning_sha256)
+                           tuning_sha256=tuning_sha256, also_tried=also_tried)
     write_text_atomic(out / REPORT_NAME, text)
     written.append(out / REPORT_NAME)
     ctrl = out / CONTROLLER_NAME
