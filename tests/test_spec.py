@@ -260,6 +260,42 @@ def test_defaulted_load_bound_is_narrowed_to_the_drive_and_a_given_one_is_not():
         resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
 
 
+def _suggested_u_max(exc: SpecError) -> float:
+    m = re.search(r"controller\.u_max >= ([0-9.e+]+) V, only if the drive really has it", str(exc))
+    assert m, str(exc)
+    return float(m.group(1))
+
+
+def test_a_drive_too_small_is_refused_with_each_term_and_the_u_max_that_does_hold_the_least_box():
+    """The refusal's advice, followed, passes: the ``controller.u_max`` it names is accepted for the same
+    log and spec, 3 % less is refused (known truth: the reference plant with its friction raised)."""
+    doc = ref_ident_doc()
+    doc["bounds"] = {"disturbance_bound": 1.2, "disturbance_bound_defaulted": True}
+    doc["parameters"]["fs"]["value"] = 1.2  # friction (+20 %) 1.44 V: more than 0.7 x 2 V at rest
+    ident = Identification.from_dict(doc)
+    with pytest.raises(SpecError) as err:
+        resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", ident)
+    text = str(err.value)
+    assert "friction +20 % 1.44 V" in text and "the default bound 10 max(fc, fs)" in text
+    assert "M = 0.12 V·s^2/m" in text and "V·s/m" in text  # units on the box's mass and viscous terms
+    assert "the load force cut to that load step, as the tool tries before refusing" in text
+    assert "a log the identified model explains better" in text  # friction alone leaves no room
+    assert "--payload-max" not in text and "a slower envelope" not in text  # neither would fit
+    u_ok = _suggested_u_max(err.value)
+    rs = resolve_spec({"controller": {"u_max": u_ok}}, "s.toml", ident)
+    assert rs.spec.v_max > 0 and rs.spec.a_max > 0
+    with pytest.raises(SpecError, match="is too small for this theta box"):
+        resolve_spec({"controller": {"u_max": 0.97 * u_ok}}, "s.toml", ident)
+    # a stated load-force bound the drive cannot hold: lowering it is offered, with a value that fits
+    doc["parameters"]["fs"]["value"] = 0.12
+    doc["bounds"] = {"disturbance_bound": 1.2, "disturbance_bound_defaulted": False}
+    with pytest.raises(SpecError) as err:
+        resolve_spec({"controller": {"u_max": 2.0}}, "s.toml", Identification.from_dict(doc))
+    assert "the bound ident.json states, commission identify --disturbance-bound" in str(err.value)
+    assert re.search(r"a lower load-force bound, commission identify --disturbance-bound [0-9.]+ \(V; now 1\.2\)",
+                     str(err.value)), str(err.value)
+
+
 def test_defaulted_envelope_scales_with_a_sample_rate_below_the_papers():
     ident = Identification.from_dict(ref_ident_doc())
     # 1 kHz is r = 0.4 of the paper's 2.5 kHz: v_max x r, a_max x r^2, each with a note

@@ -200,6 +200,12 @@ def _floor3(x: float) -> float:
     return math.floor(x * (1 - 1e-12) / step) * step
 
 
+def _ceil3(x: float) -> float:
+    """``x`` > 0 rounded up to 3 significant digits, so that the printed value is enough."""
+    step = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.ceil(x * (1 - 1e-12) / step) * step
+
+
 def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str], *,
                              settings: TuneSettings = DEFAULT_SETTINGS) -> tuple[Identification, tuple[str, ...]]:
     """Narrow the theta3 box of a *defaulted* load-force bound to what the drive can reject.
@@ -343,13 +349,7 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str], source:
     free = budget - d.const
     u = ident.units.get("u", "u-unit")
     q_unit, v_unit, a_unit = _axis_units(ident.units)
-    refuse = SpecError(
-        f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
-        f"plant (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs {d.const:.3g} {u} for friction and constant forces "
-        f"alone, leaving less than v_max = {settings.min_default_v_max:g} {v_unit}, "
-        f"a_max = {settings.min_default_a_max:g} {a_unit} "
-        f"within {settings.drive_headroom:g} x u_max; raise u_max, set trajectory.v_max/a_max, or narrow the box "
-        f"(commission identify --payload-max, --disturbance-bound)")
+    refuse = _drive_too_small(spec, ident, d, source, settings)
     if free <= 0:
         raise refuse
     v, a = spec.v_max, spec.a_max
@@ -374,6 +374,86 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str], source:
     return dataclasses.replace(spec, v_max=v, a_max=a), _envelope_notes(
         spec, v, a, f"the most demanding plant of the theta box (M = {d.mass:.3g}, B = {d.viscous:.3g}) needs "
                     f"<= {settings.drive_headroom:g} x controller.u_max = {budget:.3g} {u} of feedforward", ident.units)
+
+
+def _drive_too_small(spec: Spec, ident: Identification, d: DriveNeed, source: str,
+                     settings: TuneSettings) -> SpecError:
+    """:func:`default_envelope`'s refusal: the terms the drive cannot cover, with units, and what would.
+
+    The most demanding plant's need at rest (friction +20 %, ripple, the largest constant load
+    force and where that force comes from) and with the least envelope the tool defaults to; then
+    what the least box the tool would certify needs -- a defaulted payload cut to none and a
+    defaulted load-force bound cut to the load step the log shows (``|offset| + delta_d M``), as
+    :mod:`commission.tune.box` tries before refusing --, the ``controller.u_max`` that would hold
+    it, and only the changes that would fit: a lower stated load-force bound, a smaller stated
+    payload, a slower envelope when the least box's forces at rest fit (with the real load stated
+    when the bound was defaulted: an envelope set in full turns the tool's narrowing off); and
+    when friction and the load step alone leave no room, ``delta_d``, the acceleration the
+    identified model leaves unexplained, which a better log lowers.
+    """
+    from commission.robustness.payload import narrowed_ident, payload_box
+
+    u = ident.units.get("u", "u-unit")
+    _, v_unit, a_unit = _axis_units(ident.units)
+    per = "rad" if ident.units.get("q", "m") == "rad" else "m"
+    m_unit = f"{u}·s^2/{per}"
+    p = identified_plant(ident)
+    budget = settings.drive_headroom * spec.u_max
+    v0 = min(spec.v_max, settings.min_default_v_max)
+    a0 = min(spec.a_max, settings.min_default_a_max)
+    need0 = d.need(v0, a0, spec.beta1)
+    friction = (1.0 + FRICTION_SCALE) * max(p[P_FC], p[P_FS])
+    ripple = float(p[P_RIPPLE_AMP])
+    force = d.const - friction - ripple
+    step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
+    bounds = ident.extra.get("bounds") if isinstance(ident.extra.get("bounds"), dict) else {}
+    bound = bounds.get("disturbance_bound")
+    load_defaulted = bounds.get("disturbance_bound_defaulted") is True
+    step_text = (f"|offset| {abs(p[P_OFFSET]):.3g} {u} + delta_d M = {ident.delta_d:.3g} {a_unit} x "
+                 f"{p[P_M]:.3g} {m_unit}")
+    if force > step * (1.0 + 1e-9):
+        src = ("the default bound 10 max(fc, fs)" if load_defaulted
+               else "the bound ident.json states, commission identify --disturbance-bound")
+        load = f"the box's largest constant load force {force:.3g} {u} ({src}; the load step the log shows is {step_text})"
+    else:
+        load = f"the load step the log shows {force:.3g} {u} ({step_text})"
+    at_rest = ", ".join([f"friction +20 % {friction:.3g} {u}", *([f"ripple {ripple:.3g} {u}"] if ripple > 0 else []),
+                         load])
+    pb = payload_box(ident)
+    payload_cut = pb is not None and pb[3] and pb[1] > pb[0]
+    light = drive_need(narrowed_ident(ident, pb[0])) if pb is not None and pb[1] > pb[0] else d
+    least = DriveNeed(mass=light.mass if payload_cut else d.mass, viscous=light.viscous if payload_cut else d.viscous,
+                      const=friction + ripple + (step if load_defaulted else force))
+    need_least = least.need(v0, a0, spec.beta1)
+    cut = [w for w, on in (("no payload", payload_cut), ("the load force cut to that load step", load_defaulted)) if on]
+    least_text = (f"; even with {' and '.join(cut)}, as the tool tries before refusing, it needs {need_least:.3g} {u}"
+                  if cut else "")
+    ways = []
+    if not load_defaulted and force > step and isinstance(bound, (int, float)):
+        x = budget - (need0 - force)  # the largest load force that leaves the least envelope its room
+        if x >= step and bound - (force - x) > 0:
+            ways.append(f"a lower load-force bound, commission identify --disturbance-bound "
+                        f"{_floor3(bound - (force - x)):.3g} ({u}; now {bound:.4g}) if the real load is that small")
+    if pb is not None and not pb[3] and pb[1] > pb[0] and light.need(v0, a0, spec.beta1) <= budget:
+        ways.append(f"a smaller payload, commission identify --payload-max (the axis with {pb[0]:.4g} {m_unit} of "
+                    f"payload fits)")
+    if friction + ripple + step >= budget:
+        ways.append(f"a log the identified model explains better: friction and the load step the log shows alone "
+                    f"take {friction + ripple + step:.3g} {u} of the {budget:.3g} {u}, and delta_d = "
+                    f"{ident.delta_d:.3g} {a_unit} is the acceleration the model leaves unexplained (commission "
+                    f"excite plans a run that measures the axis)")
+    elif least.const < budget:  # a slower envelope fits; the tool narrows nothing for an envelope set in full
+        ways.append("a slower envelope, trajectory.v_max and a_max in spec.toml"
+                    + (", with the real load stated (commission identify --disturbance-bound)" if load_defaulted
+                       else ""))
+    ways.append(f"controller.u_max >= {_ceil3(need_least / settings.drive_headroom):.3g} {u}, only if the drive "
+                "really has it")
+    return SpecError(
+        f"{source}: controller.u_max = {spec.u_max:g} {u} is too small for this theta box: its most demanding "
+        f"plant (M = {d.mass:.3g} {m_unit}, B = {d.viscous:.3g} {u}·s/{per}) needs {d.const:.3g} {u} at rest "
+        f"({at_rest}) and {need0:.3g} {u} with the least envelope the tool defaults to (v_max = {v0:g} {v_unit}, "
+        f"a_max = {a0:g} {a_unit}){least_text}, more than {settings.drive_headroom:g} x u_max = {budget:.3g} {u}; "
+        f"what would fit: " + "; or ".join(ways))
 
 
 def reference_envelope(spec: Spec, ident: Identification, given: set[str], source: str = "spec (defaults)", *,
