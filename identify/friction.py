@@ -214,7 +214,9 @@ def fit_separable(Phi0: np.ndarray, names0: tuple[str, ...], column: ColumnFn, j
         raise StribeckNotIdentifiableError(f"stribeck: {n} rows for {p} parameters")
     sigma2 = float(r @ r) / (n - p)
     _, sv, vt = np.linalg.svd(J, full_matrices=False)
-    with np.errstate(divide="ignore"):
+    # A near-singular Jacobian (a curve the log does not show) gives an inf/nan covariance, the
+    # unidentifiable case said by the spread checks downstream, not a console warning.
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         cov = sigma2 * (vt.T / sv**2) @ vt if sv[-1] > 0 else np.full((p, p), np.inf)
     value = np.concatenate([theta[:-1], [fc + dfs, vs, xi]])
     names = tuple(names0) + ("fs", "vs", "xi")

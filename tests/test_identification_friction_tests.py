@@ -206,3 +206,22 @@ def test_a_refused_dip_names_the_folder_and_the_slowest_legs_not_the_first_file(
     assert out.fit.friction == "coulomb"
     assert any("no Stribeck dip shows" in w and "slowest legs: forward n10.csv" in w
                for w in out.ident.extra["warnings"])
+
+
+def test_a_stribeck_curve_the_speeds_never_reach_is_unidentifiable_without_a_numpy_warning():
+    """Every speed 50-100 x the top of the vs box (Coulomb friction only, known truth): the Stribeck
+    column vanishes at the optimum, the covariance is inf/nan (no spread can be told), and the fit
+    says so through its std alone, with no RuntimeWarning on the user's console."""
+    import warnings
+
+    from commission.identify.friction import fit_separable, stribeck_shape_derivatives
+    rng = np.random.default_rng(1)  # a draw whose optimum lands where the covariance overflows
+    v = np.concatenate([rng.uniform(0.5, 1.0, 200), -rng.uniform(0.5, 1.0, 200)])
+    y = 0.3 * np.sign(v) + 0.01 * rng.standard_normal(v.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any numpy RuntimeWarning fails the test
+        fit = fit_separable(np.column_stack([np.sign(v), v]), ("fc", "B"),
+                            lambda vs, xi: stribeck_shape_derivatives(v, vs, xi)[0],
+                            lambda vs, xi: stribeck_shape_derivatives(v, vs, xi)[1:], y, vs_bounds=(0.001, 0.01))
+    assert not np.all(np.isfinite(fit.std))  # no spread can be told for the curve's parameters
+    assert math.isclose(fit.value[fit.names.index("fc")], 0.3, abs_tol=0.01)

@@ -84,7 +84,8 @@ def _check_stribeck(sep: SeparableFit, speeds: np.ndarray, n_need: int, what: st
     fc, fs, vs, xi = (sep.value[i[k]] for k in ("fc", "fs", "vs", "xi"))
     g = np.zeros(len(sep.names))
     g[i["fs"]], g[i["fc"]] = 1.0, -1.0
-    sd_hump = float(np.sqrt(max(g @ sep.cov @ g, 0.0)))
+    with np.errstate(over="ignore", invalid="ignore"):  # an inf covariance (friction.py): the spread is inf/nan
+        sd_hump = float(np.sqrt(max(g @ sep.cov @ g, 0.0)))
     reach = vs * max(3.0, 3.0 ** (1.0 / xi)) if dip is not None else 3.0 * vs
     below = "3*vs" if reach == 3.0 * vs else f"vs*3^(1/xi) (xi = {xi:.3g})"
     n_low = int(np.sum(speeds < reach))
