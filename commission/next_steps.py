@@ -65,9 +65,11 @@ class NextSteps:
 
     def markdown(self) -> list[str]:
         """The report's section."""
+        from commission.report.text import md_text
+
         out = ["## Next steps", ""]
-        if self.preface:
-            out += [self.preface, ""]
+        if self.preface:  # names scenarios and, for a refused try, the spec's own words: escaped
+            out += [md_text(self.preface), ""]
         out += [f"{i}. {line}" for i, line in enumerate(self.lines, 1)]
         if self.gate_toml:
             out += ["", "```toml", self.gate_toml.rstrip("\n"), "```"]
