@@ -349,9 +349,8 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str], source:
     free = budget - d.const
     u = ident.units.get("u", "u-unit")
     q_unit, v_unit, a_unit = _axis_units(ident.units)
-    refuse = _drive_too_small(spec, ident, d, source, settings)
     if free <= 0:
-        raise refuse
+        raise _drive_too_small(spec, ident, d, source, settings)
     v, a = spec.v_max, spec.a_max
     if "v_max" not in given:
         v = min(v, d.v_max(budget, spec.beta1))
@@ -365,7 +364,7 @@ def default_envelope(spec: Spec, ident: Identification, given: set[str], source:
         return spec, ()  # the set key cannot be met: check_spec_against_ident names it
     if (("v_max" not in given and v < settings.min_default_v_max)
             or ("a_max" not in given and a < settings.min_default_a_max)):
-        raise refuse
+        raise _drive_too_small(spec, ident, d, source, settings)
     if v * v / a > spec.travel:
         raise SpecError(
             f"{source}: trajectory.v_max = {v:g} {v_unit} cannot be reached within trajectory.travel = "
@@ -386,8 +385,8 @@ def _drive_too_small(spec: Spec, ident: Identification, d: DriveNeed, source: st
     defaulted load-force bound cut to the load step the log shows (``|offset| + delta_d M``), as
     :mod:`commission.tune.box` tries before refusing --, the ``controller.u_max`` that would hold
     it, and only the changes that would fit: a lower stated load-force bound, a smaller stated
-    payload, a slower envelope when the least box's forces at rest fit (with the real load stated
-    when the bound was defaulted: an envelope set in full turns the tool's narrowing off); and
+    payload, a slower envelope when the box's forces at rest fit (with the real load and payload
+    stated when only the least box's do: an envelope set in full turns the tool's narrowing off); and
     when friction and the load step alone leave no room, ``delta_d``, the acceleration the
     identified model leaves unexplained, which a better log lowers.
     """
@@ -442,10 +441,12 @@ def _drive_too_small(spec: Spec, ident: Identification, d: DriveNeed, source: st
                     f"take {friction + ripple + step:.3g} {u} of the {budget:.3g} {u}, and delta_d = "
                     f"{ident.delta_d:.3g} {a_unit} is the acceleration the model leaves unexplained (commission "
                     f"excite plans a run that measures the axis)")
-    elif least.const < budget:  # a slower envelope fits; the tool narrows nothing for an envelope set in full
-        ways.append("a slower envelope, trajectory.v_max and a_max in spec.toml"
-                    + (", with the real load stated (commission identify --disturbance-bound)" if load_defaulted
-                       else ""))
+    elif d.const < budget:
+        ways.append("a slower envelope, trajectory.v_max and a_max in spec.toml")
+    elif least.const < budget:  # an envelope set in full turns the tool's own narrowing off: state the box too
+        stated = [f for f, on in (("--disturbance-bound", load_defaulted), ("--payload-max", payload_cut)) if on]
+        ways.append(f"a slower envelope, trajectory.v_max and a_max in spec.toml, with the real load stated "
+                    f"(commission identify {', '.join(stated)})")
     ways.append(f"controller.u_max >= {_ceil3(need_least / settings.drive_headroom):.3g} {u}, only if the drive "
                 "really has it")
     return SpecError(
