@@ -413,7 +413,8 @@ def _drive_too_small(spec: Spec, ident: Identification, d: DriveNeed, source: st
     if force > step * (1.0 + 1e-9):
         src = ("the default bound 10 max(fc, fs)" if load_defaulted
                else "the bound ident.json states, commission identify --disturbance-bound")
-        load = f"the box's largest constant load force {force:.3g} {u} ({src}; the load step the log shows is {step_text})"
+        load = (f"the box's largest constant load force {force:.3g} {u} ({src}; the load step the log shows is "
+                f"{step_text})")
     else:
         load = f"the load step the log shows {force:.3g} {u} ({step_text})"
     at_rest = ", ".join([f"friction +20 % {friction:.3g} {u}", *([f"ripple {ripple:.3g} {u}"] if ripple > 0 else []),
