@@ -84,14 +84,27 @@ class DriveNeed:
         return (u - self.const) / (self.mass * beta1 * CASE1_SPEED_FRACTION + self.viscous)
 
 
+def forces_at_rest(ident: Identification) -> tuple[float, float, float]:
+    """``(friction, ripple, load step)`` the drive holds at rest on the identified plant, u-unit.
+
+    Friction is the larger of fc and fs with the scenarios' +20 % (``friction_high``); the load
+    step is the ``disturbance`` scenario's, ``|offset| + delta_d M``.  :func:`drive_need` adds the
+    box's constant load force where it exceeds that step; the refusals name each term.
+    """
+    p = identified_plant(ident)
+    return ((1.0 + FRICTION_SCALE) * max(p[P_FC], p[P_FS]), float(p[P_RIPPLE_AMP]),
+            abs(p[P_OFFSET]) + ident.delta_d * p[P_M])
+
+
 def drive_need(ident: Identification) -> DriveNeed:
     """The :class:`DriveNeed` of an identification's scenario matrix."""
     p = identified_plant(ident)
-    k = 1.0 + FRICTION_SCALE
+    friction, ripple, step = forces_at_rest(ident)
     d_lo, d_hi = force_range(ident)
-    force = max(abs(d_lo), abs(d_hi), abs(p[P_OFFSET]) + ident.delta_d * p[P_M])
-    return DriveNeed(mass=1.0 / ident.theta.min[0], viscous=max(viscous_range(ident)[1], k * p[P_B]),
-                     const=k * max(p[P_FC], p[P_FS]) + p[P_RIPPLE_AMP] + force)
+    force = max(abs(d_lo), abs(d_hi), step)
+    return DriveNeed(mass=1.0 / ident.theta.min[0],
+                     viscous=max(viscous_range(ident)[1], (1.0 + FRICTION_SCALE) * p[P_B]),
+                     const=friction + ripple + force)
 
 
 def check_spec_against_ident(spec: Spec, ident: Identification, source: str = "spec.toml", *,
@@ -163,9 +176,7 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     need = dyn + d.const
     if need <= spec.u_max:
         return
-    plant = identified_plant(ident)
-    friction = (1.0 + FRICTION_SCALE) * max(plant[P_FC], plant[P_FS])
-    ripple = plant[P_RIPPLE_AMP]
+    friction, ripple, step = forces_at_rest(ident)
     force = d.const - friction - ripple
     hints = []
     budget = settings.drive_headroom * spec.u_max
@@ -175,7 +186,6 @@ def check_moves_against_drive(spec: Spec, ident: Identification, source: str = "
     bounds = ident.extra.get("bounds")
     bound = bounds.get("disturbance_bound") if isinstance(bounds, dict) else None
     d_lo, d_hi = force_range(ident)
-    step = abs(plant[P_OFFSET]) + ident.delta_d * plant[P_M]
     if isinstance(bound, (int, float)) and max(abs(d_lo), abs(d_hi)) > step:
         excess = need - budget
         d_ok = bound - excess
@@ -249,7 +259,7 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
         return ident, ()
     p = identified_plant(ident)
     d_lo, d_hi = force_range(ident)
-    step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
+    step = forces_at_rest(ident)[2]
     force = max(abs(d_lo), abs(d_hi), step)
     fixed = d.const - force  # friction (+20 %) and ripple
     allowed = settings.disturbance_share * budget - fixed  # largest |constant force| left for the box
@@ -391,20 +401,19 @@ def _drive_too_small(spec: Spec, ident: Identification, d: DriveNeed, source: st
     identified model leaves unexplained, which a better log lowers.
     """
     from commission.robustness.payload import narrowed_ident, payload_box
+    from commission.tune.box import mass_unit
 
     u = ident.units.get("u", "u-unit")
     _, v_unit, a_unit = _axis_units(ident.units)
     per = "rad" if ident.units.get("q", "m") == "rad" else "m"
-    m_unit = f"{u}·s^2/{per}"
+    m_unit = mass_unit(ident).replace("²", "^2")  # plain text, as _axis_units
     p = identified_plant(ident)
     budget = settings.drive_headroom * spec.u_max
     v0 = min(spec.v_max, settings.min_default_v_max)
     a0 = min(spec.a_max, settings.min_default_a_max)
     need0 = d.need(v0, a0, spec.beta1)
-    friction = (1.0 + FRICTION_SCALE) * max(p[P_FC], p[P_FS])
-    ripple = float(p[P_RIPPLE_AMP])
+    friction, ripple, step = forces_at_rest(ident)
     force = d.const - friction - ripple
-    step = abs(p[P_OFFSET]) + ident.delta_d * p[P_M]
     bounds = ident.extra.get("bounds") if isinstance(ident.extra.get("bounds"), dict) else {}
     bound = bounds.get("disturbance_bound")
     load_defaulted = bounds.get("disturbance_bound_defaulted") is True
