@@ -36,7 +36,7 @@ def fleet_command(
     from commission.cli.plots_fleet import fleet_plot
     from commission.cli.plots_validate import validation_plots
     from commission.infra.executor import LocalExecutor, make_executor, resolve_scheduler
-    from commission.fleet import load_manifest, run_fleet
+    from commission.fleet import load_manifest, run_fleet, verdict_text
 
     err = Console(stderr=True)
     load_manifest(manifest)  # a bad manifest is exit 2 before connecting anywhere
@@ -44,7 +44,7 @@ def fleet_command(
     ex = make_executor(address) if address else LocalExecutor(1)
 
     def progress(row, done, total):
-        what = row["status"].upper() + (" (unchanged, kept)" if row.get("resumed") else "")
+        what = verdict_text(row) + (" (unchanged, kept)" if row.get("resumed") else "")
         extra = f": {row['error']}" if row["status"] == "error" else ""
         err.print(f"[{done}/{total}] {row['name']}: {what} in {row['elapsed_s']:.1f} s{extra}", highlight=False,
                   markup=False)

@@ -52,6 +52,7 @@ from commission.errors import SchemaError, UsageError
 from commission.infra.executor import Executor, LocalExecutor
 from commission.formats.validation_json import check_validation
 from commission.jsonio import read_json, sha256_file
+from commission.validate.results import FLAGGED_NAME
 
 FLEET_KIND = "fleet"
 FLEET_SCHEMA_VERSION = 1
@@ -248,10 +249,29 @@ def _units_of(ident: Mapping[str, Any]) -> dict[str, str]:
     return dict(parameter_units(ident.get("units", {})))
 
 
-def axis_row(entry: AxisEntry, out: Path, elapsed: float, inputs: str | None) -> dict[str, Any]:
-    """The fleet row of an axis whose run finished: verdict, parameters with units, margins, e_rms."""
+def _certified_range(val: Mapping[str, Any], out: Path) -> dict[str, Any] | None:
+    """The payload range a passed axis's certificate claims, ``{"payload_range": [lo, hi], "unit"}``, or None
+    (the whole box: the payload the user stated, or the default one).
+
+    validate's narrowing (validation.json ``validity``) over tune's (tuning.json ``validity``), as
+    :func:`commission.validate.certified_validity` decides controller.json's.
+    """
+    v = val.get("validity")
+    if not isinstance(v, Mapping):
+        v = read_json(out / "tuning.json").get("validity")
+    if not isinstance(v, Mapping):
+        return None
+    return {"payload_range": [float(x) for x in v["payload_range"]], "unit": str(v.get("unit", ""))}
+
+
+def axis_row(entry: AxisEntry, out: Path, elapsed: float, inputs: str | None,
+             also_tried: str | None = None) -> dict[str, Any]:
+    """The fleet row of an axis whose run finished: verdict, parameters with units, margins, e_rms, what
+    the certificate covers (a narrowed payload range), and for a failed gate whether the ARC was written
+    flagged (safe, not better than the PID) and ``run``'s failed second try (``also_tried``)."""
     ident = read_json(out / "ident.json")
     val = check_validation(read_json(out / "validation.json"), str(out / "validation.json"))
+    passed = bool(val.get("passed"))
     units = _units_of(ident)
     params = {}
     for k in ROW_PARAMETERS:
@@ -264,7 +284,9 @@ def axis_row(entry: AxisEntry, out: Path, elapsed: float, inputs: str | None) ->
         e_rms[name] = {"arc": a, "pid": p, "ratio": (a / p) if isinstance(a, float) and isinstance(p, float) and p > 0
                        else None, "unit": ident.get("units", {}).get("q", "m")}
     worst = (val.get("margins") or {}).get("worst") or {}
-    return {"name": entry.name, "status": "passed" if val.get("passed") else "failed", "error": None,
+    return {"name": entry.name, "status": "passed" if passed else "failed", "error": None,
+            "validity": _certified_range(val, out) if passed else None,
+            "not_better": (not passed) and (out / FLAGGED_NAME).is_file(), "also_tried": also_tried,
             "log": entry.log, "spec": entry.spec, "gate": entry.gate, "inputs_sha256": inputs,
             "validation_sha256": sha256_file(out / "validation.json"), "elapsed_s": elapsed,
             "parameters": params, "margins": {"arc": worst.get("arc"), "pid": worst.get("pid")}, "e_rms": e_rms,
@@ -276,7 +298,7 @@ def error_row(entry: AxisEntry, exc: BaseException, elapsed: float, inputs: str 
     return {"name": entry.name, "status": "error", "error": f"{type(exc).__name__}: {msg}", "log": entry.log,
             "spec": entry.spec, "gate": entry.gate, "inputs_sha256": inputs, "validation_sha256": None,
             "elapsed_s": elapsed, "parameters": None, "margins": None, "e_rms": None, "failures": None,
-            "outlier": None, "resumed": False}
+            "outlier": None, "resumed": False, "validity": None, "not_better": False, "also_tried": None}
 
 
 def commission_axis(opts: FleetOptions, entry: AxisEntry) -> dict[str, Any]:
@@ -288,10 +310,10 @@ def commission_axis(opts: FleetOptions, entry: AxisEntry) -> dict[str, Any]:
     t0 = time.perf_counter()
     try:
         # A local executor inside the task: a fleet on Dask must not nest another cluster (COMMISSION_SCHEDULER).
-        run_all(entry.log, out, spec_path=entry.spec, gate_path=entry.gate, force=True, seed=opts.seed,
-                n_monte_carlo=opts.n_monte_carlo, workers=opts.workers, figures=opts.figures,
-                ident_figures=opts.ident_figures, executor=LocalExecutor(opts.workers))
-        return axis_row(entry, out, time.perf_counter() - t0, inputs)
+        ro = run_all(entry.log, out, spec_path=entry.spec, gate_path=entry.gate, force=True, seed=opts.seed,
+                     n_monte_carlo=opts.n_monte_carlo, workers=opts.workers, figures=opts.figures,
+                     ident_figures=opts.ident_figures, executor=LocalExecutor(opts.workers))
+        return axis_row(entry, out, time.perf_counter() - t0, inputs, also_tried=ro.also_tried)
     except Exception as exc:  # one bad axis never stops the others: its own row
         return error_row(entry, exc, time.perf_counter() - t0, inputs)
 
@@ -378,6 +400,21 @@ def _fmt(x: Any, spec: str = ".4g") -> str:
     return "—" if not isinstance(x, (int, float)) or not math.isfinite(x) else format(x, spec)
 
 
+def verdict_text(row: Mapping[str, Any]) -> str:
+    """An axis's verdict in a few words, for fleet.md and the console: PASSED with the payload range it is
+    certified for when narrowed, FAILED with "safe, not better" when the ARC was written flagged, ERROR."""
+    status = str(row["status"]).upper()
+    v = row.get("validity")
+    if row["status"] == "passed" and v:
+        lo, hi = v["payload_range"]
+        unit = v.get("unit", "")
+        return (f"{status} as identified (no payload)" if hi <= 0 else
+                f"{status} for payloads {_fmt(lo)} to {_fmt(hi)} {unit} only")
+    if row["status"] == "failed" and row.get("not_better"):
+        return f"{status}: safe, not better than the PID ({FLAGGED_NAME})"
+    return status
+
+
 def fleet_markdown(doc: Mapping[str, Any], figure: str | None) -> str:
     """fleet.md: one row per axis (verdict, parameters with units, margins, e_rms vs PID, time)."""
     from commission.report import md_code, md_text
@@ -402,10 +439,15 @@ def fleet_markdown(doc: Mapping[str, Any], figure: str | None) -> str:
         ratio = [_fmt((er.get(f"{c}/nominal") or {}).get("ratio"), ".3f") for c in ("case1", "case2")]
         o = r.get("outlier") or {}
         flag = ("**yes**: " + ", ".join(o.get("parameters", []))) if o.get("flagged") else "no"
-        lines.append(f"| {r['name']} | {r['status'].upper()}{' (resumed)' if r.get('resumed') else ''} | "
+        lines.append(f"| {r['name']} | {verdict_text(r)}{' (resumed)' if r.get('resumed') else ''} | "
                      + " | ".join(_fmt(p[k]["value"]) for k in ROW_PARAMETERS)
                      + f" | {_fmt(m.get('gain_margin_db'), '.1f')} | {_fmt(m.get('phase_margin_deg'), '.1f')} | "
                      f"{ratio[0]} | {ratio[1]} | {flag} | {_fmt(r['elapsed_s'], '.1f')} |")
+    tried = [r for r in rows if r.get("also_tried")]
+    if tried:
+        lines += ["", "## Second tries", ""]
+        # run's own sentence (it quotes the failed checks, whose scenario names come from the files): escaped.
+        lines += [f"- **{r['name']}**: {md_text(r['also_tried'])}" for r in tried]
     errs = [r for r in rows if r["status"] == "error"]
     if errs:
         lines += ["", "## Errors", ""]
@@ -520,5 +562,5 @@ def run_fleet(manifest: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     return doc, written
 
 
-__all__ = ["AxisEntry", "FleetOptions", "load_manifest", "run_fleet", "commission_axis", "flag_outliers",
+__all__ = ["AxisEntry", "FleetOptions", "load_manifest", "run_fleet", "commission_axis", "flag_outliers", "verdict_text",
            "exit_code", "fleet_markdown", "inputs_sha256", "OUTLIER_Z", "OUTLIER_REL_FLOOR", "OUTLIER_PARAMETERS"]

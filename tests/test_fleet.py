@@ -140,6 +140,13 @@ def test_fleet_of_12_axes_flags_the_doubled_friction_names_the_corrupt_log_and_r
     assert abs(rows["x10"]["parameters"]["fc"]["value"] / 0.2 - 1) < 0.1  # identified near the doubled truth
     assert rows["x00"]["parameters"]["M"]["unit"] == "V·s²/m" and rows["x00"]["e_rms"]["case1/nominal"]["pid"] > 0
     assert (out / "fleet.png").is_file() and (out / "fleet.md").read_text().count("| x") == 12
+    for n in alike:  # what each certificate covers is controller.json's own validity, row for row
+        claimed = json.loads((out / n / "controller.json").read_text()).get("validity")
+        row = rows[n]["validity"]
+        assert (row is None) == (claimed is None), n
+        if row is not None:
+            assert row["payload_range"] == pytest.approx(claimed["payload_range"]) and row["unit"] == claimed["unit"]
+        assert rows[n]["not_better"] is False
     stamps = {n: (out / n / "validation.json").stat().st_mtime_ns for n in alike}
     # fix the corrupt log: the rerun commissions that axis only
     (src / "x11.h5").write_bytes((src / "x00.h5").read_bytes())
@@ -182,3 +189,32 @@ def test_fleet_md_escapes_what_came_from_the_manifest_and_the_files():
     outside_spans = re.sub(r"`[^`]*`", "", errors)  # inside a code span nothing is a link
     assert "](http" not in outside_spans.replace("\\](http", "") and "<script>" not in errors
     assert "`/d/'x](http://evil).h5`" in errors and "\\|cell" in errors
+
+
+def test_fleet_md_says_what_each_certificate_covers_and_what_run_tried():
+    """The verdict cell of a passed axis names a narrowed payload range (or "as identified") in its unit;
+    a failed axis whose ARC was written flagged says "safe, not better"; run's failed second try is listed
+    under the axis, escaped like every text that quotes the files."""
+    from commission.fleet import fleet_markdown
+
+    params = {k: {"value": 1.0, "unit": "V"} for k in ("M", "B", "fc", "fs", "offset")}
+    base = {"parameters": params, "margins": None, "e_rms": None, "elapsed_s": 1.0, "outlier": None}
+    rows = [
+        {**base, "name": "a1", "status": "passed", "validity": None},
+        {**base, "name": "a2", "status": "passed", "validity": {"payload_range": [0.0, 0.0266], "unit": "V·s²/m"}},
+        {**base, "name": "a3", "status": "passed", "validity": {"payload_range": [0.0, 0.0], "unit": "kg"}},
+        {**base, "name": "a4", "status": "failed", "not_better": True, "also_tried": None},
+        {**base, "name": "a5", "status": "failed", "not_better": False,
+         "also_tried": "the axis as identified failed too (case1/x](http://evil) e_rms)"},
+    ]
+    doc = {"summary": {"axes": 5, "passed": 3, "failed": 2, "errors": 0, "outliers": [], "exit_code": 1},
+           "axes": rows, "statistics": {}}
+    md = fleet_markdown(doc, None)
+    cells = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in md.splitlines()
+             if re.match(r"\| a\d ", line)}
+    assert cells == {"a1": "PASSED", "a2": "PASSED for payloads 0 to 0.0266 V·s²/m only",
+                     "a3": "PASSED as identified (no payload)",
+                     "a4": "FAILED: safe, not better than the PID (controller_not_better.json)", "a5": "FAILED"}
+    tried = md.split("## Second tries", 1)[1].split("##", 1)[0]
+    assert "**a5**" in tried and "**a4**" not in tried
+    assert "](http" not in tried.replace("\\](http", "")
