@@ -52,7 +52,7 @@ from commission.errors import SchemaError, UsageError
 from commission.infra.executor import Executor, LocalExecutor
 from commission.formats.validation_json import check_validation
 from commission.jsonio import read_json, sha256_file
-from commission.validate.results import FLAGGED_NAME
+from commission.validate.results import CONTROLLER_NAME, FLAGGED_NAME
 
 FLEET_KIND = "fleet"
 FLEET_SCHEMA_VERSION = 1
@@ -249,16 +249,11 @@ def _units_of(ident: Mapping[str, Any]) -> dict[str, str]:
     return dict(parameter_units(ident.get("units", {})))
 
 
-def _certified_range(val: Mapping[str, Any], out: Path) -> dict[str, Any] | None:
-    """The payload range a passed axis's certificate claims, ``{"payload_range": [lo, hi], "unit"}``, or None
-    (the whole box: the payload the user stated, or the default one).
-
-    validate's narrowing (validation.json ``validity``) over tune's (tuning.json ``validity``), as
-    :func:`commission.validate.certified_validity` decides controller.json's.
-    """
-    v = val.get("validity")
-    if not isinstance(v, Mapping):
-        v = read_json(out / "tuning.json").get("validity")
+def _certified_range(out: Path) -> dict[str, Any] | None:
+    """The payload range a passed axis's controller.json claims (its ``validity``),
+    ``{"payload_range": [lo, hi], "unit"}``, or None: the whole box (the payload the user stated, or the
+    default one)."""
+    v = read_json(out / CONTROLLER_NAME).get("validity")
     if not isinstance(v, Mapping):
         return None
     return {"payload_range": [float(x) for x in v["payload_range"]], "unit": str(v.get("unit", ""))}
@@ -285,7 +280,7 @@ def axis_row(entry: AxisEntry, out: Path, elapsed: float, inputs: str | None,
                        else None, "unit": ident.get("units", {}).get("q", "m")}
     worst = (val.get("margins") or {}).get("worst") or {}
     return {"name": entry.name, "status": "passed" if passed else "failed", "error": None,
-            "validity": _certified_range(val, out) if passed else None,
+            "validity": _certified_range(out) if passed else None,
             "not_better": (not passed) and (out / FLAGGED_NAME).is_file(), "also_tried": also_tried,
             "log": entry.log, "spec": entry.spec, "gate": entry.gate, "inputs_sha256": inputs,
             "validation_sha256": sha256_file(out / "validation.json"), "elapsed_s": elapsed,
@@ -439,7 +434,8 @@ def fleet_markdown(doc: Mapping[str, Any], figure: str | None) -> str:
         ratio = [_fmt((er.get(f"{c}/nominal") or {}).get("ratio"), ".3f") for c in ("case1", "case2")]
         o = r.get("outlier") or {}
         flag = ("**yes**: " + ", ".join(o.get("parameters", []))) if o.get("flagged") else "no"
-        lines.append(f"| {r['name']} | {verdict_text(r)}{' (resumed)' if r.get('resumed') else ''} | "
+        # The unit of a narrowed range is read back from the files (and from fleet.json on a resume): escaped.
+        lines.append(f"| {r['name']} | {md_text(verdict_text(r))}{' (resumed)' if r.get('resumed') else ''} | "
                      + " | ".join(_fmt(p[k]["value"]) for k in ROW_PARAMETERS)
                      + f" | {_fmt(m.get('gain_margin_db'), '.1f')} | {_fmt(m.get('phase_margin_deg'), '.1f')} | "
                      f"{ratio[0]} | {ratio[1]} | {flag} | {_fmt(r['elapsed_s'], '.1f')} |")

@@ -203,18 +203,22 @@ def test_fleet_md_says_what_each_certificate_covers_and_what_run_tried():
         {**base, "name": "a1", "status": "passed", "validity": None},
         {**base, "name": "a2", "status": "passed", "validity": {"payload_range": [0.0, 0.0266], "unit": "V·s²/m"}},
         {**base, "name": "a3", "status": "passed", "validity": {"payload_range": [0.0, 0.0], "unit": "kg"}},
+        {**base, "name": "a6", "status": "passed",  # a unit edited into fleet.json before a resume
+         "validity": {"payload_range": [0.0, 1.0], "unit": "kg|<b>x</b>](http://evil)"}},
         {**base, "name": "a4", "status": "failed", "not_better": True, "also_tried": None},
         {**base, "name": "a5", "status": "failed", "not_better": False,
          "also_tried": "the axis as identified failed too (case1/x](http://evil) e_rms)"},
     ]
-    doc = {"summary": {"axes": 5, "passed": 3, "failed": 2, "errors": 0, "outliers": [], "exit_code": 1},
+    doc = {"summary": {"axes": 6, "passed": 4, "failed": 2, "errors": 0, "outliers": [], "exit_code": 1},
            "axes": rows, "statistics": {}}
     md = fleet_markdown(doc, None)
     cells = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in md.splitlines()
-             if re.match(r"\| a\d ", line)}
+             if re.match(r"\| a[1-5] ", line)}
     assert cells == {"a1": "PASSED", "a2": "PASSED for payloads 0 to 0.0266 V·s²/m only",
                      "a3": "PASSED as identified (no payload)",
-                     "a4": "FAILED: safe, not better than the PID (controller_not_better.json)", "a5": "FAILED"}
+                     "a4": "FAILED: safe, not better than the PID (controller\\_not\\_better.json)", "a5": "FAILED"}
+    a6 = next(line for line in md.splitlines() if line.startswith("| a6 "))
+    assert "<b>" not in a6 and "](http" not in a6.replace("\\](http", "") and "kg\\|" in a6
     tried = md.split("## Second tries", 1)[1].split("##", 1)[0]
     assert "**a5**" in tried and "**a4**" not in tried
     assert "](http" not in tried.replace("\\](http", "")
