@@ -44,3 +44,33 @@ def test_a_family_is_the_same_plants_on_both_trajectories():
         for a, b in zip(scenarios[:half], scenarios[half:]):
             assert a.name.replace("case1", "case2") == b.name
             assert np.array_equal(a.plant, b.plant)
+
+
+def test_a_coulomb_only_fit_gets_the_stribeck_rise_the_log_could_not_show():
+    """Where the fit kept Coulomb friction only, the robustness scenarios add ``<case>/stribeck``: the
+    identified plant with the reference axis's rise (CONTRACT section 5: fs = 1.2 fc, vs = 0.01, xi = 2),
+    nothing else changed; a fit that resolved the rise, or an axis without friction, gets none."""
+    import dataclasses
+
+    from commission.artifacts import Estimate
+    from commission.controllers.plant import P_FC, P_FS, P_VS, P_XI
+    from commission.scenarios import identified_plant
+
+    spec = default_spec()
+    ref = reference_identification()  # the paper's plant, Stribeck fitted (fs 0.12, fc 0.10)
+    assert [s.name for s in robustness_scenarios(ref, spec)] == ["case1/delay+1", "case2/delay+1"]
+    coulomb = dataclasses.replace(ref, parameters={**{k: v for k, v in ref.parameters.items()
+                                                      if k not in ("fs", "vs", "xi")},
+                                                   "fs": None, "vs": None, "xi": None})
+    base = identified_plant(coulomb, spec)
+    assert base[P_FS] == base[P_FC] == 0.10
+    by = {s.name: s for s in robustness_scenarios(coulomb, spec)}
+    assert sorted(by) == ["case1/delay+1", "case1/stribeck", "case2/delay+1", "case2/stribeck"]
+    for case in ("case1", "case2"):
+        p = by[f"{case}/stribeck"].plant
+        assert p[P_FS] == 1.2 * 0.10 and p[P_VS] == 0.01 and p[P_XI] == 2.0
+        rest = [i for i in range(len(p)) if i not in (P_FS, P_VS, P_XI)]
+        assert np.array_equal(p[rest], base[rest])
+        assert by[f"{case}/stribeck"].tags == (case, "robustness")
+    frictionless = dataclasses.replace(coulomb, parameters={**coulomb.parameters, "fc": Estimate(0.0, 0.0)})
+    assert not [s for s in robustness_scenarios(frictionless, spec) if s.name.endswith("/stribeck")]

@@ -90,8 +90,8 @@ GATE_KEYS: tuple[Key, ...] = (
         doc="median of the per-scenario factor f (ARC e_rms = f x PID e_rms + slack), fixed and Monte-Carlo apart"),
     Key("gate", "arc_vs_pid_p90", float, 1.2, unit="", **_POS, doc="90th percentile of that factor, per group"),
     Key("gate", "arc_vs_pid_nominal", float, 1.0, unit="", **_POS,
-        doc="per case, ARC e_rms / PID e_rms summed over <case>/nominal and <case>/delay+1 must be below it "
-            "(no slack: a tie is not a win)"),
+        doc="per case, ARC e_rms / PID e_rms summed over <case>/nominal, <case>/delay+1 and (a Coulomb-only fit) "
+            "<case>/stribeck must be below it (no slack: a tie is not a win)"),
     Key("gate", "gain_margin_db", float, None, unit="dB", rule=SpecMargin("gain_db"), **_POS,
         doc="gain margin of the ARC on the identified plant (mode and delay included)"),
     Key("gate", "phase_margin_deg", float, None, unit="deg", rule=SpecMargin("phase_deg"), **_POS,

@@ -21,9 +21,11 @@ from commission.controllers.metrics import Indexes
 
 #: The quantiles judged, criterion name -> quantile.
 ARC_VS_PID_QUANTILES = {"arc_vs_pid_median": 0.5, "arc_vs_pid_p90": 0.9}
-#: The fixed-matrix variants that are the identified plant: as logged, and with the one more sample of
-#: input delay a drive may add (the true-plant judgement's four runs, :mod:`commission.true_axis`).
-NOMINAL_COMPARISON_VARIANTS = ("nominal", "delay+1")
+#: The fixed-matrix variants that are the identified plant: as logged, with the one more sample of
+#: input delay a drive may add (the true-plant judgement's four runs, :mod:`commission.true_axis`), and,
+#: where the log resolved no Stribeck rise, with the rise it most likely has
+#: (:func:`commission.scenarios.unseen_stribeck`).
+NOMINAL_COMPARISON_VARIANTS = ("nominal", "delay+1", "stribeck")
 #: The criteria that compare the ARC with the PID yardstick (the others judge the ARC alone).
 COMPARISON_CRITERIA = ("arc_vs_pid_e_rms", "arc_vs_pid_median", "arc_vs_pid_p90", "arc_vs_pid_nominal")
 
@@ -102,13 +104,14 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Inde
     """The ARC beats the yardstick on the identified plant: one check per case (criterion ``arc_vs_pid_nominal``).
 
     Per case (``case1``, ``case2``, ...), over its scenarios that are the identified plant
-    (:data:`NOMINAL_COMPARISON_VARIANTS`: ``<case>/nominal`` and, when validated, ``<case>/delay+1``)
+    (:data:`NOMINAL_COMPARISON_VARIANTS`: ``<case>/nominal`` and, when validated, ``<case>/delay+1``
+    and, where the fit kept Coulomb friction only, ``<case>/stribeck``)
     the value is ``sum ARC e_rms / sum PID e_rms``, and it must be **below** ``arc_vs_pid_nominal``
     (default 1).  Why: the quantiles (:func:`arc_vs_pid_quantile_checks`) judge the distribution over
     the uncertain plants, and their slack lets the ARC lose by up to the encoder's quantisation noise;
     on the plant the log identified, where the model is best, an ARC that does not beat the PID will
     not beat a PID tuned on the machine either (docs/robustness.md has the axes this was measured
-    on).  The sum over the nominal and +1-sample runs weighs the two by their errors, as one figure
+    on).  The sum over these runs weighs them by their errors, as one figure
     per case, so a loss within the model's error in one of them is not a refusal while a loss in the
     case as a whole is.
 

@@ -26,6 +26,12 @@ back-and-forth moves), both scaled to the spec's envelope:
 ``<case>/delay+1``
     The identified plant with one more sample of input delay than identified
     (a drive's computation or bus delay that the log cannot show).
+``<case>/stribeck``
+    When the log resolved no Stribeck rise (a Coulomb-only fit): the identified plant with the
+    reference axis's rise, fs = 1.2 fc at vs = 0.01 q-unit/s, xi = 2
+    (:data:`~commission.scenarios.matrix.UNSEEN_STRIBECK`), which the machine most likely
+    has and the log could not show.  Like ``delay+1`` it is the identified plant as it may
+    really be: the gate compares the ARC with the yardstick on it (``arc_vs_pid_nominal``).
 ``<case>/mode_low``, ``<case>/mode_high``, ``<case>/mode_damping_half``
     When the plant has a structural mode: its frequency at 0.8 and 1.2 times
     and its damping halved (what the identification's errors and a changed
@@ -90,9 +96,10 @@ Modules
 from commission.scenarios.box import (clip_to_box, force_range, monte_carlo_plants, monte_carlo_support,
                                       viscous_range)
 from commission.scenarios.identified import identified_plant, plant_dynamics, plant_holds_fit
-from commission.scenarios.matrix import (FRICTION_SCALE, MODE_DAMPING_FACTOR, MODE_FREQUENCY_FACTORS, VARIANTS,
-                                         corner_scenarios, offset_scenarios, payload_scenarios, robustness_scenarios,
-                                         scenario_matrix, screening_indices, tuning_scenarios)
+from commission.scenarios.matrix import (FRICTION_SCALE, MODE_DAMPING_FACTOR, MODE_FREQUENCY_FACTORS, UNSEEN_STRIBECK,
+                                         VARIANTS, corner_scenarios, offset_scenarios, payload_scenarios, robustness_scenarios,
+                                         scenario_matrix, screening_indices, tuning_scenarios,
+                                         unseen_stribeck)
 from commission.scenarios.payload import PAYLOAD_BISECTIONS, largest_safe_payload, payload_heavy_at
 from commission.scenarios.resolution import plant_substeps, resolve_encoder_noise, resolve_quantization
 from commission.scenarios.scenario import NO_DISTURBANCE, Scenario, StepDisturbance, TrajectorySpec
@@ -107,7 +114,7 @@ __all__ = [
     "CASE1_SPEED_FRACTION", "CASE2_TAIL", "case1_trajectory", "case2_trajectory", "case_names", "trajectories",
     "max_horizon", "horizon_notes", "check_run_length", "check_user_length", "force_range", "viscous_range",
     "clip_to_box", "monte_carlo_support", "monte_carlo_plants", "VARIANTS", "FRICTION_SCALE",
-    "MODE_FREQUENCY_FACTORS", "MODE_DAMPING_FACTOR", "scenario_matrix", "robustness_scenarios", "corner_scenarios",
+    "MODE_FREQUENCY_FACTORS", "MODE_DAMPING_FACTOR", "UNSEEN_STRIBECK", "unseen_stribeck", "scenario_matrix", "robustness_scenarios", "corner_scenarios",
     "offset_scenarios", "payload_scenarios", "screening_indices", "tuning_scenarios", "PAYLOAD_BISECTIONS",
     "payload_heavy_at", "largest_safe_payload",
 ]
