@@ -14,6 +14,7 @@ from __future__ import annotations
 import enum
 import functools
 import inspect
+import math
 import typing
 from pathlib import Path
 from typing import Any, Callable, List, NamedTuple, Optional, TypeVar
@@ -74,9 +75,10 @@ _IDENTIFY: dict[str, _Flag] = {
                            "Hz, for a file without t."),
     "--q-unit": _Flag("q_unit", Optional[str], None, None, Q_UNIT_HELP),
     "--friction": _Flag("friction", Friction, Friction.auto, None, FRICTION_HELP),
-    "--ripple-pitch": _Flag("ripple_pitch", List[float], [], "P",
+    "--ripple-pitch": _Flag("ripple_pitch", List[str], [], "P",
                             "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, "
-                            "one sinusoid per pitch (e.g. the harmonics of one cogging period)."),
+                            "one sinusoid per pitch (e.g. the harmonics of one cogging period); 'auto': find it "
+                            "on the log's constant-velocity legs."),
     "--validate-on": _Flag("validate_on", Optional[Path], None, "LOG2",
                            "Second log for the cross-test relative error; identify also takes a folder (its logs "
                            "read as the identification's: legs, or segments fitted together)."),
@@ -196,8 +198,26 @@ def bounds_options(
                          payload_max=payload_max, disturbance_bound=disturbance_bound)
 
 
+def parse_ripple_pitch(values: List[str]) -> tuple[tuple[float, ...], bool]:
+    """``--ripple-pitch`` values: the pitches (q-unit, each > 0) or ``auto`` alone (find it); bad: :class:`UsageError`."""
+    if any(v.strip().lower() == "auto" for v in values):
+        if len(values) > 1:
+            raise UsageError("--ripple-pitch: give either auto or the pitches, not both")
+        return (), True
+    out = []
+    for v in values:
+        try:
+            p = float(v)
+        except ValueError:
+            raise UsageError(f"--ripple-pitch: expected a pitch in m (rad on a rotary axis) or auto, got {v!r}") from None
+        if not (math.isfinite(p) and p > 0):
+            raise UsageError(f"--ripple-pitch must be > 0 (m, or rad on a rotary axis), got {v}")
+        out.append(p)
+    return tuple(out), False
+
+
 def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str], sample_rate: Optional[float],
-                     q_unit: Optional[str], friction: Friction, ripple_pitch: List[float],
+                     q_unit: Optional[str], friction: Friction, ripple_pitch: List[str],
                      validate_on: Optional[Path], k_sigma: float, model_margin: float,
                      payload_min: Optional[float], payload_max: Optional[float], payload_min_kg: Optional[float],
                      payload_max_kg: Optional[float], force_constant: Optional[float],
@@ -213,9 +233,10 @@ def identify_options(*, map_: List[str], input_gain: float, u_unit: Optional[str
     """
     check_input_gain(input_gain, u_unit)
     check_counts_per_rev(counts_per_rev, q_unit)
+    pitches, find_ripple = parse_ripple_pitch(ripple_pitch)
     return IdentifyOptions(
         mapping=parse_mapping(map_), input_gain=input_gain, sample_rate=sample_rate, friction=friction.value,
-        ripple_pitch=tuple(ripple_pitch), validate_on=str(validate_on) if validate_on is not None else None,
+        ripple_pitch=pitches, find_ripple=find_ripple, validate_on=str(validate_on) if validate_on is not None else None,
         bounds=bounds_options(k_sigma, model_margin, payload_min, payload_max, payload_min_kg, payload_max_kg,
                               force_constant, disturbance_bound),
         u_unit=u_unit, q_unit=q_unit, fmt=log_format, resample=resample, fix=parse_fix(fix), lead=lead, gear=gear,

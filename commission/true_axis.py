@@ -57,6 +57,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -70,6 +71,9 @@ from commission.robustness import MarginFloors, floor_violations
 from commission.scenarios import case1_trajectory, case2_trajectory, plant_substeps
 from commission.spec import Spec
 from commission.synth import AxisTruth
+
+if TYPE_CHECKING:
+    from commission.identification import IdentifyOptions
 
 #: Extra input delays of the true-plant runs, samples: as logged, and one more (a drive that
 #: applies each command a sample late).
@@ -418,7 +422,7 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
 
 
 def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: str | os.PathLike[str] | None = None,
-               seed: int = 0, workers: int | None = 1) -> Judgement:
+               seed: int = 0, workers: int | None = 1, identify: "IdentifyOptions | None" = None) -> Judgement:
     """``commission run`` on ``log_path`` with its defaults, then :func:`judge_gains` on the truth.
 
     The one thing told beyond the log is the drive's rail when it is not the default 10
@@ -436,6 +440,8 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
         ``commission run --seed`` (search and Monte-Carlo).
     workers : int, optional
         validate's threads.
+    identify : IdentifyOptions, optional
+        ``run``'s identify flags (default: none, as a user who gives none).
 
     Returns
     -------
@@ -456,7 +462,7 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
             spec_path = Path(tmp) / "spec.toml"
             spec_path.write_text(f"[controller]\nu_max = {truth.u_max!r}\n")
         try:
-            ro = run_all(log_path, out, spec_path=spec_path, seed=seed, workers=workers, force=True)
+            ro = run_all(log_path, out, spec_path=spec_path, seed=seed, workers=workers, force=True, identify=identify)
         except CommissionError as exc:
             data = {"controller": {"u_max": truth.u_max}} if spec_path is not None else {}
             spec = spec_from_mapping(data, "spec.toml", sample_rate_default=truth.sample_rate)

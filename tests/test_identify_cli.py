@@ -173,6 +173,8 @@ def test_bad_flags_exit_2(tmp_path):
         (["--input-gain", "-1"], r"--input-gain"),
         (["--payload-max-kg", "5"], r"--force-constant"),
         (["--ripple-pitch", "0"], r"--ripple-pitch"),
+        (["--ripple-pitch", "fine"], r"--ripple-pitch.*auto"),
+        (["--ripple-pitch", "auto", "--ripple-pitch", "0.03"], r"--ripple-pitch: give either auto"),
         (["--u-unit", "furlong"], r"--u-unit"),
     ]:
         r = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "x.json"), *args])
@@ -250,3 +252,26 @@ def test_q_unit_contradicting_the_file_is_exit_2_and_writes_nothing(tmp_path):
     assert not out.exists()
     r2 = runner.invoke(app, ["identify", str(SAMPLE / "axis_excitation.h5"), "--q-unit", "in", "--out", str(out)])
     assert r2.exit_code == 2 and "--q-unit: expected one of m, mm, um, rad, got 'in'" in r2.output
+
+
+def test_ripple_pitch_auto_finds_the_samples_ripple_and_with_it_the_stribeck_rise(tmp_path):
+    """The sample's fit without a pitch keeps Coulomb friction only: the force ripple (0.01 V at 30 mm)
+    on the slow legs hides the Stribeck rise (fs 0.12 V at vs 10 mm/s, truth.json).  ``--ripple-pitch
+    auto`` finds the pitch on the constant-velocity legs, and the fit then recovers the ripple and the rise
+    as the known pitch does."""
+    truth = json.loads((SAMPLE / "truth.json").read_text())["axis"]["parameters"]
+    docs = {}
+    for tag, extra in (("none", []), ("auto", ["--ripple-pitch", "auto"])):
+        out = tmp_path / f"{tag}.json"
+        r = invoke(["identify", str(SAMPLE / "axis_excitation.h5"), "--out", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        docs[tag] = json.loads(out.read_text())
+    assert docs["none"]["parameters"]["fs"] is None and docs["none"]["model"]["ripple_pitch"] is None
+    assert "ripple_search" not in docs["none"]["model"]
+    doc = docs["auto"]
+    search, p = doc["model"]["ripple_search"], doc["parameters"]
+    assert search["pitch"] == doc["model"]["ripple_pitch"] == pytest.approx(truth["ripple_pitch"]["value"], rel=0.005)
+    assert doc["model"]["ripple_amp"]["value"] == pytest.approx(truth["ripple_amp"]["value"], rel=0.05)
+    assert p["fs"]["value"] == pytest.approx(truth["fs"]["value"], rel=0.02)
+    assert p["vs"]["value"] == pytest.approx(truth["vs"]["value"], rel=0.05)
+    assert doc["warnings"][0].startswith("ripple pitch auto: 0.0299")

@@ -220,13 +220,17 @@ model                                    | object     | -                       
     how the fit was made (method, decimation, cut-off, friction model, fixed parameters, segments,
     inverse_dynamics)
 model.ripple_pitch                       | number     | q                       | positive
-    the first --ripple-pitch
+    the first --ripple-pitch, or the pitch --ripple-pitch auto found
 model.ripple_amp                         | any        | u                       | -
     its amplitude amp sin(2 pi q/P + phase): a number or {value, std}
 model.ripple_phase                       | any        | rad                     | -
     its phase
 model.ripple_harmonics                   | any        | -                       | -
     every --ripple-pitch with its amp and phase ({value, std})
+model.ripple_search                      | any        | -                       | -
+    added: --ripple-pitch auto's search on the constant-velocity legs: pitch (q, null: none stood
+    out), amplitude (u), peak_over_median and explained (-), with the thresholds peak_needed and
+    explained_needed, span and searched (q), legs, samples
 model.fixed                              | any        | -                       | -
     parameters given with --fix NAME=VALUE (std 0)
 model.segments                           | any        | samples                 | -

@@ -20,7 +20,8 @@ from commission.errors import DataError, IdentifiabilityError
 from commission.identification.inputs import _name
 from commission.identify import richer
 from commission.identify.errors import NotIdentifiableError, SignalError, StribeckNotIdentifiableError
-from commission.identify.fit import AxisFit, evaluate_segments, fit_segments
+from commission.identify.fit import AxisFit, evaluate_segments, find_ripple_pitch, fit_segments
+from commission.identify.ripple import RipplePitch
 from commission.identify.frf import FrequencyResponse
 from commission.identify.ls import ripple_name
 from commission.identify.units import unit
@@ -32,6 +33,16 @@ from commission.units import axis_units_context
 POOR_FIT_RELATIVE_ERROR = 0.3
 #: A parameter whose standard deviation exceeds this multiple of its value is flagged as not determined.
 UNDETERMINED_REL_STD = 1.0
+
+
+def _find_ripple_pitch(logs: Sequence[ExcitationLog]) -> RipplePitch:
+    """``--ripple-pitch auto``: the pitch the logs' constant-velocity legs show
+    (:func:`commission.identify.fit.find_ripple_pitch`; ``pitch`` None when none stands out)."""
+    try:
+        return find_ripple_pitch([(lg.t, lg.q, lg.u) for lg in logs],
+                                 velocity_logged=any(getattr(lg, "q_from_velocity", False) for lg in logs))
+    except SignalError as exc:
+        raise DataError(f"{_name(logs, exc.segment)}: {exc}") from None
 
 
 def _fit_with_context(logs: Sequence[ExcitationLog], *, friction: str,

@@ -82,6 +82,10 @@ class IdentifyOptions:
         Force-ripple pitches, m (rad on a rotary axis; ``--ripple-pitch``, repeatable): one
         sinusoid per pitch; empty: none.  The first is the ripple the simulator uses
         (``model.ripple_pitch``/``ripple_amp``).
+    find_ripple : bool
+        ``--ripple-pitch auto``: find the pitch on the log's constant-velocity legs
+        (:mod:`commission.identify.ripple`) and fit its ripple when one stands out
+        (``model.ripple_search`` says what was found); excludes ``ripple_pitch``.
     validate_on : str or None
         Other log(s) for the cross-test relative error (same mapping and gain; several
         are segments, as the identification logs).
@@ -131,6 +135,7 @@ class IdentifyOptions:
     sample_rate: float | None = None
     friction: Literal["coulomb", "stribeck", "auto"] = "auto"
     ripple_pitch: tuple[float, ...] = ()
+    find_ripple: bool = False
     validate_on: str | None = None
     bounds: BoundsOptions = BoundsOptions()
     u_unit: str | None = None
@@ -149,7 +154,7 @@ class IdentifyOptions:
         """Keywords of :func:`identify_log` (``plan`` and ``plan_path`` only when a plan is given)."""
         extra: dict[str, object] = {} if self.plan is None else {"plan": self.plan, "plan_path": self.plan_path}
         return {**extra, "mapping": dict(self.mapping), "input_gain": self.input_gain, "sample_rate": self.sample_rate,
-                "friction": self.friction, "ripple_pitch": self.ripple_pitch or None,
+                "friction": self.friction, "ripple_pitch": self.ripple_pitch or None, "find_ripple": self.find_ripple,
                 "validate_on": self.validate_on, "bounds": self.bounds, "u_unit": self.u_unit, "q_unit": self.q_unit,
                 "fmt": self.fmt, "resample": self.resample, "fix": dict(self.fix), "lead": self.lead,
                 "gear": self.gear, "counts_per_rev": self.counts_per_rev, "terms": self.terms}

@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 from typing import Any, Literal, Mapping, Sequence
@@ -23,8 +24,8 @@ from typing import Any, Literal, Mapping, Sequence
 from commission.artifacts import Identification
 from commission.checks import CheckReport, check_log, mass_plausibility_warnings
 from commission.errors import UsageError
-from commission.identification.fitting import (_delay_agreement, _fit_step, _position_simulation, _validation_error,
-                                               fit_quality_warnings)
+from commission.identification.fitting import (_delay_agreement, _find_ripple_pitch, _fit_step, _position_simulation,
+                                               _validation_error, fit_quality_warnings)
 from commission.identification.frequency import _evidence, _frequency_step
 from commission.identification.inputs import (_conversion_record, _file_q_unit, _joined, _name, _same_axis_units,
                                               _units, convert_axis, resample_log)
@@ -248,7 +249,7 @@ def identify_log(
     fmt: str | None = None, resample: float | None = None, fix: Mapping[str, float] | None = None,
     lead: float | None = None, gear: float | None = None, counts_per_rev: float | None = None,
     max_modes: int | None = None, u_max: float | None = None, plan: Mapping[str, Any] | None = None,
-    terms: str | Sequence[str] | None = "auto", plan_path: str | None = None,
+    terms: str | Sequence[str] | None = "auto", plan_path: str | None = None, find_ripple: bool = False,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -275,7 +276,7 @@ def identify_log(
         that a log without a broadband segment gets (``evidence``).
     mapping, input_gain, sample_rate, friction, ripple_pitch, validate_on, bounds
         As the attributes of :class:`~commission.identification.IdentifyOptions`.
-    u_unit, q_unit, fmt, resample, fix, lead, gear, counts_per_rev, terms, plan, plan_path
+    u_unit, q_unit, fmt, resample, fix, lead, gear, counts_per_rev, terms, plan, plan_path, find_ripple
         As the attributes of :class:`~commission.identification.IdentifyOptions` (one definition
         for ``identify`` and ``run``; its ``kwargs()`` gives these keywords).
 
@@ -295,8 +296,17 @@ def identify_log(
     fix = dict(fix or {})
     allowed = parse_terms(terms)
     units = _units(u_unit, logs[0])
+    search = None
+    if find_ripple:
+        if inp.pitches:
+            raise UsageError("--ripple-pitch: give either auto or the pitches, not both")
+        search = _find_ripple_pitch(logs)
+        if search.pitch is not None:
+            inp = dataclasses.replace(inp, pitches=(search.pitch,), ripple_pitch=search.pitch)
     fit, idim_fit, selection, notes = _fit_step(logs, friction=friction, ripple_pitch=inp.ripple_pitch, fix=fix,
                                                 allowed=allowed, q_unit=units["q"])
+    if search is not None:
+        notes.insert(0, search.describe(units["q"]))
     has_mass = "M" in fit.parameters
     rich_chosen = selection is not None and fit is not idim_fit
     val_err = _validation_error(val_logs, fit, selection, rich_chosen)
@@ -316,6 +326,8 @@ def identify_log(
                            plan_path=plan_path, u_max=u_max, units=units, warnings=warnings)
     _add_model_records(extra, inp, fit, idim_fit, selection, fix=fix, has_box=tb is not None,
                        conversion=(lead, gear, counts_per_rev))
+    if search is not None:
+        extra["model"]["ripple_search"] = search.record()  # type: ignore[index]
     theta = None if tb is None else _theta_box(tb, _name(logs), fit)
     ident = Identification(units=units, parameters=params, relative_error=fit.relative_error,
                            condition_number=fit.condition_number, validation_relative_error=val_err, theta=theta,

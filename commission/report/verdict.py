@@ -142,12 +142,20 @@ def validity_lines(tuning: Any) -> list[str]:
             ""]
 
 
+def unseen_stribeck_checked(checks: Any) -> bool:
+    """Whether ``checks`` (a verdict's) include the ``<case>/stribeck`` scenarios of a Coulomb-only fit."""
+    return any(str(getattr(c, "scenario", "")).endswith("/stribeck") for c in checks)
+
+
 def robustness_lines(result: Any) -> list[str]:
     """The robustness part of the verdict (robustness scenarios and margins), one summary line."""
     rob = getattr(result, "robustness", None)
     if rob is None:
         return []
     what = "one more sample of delay, the mode's variants, stability margins, the whole theta box"
+    if unseen_stribeck_checked(rob.checks):
+        what = "one more sample of delay, the Stribeck rise the log did not resolve, the mode's variants, " \
+               "stability margins, the whole theta box"
     if rob.passed:
         return [f"robustness PASSED ({len(rob.checks)} checks: {what})"]
     return [f"robustness FAILED: {len(rob.failures)} of {len(rob.checks)} checks ({what}; listed above)"]

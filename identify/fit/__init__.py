@@ -67,7 +67,7 @@ Modules
   (:func:`fit_friction_map`, :class:`MapFit`);
 * :mod:`~commission.identify.fit.steady_dynamic`: the steady+dynamic method (steps 1-3);
 * :mod:`~commission.identify.fit.segments`: :func:`fit_segments`, :func:`fit_axis`, :func:`evaluate`,
-  :func:`evaluate_segments`.
+  :func:`evaluate_segments`, :func:`find_ripple_pitch` (:mod:`commission.identify.ripple`).
 """
 
 from __future__ import annotations
@@ -77,9 +77,9 @@ from commission.identify.fit.checks import (MAX_REL_STD_M, MIN_ROWS_PER_DIRECTIO
     MIN_STRIBECK_ROWS, STRIBECK_DIP_P_VALUE)
 from commission.identify.fit.friction_map import MIN_LADDER_SPEEDS, PAIR_SPEED_TOLERANCE, MapFit, fit_friction_map
 from commission.identify.fit.steady_dynamic import N_ALTERNATIONS
-from commission.identify.fit.segments import evaluate, evaluate_segments, fit_axis, fit_segments
+from commission.identify.fit.segments import evaluate, evaluate_segments, find_ripple_pitch, fit_axis, fit_segments
 
 __all__ = ["PARAMETER_ORDER", "AxisFit", "Method", "model_force", "MAX_REL_STD_M", "MIN_ROWS_PER_DIRECTION",
            "MIN_STRIBECK_POINTS", "MIN_STRIBECK_ROWS", "STRIBECK_DIP_P_VALUE", "MIN_LADDER_SPEEDS",
            "PAIR_SPEED_TOLERANCE", "MapFit", "fit_friction_map", "N_ALTERNATIONS", "evaluate", "evaluate_segments",
-           "fit_axis", "fit_segments"]
+           "fit_axis", "fit_segments", "find_ripple_pitch"]

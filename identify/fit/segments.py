@@ -15,6 +15,7 @@ from commission.identify.errors import MassNotIdentifiableError, NotIdentifiable
 from commission.identify.ls import FrictionModel, readonly_copy, regressor
 from commission.identify.signals import (DEFAULT_BANDWIDTH_HZ, Preprocessed, default_settings, preprocess_segments,
                                          quantization_step, segment_rates)
+from commission.identify.ripple import RipplePitch, ripple_periodogram
 from commission.identify.steady import SteadySegments, find_steady_segments
 from commission.identify.fit.checks import _check_excitation
 from commission.identify.fit.dynamic import _dynamic_fit
@@ -253,6 +254,37 @@ def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tup
     return _assembled(pp, params, fmap, rev, friction=friction, method=method, ripple_pitch=ripple_pitch,
                       mass_fitted=not (mass is not None or not_identified), quant=quant, v_res=v_res,
                       bandwidth_hz=bandwidth_hz, warnings=warnings, not_identified=not_identified)
+
+
+def find_ripple_pitch(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tuple, *,
+                      bandwidth_hz: float = DEFAULT_BANDWIDTH_HZ, cutoff_hz: float | None = None,
+                      decimation: int | None = None, trim_start: int | None = None, min_segment_s: float = 0.2,
+                      velocity_logged: bool = False) -> RipplePitch:
+    """The force-ripple pitch the logs' constant-velocity legs show (:mod:`commission.identify.ripple`).
+
+    The logs go through the preprocessing and the leg detection of :func:`fit_segments`
+    (same keywords), so the legs searched are the ones the friction map is taken from.
+
+    Parameters
+    ----------
+    segments : sequence of (t, q, u)
+        As in :func:`fit_segments`: s, q-unit, u-unit.
+
+    Returns
+    -------
+    RipplePitch
+        ``pitch`` None when no pitch stands out (or the logs hold no constant-velocity legs).
+    """
+    checked = segment_rates(list(segments))
+    q_all = _stitched([c[1] for c in checked])
+    pp = preprocess_segments([c[:3] for c in checked], bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff_hz,
+                             decimation=decimation, trim_start=trim_start)
+    quant = quantization_step(q_all)
+    v_tol = (quant / 0.02) if quant is not None else 0.0
+    v_quantum = quant * pp.sample_rate if (velocity_logged and quant is not None) else 0.0
+    segs = _steady_segments(pp, min_segment_s, v_tol, v_quantum)
+    legs = [(pp.q[a:b], pp.u[a:b]) for a, b in zip(segs.start, segs.stop)]
+    return ripple_periodogram(legs, step=quant)
 
 
 def evaluate(fit: AxisFit, t: np.ndarray, q: np.ndarray, u: np.ndarray) -> float:
