@@ -148,8 +148,8 @@ def unseen_stribeck(base: np.ndarray) -> np.ndarray:
     Why: a Coulomb-only fit means the log did not resolve a rise at low speed (too few slow
     samples, force ripple on the slow legs), not that the machine has none; almost every
     machine has one.  At reversals, where the axis crosses the low speeds, it is what an
-    ARC's friction compensation and a PID's integrator meet, and it changes both loops'
-    error there by tens of percent (docs/robustness.md, "Friction the log did not resolve").
+    ARC's friction compensation and a PID's integrator meet (docs/robustness.md, "Friction the
+    log did not resolve", has what it changes).
     Only the curve's shape below the Coulomb level's speeds changes: fc, B and everything
     else stay as identified.
     """

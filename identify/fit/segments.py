@@ -79,6 +79,18 @@ def fit_axis(t: np.ndarray, q: np.ndarray, u: np.ndarray, *, friction: FrictionM
     return fit_segments([(t, q, u)], friction=friction, **kwargs)  # type: ignore[arg-type]
 
 
+def _constant_velocity_legs(pp: Preprocessed, quant: float | None, min_segment_s: float,
+                            velocity_logged: bool) -> SteadySegments:
+    """Every constant-velocity leg of ``pp`` (:func:`_steady_segments`), with the detection's tolerances
+    set from the encoder step ``quant`` (None: unknown)."""
+    v_tol = (quant / 0.02) if quant is not None else 0.0
+    # A position integrated from a recorded velocity (velocity_logged): the step of its
+    # position-difference velocity (1 rpm of a recorder) bounds how steady a leg can look.  A
+    # measured position's quantization averages out over the smoothing window: no quantum.
+    v_quantum = quant * pp.sample_rate if (velocity_logged and quant is not None) else 0.0
+    return _steady_segments(pp, min_segment_s, v_tol, v_quantum)
+
+
 def _friction_legs(pp: Preprocessed, quant: float | None, friction: FrictionModel, *, min_segment_s: float,
                    velocity_logged: bool, warnings: list[str]) -> SteadySegments | None:
     """The constant-velocity legs the friction curve is taken from (the steady+dynamic method).
@@ -86,12 +98,7 @@ def _friction_legs(pp: Preprocessed, quant: float | None, friction: FrictionMode
     None, with a warning saying why, when the log holds no usable friction ladder: the
     whole-log (dynamic) method is used then.
     """
-    v_tol = (quant / 0.02) if quant is not None else 0.0
-    # A position integrated from a recorded velocity (velocity_logged): the step of its
-    # position-difference velocity (1 rpm of a recorder) bounds how steady a leg can look.  A
-    # measured position's quantization averages out over the smoothing window: no quantum.
-    v_quantum = quant * pp.sample_rate if (velocity_logged and quant is not None) else 0.0
-    segs = _steady_segments(pp, min_segment_s, v_tol, v_quantum)
+    segs = _constant_velocity_legs(pp, quant, min_segment_s, velocity_logged)
     reason = _usable_map(segs, friction) if len(segs) else "the log has no constant-velocity legs"
     if reason is not None:
         warnings.append(f"friction from the whole-log regression: {reason}; filtering the friction "
@@ -280,9 +287,7 @@ def find_ripple_pitch(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] 
     pp = preprocess_segments([c[:3] for c in checked], bandwidth_hz=bandwidth_hz, cutoff_hz=cutoff_hz,
                              decimation=decimation, trim_start=trim_start)
     quant = quantization_step(q_all)
-    v_tol = (quant / 0.02) if quant is not None else 0.0
-    v_quantum = quant * pp.sample_rate if (velocity_logged and quant is not None) else 0.0
-    segs = _steady_segments(pp, min_segment_s, v_tol, v_quantum)
+    segs = _constant_velocity_legs(pp, quant, min_segment_s, velocity_logged)
     legs = [(pp.q[a:b], pp.u[a:b]) for a, b in zip(segs.start, segs.stop)]
     return ripple_periodogram(legs, step=quant)
 
