@@ -26,6 +26,7 @@ from commission.report.tables import (gate_table_markdown, monte_carlo_markdown,
 from commission.report.text import md_code, md_text, num, vec
 from commission.report.verdict import (failure_lines, not_better_lines, robustness_lines, unseen_stribeck_checked,
                                        validity_lines)
+from commission.scenarios.matrix import UNSEEN_STRIBECK
 from commission.scenarios.trajectories import case_names, horizon_notes
 from commission.tuning import Tuning, log_sha256_of
 from commission.units import axis_units_context, nominal, unit as unit_of
@@ -248,8 +249,8 @@ def _robustness_paragraph(result: Any) -> list[str]:
     L: list[str] = []
     rl = robustness_lines(result)
     if rl:
-        rise = ("; the Stribeck rise at low speed that the log did not resolve (fs = 1.2 fc, the ARC compared "
-                "with the yardstick there too)" if unseen_stribeck_checked(result.robustness.checks) else "")
+        rise = (f"; the Stribeck rise at low speed that the log did not resolve (fs = {UNSEEN_STRIBECK[0]:g} fc, the "
+                "ARC compared with the yardstick there too)" if unseen_stribeck_checked(result.robustness.checks) else "")
         L.append("**Robustness.** The gate's criteria on the robustness scenarios (one more sample "
                  f"of input delay than identified; with a mode, its frequency x0.8 and x1.2 and half its damping{rise}) "
                  "and the ARC's margins on the identified plant and over the whole theta box, required like every "
