@@ -31,7 +31,10 @@ and ``zeta =`` :data:`ZETA_W` = 0.05 (a stage's first mode is typically damped 0
 the user knows the machine (a FE model, the vendor's data).  Under the small-gain theorem a loop
 with ``||W T|| < 1`` is stable on every such mode.  Both are assumptions, stated in the report and
 ``validation.json``; the remedy for their cost is a log that backs a higher band
-(``commission excite``).  The relative error is only meaningful away from Nyquist: the hold's
+(``commission excite``).  Where ``|W|`` stays below 1 up to the loop's Nyquist frequency (a
+broadband log backed to a good part of it), the bound asks nothing of the loop above the band,
+and the report says that the certificate *assumes* that band free of modes
+(:attr:`Evidence.assumed_mode_free_hz`).  The relative error is only meaningful away from Nyquist: the hold's
 zero at ``z = -1`` sends a rigid body's sampled response to 0 there, where ``|T|`` is about 0 as
 well.
 
@@ -137,6 +140,10 @@ class Evidence:
         Why :attr:`factor` is what it is: ``"default"`` (:data:`EVIDENCE_FACTOR`),
         ``"departure"`` (the data depart from the model at the band's top,
         :func:`departure_factor`) or ``"spec"`` (``[evidence] first_mode_hz``).
+    nyquist_hz : float
+        Half the loop's sample rate, Hz (nan: not known, no spec given): the top of every
+        frequency the sampled loop acts on, so the top of what the bound can weigh
+        (:attr:`assumed_mode_free_hz`).
     """
 
     source: str
@@ -146,6 +153,7 @@ class Evidence:
     measured: MeasuredResponse | None = None
     coherent_up_to_hz: float = math.nan
     factor_basis: str = "default"
+    nyquist_hz: float = math.nan
 
     @property
     def applies(self) -> bool:
@@ -173,6 +181,26 @@ class Evidence:
         """Where ``|W| = 1``: ``f_m / sqrt(2 - 4 zeta^2)``, Hz."""
         return self.mode_hz / math.sqrt(2.0 - 4.0 * self.damping ** 2)
 
+    @property
+    def assumed_mode_free_hz(self) -> tuple[float, float] | None:
+        """``(band's top, Nyquist)``, Hz, where ``|W|`` stays below 1 up to Nyquist; else None.
+
+        The sampled loop acts on frequencies up to Nyquist only.  When the weight's unseen mode
+        is placed so far above the band that ``|W| = 1`` only beyond Nyquist (:attr:`unity_hz`),
+        the bound never asks the loop to attenuate anything it acts on: it says nothing there,
+        and the certificate rests on the *assumption* that the machine has no mode between the
+        band's top and Nyquist, not on the log.  The report says so and names the statement
+        that covers such a mode (``[evidence] first_mode_hz``); docs/robustness.md, "Between the
+        band's top and Nyquist", says why the gap is stated rather than bounded.  None when the
+        user stated the first mode (the assumption is then theirs), when the band reaches
+        Nyquist, or without a known rate.
+        """
+        if not self.applies or not math.isfinite(self.nyquist_hz) or self.factor_basis == "spec":
+            return None
+        if self.unity_hz < self.nyquist_hz or self.top_hz >= self.nyquist_hz:
+            return None
+        return (self.top_hz, self.nyquist_hz)
+
     def weight(self, f_hz: np.ndarray) -> np.ndarray:
         """``|W|`` at ``f_hz`` (dimensionless; zeros when no band is known; module docstring)."""
         f_hz = np.asarray(f_hz, dtype=float)
@@ -193,8 +221,12 @@ class Evidence:
                 "measured_bins": int(self.measured.f_hz.size) if self.measured is not None else 0,
                 "coherent_up_to_hz": self.coherent_up_to_hz if math.isfinite(self.coherent_up_to_hz) else None,
                 "factor_basis": self.factor_basis,
+                "nyquist_hz": self.nyquist_hz if math.isfinite(self.nyquist_hz) else None,
+                "assumed_mode_free_hz": (list(self.assumed_mode_free_hz) if self.assumed_mode_free_hz is not None
+                                         else None),
                 "units": {"band_hz": "Hz", "mode_hz": "Hz", "unity_hz": "Hz", "factor": "1", "damping": "1",
-                          "w_inf": "1", "coherent_up_to_hz": "Hz"}}
+                          "w_inf": "1", "coherent_up_to_hz": "Hz", "nyquist_hz": "Hz",
+                          "assumed_mode_free_hz": "Hz"}}
 
 
 def departure_factor(damping: float) -> float:
@@ -252,8 +284,9 @@ def evidence_of(ident: Identification, spec: Spec | None = None) -> Evidence:
         factor, basis = spec.evidence_first_mode_hz / band_t[1], "spec"
     elif departs_above_band(band_t, coh_hz, res_hz):
         factor, basis = departure_factor(damping), "departure"
+    nyquist = 0.5 * spec.sample_rate if spec is not None else math.nan
     return Evidence(str(fr.get("source", "whole_log")), band_t, factor=factor, damping=damping, measured=measured,
-                    coherent_up_to_hz=coh_hz, factor_basis=basis)
+                    coherent_up_to_hz=coh_hz, factor_basis=basis, nyquist_hz=nyquist)
 
 
 @dataclass(frozen=True)
@@ -484,6 +517,14 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
            f"bounded as an unseen non-collocated mode at {evidence.mode_hz:.4g} Hz or above ({why}{evidence.factor:.3g} x "
            f"the band's top; spec [evidence] first_mode_hz) damped {evidence.damping:g} or more ([evidence] "
            f"damping): |W| = 1 at {evidence.unity_hz:.4g} Hz, {evidence.w_inf:.3g} from {evidence.mode_hz:.4g} Hz on"]
+    free = evidence.assumed_mode_free_hz
+    if free is not None:
+        w_nyq = float(evidence.weight(np.array([free[1]]))[0])
+        out[0] += (f". Assumed, not measured: |W| stays below 1 up to the loop's Nyquist frequency ({free[1]:.4g} "
+                   f"Hz; {w_nyq:.2g} there), so the bound asks nothing of the loop there and the certificate assumes no structural "
+                   f"mode from {free[0]:.4g} to {free[1]:.4g} Hz; if the machine may have one there, state it in "
+                   f"spec.toml [evidence] first_mode_hz (the bound then covers it), or record a log that backs "
+                   f"that band")
     for r in rows:
         who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
         s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "

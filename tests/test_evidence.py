@@ -23,7 +23,8 @@ from commission.controllers.margins import (closed_loop_radius, frequency_grid, 
                                             loop_margins)
 from commission.controllers.pid import pid_pack, pid_place_poles
 from commission.evidence import (EVIDENCE_FACTOR, W_INF, ZETA_W, Evidence, EvidenceBound, MeasuredResponse,
-                                 evidence_checks, evidence_of, excite_command, limits_toml, measured_margins,
+                                 evidence_checks, evidence_lines, evidence_of, excite_command, limits_toml,
+                                 measured_margins,
                                  raise_evidence_line)
 from commission.paper import TS, paper_pid_gains, reference_identification, reference_plant
 from commission.spec import spec_from_mapping
@@ -274,3 +275,37 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     K = linearize_arc(arc_pack(tuning.arc), tuple(tuning.arc.theta0))
     assert 1.0 <= closed_loop_radius(K, b.plant) < 1.0 + 1e-7
     assert [r.peak for r in rows[:2]] == [r.peak for r in b.arc_rows(tuning.arc)]
+
+
+def test_a_bound_whose_mode_lies_above_nyquist_says_the_band_up_to_nyquist_is_assumed_mode_free():
+    # Held-out axis 1009 of the issue-30 sweep: 4 kHz, a log backed to 1290 Hz by its broadband segment,
+    # and a motor-side mode at 2000 Hz that the default decade (12.9 kHz) put outside the bound.
+    backed = {"source": "broadband", "band_hz": [12.0, 1290.0], "evidence_band_hz": [12.0, 1290.0],
+              "coherent_up_to_hz": 1290.0, "resolution_hz": 5.0}
+    spec = spec_from_mapping({"controller": {"sample_rate": 4000.0}})
+    ev = evidence_of(_ident(backed), spec)
+    assert ev.nyquist_hz == 2000.0 and ev.mode_hz == pytest.approx(12900.0)
+    assert ev.assumed_mode_free_hz == (1290.0, 2000.0)
+    w_nyq = float(ev.weight(np.array([2000.0]))[0])
+    # the weight over the whole unbacked part of the loop's band is (f / f_m)^2-small: it bounds nothing there
+    assert w_nyq == pytest.approx((2000.0 / 12900.0) ** 2, rel=0.05) and w_nyq < 0.03
+    line = evidence_lines(ev, ())[0]
+    assert "Assumed, not measured" in line and "no structural mode from 1290 to 2000 Hz" in line
+    assert f"Hz; {w_nyq:.2g} there" in line and "[evidence] first_mode_hz" in line
+    d = ev.to_dict()
+    assert d["nyquist_hz"] == 2000.0 and d["assumed_mode_free_hz"] == [1290.0, 2000.0]
+    # the user's statement of the machine's first mode is not an assumption of the tool's
+    stated = evidence_of(_ident(backed), spec_from_mapping({"controller": {"sample_rate": 4000.0},
+                                                            "evidence": {"first_mode_hz": 1800.0}}))
+    assert stated.assumed_mode_free_hz is None and "Assumed" not in evidence_lines(stated, ())[0]
+    # a rigid log's band a decade below Nyquist: the bound itself rises through 1 below Nyquist
+    low = evidence_of(_ident(WHOLE_LOG), SPEC)
+    assert low.mode_hz < low.nyquist_hz and low.assumed_mode_free_hz is None
+    # held-out 1024 (20 kHz, backed to 1150 Hz): the mode (11.5 kHz) is above Nyquist but |W| passes 1
+    # below it (at 8.1 kHz): the bound does weigh part of the gap, nothing is claimed
+    near = evidence_of(_ident({**backed, "evidence_band_hz": [12.0, 1150.0], "coherent_up_to_hz": 1150.0}),
+                       spec_from_mapping({"controller": {"sample_rate": 20000.0}}))
+    assert near.mode_hz > near.nyquist_hz > near.unity_hz and near.assumed_mode_free_hz is None
+    assert "Assumed" not in evidence_lines(low, ())[0] and low.to_dict()["assumed_mode_free_hz"] is None
+    # without a spec (no rate known) nothing is claimed
+    assert evidence_of(_ident(backed)).assumed_mode_free_hz is None
