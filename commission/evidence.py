@@ -34,9 +34,9 @@ with ``||W T|| < 1`` is stable on every such mode.  Both are assumptions, stated
 (``commission excite``).  Where ``|W|`` stays below 1 up to the loop's Nyquist frequency (a
 broadband log backed to a good part of it), the bound asks nothing of the loop above the band,
 and the report says that the certificate *assumes* that band free of modes
-(:attr:`Evidence.assumed_mode_free_hz`).  The relative error is only meaningful away from Nyquist: the hold's
-zero at ``z = -1`` sends a rigid body's sampled response to 0 there, where ``|T|`` is about 0 as
-well.
+(:attr:`Evidence.assumed_mode_free_hz`).  The relative error is only meaningful away from
+Nyquist: the hold's zero at ``z = -1`` sends a rigid body's sampled response to 0 there, where
+``|T|`` is about 0 as well.
 
 Robust stability is ``||W T||_inf < 1`` with ``T = L / (1 + L)``, ``L = -K P`` the loop of the
 sampled controller's linearisation (:mod:`commission.controllers.margins`) on the identified
@@ -520,11 +520,11 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
     free = evidence.assumed_mode_free_hz
     if free is not None:
         w_nyq = float(evidence.weight(np.array([free[1]]))[0])
-        out[0] += (f". Assumed, not measured: |W| stays below 1 up to the loop's Nyquist frequency ({free[1]:.4g} "
-                   f"Hz; {w_nyq:.2g} there), so the bound asks nothing of the loop there and the certificate assumes no structural "
-                   f"mode from {free[0]:.4g} to {free[1]:.4g} Hz; if the machine may have one there, state it in "
-                   f"spec.toml [evidence] first_mode_hz (the bound then covers it), or record a log that backs "
-                   f"that band")
+        out[0] += (f". Assumed, not measured: |W| stays below 1 up to the loop's Nyquist frequency "
+                   f"({free[1]:.4g} Hz; {w_nyq:.2g} there), so the bound asks nothing of the loop there and the "
+                   f"certificate assumes no structural mode from {free[0]:.4g} to {free[1]:.4g} Hz; if the machine "
+                   f"may have one there, state it in spec.toml [evidence] first_mode_hz (the bound then covers it), "
+                   f"or record a log that backs that band")
     for r in rows:
         who = "ARC" + (f" (theta_hat {r.theta_hat_at})" if r.theta_hat_at else "") if r.controller == "arc" else "PID"
         s = (f"{who}: peak |W T| {r.peak:.3g} at {r.peak_hz:.4g} Hz ({'holds' if r.holds else 'EXCEEDS 1'}), "

@@ -24,8 +24,7 @@ from commission.controllers.margins import (closed_loop_radius, frequency_grid, 
 from commission.controllers.pid import pid_pack, pid_place_poles
 from commission.evidence import (EVIDENCE_FACTOR, W_INF, ZETA_W, Evidence, EvidenceBound, MeasuredResponse,
                                  evidence_checks, evidence_lines, evidence_of, excite_command, limits_toml,
-                                 measured_margins,
-                                 raise_evidence_line)
+                                 measured_margins, raise_evidence_line)
 from commission.paper import TS, paper_pid_gains, reference_identification, reference_plant
 from commission.spec import spec_from_mapping
 from commission.tuning import Tuning
@@ -277,7 +276,7 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     assert [r.peak for r in rows[:2]] == [r.peak for r in b.arc_rows(tuning.arc)]
 
 
-def test_a_bound_whose_mode_lies_above_nyquist_says_the_band_up_to_nyquist_is_assumed_mode_free():
+def test_where_the_bound_stays_below_one_up_to_nyquist_the_report_says_that_band_is_assumed_mode_free():
     # Held-out axis 1009 of the issue-30 sweep: 4 kHz, a log backed to 1290 Hz by its broadband segment,
     # and a motor-side mode at 2000 Hz that the default decade (12.9 kHz) put outside the bound.
     backed = {"source": "broadband", "band_hz": [12.0, 1290.0], "evidence_band_hz": [12.0, 1290.0],
