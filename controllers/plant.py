@@ -369,3 +369,152 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     st[V_LOAD] = v2
     st[X_LOAD2] = x3
     st[V_LOAD2] = v3
+
+
+@njit(cache=True, inline="always")
+def _rigid_sub(p, x, v, u, h, M, v_cut):
+    """One sub-step of :func:`plant_advance`'s loop, for :func:`plant_step_pair`: ``(x, v)`` after
+    ``h`` s under the held input ``u``, the same operations in the same order (tests hold the two to the
+    last bit).  :func:`plant_advance` and :func:`plant_step` keep their loops written out: through these
+    helpers the one-run kernel measured slower (``benchmarks/bench_sim.py``)."""
+    F = u - p[P_OFFSET] - ripple(p, x)  # everything but friction and viscous
+    if v == 0.0:
+        if abs(F) <= p[P_FS]:
+            return x, v  # stuck: static friction balances F
+        a = (F - math.copysign(p[P_FS], F)) / M
+        v = a * h
+    else:
+        a = (F - p[P_B] * v - stribeck(p, v, v_cut)) / M
+        v_new = v + a * h
+        if v_new * v < 0.0 and p[P_FS] > 0.0:
+            v_new = 0.0  # crossed zero: stop, next sub-step decides stick or slip (only static friction can hold it)
+        v = v_new
+    x += v * h
+    return x, v
+
+
+@njit(cache=True, inline="always")
+def _coupled(p, h):
+    """The coupled masses' constants of a plant with a mode (:func:`plant_step`'s), for sub-steps of a segment of ``h`` s:
+    ``(m1, m2, m3, k, c, k2, c2, two, split, hh)`` (masses, springs and dampers, a second mode,
+    the sub-step split that keeps ``w hh`` below :data:`MODE_STEP`, and the split sub-step ``hh`` s)."""
+    M = p[P_M]
+    r = p[P_MODE_RATIO]
+    two = p[P_MODE2_HZ] > 0.0
+    r2 = p[P_MODE2_RATIO] if two else 0.0
+    m1 = (1.0 - r - r2) * M
+    m2 = r * M
+    mu = (1.0 - r) * M * m2 / M
+    w = 2.0 * math.pi * p[P_MODE_HZ]
+    k = w * w * mu
+    c = 2.0 * p[P_MODE_DAMPING] * w * mu
+    k2 = 0.0
+    c2 = 0.0
+    m3 = 1.0
+    w_top = w
+    if two:
+        m3 = r2 * M
+        mu2 = (1.0 - r2) * M * m3 / M
+        w2 = 2.0 * math.pi * p[P_MODE2_HZ]
+        k2 = w2 * w2 * mu2
+        c2 = 2.0 * p[P_MODE2_DAMPING] * w2 * mu2
+        # Gershgorin bound on the coupled stiffness matrix M^-1 K: no coupled frequency exceeds it
+        w_top = math.sqrt(max(2.0 * (k + k2) / m1, 2.0 * k / m2, 2.0 * k2 / m3))
+    split = int(math.ceil(w_top * h / MODE_STEP))
+    if split < 1:
+        split = 1
+    return m1, m2, m3, k, c, k2, c2, two, split, h / split
+
+
+@njit(cache=True, inline="always")
+def _coupled_sub(p, u, hh, v_cut, m1, m2, m3, k, c, k2, c2, two, x1, v1, x2, v2, x3, v3):
+    """One sub-step of ``hh`` s of the coupled masses, :func:`plant_step`'s loop for
+    :func:`plant_step_pair`: the new ``(x1, v1, x2, v2, x3, v3)``, the same operations in the same order."""
+    fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
+    fk2 = k2 * (x1 - x3) + c2 * (v1 - v3) if two else 0.0
+    F = u - p[P_OFFSET] - ripple(p, x1) - fk - fk2
+    if v1 == 0.0:
+        if abs(F) <= p[P_FS]:
+            v1n = 0.0
+        else:
+            v1n = (F - math.copysign(p[P_FS], F)) / m1 * hh
+    else:
+        v1n = v1 + (F - p[P_B] * v1 - stribeck(p, v1, v_cut)) / m1 * hh
+        if v1n * v1 < 0.0 and p[P_FS] > 0.0:
+            v1n = 0.0
+    v2 = v2 + fk / m2 * hh
+    if two:
+        v3 = v3 + fk2 / m3 * hh
+    v1 = v1n
+    x1 += v1 * hh
+    x2 += v2 * hh
+    if two:
+        x3 += v3 * hh
+    return x1, v1, x2, v2, x3, v3
+
+
+@njit(cache=True, inline="always")
+def _store(st, two, x1, v1, x2, v2, x3, v3):
+    """Write the coupled masses' state back (without a second mode its coordinates follow the motor's)."""
+    if not two:
+        x3 = x1
+        v3 = v1
+    st[X_MOTOR] = x1
+    st[V_MOTOR] = v1
+    st[X_LOAD] = x2
+    st[V_LOAD] = v2
+    st[X_LOAD2] = x3
+    st[V_LOAD2] = v3
+
+
+@njit(cache=True, inline="always")
+def _row_setup(p, h, n, v_cut):
+    """One run's side of :func:`plant_step_pair`: ``(rigid, sub-steps, their length s, v_cut, coupled constants)``."""
+    if v_cut < 0.0:
+        v_cut = stribeck_cut(p)
+    if p[P_MODE_HZ] <= 0.0:
+        return True, n, h, v_cut, (p[P_M], 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 1, h)
+    cst = _coupled(p, h)
+    return False, n * cst[8], cst[9], v_cut, cst
+
+
+@njit(cache=True, nogil=True)
+def plant_step_pair(pa, sta, ua, ha, na, va_cut, pb, stb, ub, hb, nb, vb_cut):
+    """:func:`plant_step` of two plants at once, each with its own state, input, sub-step and count.
+
+    Each run's state gets the same operations in the same order as :func:`plant_step` gives it (the
+    same values to the last bit): the two runs only share the loop.  Why: one run's sub-steps are a
+    chain of dependent operations (each needs the last position and velocity) that a core runs at
+    the latency of that chain; two independent chains in one loop body let it overlap them
+    (``benchmarks/bench_fused_chains.py``), which :func:`commission.controllers.simulate.simulate_batch`
+    uses for its rows two at a time.  A count of 0 leaves that state untouched.
+    """
+    rig_a, sub_a, h_a, va_cut, ca = _row_setup(pa, ha, na, va_cut)
+    rig_b, sub_b, h_b, vb_cut, cb = _row_setup(pb, hb, nb, vb_cut)
+    m1a, m2a, m3a, ka, c_a, k2a, c2a, two_a, _, _ = ca
+    m1b, m2b, m3b, kb, c_b, k2b, c2b, two_b, _, _ = cb
+    x1a, v1a, x2a, v2a, x3a, v3a = sta[X_MOTOR], sta[V_MOTOR], sta[X_LOAD], sta[V_LOAD], sta[X_LOAD2], sta[V_LOAD2]
+    x1b, v1b, x2b, v2b, x3b, v3b = stb[X_MOTOR], stb[V_MOTOR], stb[X_LOAD], stb[V_LOAD], stb[X_LOAD2], stb[V_LOAD2]
+    for i in range(max(sub_a, sub_b)):
+        if i < sub_a:
+            if rig_a:
+                x1a, v1a = _rigid_sub(pa, x1a, v1a, ua, h_a, m1a, va_cut)
+            else:
+                x1a, v1a, x2a, v2a, x3a, v3a = _coupled_sub(pa, ua, h_a, va_cut, m1a, m2a, m3a, ka, c_a, k2a, c2a,
+                                                            two_a, x1a, v1a, x2a, v2a, x3a, v3a)
+        if i < sub_b:
+            if rig_b:
+                x1b, v1b = _rigid_sub(pb, x1b, v1b, ub, h_b, m1b, vb_cut)
+            else:
+                x1b, v1b, x2b, v2b, x3b, v3b = _coupled_sub(pb, ub, h_b, vb_cut, m1b, m2b, m3b, kb, c_b, k2b, c2b,
+                                                            two_b, x1b, v1b, x2b, v2b, x3b, v3b)
+    if sub_a > 0:
+        if rig_a:
+            _store(sta, False, x1a, v1a, x1a, v1a, x1a, v1a)
+        else:
+            _store(sta, two_a, x1a, v1a, x2a, v2a, x3a, v3a)
+    if sub_b > 0:
+        if rig_b:
+            _store(stb, False, x1b, v1b, x1b, v1b, x1b, v1b)
+        else:
+            _store(stb, two_b, x1b, v1b, x2b, v2b, x3b, v3b)

@@ -250,3 +250,67 @@ def test_batch_scratch_reuse_and_theta_at_abort_match_single_runs():
         assert b.indexes(i) == r.indexes
         assert b.u_peak[i] == np.abs(r.u).max()
         np.testing.assert_array_equal(b.theta_final[i], r.theta_hat[-1])
+
+
+def _varied_plants():
+    """Rigid, one mode (motor- and load-side encoder), two modes, ripple, Stribeck or Coulomb friction,
+    offsets and input delays of 0, a fraction, one and more samples: each next to a different kind."""
+    from commission.controllers.plant import (P_DELAY, P_MODE2_DAMPING, P_MODE2_HZ, P_MODE2_LOAD_SIDE,
+                                              P_MODE2_RATIO, P_MODE_DAMPING, P_MODE_HZ, P_MODE_LOAD_SIDE,
+                                              P_MODE_RATIO, P_OFFSET)
+    rng = np.random.default_rng(5)
+    out = []
+    for i in range(13):
+        p = plant_vector(M * 10 ** rng.uniform(-0.4, 0.4), B * rng.uniform(0.5, 2.0), fc=0.1,
+                         fs=0.12 if i % 3 else 0.1, ripple_amp=0.01 if i % 4 == 3 else 0.0, ripple_pitch=0.03)
+        if i % 3:
+            p[P_MODE_HZ], p[P_MODE_DAMPING], p[P_MODE_RATIO] = rng.uniform(250, 1100), 0.05, 0.3
+            p[P_MODE_LOAD_SIDE] = float(i % 5 == 1)
+        if i % 3 == 2:
+            p[P_MODE2_HZ], p[P_MODE2_DAMPING], p[P_MODE2_RATIO] = rng.uniform(900, 1800), 0.04, 0.1
+            p[P_MODE2_LOAD_SIDE] = float(i % 5 == 2)
+        p[P_DELAY] = TS * (0.0, 0.4, 1.0, 2.3)[i % 4]
+        p[P_OFFSET] = 0.01 * (i % 3 - 1)
+        out.append(p)
+    return np.stack(out)
+
+
+@pytest.mark.parametrize("kind", ["pid", "arc"])
+@pytest.mark.parametrize("delay", [False, True])
+def test_rows_stepped_in_pairs_are_the_single_runs_to_the_last_bit(kind, delay):
+    """simulate_batch steps its rows two at a time (controllers.plant.plant_step_pair): each row must
+    still be exactly its own single run, whatever its partner -- rigid next to a mode, different input
+    delays (different sub-step counts in the same loop), a partner that aborts early or later, an odd
+    row alone at the end, traces kept or not, one thread or two."""
+    from commission.controllers.arc import arc_pack, paper_gains_implementable
+    from commission.controllers.simulate import KIND_ARC
+
+    traj = sinusoid(1.0, TS)
+    plants = _varied_plants()
+    m = plants.shape[0]
+    k, ctrl = ((KIND_ARC, arc_pack(paper_gains_implementable(TS))) if kind == "arc"
+               else (KIND_PID, pid_pack(LIN_GAINS)))
+    rng = np.random.default_rng(3)
+    noise = rng.normal(0, 2e-7, (m, traj.n))
+    d = np.stack([step_disturbance(traj.t, [(0.2, 0.7, rng.uniform(-0.3, 0.3))]) for _ in range(m)])
+    d[4] = step_disturbance(traj.t, [(0.1, 1.0, 50.0)])  # aborts early when saturated: its partner (5) runs on
+    d[7] = step_disturbance(traj.t, [(0.6, 1.0, 50.0)])  # aborts later; its partner (6) runs on
+    for u_sat in (math.inf, 0.4):
+        kept = simulate_batch(plants, k, ctrl, traj, noise=noise, disturbance=d, delay=delay, u_sat=u_sat,
+                              workers=1, return_traces=True)
+        two = simulate_batch(plants, k, ctrl, traj, noise=noise, disturbance=d, delay=delay, u_sat=u_sat, workers=2)
+        for i in range(m):
+            r = simulate(plants[i], k, ctrl, traj, noise=noise[i], disturbance=d[i], delay=delay, u_sat=u_sat)
+            for b in (kept, two):
+                assert b.diverged[i] == r.diverged and b.n_steps[i] == r.n_steps, (i, u_sat)
+                assert b.indexes(i) == r.indexes, (i, u_sat)
+                assert b.u_peak[i] == np.abs(r.u).max()
+                if k == KIND_ARC:
+                    np.testing.assert_array_equal(b.theta_final[i], r.theta_hat[-1])
+            np.testing.assert_array_equal(kept.y[i, :r.n_steps], r.y)
+            np.testing.assert_array_equal(kept.q[i, :r.n_steps], r.q)
+            np.testing.assert_array_equal(kept.u[i, :r.n_steps], r.u)
+            assert np.all(np.isnan(kept.y[i, r.n_steps:]))
+        if u_sat < math.inf:  # the drive cannot push back: the two pushed rows abort, their partners run on
+            assert kept.diverged[4] and kept.diverged[7] and kept.n_steps[4] < kept.n_steps[7] < traj.n
+            assert not kept.diverged[5] and not kept.diverged[6]
