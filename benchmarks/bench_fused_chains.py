@@ -1,4 +1,4 @@
-"""How much stepping two plants in one loop gains on the bare plant chain (what ``simulate_batch`` now does).
+"""How much a batch could gain by stepping two plants in one loop (an exact option not built yet).
 
 One closed-loop run is a chain of dependent floating-point operations: each plant sub-step
 needs the previous one's position and velocity, so a core runs it at the latency of that chain
@@ -8,11 +8,9 @@ operations unchanged (the same values to the last bit).
 
 This script times the identified sample axis's coupled sub-step (the body of
 :func:`commission.controllers.plant.plant_step` for one mode, rewritten here on scalars) for two
-runs of 25 000 samples x 11 sub-steps: one after the other (per sample or per run: the same
-chains), and fused in one loop as :func:`commission.controllers.plant.plant_step_pair` does.  It checks
-that both give the same final states and prints the two CPU times and their ratio.  The closed loop
-gains less than this bare chain (the controller's step and the bookkeeping per sample do not overlap as
-well): ``benchmarks/bench_sim.py`` prints a batch's rows paired against one at a time.
+runs of 25 000 samples x 11 sub-steps: one after the other (as :func:`simulate_batch` runs rows
+today, per sample or per run: the same chains), and fused in one loop.  It checks that both give
+the same final states and prints the two CPU times and their ratio.
 
 Run: ``python benchmarks/bench_fused_chains.py``.  Prints figures; asserts nothing.
 """

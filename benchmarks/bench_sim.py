@@ -3,9 +3,6 @@
 * one 10-s ARC run, Set 1, 2.5 kHz, 10 plant sub-steps: median over repeats, target <= 10 ms
   (issue 33; the project brief's first target was 50 ms), wall and CPU;
 * a batch of 256 ARC runs on 256 different plants (Set-1 trajectory): target <= 10 s;
-* the same batch on one thread with its rows stepped two at a time (``simulate_batch``'s way:
-  :func:`commission.controllers.plant.plant_step_pair`) against one at a time, interleaved, the
-  minimum CPU of each over ``--pair-repeats`` and their ratio, and whether the results are equal;
 * speed-up against the same loop run as plain Python (every compiled kernel
   replaced by its ``.py_func``) on a shorter horizon, scaled to 10 s.
 
@@ -72,7 +69,6 @@ def main() -> None:
     ap.add_argument("--controller", choices=("ARC", "PID"), default="ARC")
     ap.add_argument("--repeats", type=int, default=21)
     ap.add_argument("--batch", type=int, default=256)
-    ap.add_argument("--pair-repeats", type=int, default=5)
     ap.add_argument("--python-horizon", type=float, default=0.4, help="s simulated in plain Python")
     args = ap.parse_args()
 
@@ -105,25 +101,6 @@ def main() -> None:
     tb, cb = time.perf_counter() - t0, time.process_time() - c0
     print(f"batch of {args.batch} plants: {tb:.2f} s wall, {cb:.2f} s CPU ({b.diverged.sum()} diverged)"
           f"  target <= 10 s")
-
-    paired_rows = _sim._two_of_batch
-    def one_at_a_time(i, j, *rest):  # the rows as simulate_batch ran them before they were paired
-        _sim._one_of_batch(i, *rest)
-        _sim._one_of_batch(j, *rest)
-    cpu_pair, cpu_one, same_pairs = [], [], True
-    for _ in range(args.pair_repeats):
-        for paired in (True, False):
-            _sim._two_of_batch = paired_rows if paired else one_at_a_time
-            try:
-                c0 = time.process_time()
-                bb = simulate_batch(plants, kind, ctrl, sc.traj, workers=1)
-                (cpu_pair if paired else cpu_one).append(time.process_time() - c0)
-            finally:
-                _sim._two_of_batch = paired_rows
-            same_pairs = same_pairs and np.array_equal(bb.e_rms, b.e_rms, equal_nan=True)
-    print(f"batch of {args.batch} on one thread: rows paired {min(cpu_pair):.2f} s CPU, one at a time "
-          f"{min(cpu_one):.2f} s (min of {args.pair_repeats} each, interleaved): x{min(cpu_one) / min(cpu_pair):.2f}; "
-          f"identical results: {same_pairs}")
 
     short = sinusoid(args.python_horizon, TS)
     fast = [0.0] * 3

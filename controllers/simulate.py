@@ -39,8 +39,7 @@ from commission.controllers.arc import S_THETA, arc_new_state, arc_reset, arc_st
 from commission.controllers.metrics import FINAL_WINDOW, INDEX_NAMES, Indexes, batch_indexes, indexes_kernel
 from commission.controllers.pid import G_TS as PID_P_TS
 from commission.controllers.pid import pid_new_state, pid_reset, pid_step
-from commission.controllers.plant import (NP, NX, P_DELAY, plant_output, plant_start, plant_step, plant_step_pair,
-                                          stribeck_cut)
+from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step, stribeck_cut
 from commission.controllers.trajectory import Trajectory
 
 KIND_PID = 0
@@ -103,29 +102,6 @@ def _held(plant_p, st, c, u_sat, d, h, m, v_cut):
     return c
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _timing(plant_p, Ts, substeps, delay):
-    """The held command's timing within a sample: ``(n_d, m_early, h_early, m_late, h_late)``.
-
-    The input delay is ``tau = (n_d + f) Ts`` (the plant's ``P_DELAY``, plus one sample when
-    ``delay``); the early segment ``[t_k, t_k + f Ts)`` and the late one take ``m`` sub-steps of
-    ``h`` s each, the same every sample: computed once per run with the same expressions as
-    :func:`_segment` (the same values to the last bit).
-    """
-    tau = plant_p[P_DELAY] / Ts + (1.0 if delay else 0.0)
-    n_d = int(math.floor(tau + 1e-9))
-    f = tau - n_d
-    if f < 1e-9:
-        f = 0.0
-    t_early = f * Ts
-    t_late = (1.0 - f) * Ts
-    m_early = _substep_count(t_early, substeps, Ts)
-    m_late = _substep_count(t_late, substeps, Ts)
-    h_early = t_early / m_early if m_early > 0 else 0.0
-    h_late = t_late / m_late if m_late > 0 else 0.0
-    return n_d, m_early, h_early, m_late, h_late
-
-
 @njit(cache=True, nogil=True)
 def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, quant, dist, noise,
                        delay, y0, u_sat, e_abort, u_abort, y_out, q_out, u_out, th_out):
@@ -144,11 +120,23 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     n = qd.shape[0]
     has_d = dist.shape[0] > 0
     has_n = noise.shape[0] > 0
-    n_d, m_early, h_early, m_late, h_late = _timing(plant_p, Ts, substeps, delay)
+    tau = plant_p[P_DELAY] / Ts + (1.0 if delay else 0.0)
+    n_d = int(math.floor(tau + 1e-9))
+    f = tau - n_d
+    if f < 1e-9:
+        f = 0.0
     hist = np.zeros(n_d + 2)  # hist[j % len] = c_j
     nh = n_d + 2
     st = np.empty(NX)
     v_cut = stribeck_cut(plant_p)  # once per run: the same value every sample would compute
+    # The two segments' sub-step counts and lengths are the same every sample: computed once here,
+    # with the same expressions as _segment (the same values to the last bit).
+    t_early = f * Ts
+    t_late = (1.0 - f) * Ts
+    m_early = _substep_count(t_early, substeps, Ts)
+    m_late = _substep_count(t_late, substeps, Ts)
+    h_early = t_early / m_early if m_early > 0 else 0.0
+    h_late = t_late / m_late if m_late > 0 else 0.0
     # ring positions of c_k, c_{k-n_d} and c_{k-n_d-1} (k % nh and the others, without a division per sample)
     i_now = 0
     i_late = (-n_d) % nh
@@ -188,134 +176,6 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
         _held(plant_p, st, c_early, u_sat, d, h_early, m_early, v_cut)
         u_out[k] = _held(plant_p, st, c_late, u_sat, d, h_late, m_late, v_cut)
     return n, False
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _saturate(c, u_sat):
-    if c > u_sat:
-        return u_sat
-    if c < -u_sat:
-        return -u_sat
-    return c
-
-
-@njit(cache=True, nogil=True)
-def closed_loop_pair(pa, pb, kind, ca, cb, sa, sb, qd, dqd, ddqd, Ts, substeps, quant, da, db, za, zb,
-                     delay, y0, u_sat, e_abort, u_abort, ya, qa, ua, tha, yb, qb, ub, thb):
-    """:func:`closed_loop_kernel` of two runs (rows ``a`` and ``b``) on one trajectory, side by side.
-
-    Each run is the one :func:`closed_loop_kernel` computes, to the last bit: its own plant
-    ``p``, controller ``c`` and state ``s``, disturbance ``d`` and noise ``z`` (length N or 0),
-    outputs ``y``, ``q``, ``u`` and last estimate ``th`` (shape (1, 3), ARC only); they share the
-    trajectory and the settings.  The plants' sub-steps of a sample run in one loop
-    (:func:`commission.controllers.plant.plant_step_pair`), so that a core overlaps the two
-    chains of dependent operations; a run that aborts stops there and the other goes on alone.
-    Returns ``(n_done_a, diverged_a, n_done_b, diverged_b)``.
-    """
-    n = qd.shape[0]
-    has_da = da.shape[0] > 0
-    has_db = db.shape[0] > 0
-    has_za = za.shape[0] > 0
-    has_zb = zb.shape[0] > 0
-    nd_a, me_a, he_a, ml_a, hl_a = _timing(pa, Ts, substeps, delay)
-    nd_b, me_b, he_b, ml_b, hl_b = _timing(pb, Ts, substeps, delay)
-    nh_a = nd_a + 2
-    nh_b = nd_b + 2
-    hist_a = np.zeros(nh_a)
-    hist_b = np.zeros(nh_b)
-    st_a = np.empty(NX)
-    st_b = np.empty(NX)
-    vc_a = stribeck_cut(pa)
-    vc_b = stribeck_cut(pb)
-    now_a, late_a, early_a = 0, (-nd_a) % nh_a, (-nd_a - 1) % nh_a
-    now_b, late_b, early_b = 0, (-nd_b) % nh_b, (-nd_b - 1) % nh_b
-    plant_start(pa, st_a, y0)
-    plant_start(pb, st_b, y0)
-    y_a = _quantize(plant_output(pa, st_a) + (za[0] if has_za else 0.0), quant)
-    y_b = _quantize(plant_output(pb, st_b) + (zb[0] if has_zb else 0.0), quant)
-    if kind == 0:
-        pid_reset(ca, sa, y_a)
-        pid_reset(cb, sb, y_b)
-    else:
-        arc_reset(ca, sa, y_a)
-        arc_reset(cb, sb, y_b)
-    live_a = True
-    live_b = True
-    done_a = n
-    done_b = n
-    cl_a = ce_a = cl_b = ce_b = 0.0
-    for k in range(n):
-        if live_a:
-            x = plant_output(pa, st_a)
-            if k > 0:
-                y_a = _quantize(x + (za[k] if has_za else 0.0), quant)
-            if not (math.isfinite(x) and math.isfinite(y_a)) or abs(x - qd[k]) > e_abort:
-                live_a = False
-                done_a = k
-            else:
-                if kind == 0:
-                    c = pid_step(ca, sa, y_a, qd[k], dqd[k], ddqd[k])
-                else:
-                    c = arc_step(ca, sa, y_a, qd[k], dqd[k], ddqd[k])
-                if not math.isfinite(c) or abs(c) > u_abort:
-                    live_a = False
-                    done_a = k
-                else:
-                    hist_a[now_a] = c
-                    cl_a = hist_a[late_a] if k >= nd_a else 0.0
-                    ce_a = hist_a[early_a] if k >= nd_a + 1 else 0.0
-                    now_a = now_a + 1 if now_a + 1 < nh_a else 0
-                    late_a = late_a + 1 if late_a + 1 < nh_a else 0
-                    early_a = early_a + 1 if early_a + 1 < nh_a else 0
-                    ya[k] = y_a
-                    qa[k] = x
-                    if kind == 1:
-                        for j in range(3):
-                            tha[0, j] = sa[S_THETA + j]
-        if live_b:
-            x = plant_output(pb, st_b)
-            if k > 0:
-                y_b = _quantize(x + (zb[k] if has_zb else 0.0), quant)
-            if not (math.isfinite(x) and math.isfinite(y_b)) or abs(x - qd[k]) > e_abort:
-                live_b = False
-                done_b = k
-            else:
-                if kind == 0:
-                    c = pid_step(cb, sb, y_b, qd[k], dqd[k], ddqd[k])
-                else:
-                    c = arc_step(cb, sb, y_b, qd[k], dqd[k], ddqd[k])
-                if not math.isfinite(c) or abs(c) > u_abort:
-                    live_b = False
-                    done_b = k
-                else:
-                    hist_b[now_b] = c
-                    cl_b = hist_b[late_b] if k >= nd_b else 0.0
-                    ce_b = hist_b[early_b] if k >= nd_b + 1 else 0.0
-                    now_b = now_b + 1 if now_b + 1 < nh_b else 0
-                    late_b = late_b + 1 if late_b + 1 < nh_b else 0
-                    early_b = early_b + 1 if early_b + 1 < nh_b else 0
-                    yb[k] = y_b
-                    qb[k] = x
-                    if kind == 1:
-                        for j in range(3):
-                            thb[0, j] = sb[S_THETA + j]
-        if not (live_a or live_b):
-            break
-        d_a = da[k] if has_da else 0.0
-        d_b = db[k] if has_db else 0.0
-        ce_a = _saturate(ce_a, u_sat)
-        cl_a = _saturate(cl_a, u_sat)
-        ce_b = _saturate(ce_b, u_sat)
-        cl_b = _saturate(cl_b, u_sat)
-        plant_step_pair(pa, st_a, ce_a + d_a, he_a, me_a if live_a else 0, vc_a,
-                        pb, st_b, ce_b + d_b, he_b, me_b if live_b else 0, vc_b)
-        plant_step_pair(pa, st_a, cl_a + d_a, hl_a, ml_a if live_a else 0, vc_a,
-                        pb, st_b, cl_b + d_b, hl_b, ml_b if live_b else 0, vc_b)
-        if live_a:
-            ua[k] = cl_a
-        if live_b:
-            ub[k] = cl_b
-    return done_a, not live_a, done_b, not live_b
 
 
 @dataclass(frozen=True)
@@ -588,58 +448,25 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
                   out_peak, work):
     """Scenario ``i`` of :func:`simulate_batch` into row ``i`` of the outputs.
 
-    ``work`` (shape (8, N)) is the calling thread's scratch for the traces that are not kept and
+    ``work`` (shape (4, N)) is the calling thread's scratch for the traces that are not kept and
     the error: every run of a thread reuses it instead of allocating (and first touching) a
     megabyte of fresh pages.  Nothing is read from it that this run did not write.
     """
-    y_o, q_o, u_o = _row_traces(i, Y, Q, U, work, 0)
+    n = qd.shape[0]
+    keep = Y.shape[0] > 0
+    if keep:
+        y_o = Y[i]
+        q_o = Q[i]
+        u_o = U[i]
+    else:
+        y_o = work[0]
+        q_o = work[1]
+        u_o = work[2]
     th_o = np.empty((1, 3))  # the last estimate is all a batch records
     d = dists[i] if dists.shape[0] > 1 else dists[0]
     nz = noises[i] if noises.shape[0] > 1 else noises[0]
     n_done, div = closed_loop_kernel(plants[i], kind, ctrl_ps[i], states[i], qd, dqd, ddqd, Ts, substeps,
                                      quant, d, nz, delay, y0, u_sat, e_abort, u_abort, y_o, q_o, u_o, th_o)
-    _finish_row(i, n_done, div, kind, qd, Ts, final_window, y_o, q_o, u_o, th_o, Y.shape[0] > 0, out_idx,
-                out_div, out_n, out_th, out_peak, work[3])
-
-
-@njit(cache=True, nogil=True)
-def _two_of_batch(i, j, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps, quant, dists, noises,
-                  delay, y0, u_sat, e_abort, u_abort, final_window, Y, Q, U, out_idx, out_div, out_n, out_th,
-                  out_peak, work):
-    """Scenarios ``i`` and ``j`` of :func:`simulate_batch` side by side (:func:`closed_loop_pair`):
-    rows ``i`` and ``j`` of the outputs get what :func:`_one_of_batch` gives each."""
-    ya, qa, ua = _row_traces(i, Y, Q, U, work, 0)
-    yb, qb, ub = _row_traces(j, Y, Q, U, work, 4)
-    tha = np.empty((1, 3))
-    thb = np.empty((1, 3))
-    many_d = dists.shape[0] > 1
-    many_z = noises.shape[0] > 1
-    na, diva, nb, divb = closed_loop_pair(plants[i], plants[j], kind, ctrl_ps[i], ctrl_ps[j], states[i], states[j],
-                                          qd, dqd, ddqd, Ts, substeps, quant,
-                                          dists[i] if many_d else dists[0], dists[j] if many_d else dists[0],
-                                          noises[i] if many_z else noises[0], noises[j] if many_z else noises[0],
-                                          delay, y0, u_sat, e_abort, u_abort, ya, qa, ua, tha, yb, qb, ub, thb)
-    keep = Y.shape[0] > 0
-    _finish_row(i, na, diva, kind, qd, Ts, final_window, ya, qa, ua, tha, keep, out_idx, out_div, out_n, out_th,
-                out_peak, work[3])
-    _finish_row(j, nb, divb, kind, qd, Ts, final_window, yb, qb, ub, thb, keep, out_idx, out_div, out_n, out_th,
-                out_peak, work[7])
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _row_traces(i, Y, Q, U, work, at):
-    """Row ``i``'s kept traces, or the scratch rows ``at`` .. ``at + 2`` when the batch keeps none."""
-    if Y.shape[0] > 0:
-        return Y[i], Q[i], U[i]
-    return work[at], work[at + 1], work[at + 2]
-
-
-@njit(cache=True, nogil=True)
-def _finish_row(i, n_done, div, kind, qd, Ts, final_window, y_o, q_o, u_o, th_o, keep, out_idx, out_div, out_n,
-                out_th, out_peak, e):
-    """Row ``i``'s record from its run: abort flag, samples, peak |u|, last estimate, NaN past an abort
-    (kept traces), and the indexes of a completed run (``e``: scratch for the error)."""
-    n = qd.shape[0]
     out_div[i] = div
     out_n[i] = n_done
     if n_done > 0:
@@ -657,6 +484,7 @@ def _finish_row(i, n_done, div, kind, qd, Ts, final_window, y_o, q_o, u_o, th_o,
                 q_o[k] = np.nan
                 u_o[k] = np.nan
         return
+    e = work[3]
     for k in range(n):
         e[k] = y_o[k] - qd[k]
     r = indexes_kernel(e, u_o, Ts * (n - 1), Ts, n, final_window)
@@ -733,31 +561,21 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
             float(quant), dists, noises, bool(delay), float(y0), float(u_sat), float(e_abort),
             float(u_abort), float(final_window), Y, Q, U, out_idx, out_div, out_n, out_th, out_peak)
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    # Rows two at a time (_two_of_batch: the same values as one at a time, in less time), the last
-    # one alone when m is odd.
-    tasks = [(i, i + 1) if i + 1 < m else (i, -1) for i in range(0, m, 2)]
-
-    def run(task: tuple[int, int], work: np.ndarray) -> None:
-        if task[1] < 0:
-            _one_of_batch(task[0], *args, work)
-        else:
-            _two_of_batch(task[0], task[1], *args, work)
-
-    if workers <= 1 or len(tasks) == 1:
-        work = np.empty((8, n))
-        for t in tasks:
-            run(t, work)
+    if workers <= 1 or m == 1:
+        work = np.empty((4, n))
+        for i in range(m):
+            _one_of_batch(i, *args, work)
     else:
         local = threading.local()  # one scratch per pool thread, reused by all its runs
 
-        def one(t: tuple[int, int]) -> None:
+        def one(i: int) -> None:
             work = getattr(local, "work", None)
             if work is None:
-                work = local.work = np.empty((8, n))
-            run(t, work)
+                work = local.work = np.empty((4, n))
+            _one_of_batch(i, *args, work)
 
         with ThreadPoolExecutor(max_workers=workers) as ex:
-            list(ex.map(one, tasks))
+            list(ex.map(one, range(m)))
     return BatchResult(e_M=out_idx[:, 0], e_F=out_idx[:, 1], e_rms=out_idx[:, 2], u_rms=out_idx[:, 3],
                        du_rms=out_idx[:, 4], c_u=out_idx[:, 5], diverged=out_div, n_steps=out_n,
                        theta_final=out_th, u_peak=out_peak, y=Y if return_traces else None, q=Q if return_traces else None,

@@ -277,11 +277,10 @@ def _varied_plants():
 
 @pytest.mark.parametrize("kind", ["pid", "arc"])
 @pytest.mark.parametrize("delay", [False, True])
-def test_rows_stepped_in_pairs_are_the_single_runs_to_the_last_bit(kind, delay):
-    """simulate_batch steps its rows two at a time (controllers.plant.plant_step_pair): each row must
-    still be exactly its own single run, whatever its partner -- rigid next to a mode, different input
-    delays (different sub-step counts in the same loop), a partner that aborts early or later, an odd
-    row alone at the end, traces kept or not, one thread or two."""
+def test_batch_rows_are_the_single_runs_to_the_last_bit_on_varied_plants(kind, delay):
+    """Each row of a batch is exactly its own single run whatever the rows beside it: rigid next to
+    modes, different input delays (sub-step counts), rows that abort early or later on a thread's
+    reused scratch, traces kept or not, one thread or two."""
     from commission.controllers.arc import arc_pack, paper_gains_implementable
     from commission.controllers.simulate import KIND_ARC
 
@@ -293,8 +292,8 @@ def test_rows_stepped_in_pairs_are_the_single_runs_to_the_last_bit(kind, delay):
     rng = np.random.default_rng(3)
     noise = rng.normal(0, 2e-7, (m, traj.n))
     d = np.stack([step_disturbance(traj.t, [(0.2, 0.7, rng.uniform(-0.3, 0.3))]) for _ in range(m)])
-    d[4] = step_disturbance(traj.t, [(0.1, 1.0, 50.0)])  # aborts early when saturated: its partner (5) runs on
-    d[7] = step_disturbance(traj.t, [(0.6, 1.0, 50.0)])  # aborts later; its partner (6) runs on
+    d[4] = step_disturbance(traj.t, [(0.1, 1.0, 50.0)])  # aborts early when saturated; the next rows run on
+    d[7] = step_disturbance(traj.t, [(0.6, 1.0, 50.0)])  # aborts later
     for u_sat in (math.inf, 0.4):
         kept = simulate_batch(plants, k, ctrl, traj, noise=noise, disturbance=d, delay=delay, u_sat=u_sat,
                               workers=1, return_traces=True)
@@ -311,6 +310,6 @@ def test_rows_stepped_in_pairs_are_the_single_runs_to_the_last_bit(kind, delay):
             np.testing.assert_array_equal(kept.q[i, :r.n_steps], r.q)
             np.testing.assert_array_equal(kept.u[i, :r.n_steps], r.u)
             assert np.all(np.isnan(kept.y[i, r.n_steps:]))
-        if u_sat < math.inf:  # the drive cannot push back: the two pushed rows abort, their partners run on
+        if u_sat < math.inf:  # the drive cannot push back: the two pushed rows abort, the others do not
             assert kept.diverged[4] and kept.diverged[7] and kept.n_steps[4] < kept.n_steps[7] < traj.n
             assert not kept.diverged[5] and not kept.diverged[6]
