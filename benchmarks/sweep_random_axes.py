@@ -23,9 +23,9 @@ misses the floors or a run on the true plant.
 Seeds 0-29 are the development set.  A held-out set is run once, on final code, by the lead, and
 is no longer held out once a change has been made after seeing its failures: 100-129, 200-229,
 300-329, 400-429, 500-529, 600-629 and 700-729 have been seen so (600-629 was run once before the
-excite change of that session and once after it), 800-829 and 900-929 are the last two estimates,
-each run once on code with the same verdict, and the next change of the verdict needs seeds nobody
-has run, 1000-1029 (docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
+excite change of that session and once after it), 800-829 and 900-929 were each run once on code with
+the same verdict, 1000-1029 once on the code of the ``<case>/stribeck`` scenario (session 15), and
+the next change of the verdict needs seeds nobody has run, 1100-1129 (docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
 Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
