@@ -19,7 +19,17 @@ yardstick "at the identified mass" would have been, judged the same way.  Nothin
 changes; the second yardstick is computed here by swapping the family's design mass for the
 duration of the call.  Axes refused before tuning are listed as such.
 
-Run: ``python benchmarks/yardstick_mass.py DIR [--tune-seed 0]``.  Prints figures; asserts nothing.
+With ``--choice`` it asks instead whether the *rule* that picks the pole is the lever: for each
+axis with a margin-search yardstick, every admissible pole of both placements (M_min and the
+identified mass; the grid, and below it only where the model admits none of the grid) within the
+gate's c_u is simulated on the tuning scenarios, and the pole with the least summed e_rms over
+``<case>/nominal`` and ``<case>/delay+1`` (the scenarios of ``arc_vs_pid_nominal``) is taken per
+placement: the best PID of the family on the identified plant, not the fastest.  Printed: the
+e_rms profile of the M_min family down the grid (relative to its best; ``!`` outside c_u), and
+each placement's best judged on the true plant as above.
+
+Run: ``python benchmarks/yardstick_mass.py DIR [--tune-seed 0] [--choice]``.  Prints figures;
+asserts nothing.
 """
 
 from __future__ import annotations
@@ -34,7 +44,8 @@ import statistics
 
 import numpy as np
 
-from commission.controllers.pid import pid_place_poles
+from commission.controllers.design import KIND_PID
+from commission.controllers.pid import pid_pack, pid_place_poles
 from commission.scenarios import tuning_scenarios
 from commission.synth import random_axis
 from commission.true_axis import Feedforward, tool_yardstick, true_pid
@@ -62,11 +73,85 @@ def identified_mass_family():
         _baseline.pid_baseline = original
 
 
+def _best_of_family(ident, spec, ev: Evaluator, at_identified: bool, tune_seed: int):
+    """``(best pole, its gains, its summed e_rms, profile)`` of one placement (module docstring), or None.
+
+    ``profile``: ``(pole, summed e_rms, within c_u)`` of every admissible pole, fastest first.
+    """
+    settings = _baseline.DEFAULT_SETTINGS
+    c_u = default_gate_limits(ident, spec).c_u
+    ctx = identified_mass_family() if at_identified else contextlib.nullcontext()
+    with ctx:
+        pids = []
+        for fractions in (settings.yardstick_pole_fractions, settings.yardstick_low_fractions):
+            poles = [fr * spec.sample_rate for fr in fractions]
+            ok = [c for c in _baseline._within_evidence(_baseline.pid_candidates(ident, spec, poles), ident, spec)
+                  if c.admissible]
+            if ok:
+                pids = [(c.pole, _baseline._pid_at(ident, spec, c.pole)) for c in ok]
+                break
+    if not pids:
+        return None
+    key = [i for i, n in enumerate(ev.names) if n.endswith("/nominal") or n.endswith("/delay+1")]
+    scores = ev.scores(KIND_PID, [pid_pack(g) for _, g in pids])
+    prof = sorted(((w, sum(s[i].e_rms for i in key), _baseline._within_c_u(s, c_u), g)
+                   for (w, g), s in zip(pids, scores)), key=lambda r: -r[0])
+    within = [r for r in prof if r[2]]
+    if not within:
+        return None
+    best = min(within, key=lambda r: r[1])
+    return best[0], best[3], best[1], [(w, tot, ok) for w, tot, ok, _ in prof]
+
+
+def best_choice(args) -> None:
+    """``--choice``: the best pole of each placement on the model, judged on the true plant."""
+    for axis in sorted(args.workdir.glob("axis*"), key=lambda p: int(p.name[4:])):
+        seed = int(axis.name[4:])
+        tpath = axis / "out" / "tuning.json"
+        if not tpath.exists():
+            print(f"axis {seed}: no tuning.json (refused before tuning)")
+            continue
+        t = Tuning.from_dict(json.loads(tpath.read_text()), source=str(tpath))
+        if (t.pid_yardstick or {}).get("method") != "margin_search":
+            print(f"axis {seed}: yardstick {(t.pid_yardstick or {}).get('method')}, not a margin search")
+            continue
+        truth = random_axis(np.random.default_rng(seed))
+        ident, spec = t.identification, t.spec
+        ref = true_pid(truth, spec, feedforward=Feedforward.identified(ident), noise_seed=args.tune_seed)
+        if not ref.runs:
+            print(f"axis {seed}: no true-plant PID keeps the floors")
+            continue
+        now = tool_yardstick(truth, t.pid, t.pid_pole, spec, noise_seed=args.tune_seed)
+        ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(args.tune_seed)), spec, workers=1)
+        line = (f"axis {seed}: true-plant PID {ref.pole:.0f} rad/s | tool {t.pid_pole:.0f} rad/s "
+                f"x{now.ratio_to(ref):.3f}{'' if now.ok else ' (NOT ok)'}")
+        profile = None
+        for at_id, name in ((False, "M_min"), (True, "identified M")):
+            got = _best_of_family(ident, spec, ev, at_id, args.tune_seed)
+            if got is None:
+                line += f" | {name}: none within c_u"
+                continue
+            w, g, tot, prof = got
+            profile = profile or (prof, tot)
+            y = tool_yardstick(truth, g, w, spec, noise_seed=args.tune_seed)
+            line += (f" | best at {name}: {w:.0f} rad/s, summed e_rms {tot * 1e6:.4g} um on the model, "
+                     f"x{y.ratio_to(ref):.3f} on the true plant{'' if y.ok else ' (NOT ok)'}")
+        print(line)
+        if profile is not None:
+            prof, tot = profile
+            print("    M_min family on the model, e_rms over its best: " +
+                  " ".join(f"{w:.0f}:{x / tot:.2f}{'' if ok else '!'}" for w, x, ok in prof[:12]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("workdir", type=pathlib.Path)
     ap.add_argument("--tune-seed", type=int, default=0)
+    ap.add_argument("--choice", action="store_true", help="the best pole of each placement on the model (docstring)")
     args = ap.parse_args()
+    if args.choice:
+        best_choice(args)
+        return
     rows = []
     for axis in sorted(args.workdir.glob("axis*"), key=lambda p: int(p.name[4:])):
         seed = int(axis.name[4:])
