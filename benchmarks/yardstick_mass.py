@@ -103,26 +103,38 @@ def _best_of_family(ident, spec, ev: Evaluator, at_identified: bool, tune_seed: 
     return best[0], best[3], best[1], [(w, tot, ok) for w, tot, ok, _ in prof]
 
 
-def best_choice(args) -> None:
-    """``--choice``: the best pole of each placement on the model, judged on the true plant."""
-    for axis in sorted(args.workdir.glob("axis*"), key=lambda p: int(p.name[4:])):
+def _axes(workdir: pathlib.Path, tune_seed: int, margin_search_only: bool = False):
+    """Each axis of a sweep's workdir that has a tuning and a true-plant PID, with what both modes need.
+
+    Yields ``(seed, truth, tuning, true-plant PID, the tool's yardstick on the true plant, the
+    evaluator of the tuning scenarios)``; prints a line for each axis it skips.
+    """
+    for axis in sorted(workdir.glob("axis*"), key=lambda p: int(p.name[4:])):
         seed = int(axis.name[4:])
         tpath = axis / "out" / "tuning.json"
         if not tpath.exists():
             print(f"axis {seed}: no tuning.json (refused before tuning)")
             continue
         t = Tuning.from_dict(json.loads(tpath.read_text()), source=str(tpath))
-        if (t.pid_yardstick or {}).get("method") != "margin_search":
-            print(f"axis {seed}: yardstick {(t.pid_yardstick or {}).get('method')}, not a margin search")
+        method = (t.pid_yardstick or {}).get("method")
+        if margin_search_only and method != "margin_search":
+            print(f"axis {seed}: yardstick {method}, not a margin search")
             continue
         truth = random_axis(np.random.default_rng(seed))
         ident, spec = t.identification, t.spec
-        ref = true_pid(truth, spec, feedforward=Feedforward.identified(ident), noise_seed=args.tune_seed)
+        ref = true_pid(truth, spec, feedforward=Feedforward.identified(ident), noise_seed=tune_seed)
         if not ref.runs:
             print(f"axis {seed}: no true-plant PID keeps the floors")
             continue
-        now = tool_yardstick(truth, t.pid, t.pid_pole, spec, noise_seed=args.tune_seed)
-        ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(args.tune_seed)), spec, workers=1)
+        now = tool_yardstick(truth, t.pid, t.pid_pole, spec, noise_seed=tune_seed)
+        ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(tune_seed)), spec, workers=1)
+        yield seed, truth, t, ref, now, ev
+
+
+def best_choice(args) -> None:
+    """``--choice``: the best pole of each placement on the model, judged on the true plant."""
+    for seed, truth, t, ref, now, ev in _axes(args.workdir, args.tune_seed, margin_search_only=True):
+        ident, spec = t.identification, t.spec
         line = (f"axis {seed}: true-plant PID {ref.pole:.0f} rad/s | tool {t.pid_pole:.0f} rad/s "
                 f"x{now.ratio_to(ref):.3f}{'' if now.ok else ' (NOT ok)'}")
         profile = None
@@ -153,21 +165,8 @@ def main() -> None:
         best_choice(args)
         return
     rows = []
-    for axis in sorted(args.workdir.glob("axis*"), key=lambda p: int(p.name[4:])):
-        seed = int(axis.name[4:])
-        tpath = axis / "out" / "tuning.json"
-        if not tpath.exists():
-            print(f"axis {seed}: no tuning.json (refused before tuning)")
-            continue
-        truth = random_axis(np.random.default_rng(seed))
-        t = Tuning.from_dict(json.loads(tpath.read_text()), source=str(tpath))
+    for seed, truth, t, ref, now, ev in _axes(args.workdir, args.tune_seed):
         ident, spec = t.identification, t.spec
-        ref = true_pid(truth, spec, feedforward=Feedforward.identified(ident), noise_seed=args.tune_seed)
-        if not ref.runs:
-            print(f"axis {seed}: no true-plant PID keeps the floors")
-            continue
-        now = tool_yardstick(truth, t.pid, t.pid_pole, spec, noise_seed=args.tune_seed)
-        ev = Evaluator(tuning_scenarios(ident, spec, rng=np.random.default_rng(args.tune_seed)), spec, workers=1)
         with identified_mass_family():
             base, choice = _baseline.pid_yardstick(ident, spec, ev, default_gate_limits(ident, spec).c_u, True)
         alt = tool_yardstick(truth, base.gains, base.pole, spec, noise_seed=args.tune_seed)
