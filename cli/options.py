@@ -77,8 +77,8 @@ _IDENTIFY: dict[str, _Flag] = {
     "--friction": _Flag("friction", Friction, Friction.auto, None, FRICTION_HELP),
     "--ripple-pitch": _Flag("ripple_pitch", List[str], [], "P",
                             "Force-ripple pitch P in m (rad on a rotary axis): fits sin/cos(2πq/P); repeatable, "
-                            "one sinusoid per pitch (e.g. the harmonics of one cogging period); 'auto': find it "
-                            "on the log's constant-velocity legs."),
+                            "one sinusoid per pitch (e.g. the harmonics of one cogging period); 'auto' (the "
+                            "default): find it on the log's constant-velocity legs; 'none': no ripple."),
     "--validate-on": _Flag("validate_on", Optional[Path], None, "LOG2",
                            "Second log for the cross-test relative error; identify also takes a folder (its logs "
                            "read as the identification's: legs, or segments fitted together)."),
@@ -199,17 +199,26 @@ def bounds_options(
 
 
 def parse_ripple_pitch(values: List[str]) -> tuple[tuple[float, ...], bool]:
-    """``--ripple-pitch`` values: the pitches (q-unit, each > 0) or ``auto`` alone (find it); bad: :class:`UsageError`."""
-    if any(v.strip().lower() == "auto" for v in values):
-        if len(values) > 1:
-            raise UsageError("--ripple-pitch: give either auto or the pitches, not both")
+    """``--ripple-pitch`` values: ``(pitches, search)``; bad: :class:`UsageError`.
+
+    None given or ``auto`` alone: search the logs' legs for the pitch (the default); ``none``
+    alone: no ripple; otherwise the pitches (q-unit, each > 0).
+    """
+    words = [v.strip().lower() for v in values]
+    for word in ("auto", "none"):
+        if word in words and len(values) > 1:
+            raise UsageError(f"--ripple-pitch: give either {word} or the pitches, not both")
+    if not values or words == ["auto"]:
         return (), True
+    if words == ["none"]:
+        return (), False
     out = []
     for v in values:
         try:
             p = float(v)
         except ValueError:
-            raise UsageError(f"--ripple-pitch: expected a pitch in m (rad on a rotary axis) or auto, got {v!r}") from None
+            raise UsageError(f"--ripple-pitch: expected a pitch in m (rad on a rotary axis), auto or none, got {v!r}"
+                             ) from None
         if not (math.isfinite(p) and p > 0):
             raise UsageError(f"--ripple-pitch must be > 0 (m, or rad on a rotary axis), got {v}")
         out.append(p)

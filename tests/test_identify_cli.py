@@ -175,6 +175,7 @@ def test_bad_flags_exit_2(tmp_path):
         (["--ripple-pitch", "0"], r"--ripple-pitch"),
         (["--ripple-pitch", "fine"], r"--ripple-pitch.*auto"),
         (["--ripple-pitch", "auto", "--ripple-pitch", "0.03"], r"--ripple-pitch: give either auto"),
+        (["--ripple-pitch", "none", "--ripple-pitch", "0.03"], r"--ripple-pitch: give either none"),
         (["--u-unit", "furlong"], r"--u-unit"),
     ]:
         r = runner.invoke(app, ["identify", str(log), "--out", str(tmp_path / "x.json"), *args])
@@ -254,20 +255,22 @@ def test_q_unit_contradicting_the_file_is_exit_2_and_writes_nothing(tmp_path):
     assert r2.exit_code == 2 and "--q-unit: expected one of m, mm, um, rad, got 'in'" in r2.output
 
 
-def test_ripple_pitch_auto_finds_the_samples_ripple_and_with_it_the_stribeck_rise(tmp_path):
-    """The sample's fit without a pitch keeps Coulomb friction only: the force ripple (0.01 V at 30 mm)
-    on the slow legs hides the Stribeck rise (fs 0.12 V at vs 10 mm/s, truth.json).  ``--ripple-pitch
-    auto`` finds the pitch on the constant-velocity legs, and the fit then recovers the ripple and the rise
-    as the known pitch does."""
+def test_the_default_ripple_search_finds_the_samples_ripple_and_with_it_the_stribeck_rise(tmp_path):
+    """The sample's fit without a ripple (``--ripple-pitch none``) keeps Coulomb friction only: the force
+    ripple (0.01 V at 30 mm) on the slow legs hides the Stribeck rise (fs 0.12 V at vs 10 mm/s,
+    truth.json).  By default (as with ``--ripple-pitch auto``) identify finds the pitch on the
+    constant-velocity legs, and the fit then recovers the ripple and the rise as the known pitch does."""
     truth = json.loads((SAMPLE / "truth.json").read_text())["axis"]["parameters"]
     docs = {}
-    for tag, extra in (("none", []), ("auto", ["--ripple-pitch", "auto"])):
+    for tag, extra in (("none", ["--ripple-pitch", "none"]), ("auto", ["--ripple-pitch", "auto"]), ("default", [])):
         out = tmp_path / f"{tag}.json"
         r = invoke(["identify", str(SAMPLE / "axis_excitation.h5"), "--out", str(out), *extra])
         assert r.exit_code == 0, r.output
         docs[tag] = json.loads(out.read_text())
     assert docs["none"]["parameters"]["fs"] is None and docs["none"]["model"]["ripple_pitch"] is None
     assert "ripple_search" not in docs["none"]["model"]
+    assert docs["default"]["parameters"] == docs["auto"]["parameters"]
+    assert docs["default"]["model"]["ripple_search"] == docs["auto"]["model"]["ripple_search"]
     doc = docs["auto"]
     search, p = doc["model"]["ripple_search"], doc["parameters"]
     assert search["pitch"] == doc["model"]["ripple_pitch"] == pytest.approx(truth["ripple_pitch"]["value"], rel=0.005)

@@ -67,14 +67,17 @@ def test_run_on_the_sample_log_leaves_every_file_and_says_its_verdict(tmp_path):
         p = pid[(a.case, a.extra_delay)]
         assert not a.diverged and a.c_u <= 1.0, a
         assert not p.diverged and a.e_rms < p.e_rms, (a, p)
-    # the log's fit keeps Coulomb friction only (the rise is below its resolution); the true axis has the
-    # reference rise (fs = 1.2 fc): <case>/stribeck predicts the emitted ARC there better than <case>/nominal
-    assert read_json(out / "ident.json")["parameters"]["fs"] is None
+    # the default ripple search finds the sample's 30-mm ripple, and with it the fit resolves the Stribeck
+    # rise the ripple hid on the slow legs (fs 0.12 V, truth.json): validate's <case>/nominal then predicts
+    # the emitted ARC on the true axis to within 3 % (with the ripple left out, Case 1 predicted 0.95 um for 3.1)
+    fs = read_json(out / "ident.json")["parameters"]["fs"]
+    assert fs is not None and fs["value"] == pytest.approx(truth_doc["axis"]["parameters"]["fs"]["value"], rel=0.02)
     predicted = {r["name"]: r["arc"]["e_rms"] for r in read_json(out / "validation.json")["runs"]}
     true_arc = {a.case: a.e_rms for a in judged.arc_runs if a.extra_delay == 0}
+    assert set(true_arc) == {"case1", "case2"}
     for case, e_true in true_arc.items():
-        assert abs(predicted[f"{case}/stribeck"] - e_true) < abs(predicted[f"{case}/nominal"] - e_true), case
-    assert "the Stribeck rise the log did not resolve" in (out / "report.md").read_text()
+        assert predicted[f"{case}/nominal"] == pytest.approx(e_true, rel=0.03), case
+        assert f"{case}/stribeck" not in predicted  # only for a rise the log did not resolve
     for name in ["controller.json"]:
         ctrl = read_json(out / name)
         assert ctrl["provenance"]["log_sha256"] == sha256_file(SAMPLE)

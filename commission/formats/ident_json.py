@@ -228,7 +228,7 @@ model.ripple_phase                       | any        | rad                     
 model.ripple_harmonics                   | any        | -                       | -
     every --ripple-pitch with its amp and phase ({value, std})
 model.ripple_search                      | any        | -                       | -
-    added: --ripple-pitch auto's search on the constant-velocity legs: pitch (q, null: none stood
+    added: the ripple search on the constant-velocity legs (the default; --ripple-pitch auto): pitch (q, null: none stood
     out), amplitude (u), peak_over_median and explained (-), with the thresholds peak_needed and
     explained_needed, span and searched (q), legs, samples
 model.fixed                              | any        | -                       | -

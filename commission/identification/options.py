@@ -83,9 +83,13 @@ class IdentifyOptions:
         sinusoid per pitch; empty: none.  The first is the ripple the simulator uses
         (``model.ripple_pitch``/``ripple_amp``).
     find_ripple : bool
-        ``--ripple-pitch auto``: find the pitch on the log's constant-velocity legs
+        Find the force-ripple pitch on the log's constant-velocity legs
         (:mod:`commission.identify.ripple`) and fit its ripple when one stands out
-        (``model.ripple_search`` says what was found); excludes ``ripple_pitch``.
+        (``model.ripple_search`` says what was searched and found; a warning says a pitch
+        found), when no ``ripple_pitch`` is given.  The default (``--ripple-pitch auto``):
+        a ripple left out of the fit biases the friction (it hides the Stribeck rise on
+        slow legs) and the mass (docs/robustness.md, "Friction the log did not resolve");
+        ``--ripple-pitch none`` turns the search off.
     validate_on : str or None
         Other log(s) for the cross-test relative error (same mapping and gain; several
         are segments, as the identification logs).
@@ -135,7 +139,7 @@ class IdentifyOptions:
     sample_rate: float | None = None
     friction: Literal["coulomb", "stribeck", "auto"] = "auto"
     ripple_pitch: tuple[float, ...] = ()
-    find_ripple: bool = False
+    find_ripple: bool = True
     validate_on: str | None = None
     bounds: BoundsOptions = BoundsOptions()
     u_unit: str | None = None

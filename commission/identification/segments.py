@@ -249,7 +249,7 @@ def identify_log(
     fmt: str | None = None, resample: float | None = None, fix: Mapping[str, float] | None = None,
     lead: float | None = None, gear: float | None = None, counts_per_rev: float | None = None,
     max_modes: int | None = None, u_max: float | None = None, plan: Mapping[str, Any] | None = None,
-    terms: str | Sequence[str] | None = "auto", plan_path: str | None = None, find_ripple: bool = False,
+    terms: str | Sequence[str] | None = "auto", plan_path: str | None = None, find_ripple: bool = True,
     _loaded: tuple[Sequence[ExcitationLog], Sequence[ExcitationLog]] | None = None,
 ) -> IdentifyOutcome:
     """Load, check and identify one excitation log, or several logs of one axis fitted together.
@@ -297,15 +297,14 @@ def identify_log(
     allowed = parse_terms(terms)
     units = _units(u_unit, logs[0])
     search = None
-    if find_ripple:
-        if inp.pitches:
-            raise UsageError("--ripple-pitch: give either auto or the pitches, not both")
+    if find_ripple and not inp.pitches:  # given pitches are the user's word: no search then
         search = _find_ripple_pitch(logs)
         if search.pitch is not None:
             inp = dataclasses.replace(inp, pitches=(search.pitch,), ripple_pitch=search.pitch)
     fit, idim_fit, selection, notes = _fit_step(logs, friction=friction, ripple_pitch=inp.ripple_pitch, fix=fix,
                                                 allowed=allowed, q_unit=units["q"])
-    if search is not None:
+    if search is not None and search.pitch is not None:
+        # a ripple found changes the model, so it is said; none found is only recorded (model.ripple_search)
         notes.insert(0, search.describe(units["q"]))
     has_mass = "M" in fit.parameters
     rich_chosen = selection is not None and fit is not idim_fit

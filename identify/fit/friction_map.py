@@ -78,7 +78,7 @@ def _map_fit_stribeck(v: np.ndarray, F: np.ndarray, warnings: list[str]) -> dict
     _check_stribeck(sep, speed, MIN_STRIBECK_POINTS,
                     f"constant-velocity legs; the slowest runs at {float(speed.min()):.3g} {unit('v')}",
                     "add slower legs to the friction ladder, give the ripple pitch if the axis has force ripple "
-                    "(it does not average out on slow legs; --ripple-pitch auto finds it on the legs), or use "
+                    "the legs did not show (it does not average out on slow legs), or use "
                     "friction='coulomb'", warnings)
     return params
 
