@@ -37,7 +37,7 @@ the line says so.  ``--log legacy`` records the commissioning run of issue 30's 
 got, its duration and samples.
 
 Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-5] [--log excite|legacy] [--tune-seed 0]
-[--workers N] [--workdir DIR] [--reuse-logs DIR] [--ripple-pitch-auto]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
+[--workers N] [--workdir DIR] [--reuse-logs DIR] [--ripple-pitch-none]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
 parallel processes, each validating on one thread -- the machine's cores are shared, mind
 them; ``--workdir`` keeps each axis's log and run outputs under ``DIR/axisN``; ``--reuse-logs DIR``
 judges the logs a previous ``--workdir`` kept instead of recording new ones, so that a subset re-runs
@@ -98,14 +98,14 @@ def category(j: Judgement) -> str:
 
 
 def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
-               logs_from: str | None = None, ripple_auto: bool = False) -> tuple[int, str, str, float, bool, str, str]:
+               logs_from: str | None = None, no_ripple: bool = False) -> tuple[int, str, str, float, bool, str, str]:
     """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written,
     tool yardstick)``, the last ``"ok"``, ``"floors"`` (misses them on the true plant), ``"runs"`` (a run
     diverges, chatters or faults) or ``"-"`` (none: refused before tuning).
 
     ``logs_from``: a previous sweep's ``--workdir``; its ``axisN/log.h5`` is judged again (the truth
     re-drawn with :func:`commission.synth.random_axis`) instead of recording a new log.
-    ``ripple_auto``: ``run --ripple-pitch auto`` instead of ``run`` without flags.
+    ``no_ripple``: ``run --ripple-pitch none`` (no ripple search) instead of ``run`` without flags.
     """
     d = pathlib.Path(workdir) / f"axis{seed}"
     d.mkdir(parents=True, exist_ok=True)
@@ -123,7 +123,7 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
     t_rec = time.perf_counter() - t0
     try:
         j = judge_axis(truth, log_path, out_dir=d / "out", seed=tune_seed, workers=1,
-                       identify=IdentifyOptions(find_ripple=True) if ripple_auto else None)
+                       identify=IdentifyOptions(find_ripple=False) if no_ripple else None)
     except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
         dt = time.perf_counter() - t0
         return seed, f"axis {seed:3d}: {describe(truth)} | {how} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
@@ -159,8 +159,8 @@ def main() -> None:
     ap.add_argument("--reuse-logs", type=pathlib.Path, default=None, metavar="DIR",
                     help="judge the logs a previous sweep kept (DIR/axisN/log.h5, its --workdir) instead of "
                          "recording new ones; --workdir must then be another folder")
-    ap.add_argument("--ripple-pitch-auto", dest="ripple_auto", action="store_true",
-                    help="run each axis with --ripple-pitch auto (the pitch found on the log's legs)")
+    ap.add_argument("--ripple-pitch-none", dest="no_ripple", action="store_true",
+                    help="run each axis with --ripple-pitch none (no ripple search; the default searches)")
     args = ap.parse_args()
     if args.reuse_logs is not None and args.workdir is not None and args.workdir.resolve() == args.reuse_logs.resolve():
         ap.error("--workdir must differ from --reuse-logs (the run outputs would overwrite the kept ones)")
@@ -172,13 +172,13 @@ def main() -> None:
         workdir = str(args.workdir or tmp)
         if args.workers > 1:
             with ProcessPoolExecutor(max_workers=args.workers) as ex:
-                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log, logs_from, args.ripple_auto) for s in seeds]
+                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple) for s in seeds]
                 for f in futs:
                     results.append(f.result())
                     print(results[-1][1], flush=True)
         else:
             for s in seeds:
-                results.append(sweep_axis(s, workdir, args.tune_seed, args.log, logs_from, args.ripple_auto))
+                results.append(sweep_axis(s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple))
                 print(results[-1][1], flush=True)
     n = len(results)
     cats = [r[2] for r in results]
