@@ -21,13 +21,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import pathlib
 
 import numpy as np
 
 from commission.controllers.arc import arc_pack
 from commission.controllers.design import KIND_ARC
-from commission.gate.comparison import NOMINAL_COMPARISON_VARIANTS
+from commission.controllers.metrics import SCORE_NAMES, Indexes
+from commission.gate.comparison import nominal_comparisons
 from commission.runtime import load_controller
 from commission.synth import random_axis
 from commission.true_axis import Feedforward, true_pid, true_runs
@@ -83,17 +85,14 @@ def main() -> None:
 
 
 def _summed(runs: list[dict]) -> dict[str, float]:
-    """Per case, the gate's ``arc_vs_pid_nominal`` value: summed ARC e_rms over summed PID e_rms on the
-    identified plant's variants (:data:`commission.gate.comparison.NOMINAL_COMPARISON_VARIANTS`)."""
-    sums: dict[str, list[float]] = {}
-    for r in runs:
-        case, _, variant = r["name"].rpartition("/")
-        a, p = r["arc"].get("e_rms"), r["pid"].get("e_rms")
-        if case and not case.startswith("mc") and variant in NOMINAL_COMPARISON_VARIANTS and a is not None and p:
-            acc = sums.setdefault(case, [0.0, 0.0])
-            acc[0] += a
-            acc[1] += p
-    return {case: a / p for case, (a, p) in sums.items()}
+    """Per case, the gate's ``arc_vs_pid_nominal`` value (:func:`commission.gate.comparison.nominal_comparisons`)
+    from validation.json's ``runs``."""
+    def ix(d: dict) -> Indexes:
+        return Indexes(**{k: math.nan if d.get(k) is None else float(d[k]) for k in SCORE_NAMES},
+                       diverged=bool(d.get("diverged")))
+
+    return {case: v for case, (v, _rows) in
+            nominal_comparisons([(r["name"], ix(r["arc"]), ix(r["pid"])) for r in runs]).items()}
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ from commission.controllers.design import KIND_ARC, KIND_PID
 from commission.controllers.pid import pid_pack
 from commission.runtime import load_controller
 from commission.synth import random_axis
-from commission.true_axis import Feedforward, true_pid, true_runs
+from commission.true_axis import Feedforward, runs_beat, true_pid, true_runs, worst_ratio
 from commission.tuning import Tuning
 
 
@@ -56,8 +56,8 @@ def main() -> None:
         for ns in range(args.noise_seeds):
             a = true_runs(truth, KIND_ARC, arc_pack(gains), spec, noise_seed=ns)
             p = true_runs(truth, KIND_PID, pid_pack(ref.gains), spec, noise_seed=ns)
-            ratios.append(max((np.inf if x.diverged else x.e_rms / y.e_rms) for x, y in zip(a, p)))
-            works += all(x.ok and x.e_rms < y.e_rms for x, y in zip(a, p))
+            ratios.append(worst_ratio(a, p))
+            works += runs_beat(a, p)
             arc_e.append([x.e_rms for x in a])
             pid_e.append([y.e_rms for y in p])
         med = float(np.max(np.median(np.array(arc_e), 0) / np.median(np.array(pid_e), 0)))

@@ -55,6 +55,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -145,11 +146,17 @@ class TruePid:
     runs: tuple[TrueRun, ...] = ()
 
 
-def _worst_ratio(runs: tuple[TrueRun, ...], ref: tuple[TrueRun, ...]) -> float:
+def worst_ratio(runs: Sequence[TrueRun], ref: Sequence[TrueRun]) -> float:
     """Worst e_rms of ``runs`` over ``ref``'s, run by run: NaN without both, inf where one of ``runs`` diverged."""
     if not runs or not ref:
         return math.nan
     return max((math.inf if a.diverged else a.e_rms / p.e_rms) for a, p in zip(runs, ref))
+
+
+def runs_beat(runs: Sequence[TrueRun], ref: Sequence[TrueRun]) -> bool:
+    """Every run of ``runs`` is ok (no divergence, ``c_u <= 1``, no fault) and below ``ref``'s e_rms, run by run
+    (the definition of "works" against a PID, :attr:`Judgement.arc_works`)."""
+    return bool(runs) and all(a.ok and a.e_rms < p.e_rms for a, p in zip(runs, ref))
 
 
 @dataclass(frozen=True)
@@ -178,7 +185,7 @@ class ToolYardstick:
     def ratio_to(self, pid: TruePid) -> float:
         """Worst e_rms of this PID over the true-plant PID's, run by run (NaN without the latter;
         inf when this one diverged)."""
-        return _worst_ratio(self.runs, pid.runs)
+        return worst_ratio(self.runs, pid.runs)
 
     def describe(self, pid: TruePid) -> str:
         """One line: ``"tool PID 68 rad/s on the true plant: misses the floors (unstable (...)); e_rms x1.90 of
@@ -241,7 +248,7 @@ class Judgement:
             return False
         if self.pid.gains is None:  # no PID keeps the floors on this plant: nothing to beat
             return all(r.ok for r in self.arc_runs)
-        return all(a.ok and a.e_rms < p.e_rms for a, p in zip(self.arc_runs, self.pid.runs))
+        return runs_beat(self.arc_runs, self.pid.runs)
 
     @property
     def works(self) -> bool:
@@ -261,7 +268,7 @@ class Judgement:
     @property
     def ratio(self) -> float:
         """Worst ARC/PID e_rms ratio over the four runs (NaN without both; inf when the ARC diverged)."""
-        return _worst_ratio(self.arc_runs, self.pid.runs)
+        return worst_ratio(self.arc_runs, self.pid.runs)
 
 
 def _trajectories(spec: Spec, Ts: float):
@@ -483,4 +490,4 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
 
 
 __all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid", "true_pid_gains", "judge_gains",
-           "judge_axis", "EXTRA_DELAYS"]
+           "judge_axis", "worst_ratio", "runs_beat", "EXTRA_DELAYS"]

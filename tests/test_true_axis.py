@@ -22,8 +22,8 @@ from commission.controllers.pid import pid_pack
 from commission.robustness import MarginFloors, floor_violations
 from commission.spec import default_spec
 from commission.synth import AxisTruth
-from commission.true_axis import (PID_POLE_STEP, Judgement, TruePid, TrueRun, judge_gains, true_pid,
-                                  true_pid_gains)
+from commission.true_axis import (PID_POLE_STEP, Judgement, TruePid, TrueRun, judge_gains, runs_beat, true_pid,
+                                  true_pid_gains, worst_ratio)
 
 #: The CONTRACT §5 reference plant (1 um encoder, 2.5 kHz, no delay).
 RIGID = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0, ripple_amp=0.01,
@@ -108,6 +108,9 @@ def test_the_ratio_is_the_worst_of_the_four_runs():
     j = Judgement(emitted=True, verdict="emitted", candidate=True, arc_runs=arc, pid=PID)
     assert j.ratio == pytest.approx(0.75)
     assert math.isinf(Judgement(True, "emitted", True, _runs(math.nan, math.nan, True), PID).ratio)
+    # the same definitions for runs judged outside a Judgement (benchmarks/judge_noise.py)
+    assert worst_ratio(arc, PID.runs) == pytest.approx(0.75) and math.isnan(worst_ratio((), PID.runs))
+    assert runs_beat(arc, PID.runs) and not runs_beat(_runs(2e-6), PID.runs) and not runs_beat((), PID.runs)
 
 
 def test_a_run_whose_command_stops_for_good_is_a_fault_not_a_success():

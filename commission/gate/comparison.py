@@ -100,6 +100,36 @@ def _comparison_limit(limits: GateLimits, key: str) -> tuple[float, str]:
     return float(getattr(limits, key)), ""
 
 
+def nominal_comparisons(runs: Sequence[tuple[str, Indexes, Indexes]]
+                        ) -> dict[str, tuple[float, list[tuple[str, Indexes, Indexes]]]]:
+    """Per case, the value :func:`arc_vs_pid_nominal_checks` checks and the ``(name, ARC, PID)`` runs summed.
+
+    The runs of a case are its fixed scenarios ``<case>/<variant>`` whose variant is in
+    :data:`NOMINAL_COMPARISON_VARIANTS` (Monte-Carlo plants and names without a variant are left
+    out).  The value is ``sum ARC e_rms / sum PID e_rms`` over them; ``inf`` (all the case's runs
+    returned) where the ARC diverged in one; a run whose PID diverged or has no e_rms is left out of
+    the sum, and a case left without runs is left out.
+    """
+    per_case: dict[str, list[tuple[str, Indexes, Indexes]]] = {}
+    for name, arc, pid in runs:
+        if name.startswith("mc/") or "/" not in name:
+            continue
+        case, variant = name.rsplit("/", 1)
+        if variant in NOMINAL_COMPARISON_VARIANTS:
+            per_case.setdefault(case, []).append((name, arc, pid))
+    out: dict[str, tuple[float, list[tuple[str, Indexes, Indexes]]]] = {}
+    for case, rows in per_case.items():
+        if any(a.diverged or not math.isfinite(a.e_rms) for _n, a, _p in rows):
+            out[case] = (math.inf, rows)
+            continue
+        rows = [r for r in rows if not r[2].diverged and math.isfinite(r[2].e_rms)]
+        if rows:
+            a_sum = sum(a.e_rms for _n, a, _p in rows)
+            p_sum = sum(p.e_rms for _n, _a, p in rows)
+            out[case] = (a_sum / p_sum if p_sum > 0 else math.inf, rows)
+    return out
+
+
 def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Indexes, Indexes, float]]) -> list[Check]:
     """The ARC beats the yardstick on the identified plant: one check per case (criterion ``arc_vs_pid_nominal``).
 
@@ -123,28 +153,18 @@ def arc_vs_pid_nominal_checks(limits: GateLimits, runs: Sequence[tuple[str, Inde
     ``inf`` where the ARC diverged in one of the case's runs; a run whose PID diverged (or has no
     e_rms) is left out of the sum (the ARC beat it), and a case left without runs gives no check.
     """
-    per_case: dict[str, list[tuple[str, Indexes, Indexes]]] = {}
-    for name, arc, pid, _t in runs:
-        if name.startswith("mc/") or "/" not in name:
-            continue
-        case, variant = name.rsplit("/", 1)
-        if variant in NOMINAL_COMPARISON_VARIANTS:
-            per_case.setdefault(case, []).append((name, arc, pid))
+    per_case = nominal_comparisons([(name, arc, pid) for name, arc, pid, _t in runs])
     out = []
     lim, note = _comparison_limit(limits, "arc_vs_pid_nominal")
     shown = limits.arc_vs_pid_nominal
     for case in sorted(per_case):
-        rows = per_case[case]
+        val, rows = per_case[case]
         if any(a.diverged or not math.isfinite(a.e_rms) for _n, a, _p in rows):
             out.append(Check("arc_vs_pid_nominal", case, math.inf, shown, False,
                              "ARC diverged on the identified plant"))
             continue
-        rows = [r for r in rows if not r[2].diverged and math.isfinite(r[2].e_rms)]
-        if not rows:
-            continue
         a_sum = sum(a.e_rms for _n, a, _p in rows)
         p_sum = sum(p.e_rms for _n, _a, p in rows)
-        val = a_sum / p_sum if p_sum > 0 else math.inf
         each = "; ".join(f"{n} ARC {um(a.e_rms)} vs PID {um(p.e_rms)}" for n, a, p in rows)
         floor = ""
         if limits.lsb > 0 and max(a_sum, p_sum) / len(rows) <= limits.lsb:
