@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 from commission.controllers.linear import continuous_model
 from commission.controllers.plant import plant_vector
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, FIT_COHERENCE, MAX_DAMPING,
-                                              MAX_DELAY_SAMPLES, MIN_DAMPING)
+                                              MAX_DELAY_SAMPLES, MIN_DAMPING, MODE_MAX_NYQUIST)
 from commission.identify.frf.model import ExtraMode, StructureFit, _sampled_response
 from commission.identify.frf.structfit import _parameter_std, _weights, departures, fit_structure
 
@@ -66,9 +66,12 @@ def _pack(fit: StructureFit) -> np.ndarray:
 
 
 def _on_edge(hz: float, damping: float, fmin: float, fs: float) -> bool:
-    """The mode's frequency or damping sits on the fit's bounds (the data do not place it)."""
+    """The mode's frequency or damping sits on the fit's bounds, or on Nyquist (the data do not place it).
+
+    At Nyquist a mode and its alias are one: the sampled response cannot say on which side it is.
+    """
     return (damping >= 0.99 * MAX_DAMPING or damping <= 1.01 * MIN_DAMPING or hz <= 1.01 * fmin
-            or hz >= 0.99 * 0.5 * fs)
+            or abs(hz - 0.5 * fs) <= 0.01 * 0.5 * fs or hz >= 0.99 * MODE_MAX_NYQUIST * 0.5 * fs)
 
 
 def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
@@ -76,7 +79,7 @@ def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf
     """The fit with one mode more than ``current``; None when the data do not support it.
 
     Starts come from the data: ``current`` plus a mode where the measured response
-    departs from it (:func:`departures`), and afresh every choice of ``k + 1`` frequencies
+    departs from it (:func:`departures`) or at that departure's mirror above Nyquist, and afresh every choice of ``k + 1`` frequencies
     among the peaks of ``|H / H_rigid|`` (``peaks``), the departures and ``current``'s modes,
     all seen on the motor side or all on the load side (a fit of one mode too few can be a
     compromise far from either, so it is not always the best place to start from).  The
@@ -88,13 +91,16 @@ def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf
     if not deps:
         return None
     dep_f = [d.frequency_hz for d in sorted(deps, key=lambda d: -d.sigma)[:3]]
+    fs = 1.0 / Ts
+    # A departure high below Nyquist may be a mode above it (settings.MODE_MAX_NYQUIST): its mirror starts too.
+    dep_mirrors = [fs - fd for fd in dep_f if 0.5 * fs < fs - fd < MODE_MAX_NYQUIST * 0.5 * fs]
     k = current.n_modes + 1
     x0 = _pack(current)
     kinds = tuple(m.kind for m in current.extra)
     cands = []
     for kind in ("load", "motor") if current.structure != "rigid" else ():  # from rigid: the fresh starts below
         starts = [np.concatenate([x0, [math.log(fd), math.log(z)] + ([0.3] if kind == "motor" else [])])
-                  for fd in dep_f for z in (0.03, 0.15)]
+                  for fd in dep_f + dep_mirrors for z in (0.03, 0.15)]
         cands.append(fit_structure(current.structure, ff, Hf, cf, n_avg, M, B, Ts, starts,
                                    extra_kinds=kinds + (kind,)))
     own = [m.hz for m in current.all_modes]
@@ -236,7 +242,8 @@ def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
 
     fmin = float(ff[0])
     lo = [-1.0, 0.0, math.log(fmin), math.log(MIN_DAMPING), 0.02, math.log(fmin), math.log(MIN_DAMPING), 0.02]
-    hi = [1.0, MAX_DELAY_SAMPLES, math.log(0.5 / Ts), math.log(MAX_DAMPING), 0.9, math.log(0.5 / Ts),
+    top = math.log(MODE_MAX_NYQUIST * 0.5 / Ts)
+    hi = [1.0, MAX_DELAY_SAMPLES, top, math.log(MAX_DAMPING), 0.9, top,
           math.log(MAX_DAMPING), 0.95]
     starts = []
     for r1 in ({0.3, a.ratio} if a.kind == "motor" else {0.3, 0.1}):

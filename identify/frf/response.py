@@ -15,8 +15,8 @@ from threadpoolctl import threadpool_limits
 
 from commission.controllers.linear import rigid_frequency_response, sampled_plant
 from commission.controllers.plant import plant_vector
-from commission.identify.frf.settings import (BAND_GAIN_TOL, FIT_COHERENCE, MAX_MODES, MIN_FIT_BINS, RESOLUTION_HZ,
-                                              WHOLE_LOG_RESOLUTION_HZ)
+from commission.identify.frf.settings import (BAND_GAIN_TOL, FIT_COHERENCE, MAX_MODES, MIN_FIT_BINS,
+                                              MODE_MAX_NYQUIST, RESOLUTION_HZ, WHOLE_LOG_RESOLUTION_HZ)
 from commission.identify.frf.estimate import backed_band, broadband_segments, estimate
 from commission.identify.frf.model import StructureFit
 from commission.identify.frf.modes import _keep_modes, _on_edge, _one_more_mode, _starts, plant_fit
@@ -98,26 +98,44 @@ def _rigid_only_note(source: str, fit_bins: np.ndarray, band: tuple[float, float
 def _fit_structures(ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int, M: float, B: float, Ts: float,
                     starts: tuple[float, list[float], list[tuple[float, float]]],
                     max_modes: int) -> dict[str, StructureFit]:
-    """The rigid plant, and with ``max_modes >= 1`` a load-side and a motor-side mode, each from its starts."""
+    """The rigid plant, and with ``max_modes >= 1`` a load-side and a motor-side mode, each from its starts.
+
+    Then each mode structure is fitted again from the mirror ``fs - f`` of every resonance
+    candidate and of both fitted modes, where that is within the fit's reach
+    (``MODE_MAX_NYQUIST``), and that fit replaces the first where its cost is lower: a peak below Nyquist may be the
+    alias of a mode above it, seen on the other side of the encoder (settings), and a local fit
+    started on the alias cannot cross Nyquist to find it.  Where no candidate lies above half of
+    Nyquist there is no mirror to try and the fits are the data starts' alone.
+    """
     delay0, res, pairs = starts
     lM = 0.0
     fits: dict[str, StructureFit] = {}
     fits["rigid"] = fit_structure("rigid", ff, Hf, cf, n_avg, M, B, Ts,
                                   [np.array([lM, delay0]), np.array([lM, 0.0])])
     d0 = fits["rigid"].delay_samples
-    if max_modes >= 1:
-        load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
-                       for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6), 0.0})]
-        fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
-        motor_starts = []
-        for fa, fr in pairs:
-            r0 = float(np.clip(1.0 - (fa / fr) ** 2, 0.05, 0.9))
-            for z in (0.03, 0.15):
-                for dd in sorted({round(delay0, 6), 0.0}):
-                    motor_starts.append(np.array([lM, dd, math.log(fr), math.log(z), r0]))
-        if motor_starts:
-            fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts,
-                                                    motor_starts)
+    if max_modes < 1:
+        return fits
+    load_starts = [np.array([lM, dd, math.log(fr), math.log(z)])
+                   for fr in res for z in (0.03, 0.15) for dd in sorted({round(d0, 6), round(delay0, 6), 0.0})]
+    fits["load_side_mode"] = fit_structure("load_side_mode", ff, Hf, cf, n_avg, M, B, Ts, load_starts)
+    motor_starts = []
+    for fa, fr in pairs:
+        r0 = float(np.clip(1.0 - (fa / fr) ** 2, 0.05, 0.9))
+        for z in (0.03, 0.15):
+            for dd in sorted({round(delay0, 6), 0.0}):
+                motor_starts.append(np.array([lM, dd, math.log(fr), math.log(z), r0]))
+    if motor_starts:
+        fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts, motor_starts)
+    fs = 1.0 / Ts
+    seen = [*res, *(f.mode_hz for k, f in fits.items() if k != "rigid")]
+    mirrors = sorted({round(fs - fr, 6) for fr in seen if 0.5 * fs < fs - fr < MODE_MAX_NYQUIST * 0.5 * fs})
+    if not mirrors:
+        return fits
+    for structure, tail in (("load_side_mode", ()), ("motor_side_mode", (0.3,))):
+        again = [np.array([lM, d0, math.log(fr), math.log(z), *tail]) for fr in mirrors for z in (0.03, 0.15)]
+        fit = fit_structure(structure, ff, Hf, cf, n_avg, M, B, Ts, again)
+        if structure not in fits or fit.cost < fits[structure].cost:
+            fits[structure] = fit
     return fits
 
 

@@ -53,6 +53,15 @@ DEPARTURE_ALPHA = 0.01
 #: Multi-start fits: iterations of the screening stage from every start, and the starts kept to the end.
 SCREEN_NFEV = 30
 SCREEN_KEEP = 2
+#: Highest mode frequency fitted, in Nyquist frequencies.  A mode above Nyquist shows in the sampled
+#: response as its alias ``fs - f``, but not as a mode there would: the hold and the delay give the two
+#: different magnitude and phase, and the alias of a mode the encoder reads on one side looks like a
+#: mode on the other.  The exact sampled model tells them apart, so the fit may place a mode up to
+#: here, where its alias folds to half of Nyquist (a higher one is lost in the hold's roll-off and is
+#: the evidence bound's to cover).  Below Nyquist only, such a mode was fitted as a compromise near
+#: Nyquist that the data departed from, which cut the backed band and the loops it bounds
+#: (docs/robustness.md, "Modes above Nyquist").
+MODE_MAX_NYQUIST = 1.5
 #: Most modes fitted (each further one must lower the information criterion and pass the guards).
 MAX_MODES = 4
 #: Most measured bins carried into ident.json (``frequency_response.measured``).

@@ -16,8 +16,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, BAND_PHASE_TOL_DEG, COHERENCE_CAP,
-                                              DEPARTURE_ALPHA, MAX_DAMPING, MAX_DELAY_SAMPLES, MIN_DAMPING, SCREEN_KEEP,
-                                              SCREEN_NFEV)
+                                              DEPARTURE_ALPHA, MAX_DAMPING, MAX_DELAY_SAMPLES, MIN_DAMPING,
+                                              MODE_MAX_NYQUIST, SCREEN_KEEP, SCREEN_NFEV)
 from commission.identify.frf.model import StructureFit, _layout, _model_response, _unpack
 
 
@@ -52,7 +52,7 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
     for k in _layout(structure, extra_kinds):
         if k >= 2:
             lo += [math.log(fmin), math.log(MIN_DAMPING)]
-            hi += [math.log(0.5 / Ts), math.log(MAX_DAMPING)]
+            hi += [math.log(MODE_MAX_NYQUIST * 0.5 / Ts), math.log(MAX_DAMPING)]
         if k == 3:
             lo.append(0.02)
             hi.append(0.95)
