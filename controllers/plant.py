@@ -220,39 +220,6 @@ def ripple(p, x):
     return p[P_RIPPLE_AMP] * math.sin(2.0 * math.pi * x / p[P_RIPPLE_PITCH])
 
 
-#: Largest phase step (rad) the ripple's rotation takes from its anchor (:func:`ripple_rotated`);
-#: beyond it the anchor moves.  The Taylor terms kept leave below 1e-17 at this step.
-RIPPLE_ROTATE_MAX = 0.05
-
-
-@njit(cache=True, nogil=True)
-def ripple_anchor(p, x):
-    """Anchor of the ripple's rotation at ``x`` (m): the ripple's two quadratures there, u-unit.
-
-    ``(A sin(kx), A cos(kx))`` with ``k = 2 pi / pitch``; :func:`ripple_rotated` turns them.
-    """
-    th = 2.0 * math.pi * x / p[P_RIPPLE_PITCH]
-    return p[P_RIPPLE_AMP] * math.sin(th), p[P_RIPPLE_AMP] * math.cos(th)
-
-
-@njit(cache=True, nogil=True)
-def ripple_rotated(d, sa, ca):
-    """Force ripple (u-unit) a phase step ``d`` (rad, ``|d| <= RIPPLE_ROTATE_MAX``) past its anchor.
-
-    :func:`ripple` takes a ``sin`` of a phase that grows with the travel, on every sub-step, and
-    the plant's integration waits on it.  Within one sample the axis moves a small fraction of a
-    pitch, so the phase is the anchor's plus a small step:
-    ``A sin(a + d) = A sin a cos d + A cos a sin d``, with ``sin d`` and ``cos d`` from their
-    Taylor series to degree 7 and 8 (the first term left out is below 1e-17 at
-    ``RIPPLE_ROTATE_MAX``).  The value agrees with :func:`ripple` to rounding, and the caller
-    re-anchors (:func:`ripple_anchor`) rather than step further, so nothing accumulates.
-    """
-    d2 = d * d
-    sd = d * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0 - d2 * (1.0 / 5040.0))))
-    cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0 - d2 * (1.0 / 40320.0))))
-    return sa * cd + ca * sd
-
-
 @njit(cache=True)
 def plant_advance(p, x, v, u, h, n, v_cut=-1.0):
     """Advance the plant over ``n`` sub-steps of ``h`` seconds under a held input.
@@ -281,21 +248,8 @@ def plant_advance(p, x, v, u, h, n, v_cut=-1.0):
     M = p[P_M]
     if v_cut < 0.0:
         v_cut = stribeck_cut(p)
-    has_ripple = p[P_RIPPLE_PITCH] > 0.0
-    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
-    xa = x
-    sa, ca = ripple_anchor(p, x) if has_ripple else (0.0, 0.0)
     for _ in range(n):
-        rip = 0.0
-        if has_ripple:
-            d = kr * (x - xa)
-            if abs(d) > RIPPLE_ROTATE_MAX:  # past the rotation's reach: a new anchor here
-                xa = x
-                sa, ca = ripple_anchor(p, x)
-                rip = sa
-            else:
-                rip = ripple_rotated(d, sa, ca)
-        F = u - p[P_OFFSET] - rip  # everything but friction and viscous
+        F = u - p[P_OFFSET] - ripple(p, x)  # everything but friction and viscous
         if v == 0.0:
             if abs(F) <= p[P_FS]:
                 continue  # stuck: static friction balances F
@@ -385,23 +339,10 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     v2 = st[V_LOAD]
     x3 = st[X_LOAD2]
     v3 = st[V_LOAD2]
-    has_ripple = p[P_RIPPLE_PITCH] > 0.0
-    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
-    xa = x1
-    sa, ca = ripple_anchor(p, x1) if has_ripple else (0.0, 0.0)
     for _ in range(n * split):
         fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
         fk2 = k2 * (x1 - x3) + c2 * (v1 - v3) if two else 0.0
-        rip = 0.0
-        if has_ripple:
-            d = kr * (x1 - xa)
-            if abs(d) > RIPPLE_ROTATE_MAX:  # past the rotation's reach: a new anchor here
-                xa = x1
-                sa, ca = ripple_anchor(p, x1)
-                rip = sa
-            else:
-                rip = ripple_rotated(d, sa, ca)
-        F = u - p[P_OFFSET] - rip - fk - fk2
+        F = u - p[P_OFFSET] - ripple(p, x1) - fk - fk2
         if v1 == 0.0:
             if abs(F) <= p[P_FS]:
                 v1n = 0.0

@@ -171,10 +171,10 @@ def _ripple_reference(M, A, pitch, x, v, h, n, mode=None):
 @pytest.mark.parametrize("pitch, speed", [(0.03, 0.4), (0.0025, 1.5), (0.05, -0.02)])
 @pytest.mark.parametrize("mode", [None, (480.0, 0.04, 0.4)])
 def test_force_ripple_is_the_plain_sine_along_many_pitches(pitch, speed, mode):
-    """The kernel's ripple equals ``A sin(2 pi x / pitch)`` to rounding, sample after sample.
+    """The kernel's ripple is ``A sin(2 pi x / pitch)`` on every sub-step, sample after sample.
 
-    Against the same integrator written with the plain sine, positions agree to 1e-11 of the
-    travel after 2,000 samples (the fast axis crosses hundreds of pitches, the slow one a
+    Against the same integrator written out here with the plain sine (a faster evaluation of the
+    ripple must keep this), positions agree to 1e-11 of the travel after 2,000 samples (the fast axis crosses hundreds of pitches, the slow one a
     fraction of one), on a rigid plant and on one with a structural mode.  The frictionless
     rigid axis also keeps its energy ``M v^2 / 2 - A pitch / (2 pi) cos(2 pi x / pitch)`` to the
     integrator's O(h), which a ripple of the wrong sign or pitch would not; and the ripple

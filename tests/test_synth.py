@@ -565,8 +565,10 @@ def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_l
     above the legacy run's rigid band (its multisine tops at 20 Hz and its ident.json says 14-22 Hz),
     coherent up to the mode (the injection's cruise keeps friction one-signed, so the response is
     linear), with its delay within 0.2 sample and the true axis's mode within 5 % -- or, where
-    the mode sits in the last 2 % below Nyquist (seed 27: 492.7 Hz at 1 kHz), no resonance
-    claimed: the best fit lies on the edge of what the bins can show and is reported as rigid.
+    the mode sits in the last 2 % below Nyquist (seed 27: 492.7 Hz at 1 kHz), either that or no
+    resonance claimed (the best fit on the edge of what the bins can show, reported as rigid).
+    Since modes are fitted above Nyquist too (settings.MODE_MAX_NYQUIST), seed 27's fit places
+    resonances at 490.6 and 491.1 Hz, within 0.5 % of the mode, and fits the response to its noise.
     (On the slow cruise excite planned before, friction crossing zero damped seed 27's peak down
     to a 484 Hz, zeta 0.062 "resonance" and held the coherence near the mode at 0.65.)"""
     from commission.identification import identify_log
@@ -581,8 +583,8 @@ def test_identify_finds_the_broadband_segment_of_an_excite_planned_random_axis_l
     coh = np.asarray(fr["measured"]["coherence"])
     assert np.min(coh[(f >= 20.0) & (f <= 1.05 * t.mode_hz)]) > 0.9  # up to the mode (the encoder's floor ends it higher)
     res = [m["frequency_hz"] for m in fr["modes"] if m["kind"] == "resonance"]
-    if t.mode_hz > 0.98 * t.sample_rate / 2:
-        assert res == [] and "on the edge of what the data can show" in fr["note"], (res, fr["note"])
+    if t.mode_hz > 0.98 * t.sample_rate / 2 and not res:
+        assert "on the edge of what the data can show" in fr["note"], fr["note"]
     else:
         assert any(abs(f / t.mode_hz - 1) < 0.05 for f in res), (res, t.mode_hz)
     assert fr["delay_samples"] == pytest.approx(t.delay * t.sample_rate, abs=0.2)
