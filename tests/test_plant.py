@@ -136,7 +136,6 @@ def test_second_mode_is_refused_outside_its_domain(kw):
         plant_vector(1.0, 1.0, **kw)
 
 
-
 def _ripple_reference(M, A, pitch, x, v, h, n, mode=None):
     """The plant's semi-implicit Euler steps written out with the plain ``A sin(2 pi x / pitch)``.
 
@@ -174,8 +173,8 @@ def test_force_ripple_is_the_plain_sine_along_many_pitches(pitch, speed, mode):
     """The kernel's ripple is ``A sin(2 pi x / pitch)`` on every sub-step, sample after sample.
 
     Against the same integrator written out here with the plain sine (a faster evaluation of the
-    ripple must keep this), positions agree to 1e-11 of the travel after 2,000 samples (the fast axis crosses hundreds of pitches, the slow one a
-    fraction of one), on a rigid plant and on one with a structural mode.  The frictionless
+    ripple must keep this), positions agree to 1e-11 of the travel after 2,000 samples (the fast
+    axis crosses hundreds of pitches, the slow one a fraction of one), on a rigid plant and on one with a structural mode.  The frictionless
     rigid axis also keeps its energy ``M v^2 / 2 - A pitch / (2 pi) cos(2 pi x / pitch)`` to the
     integrator's O(h), which a ripple of the wrong sign or pitch would not; and the ripple
     really acts: the speed swings by the amount that energy balance gives.

@@ -22,9 +22,10 @@ from threadpoolctl import threadpool_limits
 from commission.controllers.linear import continuous_model
 from commission.controllers.plant import plant_vector
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, FIT_COHERENCE, MAX_DAMPING,
-                                              MAX_DELAY_SAMPLES, MIN_DAMPING, MODE_MAX_NYQUIST)
+                                              MAX_DELAY_SAMPLES, MIN_DAMPING)
 from commission.identify.frf.model import ExtraMode, StructureFit, _sampled_response
-from commission.identify.frf.structfit import _parameter_std, _weights, departures, fit_structure
+from commission.identify.frf.structfit import (_parameter_std, _weights, departures, fit_structure, mirrors_in_reach,
+                                               mode_hz_max)
 
 
 def _starts(f: np.ndarray, R: np.ndarray, coh: np.ndarray, fs: float) -> tuple[float, list[float], list[tuple[float, float]]]:
@@ -71,7 +72,7 @@ def _on_edge(hz: float, damping: float, fmin: float, fs: float) -> bool:
     At Nyquist a mode and its alias are one: the sampled response cannot say on which side it is.
     """
     return (damping >= 0.99 * MAX_DAMPING or damping <= 1.01 * MIN_DAMPING or hz <= 1.01 * fmin
-            or abs(hz - 0.5 * fs) <= 0.01 * 0.5 * fs or hz >= 0.99 * MODE_MAX_NYQUIST * 0.5 * fs)
+            or abs(hz - 0.5 * fs) <= 0.01 * 0.5 * fs or hz >= 0.99 * mode_hz_max(fs))
 
 
 def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
@@ -79,8 +80,8 @@ def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf
     """The fit with one mode more than ``current``; None when the data do not support it.
 
     Starts come from the data: ``current`` plus a mode where the measured response
-    departs from it (:func:`departures`) or at that departure's mirror above Nyquist, and afresh every choice of ``k + 1`` frequencies
-    among the peaks of ``|H / H_rigid|`` (``peaks``), the departures and ``current``'s modes,
+    departs from it (:func:`departures`) or at that departure's mirror above Nyquist, and
+    afresh every choice of ``k + 1`` frequencies among the peaks of ``|H / H_rigid|`` (``peaks``), the departures and ``current``'s modes,
     all seen on the motor side or all on the load side (a fit of one mode too few can be a
     compromise far from either, so it is not always the best place to start from).  The
     larger model is kept when it lowers the information criterion
@@ -91,9 +92,7 @@ def _one_more_mode(current: StructureFit, peaks: list[float], ff: np.ndarray, Hf
     if not deps:
         return None
     dep_f = [d.frequency_hz for d in sorted(deps, key=lambda d: -d.sigma)[:3]]
-    fs = 1.0 / Ts
-    # A departure high below Nyquist may be a mode above it (settings.MODE_MAX_NYQUIST): its mirror starts too.
-    dep_mirrors = [fs - fd for fd in dep_f if 0.5 * fs < fs - fd < MODE_MAX_NYQUIST * 0.5 * fs]
+    dep_mirrors = mirrors_in_reach(dep_f, 1.0 / Ts)  # a departure high below Nyquist may be a mode above it
     k = current.n_modes + 1
     x0 = _pack(current)
     kinds = tuple(m.kind for m in current.extra)
@@ -242,7 +241,7 @@ def plant_fit(fit: StructureFit, ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray,
 
     fmin = float(ff[0])
     lo = [-1.0, 0.0, math.log(fmin), math.log(MIN_DAMPING), 0.02, math.log(fmin), math.log(MIN_DAMPING), 0.02]
-    top = math.log(MODE_MAX_NYQUIST * 0.5 / Ts)
+    top = math.log(mode_hz_max(1.0 / Ts))
     hi = [1.0, MAX_DELAY_SAMPLES, top, math.log(MAX_DAMPING), 0.9, top,
           math.log(MAX_DAMPING), 0.95]
     starts = []

@@ -15,13 +15,13 @@ from threadpoolctl import threadpool_limits
 
 from commission.controllers.linear import rigid_frequency_response, sampled_plant
 from commission.controllers.plant import plant_vector
-from commission.identify.frf.settings import (BAND_GAIN_TOL, FIT_COHERENCE, MAX_MODES, MIN_FIT_BINS,
-                                              MODE_MAX_NYQUIST, RESOLUTION_HZ, WHOLE_LOG_RESOLUTION_HZ)
+from commission.identify.frf.settings import (BAND_GAIN_TOL, FIT_COHERENCE, MAX_MODES, MIN_FIT_BINS, RESOLUTION_HZ,
+                                              WHOLE_LOG_RESOLUTION_HZ)
 from commission.identify.frf.estimate import backed_band, broadband_segments, estimate
 from commission.identify.frf.model import StructureFit
 from commission.identify.frf.modes import _keep_modes, _on_edge, _one_more_mode, _starts, plant_fit
 from commission.identify.frf.result import FrequencyResponse
-from commission.identify.frf.structfit import departures, fit_structure
+from commission.identify.frf.structfit import departures, fit_structure, mirrors_in_reach
 
 
 def _ranges_and_resolution(u: np.ndarray, fs: float, ranges: list[tuple[int, int]] | None,
@@ -102,9 +102,10 @@ def _fit_structures(ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int, 
 
     Then each mode structure is fitted again from the mirror ``fs - f`` of every resonance
     candidate and of both fitted modes, where that is within the fit's reach
-    (``MODE_MAX_NYQUIST``), and that fit replaces the first where its cost is lower: a peak below Nyquist may be the
-    alias of a mode above it, seen on the other side of the encoder (settings), and a local fit
-    started on the alias cannot cross Nyquist to find it.  Where no candidate lies above half of
+    (:func:`~commission.identify.frf.structfit.mirrors_in_reach`), and that fit replaces the
+    first where its cost is lower: a peak below Nyquist may be the alias of a mode above it,
+    seen on the other side of the encoder (settings), and a local fit started on the alias
+    cannot cross Nyquist to find it.  Where no candidate lies above half of
     Nyquist there is no mirror to try and the fits are the data starts' alone.
     """
     delay0, res, pairs = starts
@@ -126,9 +127,8 @@ def _fit_structures(ff: np.ndarray, Hf: np.ndarray, cf: np.ndarray, n_avg: int, 
                 motor_starts.append(np.array([lM, dd, math.log(fr), math.log(z), r0]))
     if motor_starts:
         fits["motor_side_mode"] = fit_structure("motor_side_mode", ff, Hf, cf, n_avg, M, B, Ts, motor_starts)
-    fs = 1.0 / Ts
     seen = [*res, *(f.mode_hz for k, f in fits.items() if k != "rigid")]
-    mirrors = sorted({round(fs - fr, 6) for fr in seen if 0.5 * fs < fs - fr < MODE_MAX_NYQUIST * 0.5 * fs})
+    mirrors = sorted({round(fm, 6) for fm in mirrors_in_reach(seen, 1.0 / Ts)})
     if not mirrors:
         return fits
     for structure, tail in (("load_side_mode", ()), ("motor_side_mode", (0.3,))):

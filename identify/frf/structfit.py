@@ -27,6 +27,19 @@ def _weights(coh: np.ndarray, n_avg: int) -> np.ndarray:
     return np.sqrt(2.0 * n_avg * g2 / (1.0 - g2))
 
 
+def mode_hz_max(fs: float) -> float:
+    """Highest mode frequency the fits may place, Hz, at the sample rate ``fs`` (Hz): ``MODE_MAX_NYQUIST`` Nyquists."""
+    return MODE_MAX_NYQUIST * 0.5 * fs
+
+
+def mirrors_in_reach(freqs: list[float], fs: float) -> list[float]:
+    """The mirrors ``fs - f`` (Hz) of ``freqs`` (Hz) that lie above Nyquist and within :func:`mode_hz_max`, in order.
+
+    A resonance seen below Nyquist may be the alias of a mode at its mirror (settings.MODE_MAX_NYQUIST).
+    """
+    return [fs - f for f in freqs if 0.5 * fs < fs - f < mode_hz_max(fs)]
+
+
 def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray, n_avg: int,
                   M: float, B: float, Ts: float, starts: list[np.ndarray],
                   extra_kinds: tuple[str, ...] = ()) -> StructureFit:
@@ -52,7 +65,7 @@ def fit_structure(structure: str, f: np.ndarray, H: np.ndarray, coh: np.ndarray,
     for k in _layout(structure, extra_kinds):
         if k >= 2:
             lo += [math.log(fmin), math.log(MIN_DAMPING)]
-            hi += [math.log(MODE_MAX_NYQUIST * 0.5 / Ts), math.log(MAX_DAMPING)]
+            hi += [math.log(mode_hz_max(1.0 / Ts)), math.log(MAX_DAMPING)]
         if k == 3:
             lo.append(0.02)
             hi.append(0.95)
