@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 #: Least pitch searched, in encoder steps (finer ripple is below what the encoder resolves) ...
 LEAST_PITCH_STEPS = 50.0
@@ -50,8 +51,8 @@ PEAK_OVER_MEDIAN = 30.0
 #: Candidates per cycle of the legs' span (coarse grid) and the refinement factor.
 CANDIDATES_PER_CYCLE = 4.0
 REFINE = 10
-#: Most candidates per vectorised block (memory: block x samples doubles, twice).
-BLOCK = 256
+#: Candidates between two exact evaluations of the sines on the coarse grid (the rest rotate).
+RESYNC = 32
 
 
 @dataclass(frozen=True)
@@ -127,31 +128,71 @@ def _binned(legs: list[tuple[np.ndarray, np.ndarray]], width: float
     return np.concatenate(qs), np.concatenate(us), np.concatenate(ws), np.concatenate(ids)
 
 
+@njit(cache=True, nogil=True)
 def _powers(k: np.ndarray, q: np.ndarray, y: np.ndarray, w: np.ndarray, leg: np.ndarray,
-            wsum: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            wsum: np.ndarray, resync: int) -> tuple[np.ndarray, np.ndarray]:
     """Explained (weighted) sum of squares and amplitude of a sinusoid of spatial frequency ``k``
-    (1/q-unit), each leg's weighted mean projected out of the sinusoid (``y`` is centred already)."""
-    power = np.empty(k.size)
-    amp = np.empty(k.size)
-    wy = w * y
-    for a in range(0, k.size, BLOCK):
-        arg = (2.0 * math.pi) * k[a:a + BLOCK, None] * q[None, :]
-        s = np.sin(arg)
-        c = np.cos(arg)
-        s -= (np.add.reduceat(s * w, starts, axis=1) / wsum)[:, leg]
-        c -= (np.add.reduceat(c * w, starts, axis=1) / wsum)[:, leg]
-        ss = (s * s) @ w
-        cc = (c * c) @ w
-        sc = (s * c) @ w
-        sy = s @ wy
-        cy = c @ wy
+    (1/q-unit, evenly spaced), each leg's weighted mean projected out of the sinusoid (``y`` is
+    centred already).
+
+    One compiled pass per candidate instead of ``k.size x q.size`` arrays: the sine and cosine
+    of each bin are carried from one candidate to the next by the rotation of the grid's step
+    (four multiplications instead of two transcendental functions), and taken afresh from
+    ``k`` every ``resync`` candidates (1: every one), which keeps the carried phase within a
+    few rounding errors of the exact one.  The leg means are removed in a second pass over the
+    bins (two passes, not the one-pass identity ``sum w (s - m)^2 = sum w s^2 - W m^2``,
+    which cancels on legs shorter than a cycle).
+    """
+    nk, n, nl = k.size, q.size, wsum.size
+    power = np.empty(nk)
+    amp = np.empty(nk)
+    s = np.empty(n)
+    c = np.empty(n)
+    rs = np.empty(n)
+    rc = np.empty(n)
+    ms = np.empty(nl)
+    mc = np.empty(nl)
+    dk = (k[-1] - k[0]) / (nk - 1) if nk > 1 else 0.0
+    for i in range(n):
+        rs[i] = math.sin(2.0 * math.pi * dk * q[i])
+        rc[i] = math.cos(2.0 * math.pi * dk * q[i])
+    for a in range(nk):
+        if a % resync == 0:
+            for i in range(n):
+                arg = 2.0 * math.pi * k[a] * q[i]
+                s[i] = math.sin(arg)
+                c[i] = math.cos(arg)
+        else:
+            for i in range(n):
+                si = s[i] * rc[i] + c[i] * rs[i]
+                c[i] = c[i] * rc[i] - s[i] * rs[i]
+                s[i] = si
+        ms[:] = 0.0
+        mc[:] = 0.0
+        for i in range(n):
+            ms[leg[i]] += s[i] * w[i]
+            mc[leg[i]] += c[i] * w[i]
+        for j in range(nl):
+            ms[j] /= wsum[j]
+            mc[j] /= wsum[j]
+        ss = cc = sc = sy = cy = 0.0
+        for i in range(n):
+            si = s[i] - ms[leg[i]]
+            ci = c[i] - mc[leg[i]]
+            wi = w[i]
+            ss += si * si * wi
+            cc += ci * ci * wi
+            sc += si * ci * wi
+            sy += si * wi * y[i]
+            cy += ci * wi * y[i]
         det = ss * cc - sc * sc
-        ok = det > 1e-12 * np.maximum(ss * cc, 1e-300)
-        det = np.where(ok, det, 1.0)
-        ca = np.where(ok, (cc * sy - sc * cy) / det, 0.0)
-        cb = np.where(ok, (ss * cy - sc * sy) / det, 0.0)
-        power[a:a + BLOCK] = ca * sy + cb * cy
-        amp[a:a + BLOCK] = np.hypot(ca, cb)
+        if det > 1e-12 * max(ss * cc, 1e-300):
+            ca = (cc * sy - sc * cy) / det
+            cb = (ss * cy - sc * sy) / det
+        else:
+            ca = cb = 0.0
+        power[a] = ca * sy + cb * cy
+        amp[a] = math.hypot(ca, cb)
     return power, amp
 
 
@@ -181,7 +222,6 @@ def ripple_periodogram(legs: list[tuple[np.ndarray, np.ndarray]], *, step: float
         return RipplePitch(None, 0.0, 0.0, 0.0, span, (p_min, p_max), len(legs), n_all)
     q, u, w, leg = _binned([(q - lo, u) for q, u in legs], p_min / 8.0)
     wsum = np.bincount(leg, w)
-    starts = np.concatenate([[0], np.cumsum(np.bincount(leg))[:-1]]).astype(np.int64)
     y = u - (np.bincount(leg, w * u) / wsum)[leg]
     # the share explained is of the samples' variation about their leg's mean (binning averages noise)
     total = float(sum(np.sum((uu - uu.mean()) ** 2) for _q, uu in legs))
@@ -189,12 +229,12 @@ def ripple_periodogram(legs: list[tuple[np.ndarray, np.ndarray]], *, step: float
         return RipplePitch(None, 0.0, 0.0, 0.0, span, (p_min, p_max), len(legs), n_all)
     dk = 1.0 / (CANDIDATES_PER_CYCLE * span)
     k = np.arange(1.0 / p_max, 1.0 / p_min, dk)
-    power, _amp = _powers(k, q, y, w, leg, wsum, starts)
+    power, _amp = _powers(k, q, y, w, leg, wsum, RESYNC)
     median = float(np.median(power))
     i = int(np.argmax(power))
     fine = np.linspace(k[i] - dk, k[i] + dk, 2 * REFINE + 1)
     fine = fine[(fine >= 1.0 / p_max) & (fine <= 1.0 / p_min)]
-    pf, af = _powers(fine, q, y, w, leg, wsum, starts)
+    pf, af = _powers(fine, q, y, w, leg, wsum, 1)
     j = int(np.argmax(pf))
     ratio = float(pf[j] / median) if median > 0 else math.inf
     explained = float(pf[j] / total)
