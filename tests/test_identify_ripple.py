@@ -59,3 +59,20 @@ def test_no_legs_says_so():
     assert r.pitch is None and r.n_legs == 0
     assert "no constant-velocity legs" in r.describe("m")
     assert r.record()["searched"] == [None, None]
+
+
+@pytest.mark.parametrize("pitch", [0.0023, 0.0061, 0.047])
+def test_a_noise_free_ripple_is_explained_whole(pitch):
+    """Closed form: on legs holding only their friction levels and the ripple, the ripple of the
+    found pitch explains the whole variation about each leg's mean, but for the position bins'
+    averaging: a bin of an eighth of the least pitch searched keeps ``sinc(width / pitch)`` of the
+    amplitude (numpy's normalised sinc), its square of the power.  The coarse scan reaches these
+    pitches after hundreds to thousands of candidates whose sines are carried from one candidate to
+    the next: a carry that drifts puts the peak on the wrong candidate, and the pitch and these
+    figures (from the exact refinement around it) miss."""
+    rng = np.random.default_rng(4)
+    r = ripple_periodogram(legs_of(rng, pitch=pitch, amp=0.01, noise=0.0), step=1e-6)
+    kept = float(np.sinc(r.searched[0] / 8.0 / pitch))
+    assert r.pitch == pytest.approx(pitch, rel=2e-3)
+    assert r.explained == pytest.approx(kept ** 2, abs=3e-4)
+    assert r.amplitude == pytest.approx(0.01 * kept, rel=3e-4)
