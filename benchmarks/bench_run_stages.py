@@ -54,7 +54,7 @@ marks = [("imports", clock())]
 cur = ["identify"]
 def progress(stage, done, total):
     # a stage ends where the next one reports first; identify and validate at their last step
-    if stage != cur[0] and not (stage == "identify" and cur[0] == "identify"):
+    if stage != cur[0]:
         marks.append((cur[0], clock()))
         cur[0] = stage
     if stage in ("identify", "validate") and done == total and cur[0] == stage:
