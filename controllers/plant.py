@@ -19,6 +19,17 @@ switch model (Karnopp/Leine) on a fixed-step semi-implicit Euler integrator.
 With h a small fraction of the sample period (default 10 sub-steps), this
 keeps stick-slip, reversals and break-away physical and bounded.
 
+The ripple is evaluated at every sub-step, which made its ``sin`` the largest
+single cost of a run.  The state therefore carries an anchor: a position
+``x_a`` with ``A_r sin(k x_a)`` and ``A_r cos(k x_a)`` (``k = 2 pi / pitch``),
+and the ripple at ``x`` is that pair rotated by ``d = k (x - x_a)``, with
+``sin d`` and ``cos d`` from their Taylor series (terms to ``d^7`` and ``d^8``:
+a truncation below ``1e-17`` for ``|d| <= RIPPLE_ROTATE_MAX``).  Beyond that
+phase, and at the first sub-step of a run, the anchor moves to ``x`` and is
+computed exactly.  Every value is a rotation from an exactly computed anchor,
+never from the previous sub-step, so no error accumulates along a run: the
+ripple equals ``A_r sin(k x)`` to a few units in the last place of ``A_r``.
+
 Beyond the rigid body (paper eq. 1), two things every real axis has and that
 cap its feedback bandwidth are first-class options of the same vector:
 
@@ -97,7 +108,12 @@ X_LOAD = 2  # load position x2, m (= x1 on a rigid plant)
 V_LOAD = 3  # load velocity, m/s
 X_LOAD2 = 4  # second load's position x3, m (= x1 without a second mode)
 V_LOAD2 = 5  # second load's velocity, m/s
-NX = 6
+X_ANCHOR = 6  # where the ripple's rotation is anchored, m (nan: not yet; module docstring)
+S_ANCHOR = 7  # A_r sin(k x_a), u-unit
+C_ANCHOR = 8  # A_r cos(k x_a), u-unit
+NX = 9
+#: Largest phase (rad) the ripple is rotated from its anchor before the anchor moves.
+RIPPLE_ROTATE_MAX = 0.05
 #: Largest 2 pi f_r h of one integration step of the mode.
 MODE_STEP = 0.25
 
@@ -220,9 +236,33 @@ def ripple(p, x):
     return p[P_RIPPLE_AMP] * math.sin(2.0 * math.pi * x / p[P_RIPPLE_PITCH])
 
 
+@njit(cache=True, nogil=True)
+def ripple_anchored(p, st, x, kr):
+    """:func:`ripple` at ``x`` (m), u-unit, rotated from the anchor kept in the state ``st``.
+
+    ``kr = 2 pi / pitch`` (rad/m).  The anchor moves to ``x`` (and is computed exactly) when
+    the phase from it exceeds :data:`RIPPLE_ROTATE_MAX` or there is none (NaN): module docstring.
+    """
+    xa = st[X_ANCHOR]
+    d = kr * (x - xa)
+    if not (abs(d) <= RIPPLE_ROTATE_MAX):  # nan anchor too
+        th = kr * x
+        st[X_ANCHOR] = x
+        st[S_ANCHOR] = p[P_RIPPLE_AMP] * math.sin(th)
+        st[C_ANCHOR] = p[P_RIPPLE_AMP] * math.cos(th)
+        return st[S_ANCHOR]
+    d2 = d * d
+    sd = d * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0 - d2 * (1.0 / 5040.0))))
+    cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0 - d2 * (1.0 / 40320.0))))
+    return st[S_ANCHOR] * cd + st[C_ANCHOR] * sd
+
+
 @njit(cache=True)
 def plant_advance(p, x, v, u, h, n, v_cut=-1.0):
     """Advance the plant over ``n`` sub-steps of ``h`` seconds under a held input.
+
+    The ripple's anchor (module docstring) lives for this call only; :func:`plant_step` keeps
+    it in the state across calls.  The two agree to rounding.
 
     Parameters
     ----------
@@ -245,11 +285,21 @@ def plant_advance(p, x, v, u, h, n, v_cut=-1.0):
     x, v : float
         Position (m) and velocity (m/s) at the end.
     """
+    st = np.empty(NX)
+    st[X_ANCHOR] = math.nan
+    return _advance_rigid(p, st, x, v, u, h, n, v_cut)
+
+
+@njit(cache=True, nogil=True)
+def _advance_rigid(p, st, x, v, u, h, n, v_cut):
+    """The rigid body over ``n`` sub-steps (:func:`plant_advance`), the ripple's anchor in ``st``."""
     M = p[P_M]
     if v_cut < 0.0:
         v_cut = stribeck_cut(p)
+    has_ripple = p[P_RIPPLE_PITCH] > 0.0
+    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
     for _ in range(n):
-        F = u - p[P_OFFSET] - ripple(p, x)  # everything but friction and viscous
+        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x, kr) if has_ripple else 0.0)
         if v == 0.0:
             if abs(F) <= p[P_FS]:
                 continue  # stuck: static friction balances F
@@ -274,6 +324,7 @@ def plant_start(p, st, x0):
     st[V_LOAD] = 0.0
     st[X_LOAD2] = x0
     st[V_LOAD2] = 0.0
+    st[X_ANCHOR] = math.nan
 
 
 @njit(cache=True, nogil=True)
@@ -297,7 +348,7 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     ``v_cut``: as in :func:`plant_advance`.
     """
     if p[P_MODE_HZ] <= 0.0:
-        x, v = plant_advance(p, st[X_MOTOR], st[V_MOTOR], u, h, n, v_cut)
+        x, v = _advance_rigid(p, st, st[X_MOTOR], st[V_MOTOR], u, h, n, v_cut)
         st[X_MOTOR] = x
         st[V_MOTOR] = v
         st[X_LOAD] = x
@@ -339,10 +390,12 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     v2 = st[V_LOAD]
     x3 = st[X_LOAD2]
     v3 = st[V_LOAD2]
+    has_ripple = p[P_RIPPLE_PITCH] > 0.0
+    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
     for _ in range(n * split):
         fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
         fk2 = k2 * (x1 - x3) + c2 * (v1 - v3) if two else 0.0
-        F = u - p[P_OFFSET] - ripple(p, x1) - fk - fk2
+        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x1, kr) if has_ripple else 0.0) - fk - fk2
         if v1 == 0.0:
             if abs(F) <= p[P_FS]:
                 v1n = 0.0

@@ -201,3 +201,48 @@ def test_force_ripple_is_the_plain_sine_along_many_pitches(pitch, speed, mode):
         assert np.ptp(e) <= 5e-2 * 0.5 * M * speed ** 2  # O(h): 2 % at 600 Hz of ripple on this grid
         if travel > pitch:  # crossed a whole pitch: the speed swung through the ripple's potential
             assert np.ptp(speeds) > 0.3 * abs(speed)
+
+
+def test_the_anchored_ripple_is_the_closed_form_along_a_run():
+    """The simulator rotates the ripple from an anchor it keeps in the state (module docstring of
+    commission.controllers.plant) instead of taking a sin at every sub-step.  Along a walk like a
+    run's (sub-step moves from nanometres to a tenth of the pitch, both ways, over a 1 m travel),
+    every value equals A_r sin(2 pi x / pitch) to the rounding of that argument itself."""
+    import math
+
+    from commission.controllers.plant import NX, X_ANCHOR, ripple, ripple_anchored
+
+    rng = np.random.default_rng(7)
+    for pitch in (0.0023, 0.03, 0.2):
+        p = plant_vector(M=1.0, B=0.0, ripple_amp=0.37, ripple_pitch=pitch)
+        kr = 2.0 * math.pi / pitch
+        st = np.empty(NX)
+        st[X_ANCHOR] = math.nan
+        x, worst, moved = 0.0, 0.0, 0
+        for _ in range(20000):
+            x += rng.choice([1e-9, 1e-6, 1e-4 * pitch, 0.1 * pitch]) * rng.choice([-1.0, 1.0])
+            x = min(max(x, -0.5), 0.5)
+            a = st[X_ANCHOR]
+            got = ripple_anchored(p, st, x, kr)
+            moved += st[X_ANCHOR] != a
+            tol = 0.37 * (8 * np.spacing(abs(kr * x)) + 8 * np.finfo(float).eps)
+            worst = max(worst, abs(got - ripple(p, x)) / tol)
+        assert worst <= 1.0, (pitch, worst)
+        assert 100 < moved < 20000  # both paths taken: rotated, and re-anchored beyond the phase bound
+
+
+def test_plant_step_and_plant_advance_are_one_integrator():
+    """A rigid plant's plant_step (anchor kept across calls) and plant_advance (anchor per call) give
+    the same motion to rounding over a second of stick-slip under a ripple."""
+    from commission.controllers.plant import NX, plant_start, plant_step
+
+    p = plant_vector(M=0.027, B=0.273, fc=0.1, fs=0.12, vs=0.01, ripple_amp=0.01, ripple_pitch=0.03)
+    st = np.empty(NX)
+    plant_start(p, st, 0.0)
+    x, v = 0.0, 0.0
+    for k in range(2500):
+        u = 0.2 * np.sin(2 * np.pi * 3.0 * k / 2500)
+        plant_step(p, st, u, 4e-5, 10)
+        x, v = plant_advance(p, x, v, u, 4e-5, 10)
+    assert abs(st[0]) > 1e-4  # it moved
+    assert st[0] == pytest.approx(x, rel=1e-6, abs=1e-9) and st[1] == pytest.approx(v, rel=1e-5, abs=1e-7)
