@@ -19,8 +19,9 @@ switch model (Karnopp/Leine) on a fixed-step semi-implicit Euler integrator.
 With h a small fraction of the sample period (default 10 sub-steps), this
 keeps stick-slip, reversals and break-away physical and bounded.
 
-The ripple is evaluated at every sub-step, which made its ``sin`` the largest
-single cost of a run.  The state therefore carries an anchor: a position
+The ripple is evaluated at every sub-step, where a ``sin`` each time is a large
+part of a run's cost (docs/scaling.md, "Tenth pass").  The state therefore
+carries an anchor: a position
 ``x_a`` with ``A_r sin(k x_a)`` and ``A_r cos(k x_a)`` (``k = 2 pi / pitch``),
 and the ripple at ``x`` is that pair rotated by ``d = k (x - x_a)``, with
 ``sin d`` and ``cos d`` from their Taylor series (terms to ``d^7`` and ``d^8``:
@@ -237,10 +238,16 @@ def ripple(p, x):
 
 
 @njit(cache=True, nogil=True)
+def ripple_wavenumber(p):
+    """``k = 2 pi / pitch`` of the plant's ripple, rad/m (0: no ripple)."""
+    return 2.0 * math.pi / p[P_RIPPLE_PITCH] if p[P_RIPPLE_PITCH] > 0.0 else 0.0
+
+
+@njit(cache=True, nogil=True)
 def ripple_anchored(p, st, x, kr):
     """:func:`ripple` at ``x`` (m), u-unit, rotated from the anchor kept in the state ``st``.
 
-    ``kr = 2 pi / pitch`` (rad/m).  The anchor moves to ``x`` (and is computed exactly) when
+    ``kr``: :func:`ripple_wavenumber` (rad/m).  The anchor moves to ``x`` (and is computed exactly) when
     the phase from it exceeds :data:`RIPPLE_ROTATE_MAX` or there is none (NaN): module docstring.
     """
     xa = st[X_ANCHOR]
@@ -296,10 +303,9 @@ def _advance_rigid(p, st, x, v, u, h, n, v_cut):
     M = p[P_M]
     if v_cut < 0.0:
         v_cut = stribeck_cut(p)
-    has_ripple = p[P_RIPPLE_PITCH] > 0.0
-    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
+    kr = ripple_wavenumber(p)  # once per call, not per sub-step
     for _ in range(n):
-        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x, kr) if has_ripple else 0.0)
+        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x, kr) if kr > 0.0 else 0.0)
         if v == 0.0:
             if abs(F) <= p[P_FS]:
                 continue  # stuck: static friction balances F
@@ -390,12 +396,11 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     v2 = st[V_LOAD]
     x3 = st[X_LOAD2]
     v3 = st[V_LOAD2]
-    has_ripple = p[P_RIPPLE_PITCH] > 0.0
-    kr = 2.0 * math.pi / p[P_RIPPLE_PITCH] if has_ripple else 0.0
+    kr = ripple_wavenumber(p)  # once per call, not per sub-step
     for _ in range(n * split):
         fk = k * (x1 - x2) + c * (v1 - v2)  # spring and damper force on the load
         fk2 = k2 * (x1 - x3) + c2 * (v1 - v3) if two else 0.0
-        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x1, kr) if has_ripple else 0.0) - fk - fk2
+        F = u - p[P_OFFSET] - (ripple_anchored(p, st, x1, kr) if kr > 0.0 else 0.0) - fk - fk2
         if v1 == 0.0:
             if abs(F) <= p[P_FS]:
                 v1n = 0.0

@@ -208,8 +208,6 @@ def test_the_anchored_ripple_is_the_closed_form_along_a_run():
     commission.controllers.plant) instead of taking a sin at every sub-step.  Along a walk like a
     run's (sub-step moves from nanometres to a tenth of the pitch, both ways, over a 1 m travel),
     every value equals A_r sin(2 pi x / pitch) to the rounding of that argument itself."""
-    import math
-
     from commission.controllers.plant import NX, X_ANCHOR, ripple, ripple_anchored
 
     rng = np.random.default_rng(7)
