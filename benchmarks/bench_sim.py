@@ -3,6 +3,9 @@
 * one 10-s ARC run, Set 1, 2.5 kHz, 10 plant sub-steps: median over repeats, target <= 10 ms
   (issue 33; the project brief's first target was 50 ms), wall and CPU;
 * a batch of 256 ARC runs on 256 different plants (Set-1 trajectory): target <= 10 s;
+* CPU per run of a batch on one thread, each run alone and two runs' plants interleaved
+  (``simulate_batch(interleave=...)``, :func:`commission.controllers.simulate.closed_loop_pair_kernel`),
+  on the rigid plants and on a plant with a 500 Hz mode, and the ratio;
 * speed-up against the same loop run as plain Python (every compiled kernel
   replaced by its ``.py_func``) on a shorter horizon, scaled to 10 s.
 
@@ -101,6 +104,22 @@ def main() -> None:
     tb, cb = time.perf_counter() - t0, time.process_time() - c0
     print(f"batch of {args.batch} plants: {tb:.2f} s wall, {cb:.2f} s CPU ({b.diverged.sum()} diverged)"
           f"  target <= 10 s")
+
+    modal = np.stack([plant_vector(M=0.027 * (1 + 0.01 * i), B=0.273, fc=0.1, fs=0.12, vs=0.01, ripple_amp=0.01,
+                                   ripple_pitch=0.03, mode_hz=500.0, mode_damping=0.05, mode_ratio=0.5,
+                                   mode_load_side=True) for i in range(32)])
+    for label, rows in (("rigid", plants[:32]), ("500 Hz mode", modal)):
+        per: dict[bool, list[float]] = {False: [], True: []}
+        for _ in range(9):  # alone and paired alternated: a noisy machine's drift falls on both
+            for inter in (False, True):
+                c0 = time.process_time()
+                simulate_batch(rows, kind, ctrl, sc.traj, workers=1, interleave=inter)
+                per[inter].append((time.process_time() - c0) / rows.shape[0])
+        alone, paired = statistics.median(per[False]), statistics.median(per[True])
+        print(f"one thread, {rows.shape[0]} {label} plants, CPU per 10-s run: alone {alone * 1e3:.1f} ms "
+              f"(min {min(per[False]) * 1e3:.1f}), interleaved in pairs {paired * 1e3:.1f} ms "
+              f"(min {min(per[True]) * 1e3:.1f}); ratio of medians {alone / paired:.2f}, of minima "
+              f"{min(per[False]) / min(per[True]):.2f} (9 each)  target <= {KERNEL_TARGET_MS:.0f} ms per run")
 
     short = sinusoid(args.python_horizon, TS)
     fast = [0.0] * 3

@@ -343,6 +343,44 @@ def plant_output(p, st):
     return st[X_MOTOR]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _mode_setup(p, h):
+    """The coupled masses' constants for sub-steps of ``h`` s (module docstring): ``(m1, m2, m3, k, c,
+    k2, c2, two, split, hh)``, masses (u-unit s^2/m), springs (u-unit/m), dampers (u-unit s/m), whether
+    there is a second mode, and the ``split`` integration steps of ``hh`` s each sub-step takes.
+
+    :func:`plant_step` computes the same values in its own body: a call of this function there,
+    even inlined, slowed a modal run measurably (docs/scaling.md, "Eleventh pass");
+    ``tests/test_plant.py`` holds :func:`plant_step_pair`, which calls this, to it bit for bit.
+    """
+    M = p[P_M]
+    r = p[P_MODE_RATIO]
+    two = p[P_MODE2_HZ] > 0.0
+    r2 = p[P_MODE2_RATIO] if two else 0.0
+    m1 = (1.0 - r - r2) * M
+    m2 = r * M
+    mu = (1.0 - r) * M * m2 / M
+    w = 2.0 * math.pi * p[P_MODE_HZ]
+    k = w * w * mu
+    c = 2.0 * p[P_MODE_DAMPING] * w * mu
+    k2 = 0.0
+    c2 = 0.0
+    m3 = 1.0
+    w_top = w
+    if two:
+        m3 = r2 * M
+        mu2 = (1.0 - r2) * M * m3 / M
+        w2 = 2.0 * math.pi * p[P_MODE2_HZ]
+        k2 = w2 * w2 * mu2
+        c2 = 2.0 * p[P_MODE2_DAMPING] * w2 * mu2
+        # Gershgorin bound on the coupled stiffness matrix M^-1 K: no coupled frequency exceeds it
+        w_top = math.sqrt(max(2.0 * (k + k2) / m1, 2.0 * k / m2, 2.0 * k2 / m3))
+    split = int(math.ceil(w_top * h / MODE_STEP))
+    if split < 1:
+        split = 1
+    return m1, m2, m3, k, c, k2, c2, two, split, h / split
+
+
 @njit(cache=True, nogil=True)
 def plant_step(p, st, u, h, n, v_cut=-1.0):
     """Advance the plant state ``st`` in place over ``n`` sub-steps of ``h`` s under the held input ``u``.
@@ -427,3 +465,227 @@ def plant_step(p, st, u, h, n, v_cut=-1.0):
     st[V_LOAD] = v2
     st[X_LOAD2] = x3
     st[V_LOAD2] = v3
+
+
+@njit(cache=True, nogil=True)
+def plant_steps(p, h):
+    """Integration steps per sub-step of ``h`` s that :func:`plant_step` takes: 0 for a rigid plant
+    (one step of the rigid kind), else the modal split (:func:`_mode_setup`).  Two plants with
+    equal ``plant_steps`` are interleaved by :func:`plant_step_pair`."""
+    if p[P_MODE_HZ] <= 0.0:
+        return 0
+    return _mode_setup(p, h)[8]
+
+
+@njit(cache=True, nogil=True)
+def _one_mode_pair(pa, sta, ua, pb, stb, ub, n, m1a, m2a, ka, ca, hha, kra, v_cut_a, m1b, m2b, kb, cb, hhb, krb,
+                   v_cut_b):
+    """:func:`plant_step_pair`'s loop for two plants of one mode each (``n`` steps of ``hha``, ``hhb``
+    s), without the second mode's terms: :func:`plant_step`'s values (there ``fk2`` is 0 and the
+    second load follows the motor side) with a loop the compiler need not branch in."""
+    x1a = sta[X_MOTOR]
+    v1a = sta[V_MOTOR]
+    x2a = sta[X_LOAD]
+    v2a = sta[V_LOAD]
+    x1b = stb[X_MOTOR]
+    v1b = stb[V_MOTOR]
+    x2b = stb[X_LOAD]
+    v2b = stb[V_LOAD]
+    for _ in range(n):
+        fka = ka * (x1a - x2a) + ca * (v1a - v2a)
+        fkb = kb * (x1b - x2b) + cb * (v1b - v2b)
+        Fa = ua - pa[P_OFFSET] - (ripple_anchored(pa, sta, x1a, kra) if kra > 0.0 else 0.0) - fka - 0.0
+        Fb = ub - pb[P_OFFSET] - (ripple_anchored(pb, stb, x1b, krb) if krb > 0.0 else 0.0) - fkb - 0.0
+        if v1a == 0.0:
+            if abs(Fa) <= pa[P_FS]:
+                v1na = 0.0
+            else:
+                v1na = (Fa - math.copysign(pa[P_FS], Fa)) / m1a * hha
+        else:
+            v1na = v1a + (Fa - pa[P_B] * v1a - stribeck(pa, v1a, v_cut_a)) / m1a * hha
+            if v1na * v1a < 0.0 and pa[P_FS] > 0.0:
+                v1na = 0.0
+        if v1b == 0.0:
+            if abs(Fb) <= pb[P_FS]:
+                v1nb = 0.0
+            else:
+                v1nb = (Fb - math.copysign(pb[P_FS], Fb)) / m1b * hhb
+        else:
+            v1nb = v1b + (Fb - pb[P_B] * v1b - stribeck(pb, v1b, v_cut_b)) / m1b * hhb
+            if v1nb * v1b < 0.0 and pb[P_FS] > 0.0:
+                v1nb = 0.0
+        v2a = v2a + fka / m2a * hha
+        v2b = v2b + fkb / m2b * hhb
+        v1a = v1na
+        v1b = v1nb
+        x1a += v1a * hha
+        x1b += v1b * hhb
+        x2a += v2a * hha
+        x2b += v2b * hhb
+    sta[X_MOTOR] = x1a
+    sta[V_MOTOR] = v1a
+    sta[X_LOAD] = x2a
+    sta[V_LOAD] = v2a
+    sta[X_LOAD2] = x1a
+    sta[V_LOAD2] = v1a
+    stb[X_MOTOR] = x1b
+    stb[V_MOTOR] = v1b
+    stb[X_LOAD] = x2b
+    stb[V_LOAD] = v2b
+    stb[X_LOAD2] = x1b
+    stb[V_LOAD2] = v1b
+
+
+@njit(cache=True, nogil=True)
+def plant_step_pair(pa, sta, ua, ha, pb, stb, ub, hb, n, v_cut_a, v_cut_b):
+    """:func:`plant_step` of two plants at once, ``n`` sub-steps each (of ``ha`` and ``hb`` s, under
+    the held inputs ``ua`` and ``ub``): the same values to the last bit as the two calls.
+
+    One sub-step of a plant is a chain of dependent operations (the ripple at the new position,
+    the friction at the new velocity, a division by the mass), each waiting for the one before:
+    a core runs it at that chain's latency, most of its units idle.  Two independent plants
+    advanced in one loop give the core two chains to overlap, at little more than the cost of
+    one.  They are interleaved when both are rigid, or both modal with the same split
+    (:func:`plant_steps`); otherwise advanced one after the other.
+
+    Each loop body here is :func:`_advance_rigid`'s or :func:`plant_step`'s written out for two
+    plants, not a call of a shared per-step function: that call, even inlined, slowed a rigid run
+    measurably (docs/scaling.md, "Eleventh pass").  ``tests/test_plant.py`` holds the pair to
+    the two single calls bit for bit.  ``v_cut_a``, ``v_cut_b``: as in :func:`plant_advance`
+    (negative: computed here).
+    """
+    if v_cut_a < 0.0:
+        v_cut_a = stribeck_cut(pa)
+    if v_cut_b < 0.0:
+        v_cut_b = stribeck_cut(pb)
+    kra = ripple_wavenumber(pa)
+    krb = ripple_wavenumber(pb)
+    if pa[P_MODE_HZ] <= 0.0 and pb[P_MODE_HZ] <= 0.0:
+        Ma = pa[P_M]
+        Mb = pb[P_M]
+        xa = sta[X_MOTOR]
+        va = sta[V_MOTOR]
+        xb = stb[X_MOTOR]
+        vb = stb[V_MOTOR]
+        for _ in range(n):
+            Fa = ua - pa[P_OFFSET] - (ripple_anchored(pa, sta, xa, kra) if kra > 0.0 else 0.0)
+            Fb = ub - pb[P_OFFSET] - (ripple_anchored(pb, stb, xb, krb) if krb > 0.0 else 0.0)
+            if va == 0.0:
+                if not abs(Fa) <= pa[P_FS]:  # else stuck
+                    a = (Fa - math.copysign(pa[P_FS], Fa)) / Ma
+                    va = a * ha
+                    xa += va * ha
+            else:
+                a = (Fa - pa[P_B] * va - stribeck(pa, va, v_cut_a)) / Ma
+                v_new = va + a * ha
+                if v_new * va < 0.0 and pa[P_FS] > 0.0:
+                    v_new = 0.0
+                va = v_new
+                xa += va * ha
+            if vb == 0.0:
+                if not abs(Fb) <= pb[P_FS]:
+                    b = (Fb - math.copysign(pb[P_FS], Fb)) / Mb
+                    vb = b * hb
+                    xb += vb * hb
+            else:
+                b = (Fb - pb[P_B] * vb - stribeck(pb, vb, v_cut_b)) / Mb
+                v_new = vb + b * hb
+                if v_new * vb < 0.0 and pb[P_FS] > 0.0:
+                    v_new = 0.0
+                vb = v_new
+                xb += vb * hb
+        sta[X_MOTOR] = xa
+        sta[V_MOTOR] = va
+        sta[X_LOAD] = xa
+        sta[V_LOAD] = va
+        sta[X_LOAD2] = xa
+        sta[V_LOAD2] = va
+        stb[X_MOTOR] = xb
+        stb[V_MOTOR] = vb
+        stb[X_LOAD] = xb
+        stb[V_LOAD] = vb
+        stb[X_LOAD2] = xb
+        stb[V_LOAD2] = vb
+        return
+    if pa[P_MODE_HZ] > 0.0 and pb[P_MODE_HZ] > 0.0:
+        m1a, m2a, m3a, ka, ca, k2a, c2a, twoa, splita, hha = _mode_setup(pa, ha)
+        m1b, m2b, m3b, kb, cb, k2b, c2b, twob, splitb, hhb = _mode_setup(pb, hb)
+        if splita == splitb and not twoa and not twob:
+            _one_mode_pair(pa, sta, ua, pb, stb, ub, n * splita, m1a, m2a, ka, ca, hha, kra, v_cut_a,
+                           m1b, m2b, kb, cb, hhb, krb, v_cut_b)
+            return
+        if splita == splitb:
+            x1a = sta[X_MOTOR]
+            v1a = sta[V_MOTOR]
+            x2a = sta[X_LOAD]
+            v2a = sta[V_LOAD]
+            x3a = sta[X_LOAD2]
+            v3a = sta[V_LOAD2]
+            x1b = stb[X_MOTOR]
+            v1b = stb[V_MOTOR]
+            x2b = stb[X_LOAD]
+            v2b = stb[V_LOAD]
+            x3b = stb[X_LOAD2]
+            v3b = stb[V_LOAD2]
+            for _ in range(n * splita):
+                fka = ka * (x1a - x2a) + ca * (v1a - v2a)
+                fkb = kb * (x1b - x2b) + cb * (v1b - v2b)
+                fk2a = k2a * (x1a - x3a) + c2a * (v1a - v3a) if twoa else 0.0
+                fk2b = k2b * (x1b - x3b) + c2b * (v1b - v3b) if twob else 0.0
+                Fa = ua - pa[P_OFFSET] - (ripple_anchored(pa, sta, x1a, kra) if kra > 0.0 else 0.0) - fka - fk2a
+                Fb = ub - pb[P_OFFSET] - (ripple_anchored(pb, stb, x1b, krb) if krb > 0.0 else 0.0) - fkb - fk2b
+                if v1a == 0.0:
+                    if abs(Fa) <= pa[P_FS]:
+                        v1na = 0.0
+                    else:
+                        v1na = (Fa - math.copysign(pa[P_FS], Fa)) / m1a * hha
+                else:
+                    v1na = v1a + (Fa - pa[P_B] * v1a - stribeck(pa, v1a, v_cut_a)) / m1a * hha
+                    if v1na * v1a < 0.0 and pa[P_FS] > 0.0:
+                        v1na = 0.0
+                if v1b == 0.0:
+                    if abs(Fb) <= pb[P_FS]:
+                        v1nb = 0.0
+                    else:
+                        v1nb = (Fb - math.copysign(pb[P_FS], Fb)) / m1b * hhb
+                else:
+                    v1nb = v1b + (Fb - pb[P_B] * v1b - stribeck(pb, v1b, v_cut_b)) / m1b * hhb
+                    if v1nb * v1b < 0.0 and pb[P_FS] > 0.0:
+                        v1nb = 0.0
+                v2a = v2a + fka / m2a * hha
+                v2b = v2b + fkb / m2b * hhb
+                if twoa:
+                    v3a = v3a + fk2a / m3a * hha
+                if twob:
+                    v3b = v3b + fk2b / m3b * hhb
+                v1a = v1na
+                v1b = v1nb
+                x1a += v1a * hha
+                x1b += v1b * hhb
+                x2a += v2a * hha
+                x2b += v2b * hhb
+                if twoa:
+                    x3a += v3a * hha
+                if twob:
+                    x3b += v3b * hhb
+            if not twoa:
+                x3a = x1a
+                v3a = v1a
+            if not twob:
+                x3b = x1b
+                v3b = v1b
+            sta[X_MOTOR] = x1a
+            sta[V_MOTOR] = v1a
+            sta[X_LOAD] = x2a
+            sta[V_LOAD] = v2a
+            sta[X_LOAD2] = x3a
+            sta[V_LOAD2] = v3a
+            stb[X_MOTOR] = x1b
+            stb[V_MOTOR] = v1b
+            stb[X_LOAD] = x2b
+            stb[V_LOAD] = v2b
+            stb[X_LOAD2] = x3b
+            stb[V_LOAD2] = v3b
+            return
+    plant_step(pa, sta, ua, ha, n, v_cut_a)
+    plant_step(pb, stb, ub, hb, n, v_cut_b)

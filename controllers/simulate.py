@@ -39,7 +39,8 @@ from commission.controllers.arc import S_THETA, arc_new_state, arc_reset, arc_st
 from commission.controllers.metrics import FINAL_WINDOW, INDEX_NAMES, Indexes, batch_indexes, indexes_kernel
 from commission.controllers.pid import G_TS as PID_P_TS
 from commission.controllers.pid import pid_new_state, pid_reset, pid_step
-from commission.controllers.plant import NP, NX, P_DELAY, plant_output, plant_start, plant_step, stribeck_cut
+from commission.controllers.plant import (NP, NX, P_DELAY, plant_output, plant_start, plant_step, plant_step_pair,
+                                          plant_steps, stribeck_cut)
 from commission.controllers.trajectory import Trajectory
 
 KIND_PID = 0
@@ -90,16 +91,56 @@ def _substep_count(t_len, substeps, Ts):
 
 
 @njit(cache=True, nogil=True)
+def _saturate(c, u_sat):
+    """``c`` clipped to +-``u_sat`` (u-unit)."""
+    if c > u_sat:
+        return u_sat
+    if c < -u_sat:
+        return -u_sat
+    return c
+
+
+@njit(cache=True, nogil=True)
 def _held(plant_p, st, c, u_sat, d, h, m, v_cut):
     """:func:`_segment` with its sub-step count ``m`` and length ``h`` (s) computed once per run
     (:func:`_substep_count`; ``m = 0``: an empty segment); returns the saturated command."""
-    if c > u_sat:
-        c = u_sat
-    elif c < -u_sat:
-        c = -u_sat
+    c = _saturate(c, u_sat)
     if m > 0:
         plant_step(plant_p, st, c + d, h, m, v_cut)
     return c
+
+
+@njit(cache=True, nogil=True)
+def _delay_layout(plant_p, Ts, substeps, delay):
+    """The sample's two held segments (module docstring): ``(n_d, m_early, h_early, m_late, h_late)``.
+
+    With ``tau = (n_d + f) Ts`` the plant's input delay (plus one sample when ``delay``), the
+    command ``c_{k - n_d - 1}`` is held for the first ``f Ts`` of sample ``k`` in ``m_early``
+    sub-steps of ``h_early`` s, and ``c_{k - n_d}`` for the rest in ``m_late`` of ``h_late`` s
+    (:func:`_substep_count`; 0: an empty segment).  The same every sample: computed once per run.
+    """
+    tau = plant_p[P_DELAY] / Ts + (1.0 if delay else 0.0)
+    n_d = int(math.floor(tau + 1e-9))
+    f = tau - n_d
+    if f < 1e-9:
+        f = 0.0
+    t_early = f * Ts
+    t_late = (1.0 - f) * Ts
+    m_early = _substep_count(t_early, substeps, Ts)
+    m_late = _substep_count(t_late, substeps, Ts)
+    h_early = t_early / m_early if m_early > 0 else 0.0
+    h_late = t_late / m_late if m_late > 0 else 0.0
+    return n_d, m_early, h_early, m_late, h_late
+
+
+@njit(cache=True, nogil=True)
+def pair_key(plant_p, Ts, substeps, delay):
+    """What two runs on one grid must share for :func:`closed_loop_pair_kernel` to interleave their
+    plants: the two segments' sub-step counts and each segment's integration steps per sub-step
+    (:func:`commission.controllers.plant.plant_steps`; -1: an empty segment)."""
+    n_d, m_early, h_early, m_late, h_late = _delay_layout(plant_p, Ts, substeps, delay)
+    return (m_early, m_late, plant_steps(plant_p, h_early) if m_early > 0 else -1,
+            plant_steps(plant_p, h_late) if m_late > 0 else -1)
 
 
 @njit(cache=True, nogil=True)
@@ -116,27 +157,20 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
     ``c_{k - n_d - 1}`` over ``[t_k, t_k + f Ts)`` and ``c_{k - n_d}`` over the
     rest of the sample (commands before the start are 0).  The recorded ``u``
     is the command held at the end of the sample.
+
+    The sample's steps are written out here, not called as helpers shared with
+    :func:`closed_loop_pair_kernel`: numba passes every array argument of a call as its
+    fields, and a per-sample helper with a dozen arrays slowed a run measurably (docs/scaling.md,
+    "Eleventh pass").  ``tests/test_simulate_closed_loop.py`` holds the two kernels to the same values.
     """
     n = qd.shape[0]
     has_d = dist.shape[0] > 0
     has_n = noise.shape[0] > 0
-    tau = plant_p[P_DELAY] / Ts + (1.0 if delay else 0.0)
-    n_d = int(math.floor(tau + 1e-9))
-    f = tau - n_d
-    if f < 1e-9:
-        f = 0.0
+    n_d, m_early, h_early, m_late, h_late = _delay_layout(plant_p, Ts, substeps, delay)
     hist = np.zeros(n_d + 2)  # hist[j % len] = c_j
     nh = n_d + 2
     st = np.empty(NX)
     v_cut = stribeck_cut(plant_p)  # once per run: the same value every sample would compute
-    # The two segments' sub-step counts and lengths are the same every sample: computed once here,
-    # with the same expressions as _segment (the same values to the last bit).
-    t_early = f * Ts
-    t_late = (1.0 - f) * Ts
-    m_early = _substep_count(t_early, substeps, Ts)
-    m_late = _substep_count(t_late, substeps, Ts)
-    h_early = t_early / m_early if m_early > 0 else 0.0
-    h_late = t_late / m_late if m_late > 0 else 0.0
     # ring positions of c_k, c_{k-n_d} and c_{k-n_d-1} (k % nh and the others, without a division per sample)
     i_now = 0
     i_late = (-n_d) % nh
@@ -176,6 +210,132 @@ def closed_loop_kernel(plant_p, kind, ctrl_p, s, qd, dqd, ddqd, Ts, substeps, qu
         _held(plant_p, st, c_early, u_sat, d, h_early, m_early, v_cut)
         u_out[k] = _held(plant_p, st, c_late, u_sat, d, h_late, m_late, v_cut)
     return n, False
+
+
+@njit(cache=True, nogil=True)
+def closed_loop_pair_kernel(kind, qd, dqd, ddqd, Ts, substeps, quant, delay, y0, u_sat, e_abort, u_abort,
+                            plant_a, ctrl_a, s_a, dist_a, noise_a, y_a, q_a, u_a, th_a,
+                            plant_b, ctrl_b, s_b, dist_b, noise_b, y_b, q_b, u_b, th_b):
+    """Two runs of :func:`closed_loop_kernel` on one trajectory, their plants advanced together.
+
+    Loop ``a`` (``plant_a``, ``ctrl_a``, ...; the arguments as in :func:`closed_loop_kernel`) and
+    loop ``b`` are independent.  While both run and their :func:`pair_key` agree, each sample's
+    plant segments are :func:`commission.controllers.plant.plant_step_pair`, which overlaps the two
+    plants' chains of dependent operations on one core; otherwise each loop's plant is stepped on
+    its own.  Each loop's values are :func:`closed_loop_kernel`'s to the last bit.  Returns
+    ``(n_done_a, diverged_a, n_done_b, diverged_b)``.
+    """
+    n = qd.shape[0]
+    has_da = dist_a.shape[0] > 0
+    has_db = dist_b.shape[0] > 0
+    has_na = noise_a.shape[0] > 0
+    has_nb = noise_b.shape[0] > 0
+    nd_a, me_a, he_a, ml_a, hl_a = _delay_layout(plant_a, Ts, substeps, delay)
+    nd_b, me_b, he_b, ml_b, hl_b = _delay_layout(plant_b, Ts, substeps, delay)
+    together = me_a == me_b and ml_a == ml_b
+    nh_a = nd_a + 2
+    nh_b = nd_b + 2
+    hist_a = np.zeros(nh_a)
+    hist_b = np.zeros(nh_b)
+    ia_now, ia_late, ia_early = 0, (-nd_a) % nh_a, (-nd_a - 1) % nh_a
+    ib_now, ib_late, ib_early = 0, (-nd_b) % nh_b, (-nd_b - 1) % nh_b
+    st_a = np.empty(NX)
+    st_b = np.empty(NX)
+    vc_a = stribeck_cut(plant_a)
+    vc_b = stribeck_cut(plant_b)
+    rows_a = th_a.shape[0]
+    rows_b = th_b.shape[0]
+    plant_start(plant_a, st_a, y0)
+    plant_start(plant_b, st_b, y0)
+    ya = _quantize(plant_output(plant_a, st_a) + (noise_a[0] if has_na else 0.0), quant)
+    yb = _quantize(plant_output(plant_b, st_b) + (noise_b[0] if has_nb else 0.0), quant)
+    if kind == 0:
+        pid_reset(ctrl_a, s_a, ya)
+        pid_reset(ctrl_b, s_b, yb)
+    else:
+        arc_reset(ctrl_a, s_a, ya)
+        arc_reset(ctrl_b, s_b, yb)
+    n_a = n
+    n_b = n
+    run_a = True
+    run_b = True
+    for k in range(n):
+        ce_a = cl_a = ce_b = cl_b = 0.0
+        if run_a:
+            xa = plant_output(plant_a, st_a)
+            if k > 0:
+                ya = _quantize(xa + (noise_a[k] if has_na else 0.0), quant)
+            if not (math.isfinite(xa) and math.isfinite(ya)) or abs(xa - qd[k]) > e_abort:
+                run_a = False
+            else:
+                ca = (pid_step(ctrl_a, s_a, ya, qd[k], dqd[k], ddqd[k]) if kind == 0
+                      else arc_step(ctrl_a, s_a, ya, qd[k], dqd[k], ddqd[k]))
+                if not math.isfinite(ca) or abs(ca) > u_abort:
+                    run_a = False
+                else:
+                    hist_a[ia_now] = ca
+                    cl_a = hist_a[ia_late] if k >= nd_a else 0.0
+                    ce_a = hist_a[ia_early] if k >= nd_a + 1 else 0.0
+                    ia_now = ia_now + 1 if ia_now + 1 < nh_a else 0
+                    ia_late = ia_late + 1 if ia_late + 1 < nh_a else 0
+                    ia_early = ia_early + 1 if ia_early + 1 < nh_a else 0
+                    y_a[k] = ya
+                    q_a[k] = xa
+                    if kind == 1:
+                        kt = k if rows_a > 1 else 0
+                        for j in range(3):
+                            th_a[kt, j] = s_a[S_THETA + j]
+            if not run_a:
+                n_a = k
+        if run_b:
+            xb = plant_output(plant_b, st_b)
+            if k > 0:
+                yb = _quantize(xb + (noise_b[k] if has_nb else 0.0), quant)
+            if not (math.isfinite(xb) and math.isfinite(yb)) or abs(xb - qd[k]) > e_abort:
+                run_b = False
+            else:
+                cb = (pid_step(ctrl_b, s_b, yb, qd[k], dqd[k], ddqd[k]) if kind == 0
+                      else arc_step(ctrl_b, s_b, yb, qd[k], dqd[k], ddqd[k]))
+                if not math.isfinite(cb) or abs(cb) > u_abort:
+                    run_b = False
+                else:
+                    hist_b[ib_now] = cb
+                    cl_b = hist_b[ib_late] if k >= nd_b else 0.0
+                    ce_b = hist_b[ib_early] if k >= nd_b + 1 else 0.0
+                    ib_now = ib_now + 1 if ib_now + 1 < nh_b else 0
+                    ib_late = ib_late + 1 if ib_late + 1 < nh_b else 0
+                    ib_early = ib_early + 1 if ib_early + 1 < nh_b else 0
+                    y_b[k] = yb
+                    q_b[k] = xb
+                    if kind == 1:
+                        kt = k if rows_b > 1 else 0
+                        for j in range(3):
+                            th_b[kt, j] = s_b[S_THETA + j]
+            if not run_b:
+                n_b = k
+        d_a = dist_a[k] if has_da else 0.0
+        d_b = dist_b[k] if has_db else 0.0
+        if run_a and run_b and together:
+            ce_a = _saturate(ce_a, u_sat)
+            ce_b = _saturate(ce_b, u_sat)
+            if me_a > 0:
+                plant_step_pair(plant_a, st_a, ce_a + d_a, he_a, plant_b, st_b, ce_b + d_b, he_b, me_a, vc_a, vc_b)
+            cl_a = _saturate(cl_a, u_sat)
+            cl_b = _saturate(cl_b, u_sat)
+            if ml_a > 0:
+                plant_step_pair(plant_a, st_a, cl_a + d_a, hl_a, plant_b, st_b, cl_b + d_b, hl_b, ml_a, vc_a, vc_b)
+            u_a[k] = cl_a
+            u_b[k] = cl_b
+            continue
+        if run_a:
+            _held(plant_a, st_a, ce_a, u_sat, d_a, he_a, me_a, vc_a)
+            u_a[k] = _held(plant_a, st_a, cl_a, u_sat, d_a, hl_a, ml_a, vc_a)
+        if run_b:
+            _held(plant_b, st_b, ce_b, u_sat, d_b, he_b, me_b, vc_b)
+            u_b[k] = _held(plant_b, st_b, cl_b, u_sat, d_b, hl_b, ml_b, vc_b)
+        if not (run_a or run_b):
+            break
+    return n_a, not run_a, n_b, not run_b
 
 
 @dataclass(frozen=True)
@@ -443,30 +603,10 @@ def simulate(plant_p: np.ndarray, kind: int, ctrl_p: np.ndarray, traj: Trajector
 
 
 @njit(cache=True, nogil=True)
-def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps, quant, dists, noises,
-                  delay, y0, u_sat, e_abort, u_abort, final_window, Y, Q, U, out_idx, out_div, out_n, out_th,
-                  out_peak, work):
-    """Scenario ``i`` of :func:`simulate_batch` into row ``i`` of the outputs.
-
-    ``work`` (shape (4, N)) is the calling thread's scratch for the traces that are not kept and
-    the error: every run of a thread reuses it instead of allocating (and first touching) a
-    megabyte of fresh pages.  Nothing is read from it that this run did not write.
-    """
+def _finish_row(i, n_done, div, kind, qd, Ts, final_window, keep, y_o, q_o, u_o, th_o, out_idx, out_div, out_n,
+                out_th, out_peak, e):
+    """Row ``i`` of :func:`simulate_batch`'s outputs from a run's traces (``e``: scratch of N)."""
     n = qd.shape[0]
-    keep = Y.shape[0] > 0
-    if keep:
-        y_o = Y[i]
-        q_o = Q[i]
-        u_o = U[i]
-    else:
-        y_o = work[0]
-        q_o = work[1]
-        u_o = work[2]
-    th_o = np.empty((1, 3))  # the last estimate is all a batch records
-    d = dists[i] if dists.shape[0] > 1 else dists[0]
-    nz = noises[i] if noises.shape[0] > 1 else noises[0]
-    n_done, div = closed_loop_kernel(plants[i], kind, ctrl_ps[i], states[i], qd, dqd, ddqd, Ts, substeps,
-                                     quant, d, nz, delay, y0, u_sat, e_abort, u_abort, y_o, q_o, u_o, th_o)
     out_div[i] = div
     out_n[i] = n_done
     if n_done > 0:
@@ -484,7 +624,6 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
                 q_o[k] = np.nan
                 u_o[k] = np.nan
         return
-    e = work[3]
     for k in range(n):
         e[k] = y_o[k] - qd[k]
     r = indexes_kernel(e, u_o, Ts * (n - 1), Ts, n, final_window)
@@ -492,16 +631,83 @@ def _one_of_batch(i, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps,
         out_idx[i, j] = r[j]
 
 
+@njit(cache=True, nogil=True)
+def _batch_task(i, j, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps, quant, dists, noises,
+                delay, y0, u_sat, e_abort, u_abort, final_window, Y, Q, U, out_idx, out_div, out_n, out_th,
+                out_peak, work):
+    """Scenario ``i`` of :func:`simulate_batch` into row ``i`` of the outputs, and scenario ``j`` beside
+    it (:func:`closed_loop_pair_kernel`) unless ``j < 0``.
+
+    ``work`` (shape (8, N)) is the calling thread's scratch for the traces that are not kept and
+    the error: every run of a thread reuses it instead of allocating (and first touching) a
+    megabyte of fresh pages.  Nothing is read from it that this run did not write.
+    """
+    keep = Y.shape[0] > 0
+    rows = (i, j if j >= 0 else i)
+    y_a = Y[i] if keep else work[0]
+    q_a = Q[i] if keep else work[1]
+    u_a = U[i] if keep else work[2]
+    th_a = np.empty((1, 3))  # the last estimate is all a batch records
+    d_a = dists[i] if dists.shape[0] > 1 else dists[0]
+    nz_a = noises[i] if noises.shape[0] > 1 else noises[0]
+    if j < 0:
+        n_a, div_a = closed_loop_kernel(plants[i], kind, ctrl_ps[i], states[i], qd, dqd, ddqd, Ts, substeps,
+                                        quant, d_a, nz_a, delay, y0, u_sat, e_abort, u_abort, y_a, q_a, u_a, th_a)
+        _finish_row(i, n_a, div_a, kind, qd, Ts, final_window, keep, y_a, q_a, u_a, th_a, out_idx, out_div, out_n,
+                    out_th, out_peak, work[3])
+        return
+    y_b = Y[j] if keep else work[4]
+    q_b = Q[j] if keep else work[5]
+    u_b = U[j] if keep else work[6]
+    th_b = np.empty((1, 3))
+    d_b = dists[j] if dists.shape[0] > 1 else dists[0]
+    nz_b = noises[j] if noises.shape[0] > 1 else noises[0]
+    n_a, div_a, n_b, div_b = closed_loop_pair_kernel(
+        kind, qd, dqd, ddqd, Ts, substeps, quant, delay, y0, u_sat, e_abort, u_abort,
+        plants[i], ctrl_ps[i], states[i], d_a, nz_a, y_a, q_a, u_a, th_a,
+        plants[j], ctrl_ps[j], states[j], d_b, nz_b, y_b, q_b, u_b, th_b)
+    _finish_row(i, n_a, div_a, kind, qd, Ts, final_window, keep, y_a, q_a, u_a, th_a, out_idx, out_div, out_n,
+                out_th, out_peak, work[3])
+    _finish_row(j, n_b, div_b, kind, qd, Ts, final_window, keep, y_b, q_b, u_b, th_b, out_idx, out_div, out_n,
+                out_th, out_peak, work[7])
+
+
+def _tasks(plants: np.ndarray, Ts: float, substeps: int, delay: bool, workers: int) -> list[tuple[int, int]]:
+    """The batch's runs as ``(i, j)`` tasks: pairs of runs whose plants interleave (:func:`pair_key`),
+    run together by :func:`closed_loop_pair_kernel`, and single runs ``(i, -1)``.
+
+    A pair costs one thread more than a single run but less than two: as many pairs are formed as
+    leave at least ``workers`` tasks, so that a small batch still keeps every worker busy.  Which
+    runs are paired changes no value (each run's values are its own kernel's to the last bit).
+    """
+    m = plants.shape[0]
+    n_pairs = max(0, min(m // 2, m - workers))
+    if n_pairs == 0:
+        return [(i, -1) for i in range(m)]
+    by_key: dict[tuple, list[int]] = {}
+    for i in range(m):
+        by_key.setdefault(tuple(pair_key(plants[i], Ts, substeps, delay)), []).append(i)
+    tasks: list[tuple[int, int]] = []
+    for rows in by_key.values():
+        while len(rows) >= 2 and n_pairs > 0:
+            tasks.append((rows.pop(0), rows.pop(0)))
+            n_pairs -= 1
+        tasks.extend((i, -1) for i in rows)
+    return sorted(tasks, key=lambda t: t[0])
+
+
 def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Trajectory, *,
                    substeps: int = 10, quant: float = 1e-6, disturbance: np.ndarray | None = None,
                    noise: np.ndarray | None = None, delay: bool = False, y0: float = 0.0,
                    u_sat: float = math.inf, e_abort: float = E_ABORT, u_abort: float = U_ABORT,
                    final_window: float = FINAL_WINDOW, return_traces: bool = False,
-                   workers: int | None = None) -> BatchResult:
+                   workers: int | None = None, interleave: bool = True) -> BatchResult:
     """Simulate ``m`` scenarios (different plants and/or controllers) on one trajectory, in parallel.
 
     Scenarios run on a thread pool over the GIL-free compiled kernel; results
-    do not depend on ``workers``.
+    do not depend on ``workers`` or ``interleave``.  Two scenarios whose plants can be stepped
+    together (:func:`pair_key`) share a task of :func:`closed_loop_pair_kernel`, which overlaps
+    their plants on one core, as long as at least ``workers`` tasks remain (:func:`_tasks`).
 
     Parameters
     ----------
@@ -521,6 +727,8 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
         Keep ``y``, ``q``, ``u`` traces (m x N each).
     workers : int, optional
         Threads (default: the number of CPUs).
+    interleave : bool
+        Pair scenarios as above (default); False: every scenario a task of its own (the same values).
     substeps, quant, delay, y0, u_sat, e_abort, u_abort, final_window
         As in :func:`simulate`.
 
@@ -561,21 +769,23 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
             float(quant), dists, noises, bool(delay), float(y0), float(u_sat), float(e_abort),
             float(u_abort), float(final_window), Y, Q, U, out_idx, out_div, out_n, out_th, out_peak)
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    if workers <= 1 or m == 1:
-        work = np.empty((4, n))
-        for i in range(m):
-            _one_of_batch(i, *args, work)
+    tasks = (_tasks(plants, traj.Ts, int(substeps), bool(delay), max(workers, 1)) if interleave
+             else [(i, -1) for i in range(m)])
+    if workers <= 1 or len(tasks) == 1:
+        work = np.empty((8, n))
+        for i, j in tasks:
+            _batch_task(i, j, *args, work)
     else:
         local = threading.local()  # one scratch per pool thread, reused by all its runs
 
-        def one(i: int) -> None:
+        def one(task: tuple[int, int]) -> None:
             work = getattr(local, "work", None)
             if work is None:
-                work = local.work = np.empty((4, n))
-            _one_of_batch(i, *args, work)
+                work = local.work = np.empty((8, n))
+            _batch_task(task[0], task[1], *args, work)
 
         with ThreadPoolExecutor(max_workers=workers) as ex:
-            list(ex.map(one, range(m)))
+            list(ex.map(one, tasks))
     return BatchResult(e_M=out_idx[:, 0], e_F=out_idx[:, 1], e_rms=out_idx[:, 2], u_rms=out_idx[:, 3],
                        du_rms=out_idx[:, 4], c_u=out_idx[:, 5], diverged=out_div, n_steps=out_n,
                        theta_final=out_th, u_peak=out_peak, y=Y if return_traces else None, q=Q if return_traces else None,

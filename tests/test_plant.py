@@ -244,3 +244,50 @@ def test_plant_step_and_plant_advance_are_one_integrator():
         x, v = plant_advance(p, x, v, u, 4e-5, 10)
     assert abs(st[0]) > 1e-4  # it moved
     assert st[0] == pytest.approx(x, rel=1e-6, abs=1e-9) and st[1] == pytest.approx(v, rel=1e-5, abs=1e-7)
+
+
+def _pair_plants():
+    """Rigid (Stribeck with ripple; Coulomb only; no friction), one mode (load- and motor-side encoder,
+    at two splits), two modes: every kind plant_step_pair interleaves, and pairs it must not."""
+    return {
+        "rigid ripple": plant_vector(M=0.027, B=0.273, fc=0.1, fs=0.12, vs=0.01, ripple_amp=0.01, ripple_pitch=0.03),
+        "rigid coulomb": plant_vector(M=0.08, B=0.5, fc=0.15, offset=0.02),
+        "rigid frictionless": plant_vector(M=0.05, B=0.0),
+        "mode load": plant_vector(M=0.03, B=0.3, fc=0.1, fs=0.12, ripple_amp=0.01, ripple_pitch=0.02,
+                                  mode_hz=500.0, mode_damping=0.04, mode_ratio=0.4, mode_load_side=True),
+        "mode motor": plant_vector(M=0.5, B=2.0, fc=0.3, fs=0.35, mode_hz=700.0, mode_damping=0.06, mode_ratio=0.3),
+        "mode split 3": plant_vector(M=0.03, B=0.3, fc=0.1, mode_hz=2500.0, mode_damping=0.05, mode_ratio=0.5),
+        "two modes": plant_vector(M=0.04, B=0.3, fc=0.1, fs=0.13, mode_hz=400.0, mode_damping=0.05, mode_ratio=0.3,
+                                  mode2_hz=900.0, mode2_damping=0.03, mode2_ratio=0.1, mode2_load_side=True),
+    }
+
+
+def test_plant_step_pair_is_the_two_plant_steps_to_the_last_bit():
+    """Two plants advanced together (interleaved when both rigid or both modal with one split, else one
+    after the other) end every call where two plant_step calls do, bit for bit, through stick-slip,
+    reversals and different sub-step lengths."""
+    from commission.controllers.plant import NX, plant_start, plant_step, plant_step_pair, plant_steps
+
+    plants = _pair_plants()
+    h = 4e-5
+    splits = {plant_steps(p, h) for p in plants.values()}
+    assert {0, 1} < splits and max(splits) > 1  # rigid, modal at split 1 and at a larger split
+    names = list(plants)
+    stuck = 0
+    for a in names:
+        for b in names:
+            pa, pb = plants[a], plants[b]
+            sa, sb, ra, rb = (np.zeros(NX) for _ in range(4))  # the anchor slots a plant without ripple never writes: equal
+            for s, p in ((sa, pa), (sb, pb), (ra, pa), (rb, pb)):
+                plant_start(p, s, 0.001)
+            for k in range(1500):
+                ua = 0.6 * math.sin(2 * math.pi * 2.0 * k / 2500) + 0.01 * (k % 7 - 3)  # sticks near the turns
+                ub = -0.4 * math.sin(2 * math.pi * 3.0 * k / 2500)
+                hb = h * (1.0 + 0.25 * (k % 2))  # the two plants' sub-steps need not be equal
+                plant_step_pair(pa, sa, ua, h, pb, sb, ub, hb, 10, -1.0, -1.0)
+                plant_step(pa, ra, ua, h, 10)
+                plant_step(pb, rb, ub, hb, 10)
+                assert np.array_equal(sa, ra, equal_nan=True) and np.array_equal(sb, rb, equal_nan=True), (a, b, k)
+                stuck += ra[1] == 0.0
+            assert abs(sa[0] - 0.001) > 1e-5 and abs(sb[0] - 0.001) > 1e-5, (a, b)  # both moved
+    assert stuck > 100  # and stood still at times (the stiction branch)

@@ -313,3 +313,49 @@ def test_batch_rows_are_the_single_runs_to_the_last_bit_on_varied_plants(kind, d
         if u_sat < math.inf:  # the drive cannot push back: the two pushed rows abort, the others do not
             assert kept.diverged[4] and kept.diverged[7] and kept.n_steps[4] < kept.n_steps[7] < traj.n
             assert not kept.diverged[5] and not kept.diverged[6]
+
+
+@pytest.mark.parametrize("delay", [False, True])
+def test_pair_kernel_runs_are_the_single_kernel_runs_to_the_last_bit(delay):
+    """closed_loop_pair_kernel runs two loops whose plants it steps together when their segments agree
+    (pair_key): each loop's traces, estimates and abort are closed_loop_kernel's, bit for bit, for
+    pairs of every kind (rigid, modes, different delays) and when one loop aborts and the other runs on."""
+    from commission.controllers.arc import arc_new_state, arc_pack, paper_gains_implementable
+    from commission.controllers.simulate import closed_loop_kernel, closed_loop_pair_kernel, pair_key
+
+    traj = sinusoid(0.6, TS)
+    n = traj.n
+    plants = _varied_plants()
+    ctrl = arc_pack(paper_gains_implementable(TS))
+    rng = np.random.default_rng(11)
+    noise = rng.normal(0, 2e-7, (plants.shape[0], n))
+    d = np.zeros((plants.shape[0], n))
+    d[3] = step_disturbance(traj.t, [(0.3, 0.6, 50.0)])  # a push that drives this loop off: it aborts mid-run
+    args = (traj.qd, traj.dqd, traj.ddqd, TS, 10, 1e-6)
+
+    def single(i):
+        out = np.full((3, n), np.nan), np.full((1, 3), np.nan)
+        s = arc_new_state(ctrl)
+        k, div = closed_loop_kernel(plants[i], 1, ctrl, s, *args, d[i], noise[i], delay, 0.0, math.inf, 0.05, 1e6,
+                                    out[0][0], out[0][1], out[0][2], out[1])
+        return k, div, out[0], out[1], s
+
+    keys = [tuple(pair_key(p, TS, 10, delay)) for p in plants]
+    pairs = [(i, j) for i in range(len(plants)) for j in range(i + 1, len(plants)) if keys[i] == keys[j]][:6]
+    pairs += [(0, 1), (3, 4), (4, 3)]  # keys that differ (the plants stepped one after the other), and the abort
+    assert sum(keys[i] == keys[j] for i, j in pairs) >= 4
+    aborted = False
+    for i, j in pairs:
+        ref = [single(i), single(j)]
+        got = [[np.full((3, n), np.nan), np.full((1, 3), np.nan), arc_new_state(ctrl)] for _ in range(2)]
+        lanes = []
+        for r, (tr, th, s) in zip((i, j), got):
+            lanes.append((plants[r], ctrl, s, d[r], noise[r], tr[0], tr[1], tr[2], th))
+        ka, da, kb, db = closed_loop_pair_kernel(1, *args, delay, 0.0, math.inf, 0.05, 1e6, *lanes[0], *lanes[1])
+        for (k, div, tr, th, s), (k2, div2), (tr2, th2, s2) in zip(ref, ((ka, da), (kb, db)), got):
+            assert (k, div) == (k2, div2), (i, j)
+            np.testing.assert_array_equal(tr2, tr)
+            np.testing.assert_array_equal(th2, th)
+            np.testing.assert_array_equal(s2, s)
+            aborted |= bool(div) and 0 < k < n
+    assert aborted  # one loop stopped mid-run while the other went on
