@@ -481,8 +481,9 @@ def plant_steps(p, h):
 def _one_mode_pair(pa, sta, ua, pb, stb, ub, n, m1a, m2a, ka, ca, hha, kra, v_cut_a, m1b, m2b, kb, cb, hhb, krb,
                    v_cut_b):
     """:func:`plant_step_pair`'s loop for two plants of one mode each (``n`` steps of ``hha``, ``hhb``
-    s), without the second mode's terms: :func:`plant_step`'s values (there ``fk2`` is 0 and the
-    second load follows the motor side) with a loop the compiler need not branch in."""
+    s), without the second mode's terms: :func:`plant_step`'s values (there ``fk2`` is 0, and
+    ``F - 0.0`` is ``F`` in IEEE arithmetic, and the second load follows the motor side) with a loop
+    the compiler need not branch in."""
     x1a = sta[X_MOTOR]
     v1a = sta[V_MOTOR]
     x2a = sta[X_LOAD]
@@ -494,8 +495,8 @@ def _one_mode_pair(pa, sta, ua, pb, stb, ub, n, m1a, m2a, ka, ca, hha, kra, v_cu
     for _ in range(n):
         fka = ka * (x1a - x2a) + ca * (v1a - v2a)
         fkb = kb * (x1b - x2b) + cb * (v1b - v2b)
-        Fa = ua - pa[P_OFFSET] - (ripple_anchored(pa, sta, x1a, kra) if kra > 0.0 else 0.0) - fka - 0.0
-        Fb = ub - pb[P_OFFSET] - (ripple_anchored(pb, stb, x1b, krb) if krb > 0.0 else 0.0) - fkb - 0.0
+        Fa = ua - pa[P_OFFSET] - (ripple_anchored(pa, sta, x1a, kra) if kra > 0.0 else 0.0) - fka
+        Fb = ub - pb[P_OFFSET] - (ripple_anchored(pb, stb, x1b, krb) if krb > 0.0 else 0.0) - fkb
         if v1a == 0.0:
             if abs(Fa) <= pa[P_FS]:
                 v1na = 0.0

@@ -63,25 +63,6 @@ def _quantize(q, quant):
 
 
 @njit(cache=True, nogil=True)
-def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts, v_cut=-1.0):
-    """Hold the saturated command ``c`` (+ disturbance ``d``) on the plant for ``t_len`` s; returns it.
-
-    ``v_cut``: the plant's :func:`commission.controllers.plant.stribeck_cut`, computed once per run
-    (negative, the default: computed at each call).
-    """
-    if c > u_sat:
-        c = u_sat
-    elif c < -u_sat:
-        c = -u_sat
-    if t_len > 0.0:
-        m = int(math.ceil(substeps * t_len / Ts - 1e-9))
-        if m < 1:
-            m = 1
-        plant_step(plant_p, st, c + d, t_len / m, m, v_cut)
-    return c
-
-
-@njit(cache=True, nogil=True)
 def _substep_count(t_len, substeps, Ts):
     """Sub-steps :func:`_segment` takes for a segment of ``t_len`` s (0: an empty segment)."""
     if not t_len > 0.0:
@@ -108,6 +89,17 @@ def _held(plant_p, st, c, u_sat, d, h, m, v_cut):
     if m > 0:
         plant_step(plant_p, st, c + d, h, m, v_cut)
     return c
+
+
+@njit(cache=True, nogil=True)
+def _segment(plant_p, st, c, u_sat, d, t_len, substeps, Ts, v_cut=-1.0):
+    """Hold the saturated command ``c`` (+ disturbance ``d``) on the plant for ``t_len`` s; returns it.
+
+    ``v_cut``: the plant's :func:`commission.controllers.plant.stribeck_cut`, computed once per run
+    (negative, the default: computed at each call).
+    """
+    m = _substep_count(t_len, substeps, Ts)
+    return _held(plant_p, st, c, u_sat, d, t_len / m if m > 0 else 0.0, m, v_cut)
 
 
 @njit(cache=True, nogil=True)
