@@ -413,6 +413,10 @@ class BatchResult:
     u_peak : ndarray, shape (m,)
         Largest ``|u|`` over the recorded samples (also before an abort;
         NaN if none), u-unit.
+    u_zero_from : ndarray of int, shape (m,)
+        The sample from which the recorded command is exactly 0 to the last recorded sample
+        (``n_steps`` when that last command is not 0): what a latched runtime fault's safe
+        command leaves, read without keeping the traces.
     y, q, u : ndarray, shape (m, N) or None
         Traces when requested (NaN after an abort), m, m, u-unit.
     kind : int
@@ -429,6 +433,7 @@ class BatchResult:
     n_steps: np.ndarray
     theta_final: np.ndarray
     u_peak: np.ndarray
+    u_zero_from: np.ndarray
     y: np.ndarray | None
     q: np.ndarray | None
     u: np.ndarray | None
@@ -596,7 +601,7 @@ def simulate(plant_p: np.ndarray, kind: int, ctrl_p: np.ndarray, traj: Trajector
 
 @njit(cache=True, nogil=True)
 def _finish_row(i, n_done, div, kind, qd, Ts, final_window, keep, y_o, q_o, u_o, th_o, out_idx, out_div, out_n,
-                out_th, out_peak, e):
+                out_th, out_peak, out_zero, e):
     """Row ``i`` of :func:`simulate_batch`'s outputs from a run's traces (``e``: scratch of N)."""
     n = qd.shape[0]
     out_div[i] = div
@@ -606,6 +611,10 @@ def _finish_row(i, n_done, div, kind, qd, Ts, final_window, keep, y_o, q_o, u_o,
         for k in range(n_done):
             peak = max(peak, abs(u_o[k]))
         out_peak[i] = peak
+    z = n_done  # where the recorded command's trailing run of exact zeros starts
+    while z > 0 and u_o[z - 1] == 0.0:
+        z -= 1
+    out_zero[i] = z
     if kind == 1 and n_done > 0:
         for j in range(3):
             out_th[i, j] = th_o[0, j]  # written at sample n_done - 1, the last recorded
@@ -626,7 +635,7 @@ def _finish_row(i, n_done, div, kind, qd, Ts, final_window, keep, y_o, q_o, u_o,
 @njit(cache=True, nogil=True)
 def _batch_task(i, j, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps, quant, dists, noises,
                 delay, y0, u_sat, e_abort, u_abort, final_window, Y, Q, U, out_idx, out_div, out_n, out_th,
-                out_peak, work):
+                out_peak, out_zero, work):
     """Scenario ``i`` of :func:`simulate_batch` into row ``i`` of the outputs, and scenario ``j`` beside
     it (:func:`closed_loop_pair_kernel`) unless ``j < 0``.
 
@@ -646,7 +655,7 @@ def _batch_task(i, j, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps
         n_a, div_a = closed_loop_kernel(plants[i], kind, ctrl_ps[i], states[i], qd, dqd, ddqd, Ts, substeps,
                                         quant, d_a, nz_a, delay, y0, u_sat, e_abort, u_abort, y_a, q_a, u_a, th_a)
         _finish_row(i, n_a, div_a, kind, qd, Ts, final_window, keep, y_a, q_a, u_a, th_a, out_idx, out_div, out_n,
-                    out_th, out_peak, work[3])
+                    out_th, out_peak, out_zero, work[3])
         return
     y_b = Y[j] if keep else work[4]
     q_b = Q[j] if keep else work[5]
@@ -659,9 +668,9 @@ def _batch_task(i, j, plants, kind, ctrl_ps, states, qd, dqd, ddqd, Ts, substeps
         plants[i], ctrl_ps[i], states[i], d_a, nz_a, y_a, q_a, u_a, th_a,
         plants[j], ctrl_ps[j], states[j], d_b, nz_b, y_b, q_b, u_b, th_b)
     _finish_row(i, n_a, div_a, kind, qd, Ts, final_window, keep, y_a, q_a, u_a, th_a, out_idx, out_div, out_n,
-                out_th, out_peak, work[3])
+                out_th, out_peak, out_zero, work[3])
     _finish_row(j, n_b, div_b, kind, qd, Ts, final_window, keep, y_b, q_b, u_b, th_b, out_idx, out_div, out_n,
-                out_th, out_peak, work[7])
+                out_th, out_peak, out_zero, work[7])
 
 
 def _tasks(plants: np.ndarray, Ts: float, substeps: int, delay: bool, workers: int) -> list[tuple[int, int]]:
@@ -757,9 +766,10 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
     out_n = np.zeros(m, dtype=np.int64)
     out_th = np.full((m, 3), np.nan)
     out_peak = np.full(m, np.nan)
+    out_zero = np.zeros(m, dtype=np.int64)
     args = (plants, int(kind), ctrl_ps, states, traj.qd, traj.dqd, traj.ddqd, traj.Ts, int(substeps),
             float(quant), dists, noises, bool(delay), float(y0), float(u_sat), float(e_abort),
-            float(u_abort), float(final_window), Y, Q, U, out_idx, out_div, out_n, out_th, out_peak)
+            float(u_abort), float(final_window), Y, Q, U, out_idx, out_div, out_n, out_th, out_peak, out_zero)
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
     tasks = (_tasks(plants, traj.Ts, int(substeps), bool(delay), max(workers, 1)) if interleave
              else [(i, -1) for i in range(m)])
@@ -780,5 +790,5 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
             list(ex.map(one, tasks))
     return BatchResult(e_M=out_idx[:, 0], e_F=out_idx[:, 1], e_rms=out_idx[:, 2], u_rms=out_idx[:, 3],
                        du_rms=out_idx[:, 4], c_u=out_idx[:, 5], diverged=out_div, n_steps=out_n,
-                       theta_final=out_th, u_peak=out_peak, y=Y if return_traces else None, q=Q if return_traces else None,
+                       theta_final=out_th, u_peak=out_peak, u_zero_from=out_zero, y=Y if return_traces else None, q=Q if return_traces else None,
                        u=U if return_traces else None, kind=int(kind))

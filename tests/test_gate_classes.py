@@ -153,6 +153,16 @@ def test_a_latched_runtime_fault_is_a_safety_failure_on_every_scenario():
     tripped = sim(deployable_gains(raw, {"e_max": 1e-9}))
     k = latched_fault_start(tripped)
     assert k is not None and k < 100 and np.all(tripped.u[k:tripped.n_steps] == 0.0)
+    # validate's Monte-Carlo batches keep no traces: the batch's record of where the command is 0 to
+    # the end gives the same reading
+    from commission.controllers.simulate import simulate_batch
+    from commission.validate import latched_fault_from
+
+    packs = np.stack([A.arc_pack(deployable_gains(raw, {"e_max": e})) for e in (spec.travel, 1e-9, spec.travel)])
+    b = simulate_batch(np.stack([plant] * 3), KIND_ARC, packs, traj, substeps=plant_substeps(1.0 / raw.Ts),
+                       quant=1e-6, u_sat=spec.u_max, e_abort=spec.travel, workers=1)
+    assert [latched_fault_from(int(n), int(z)) for n, z in zip(b.n_steps, b.u_zero_from)] == [None, k, None]
+    assert b.u_zero_from[0] == b.n_steps[0] == ok.n_steps
 
 
 @pytest.mark.slow

@@ -270,3 +270,28 @@ def test_a_refusal_of_gains_the_search_found_infeasible_says_so_first(tuned, tmp
         assert report.index(said) < report.index("**No `controller.json` was written.**")
     else:
         assert said not in text and said not in report
+
+
+
+def test_monte_carlo_records_are_each_plants_own_run(tuned):
+    """validate simulates its Monte-Carlo plants a chunk at a time, two plants stepped together where
+    they can be: every plant's record is still the one its own single run gives, in plant order."""
+    from commission.controllers.pid import pid_pack
+    from commission.controllers.simulate import KIND_PID
+
+    t = Tuning.load(str(tuned[0]))
+    n = 19  # more than one chunk, and an odd one out
+    r = validate(t, seed=5, n_monte_carlo=n, workers=2)
+    scen = [s for s in scenario_matrix(t.identification, t.spec, rng=np.random.default_rng(5), n_monte_carlo=n)
+            if "monte_carlo" in s.tags]
+    assert len(scen) == n
+    for s in scen:
+        ref = s.reference(t.arc.Ts)
+        d = s.disturbance.samples(ref.t)
+        run = r.run(s.name)
+        sims = {kind: simulate(s.plant, kind, pack, ref, substeps=plant_substeps(t.spec.sample_rate),
+                               quant=s.quantization, disturbance=d if np.any(d) else None, noise=s.noise(ref.n),
+                               y0=s.y0, u_sat=t.spec.u_max, e_abort=t.spec.travel)
+                for kind, pack in ((KIND_ARC, arc_pack(t.arc)), (KIND_PID, pid_pack(t.pid)))}
+        assert (run.arc, run.pid) == (sims[KIND_ARC].score(), sims[KIND_PID].score()), s.name
+        assert run.theta_final == tuple(float(x) for x in sims[KIND_ARC].theta_hat[-1]), s.name

@@ -65,14 +65,14 @@ from commission.validate.provenance import check_provenance
 from commission.validate.results import (CONTROLLER_NAME, DEFAULT_MONTE_CARLO, FIGURE_NAMES, FLAGGED_NAME, REPORT_NAME,
                                          USER_FIGURE_NAME, VALIDATION_KIND, VALIDATION_NAME, VALIDATION_SCHEMA_VERSION,
                                          Progress, RunRecord, Trace, ValidationResult)
-from commission.validate.stage import (FAULT_ZERO_SAMPLES, MC_CHUNK, certify_default_payload, latched_fault_start,
-                                       performance_set, validate)
+from commission.validate.stage import (FAULT_ZERO_SAMPLES, MC_CHUNK, certify_default_payload, latched_fault_from,
+                                       latched_fault_start, performance_set, validate)
 
 __all__ = [
     "DEFAULT_MONTE_CARLO", "RunRecord", "Trace", "ValidationResult", "ValidateOutcome", "validate",
     "controller_config", "validated_record", "not_better_flag", "FLAGGED_NAME", "run_validate", "write_outputs",
     "output_names", "check_provenance", "deployable_gains", "runtime_guards", "guard_values", "envelope_acceleration",
-    "holding_force", "log_sha256_of", "latched_fault_start", "performance_set",
+    "holding_force", "log_sha256_of", "latched_fault_from", "latched_fault_start", "performance_set",
     # also re-exported (importable from commission.validate before the split):
     "NOMINAL_RATE_RTOL", "certified_validity", "GUARD_ACCEL_MARGIN", "GUARD_E_M_FACTOR", "GUARD_FROZEN_MIN",
     "GUARD_NOISE_SIGMAS", "GUARD_REJECT_TIME", "GUARD_SPEED_MARGIN", "FigureWriter", "CONTROLLER_NAME", "FIGURE_NAMES",

@@ -18,7 +18,7 @@ from commission.artifacts import Identification
 from commission.controllers.arc import arc_pack
 from commission.controllers.plant import P_B, P_M, P_OFFSET
 from commission.controllers.pid import pid_pack
-from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate
+from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simulate, simulate_batch
 from commission.controllers.trajectory import Trajectory
 from commission.errors import UsageError
 from commission.infra.executor import Executor, LocalExecutor
@@ -51,10 +51,6 @@ def _theta_true(plant: np.ndarray) -> tuple[float, float, float]:
     return (1.0 / M, float(plant[P_B]) / M, -float(plant[P_OFFSET]) / M)
 
 
-def _t_abort(r: SimResult, Ts: float) -> float:
-    return r.n_steps * Ts if r.diverged else math.nan
-
-
 #: Monte-Carlo plants per executor task: large enough that a task (2 x 16 simulations) outweighs
 #: a Dask round trip, small enough that a lost worker costs little and the chunks spread evenly.
 MC_CHUNK = 16
@@ -71,21 +67,59 @@ class _SimContext:
     e_abort: float
 
 
-def _simulate_one(ctx: _SimContext, s: Any, kind: int, keep: bool) -> _Outcome:
-    ref = ctx.refs[(s.trajectory, s.y0)]
+def _outcome(ctx: _SimContext, kind: int, score: Indexes, n_steps: int, diverged: bool, zero_from: int,
+             theta_final: tuple[float, float, float], sim: SimResult | None) -> _Outcome:
+    """A run's outcome from its record: an abort's time, and a latched runtime guard (the safe
+    command 0 to the end stops the machine) read as an abort -- a safety failure on every
+    scenario, as an abort is (the error limits no longer catch it on a safety scenario)."""
+    t_abort = n_steps * ctx.Ts if diverged else math.nan
+    k = latched_fault_from(n_steps, zero_from) if kind == KIND_ARC and not diverged else None
+    if k is not None:
+        score, t_abort = dataclasses.replace(score, diverged=True), k * ctx.Ts
+    return _Outcome(score, t_abort, theta_final, sim)
+
+
+def _disturbance(s: Any, ref: Trajectory) -> np.ndarray | None:
     d = s.disturbance.samples(ref.t)
+    return d if np.any(d) else None
+
+
+def _simulate_one(ctx: _SimContext, s: Any, kind: int) -> _Outcome:
+    """One scenario's run, its traces kept (for the figures)."""
+    ref = ctx.refs[(s.trajectory, s.y0)]
     r = simulate(s.plant, kind, ctx.ctrl[kind], ref, substeps=plant_substeps(1.0 / ctx.Ts), quant=s.quantization,
-                 disturbance=d if np.any(d) else None, noise=s.noise(ref.n), y0=s.y0, u_sat=ctx.u_sat,
+                 disturbance=_disturbance(s, ref), noise=s.noise(ref.n), y0=s.y0, u_sat=ctx.u_sat,
                  e_abort=ctx.e_abort)
     th = r.theta_hat
     final = tuple(float(x) for x in th[-1]) if th is not None and th.shape[0] else (math.nan,) * 3
-    score, t_abort = r.score(), _t_abort(r, ctx.Ts)
-    k = latched_fault_start(r) if kind == KIND_ARC and not r.diverged else None
-    if k is not None:
-        # A latched runtime guard (the safe command 0 to the end) stops the machine: a safety failure on
-        # every scenario, as an abort is (the error limits no longer catch it on a safety scenario).
-        score, t_abort = dataclasses.replace(score, diverged=True), k * ctx.Ts
-    return _Outcome(score, t_abort, final, r if keep else None)  # type: ignore[arg-type]
+    return _outcome(ctx, kind, r.score(), r.n_steps, r.diverged, _zero_from(r), final, r)  # type: ignore[arg-type]
+
+
+def _simulate_together(ctx: _SimContext, group: Sequence[Any],
+                       dists: Sequence[np.ndarray | None]) -> list[tuple[_Outcome, _Outcome]]:
+    """ARC and PID on scenarios that share a trajectory, a start, an encoder and which signals they
+    carry (``dists``: each one's disturbance, all None or none), each controller as one
+    :func:`commission.controllers.simulate.simulate_batch` on this task's thread (scores only).
+
+    The batch steps two runs whose plants interleave in one loop (its ``interleave``), which
+    overlaps them on the core; every run's values are its own :func:`simulate`'s to the last bit,
+    so each outcome is :func:`_simulate_one`'s without the traces.
+    """
+    s0 = group[0]
+    ref = ctx.refs[(s0.trajectory, s0.y0)]
+    noises = [s.noise(ref.n) for s in group]
+    plants = np.stack([s.plant for s in group])
+    dist = None if dists[0] is None else np.stack(dists)  # type: ignore[arg-type]
+    noise = None if noises[0] is None else np.stack(noises)  # type: ignore[arg-type]
+    per_kind = []
+    for kind in (KIND_ARC, KIND_PID):
+        r = simulate_batch(plants, kind, ctx.ctrl[kind], ref, substeps=plant_substeps(1.0 / ctx.Ts),
+                           quant=s0.quantization, disturbance=dist, noise=noise, y0=s0.y0, u_sat=ctx.u_sat,
+                           e_abort=ctx.e_abort, workers=1)
+        per_kind.append([_outcome(ctx, kind, sc, int(r.n_steps[i]), bool(r.diverged[i]), int(r.u_zero_from[i]),
+                                  tuple(float(x) for x in r.theta_final[i]), None)  # type: ignore[arg-type]
+                         for i, sc in enumerate(r.scores())])
+    return list(zip(*per_kind))  # type: ignore[arg-type]
 
 
 #: Trailing samples of an exactly-zero ARC command that count as a latched runtime fault (the step's
@@ -94,23 +128,47 @@ def _simulate_one(ctx: _SimContext, s: Any, kind: int, keep: bool) -> _Outcome:
 FAULT_ZERO_SAMPLES = 8
 
 
+def latched_fault_from(n_steps: int, zero_from: int) -> int | None:
+    """The sample from which a run's recorded ARC command is exactly 0 to the end (``zero_from`` of
+    ``n_steps`` recorded samples), when that is a latched fault (at least :data:`FAULT_ZERO_SAMPLES`
+    samples, ending the run); else None."""
+    return int(zero_from) if n_steps - zero_from >= FAULT_ZERO_SAMPLES else None
+
+
+def _zero_from(r: SimResult) -> int:
+    """Where ``r``'s recorded command's trailing run of exact zeros starts (``n_steps``: none)."""
+    nz = np.flatnonzero(r.u[: r.n_steps] != 0.0)
+    return int(nz[-1]) + 1 if nz.size else 0
+
+
 def latched_fault_start(r: SimResult) -> int | None:
     """The sample from which the ARC's command is exactly 0 to the end, when that is a latched fault
-    (at least :data:`FAULT_ZERO_SAMPLES` samples, ending the run); else None."""
-    u = r.u[: r.n_steps]
-    if u.size < FAULT_ZERO_SAMPLES or np.any(u[-FAULT_ZERO_SAMPLES:] != 0.0):
-        return None
-    nz = np.flatnonzero(u != 0.0)
-    return int(nz[-1]) + 1 if nz.size else 0
+    (:func:`latched_fault_from`); else None."""
+    return latched_fault_from(r.n_steps, _zero_from(r))
 
 
 def _simulate_chunk(ctx: _SimContext, chunk: Sequence[tuple[Any, bool]]) -> list[tuple[_Outcome, _Outcome]]:
     """One executor task: ARC and PID on each scenario of ``chunk`` ((scenario, keep traces) pairs).
 
     A pure function of its arguments (the Monte-Carlo plant is in the scenario, the encoder
-    noise is seeded by the scenario's name), so it gives the same answer on any worker.
+    noise is seeded by the scenario's name), so it gives the same answer on any worker.  The
+    scenarios whose traces are not kept run in batches of those that can share one
+    (:func:`_simulate_together`); the values are the same as one at a time.
     """
-    return [(_simulate_one(ctx, s, KIND_ARC, keep), _simulate_one(ctx, s, KIND_PID, keep)) for s, keep in chunk]
+    out: list[tuple[_Outcome, _Outcome] | None] = [None] * len(chunk)
+    groups: dict[tuple, list[tuple[int, np.ndarray | None]]] = {}
+    for i, (s, keep) in enumerate(chunk):
+        if keep:
+            out[i] = (_simulate_one(ctx, s, KIND_ARC), _simulate_one(ctx, s, KIND_PID))
+            continue
+        d = _disturbance(s, ctx.refs[(s.trajectory, s.y0)])
+        key = (s.trajectory, s.y0, s.quantization, s.noise_std > 0.0, d is not None)
+        groups.setdefault(key, []).append((i, d))
+    for rows in groups.values():
+        got = _simulate_together(ctx, [chunk[i][0] for i, _ in rows], [d for _, d in rows])
+        for (i, _), pair in zip(rows, got):
+            out[i] = pair
+    return out  # type: ignore[return-value]
 
 
 def _simulate_matrix(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], units: Mapping[str, str],
