@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -306,8 +307,9 @@ class Problem:
         they hold) the whole box, then (only where that holds) the screening scenarios, and the
         rest of the tuning set only for a candidate not already far off the gate there.  The
         simulations of a candidate that passed the linear checks run in the background
-        (:meth:`_simulate_candidate`, compiled kernels without the GIL) while the next
-        candidates' linear checks run here: the two overlap on the cores instead of taking turns.
+        (:meth:`_simulate_candidate`, compiled kernels without the GIL; as many candidates at a
+        time as the simulations have threads) while the next candidates' linear checks run here:
+        the two overlap on the cores instead of taking turns.
         Each scenario's run is the same whatever else runs beside it, so the scores are the ones
         a batch of all the candidates gives.
         """
@@ -315,7 +317,9 @@ class Problem:
         ref_screen = [self.reference[i] for i in self.screen]
         mv: list[float] = []
         pending = {}
-        with ThreadPoolExecutor(max_workers=1) as pool:
+        # As many candidates in flight as the simulations have threads: a candidate's 10-20 runs
+        # leave a thread idle at the end of its batch, which the next candidate's runs fill.
+        with ThreadPoolExecutor(max_workers=self.ev.workers or os.cpu_count() or 1) as pool:
             try:
                 for i, (_, _, g) in enumerate(parts):
                     v = self.stability_violation(g)  # the whole box only where the identified plant's hold
