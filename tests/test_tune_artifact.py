@@ -386,6 +386,7 @@ def test_a_candidate_that_misses_a_margin_floor_is_not_simulated(holdout_setup):
     class Spy:
         weights = ev.weights
         scenarios = ev.scenarios
+        workers = ev.workers
 
         def scores(self, kind, packs, only=None):
             simulated.append(len(packs))
@@ -421,6 +422,7 @@ def test_a_candidate_that_misses_the_gate_on_the_screen_is_not_simulated_on_the_
     class Spy:
         weights = ev.weights
         scenarios = ev.scenarios
+        workers = ev.workers
 
         def scores(self, kind, packs, only=None):
             calls.append((len(packs), len(ev.names) if only is None else len(only)))
