@@ -790,5 +790,6 @@ def simulate_batch(plants: np.ndarray, kind: int, ctrl_ps: np.ndarray, traj: Tra
             list(ex.map(one, tasks))
     return BatchResult(e_M=out_idx[:, 0], e_F=out_idx[:, 1], e_rms=out_idx[:, 2], u_rms=out_idx[:, 3],
                        du_rms=out_idx[:, 4], c_u=out_idx[:, 5], diverged=out_div, n_steps=out_n,
-                       theta_final=out_th, u_peak=out_peak, u_zero_from=out_zero, y=Y if return_traces else None, q=Q if return_traces else None,
+                       theta_final=out_th, u_peak=out_peak, u_zero_from=out_zero,
+                       y=Y if return_traces else None, q=Q if return_traces else None,
                        u=U if return_traces else None, kind=int(kind))

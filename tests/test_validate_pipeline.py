@@ -272,7 +272,6 @@ def test_a_refusal_of_gains_the_search_found_infeasible_says_so_first(tuned, tmp
         assert said not in text and said not in report
 
 
-
 def test_monte_carlo_records_are_each_plants_own_run(tuned):
     """validate simulates its Monte-Carlo plants a chunk at a time, two plants stepped together where
     they can be: every plant's record is still the one its own single run gives, in plant order."""

@@ -317,8 +317,8 @@ class Problem:
         ref_screen = [self.reference[i] for i in self.screen]
         mv: list[float] = []
         pending = {}
-        # As many candidates in flight as the simulations have threads: a candidate's 10-20 runs
-        # leave a thread idle at the end of its batch, which the next candidate's runs fill.
+        # As many candidates in flight as the simulations have threads: a candidate's batch leaves a
+        # thread idle at its end, which the next candidate's runs fill.
         with ThreadPoolExecutor(max_workers=self.ev.workers or os.cpu_count() or 1) as pool:
             try:
                 for i, (_, _, g) in enumerate(parts):
