@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from commission.errors import SpecError
 from commission.gate import GateSpec, evaluate_gate, performance_scenarios, resolve_gate
@@ -111,6 +113,63 @@ def test_a_defaulted_load_bound_the_drive_cannot_hold_is_narrowed_to_the_load_st
 
     from commission.validate.provenance import _identification_as_identified
     assert _identification_as_identified(SimpleNamespace(identification=out)) == json.loads(json.dumps(ident.to_dict()))
+
+
+def _loaded_axis(offset: float, delta_d: float):
+    """``_axis(defaulted=True)`` carrying a constant load -offset (gravity on a vertical axis, u-unit)."""
+    from commission.artifacts import Estimate, ThetaBox
+
+    ident = _axis(defaulted=True, delta_d=delta_d)
+    params = {**ident.parameters, "offset": Estimate(offset, 0.0)}
+    theta = ThetaBox((ident.theta.nominal[0], ident.theta.nominal[1], -offset / ident.value("M")),
+                     ident.theta.min, ident.theta.max)
+    return dataclasses.replace(ident, parameters=params, theta=theta)
+
+
+def test_a_constant_load_larger_than_the_load_step_is_narrowed_about_that_load_without_losing_it():
+    """A 0.2 V constant load (gravity) and a small load step (delta_d M = 0.0135 V) on a 1 V drive: the
+    range narrowed to d_n +- step lies entirely above zero, so theta3 = d_n / M is smallest at the
+    heaviest mass; bounding it at the lightest only (the old arithmetic) cut off the identified
+    theta3 = d_n / M and tune stopped on a ValueError.  Interval arithmetic over the box's masses keeps
+    it, and the force range the box admits at every mass is exactly d_n +- step."""
+    spec = spec_from_mapping({"controller": {"u_max": 1.0}})
+    ident = _loaded_axis(offset=-0.2, delta_d=0.5)
+    with pytest.raises(SpecError, match="controller.u_max"):
+        default_envelope(spec, ident, set())
+    out, notes = fit_force_to_drive(spec, ident, set())
+    assert len(notes) == 1 and "0.186..0.214 V" in notes[0]
+    lo3, hi3 = out.theta.min[2], out.theta.max[2]
+    assert 0.0 < lo3 <= out.theta.nominal[2] == ident.theta.nominal[2] <= hi3
+    for m in (1.0 / out.theta.max[0], ident.value("M"), 1.0 / out.theta.min[0]):
+        assert lo3 <= 0.2 / m <= hi3  # the identified load at every mass of the box
+    step = ident.delta_d * ident.value("M")
+    assert force_range(out) == pytest.approx((0.2 - step, 0.2 + step), rel=1e-12)
+    assert out.extra["bounds"]["narrowed_by_tune"]["narrowed_force_range"] == list(force_range(out))
+    default_envelope(spec, out, set())  # the drive now has an envelope
+    from types import SimpleNamespace
+
+    from commission.validate.provenance import _identification_as_identified
+    assert _identification_as_identified(SimpleNamespace(identification=out)) == json.loads(json.dumps(ident.to_dict()))
+
+
+@given(f_lo=st.floats(-5.0, 5.0), width=st.floats(0.0, 5.0), m_light=st.floats(0.01, 1.0), ratio=st.floats(1.0, 20.0))
+def test_theta3_range_for_forces_inverts_force_range(f_lo, width, m_light, ratio):
+    """Whatever the signs, the theta3 range built for a force range admits exactly that range at every
+    mass (within a box wide enough not to clip it)."""
+    from commission.scenarios import theta3_range_for_forces
+
+    ident = _axis(defaulted=True)
+    ident = dataclasses.replace(ident, theta=dataclasses.replace(
+        ident.theta, min=(1.0 / (m_light * ratio), ident.theta.min[1], -1e9),
+        max=(1.0 / m_light, ident.theta.max[1], 1e9), nominal=(1.0 / (m_light * math.sqrt(ratio)),
+                                                             ident.theta.nominal[1], 0.0)))
+    m_nominal = m_light * math.sqrt(ratio)  # the identified force, mid-range, at the nominal mass
+    ident = dataclasses.replace(ident, theta=dataclasses.replace(
+        ident.theta, nominal=(*ident.theta.nominal[:2], (f_lo + 0.5 * width) / m_nominal)))
+    lo, hi = theta3_range_for_forces(ident, f_lo, f_lo + width)
+    out = dataclasses.replace(ident, theta=dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo),
+                                                                max=(*ident.theta.max[:2], hi)))
+    assert force_range(out) == pytest.approx((f_lo, f_lo + width), rel=1e-12, abs=1e-15)
 
 
 def test_a_stated_load_bound_or_a_set_envelope_is_never_narrowed():

@@ -94,7 +94,7 @@ Modules
 """
 
 from commission.scenarios.box import (clip_to_box, force_range, monte_carlo_plants, monte_carlo_support,
-                                      viscous_range)
+                                      theta3_range_for_forces, viscous_range)
 from commission.scenarios.identified import identified_plant, plant_dynamics, plant_holds_fit
 from commission.scenarios.matrix import (FRICTION_SCALE, MODE_DAMPING_FACTOR, MODE_FREQUENCY_FACTORS, UNSEEN_STRIBECK,
                                          VARIANTS, corner_scenarios, offset_scenarios, payload_scenarios, robustness_scenarios,
@@ -112,7 +112,8 @@ __all__ = [
     "plant_holds_fit",
     "plant_substeps", "resolve_quantization", "resolve_encoder_noise", "CASES", "CASE1_DURATION",
     "CASE1_SPEED_FRACTION", "CASE2_TAIL", "case1_trajectory", "case2_trajectory", "case_names", "trajectories",
-    "max_horizon", "horizon_notes", "check_run_length", "check_user_length", "force_range", "viscous_range",
+    "max_horizon", "horizon_notes", "check_run_length", "check_user_length", "force_range",
+    "theta3_range_for_forces", "viscous_range",
     "clip_to_box", "monte_carlo_support", "monte_carlo_plants", "VARIANTS", "FRICTION_SCALE",
     "MODE_FREQUENCY_FACTORS", "MODE_DAMPING_FACTOR", "UNSEEN_STRIBECK", "unseen_stribeck", "scenario_matrix", "robustness_scenarios", "corner_scenarios",
     "offset_scenarios", "payload_scenarios", "screening_indices", "tuning_scenarios", "PAYLOAD_BISECTIONS",

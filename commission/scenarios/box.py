@@ -15,11 +15,34 @@ def force_range(ident: Identification) -> tuple[float, float]:
     """Range of the nominal disturbance force d_n = -offset that the box admits at every mass, u-unit.
 
     theta3 = d_n / M must stay in [theta3_min, theta3_max] for every M in
-    [1/theta1_max, 1/theta1_min]; the binding end is the lightest mass, so
-    d_n in [theta3_min, theta3_max] / theta1_max.  (A payload adds mass, not force.)
+    [m_light, m_heavy] = [1/theta1_max, 1/theta1_min].  An end of theta3's range away from zero binds
+    at the lightest mass, where d_n / M is largest in magnitude; an end on the far side of zero (a
+    range that excludes zero: a constant load such as gravity) binds at the heaviest, where d_n / M is
+    smallest.  With zero inside the range (identify's boxes) this is d_n in [theta3_min,
+    theta3_max] x m_light.  (A payload adds mass, not force.)  The inverse is
+    :func:`theta3_range_for_forces`.
     """
-    m_light = 1.0 / ident.theta.max[0]
-    return ident.theta.min[2] * m_light, ident.theta.max[2] * m_light
+    return forces_of_theta3(ident.theta.min[2], ident.theta.max[2], 1.0 / ident.theta.max[0],
+                            1.0 / ident.theta.min[0])
+
+
+def forces_of_theta3(lo: float, hi: float, m_light: float, m_heavy: float) -> tuple[float, float]:
+    """:func:`force_range` of a theta3 range ``[lo, hi]`` (q/s^2) over masses ``[m_light, m_heavy]``, u-unit."""
+    return lo * (m_heavy if lo > 0 else m_light), hi * (m_heavy if hi < 0 else m_light)
+
+
+def theta3_range_for_forces(ident: Identification, f_lo: float, f_hi: float) -> tuple[float, float]:
+    """The theta3 range, within the box's, whose :func:`force_range` is ``[f_lo, f_hi]`` (u-unit), q/s^2.
+
+    Interval arithmetic over the box's masses, as :func:`commission.identify.bounds.theta_bounds`
+    builds theta3: ``[min(f_lo / m), max(f_hi / m)]`` over m in [m_light, m_heavy].  For a range that
+    holds the identified force ``d_n = -offset`` the result holds the nominal ``d_n / M`` (M within
+    the masses), whatever the sign of d_n; then clipped to the box's theta3 range, which holds it too.
+    """
+    m_light, m_heavy = 1.0 / ident.theta.max[0], 1.0 / ident.theta.min[0]
+    lo = min(f_lo / m_light, f_lo / m_heavy)
+    hi = max(f_hi / m_light, f_hi / m_heavy)
+    return max(ident.theta.min[2], lo), min(ident.theta.max[2], hi)
 
 
 def viscous_range(ident: Identification) -> tuple[float, float]:

@@ -202,7 +202,7 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
     """
     from commission.controllers.plant import P_M, P_OFFSET
     from commission.errors import SpecError
-    from commission.scenarios import force_range, identified_plant
+    from commission.scenarios import force_range, identified_plant, theta3_range_for_forces
     from commission.tune.defaults import _axis_units, default_envelope
 
     bounds = ident.extra.get("bounds")
@@ -222,7 +222,6 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
         return ident, ()
     p = identified_plant(ident)
     dn = -float(p[P_OFFSET])
-    m_light = 1.0 / ident.theta.max[0]
     d_lo, d_hi = force_range(ident)
     r_min = max(float(ident.delta_d) * float(p[P_M]), 0.0)  # the load step of the disturbance scenario
     r_max = max(dn - d_lo, d_hi - dn)
@@ -230,14 +229,14 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
         return ident, ()
 
     def narrowed(reach: float) -> Identification:
-        lo = max(ident.theta.min[2], (dn - reach) / m_light)
-        hi = min(ident.theta.max[2], (dn + reach) / m_light)
-        theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
+        lo, hi = theta3_range_for_forces(ident, dn - reach, dn + reach)
+        idn = dataclasses.replace(ident, theta=dataclasses.replace(
+            ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi)))
         b = dict(bounds)
         b["narrowed_by_tune"] = {"theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
-                                 "force_range": [d_lo, d_hi], "narrowed_force_range": [lo * m_light, hi * m_light],
+                                 "force_range": [d_lo, d_hi], "narrowed_force_range": list(force_range(idn)),
                                  "u_max": spec.u_max}
-        return dataclasses.replace(ident, theta=theta, extra={**ident.extra, "bounds": b})
+        return dataclasses.replace(idn, extra={**ident.extra, "bounds": b})
 
     out = narrowed(r_min)
     if not fits(out):

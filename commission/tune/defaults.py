@@ -25,6 +25,7 @@ from commission.scenarios import (
     force_range,
     identified_plant,
     resolve_quantization,
+    theta3_range_for_forces,
     viscous_range,
 )
 from commission.spec import Spec
@@ -231,7 +232,9 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
     on the most demanding plant, the force range is narrowed symmetrically about the identified
     offset force until friction, ripple and constant force take ``settings.disturbance_share`` of the
     budget; the rest is left to the envelope (:func:`default_envelope`).  theta3's bounds
-    follow at the lightest mass, where they bind (:func:`commission.scenarios.force_range`).
+    follow over the box's masses (:func:`commission.scenarios.theta3_range_for_forces`, the inverse
+    of :func:`commission.scenarios.force_range`), so that they hold the identified force at every
+    mass whatever its sign and size (a constant load larger than the narrowed reach included).
 
     A bound the user gave, an envelope the user set in full, or an ident.json written before
     the flag existed is never narrowed; :func:`default_envelope` and
@@ -267,16 +270,15 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
     reach = allowed - abs(dn)  # half-width of the narrowed force range about d_n
     if not (reach > 0 and allowed >= step and max(abs(d_lo), abs(d_hi)) > allowed):
         return ident, ()  # friction alone is too much: default_envelope refuses, naming u_max
-    m_light = 1.0 / ident.theta.max[0]
-    lo = max(ident.theta.min[2], (dn - reach) / m_light)
-    hi = min(ident.theta.max[2], (dn + reach) / m_light)
+    lo, hi = theta3_range_for_forces(ident, dn - reach, dn + reach)
     theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
+    f_lo, f_hi = force_range(dataclasses.replace(ident, theta=theta))
     u = ident.units.get("u", "u-unit")
     old_bound = bounds.get("disturbance_bound")
     new_bounds = dict(bounds)
     new_bounds["narrowed_by_tune"] = {
         "theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
-        "force_range": [d_lo, d_hi], "narrowed_force_range": [lo * m_light, hi * m_light],
+        "force_range": [d_lo, d_hi], "narrowed_force_range": [f_lo, f_hi],
         "u_max": spec.u_max}
     extra = dict(ident.extra)
     extra["bounds"] = new_bounds
@@ -284,7 +286,7 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
     was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
     _, v_unit, a_unit = _axis_units(ident.units)  # theta3 is in q/s², as the acceleration
     note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
-            f"{a_unit} (constant load force {lo * m_light:.3g}..{hi * m_light:.3g} {u}): the defaulted load-force "
+            f"{a_unit} (constant load force {f_lo:.3g}..{f_hi:.3g} {u}): the defaulted load-force "
             f"bound{was} leaves controller.u_max = {spec.u_max:g} {u} no room for even v_max = {v_min:g} {v_unit}, "
             f"a_max = {a_min:g} {a_unit} on the most demanding plant; it now takes {settings.disturbance_share:g} "
             f"of the "

@@ -29,7 +29,8 @@ def _identification_as_identified(tuning: Tuning) -> dict[str, Any]:
         lo, hi = embedded["theta"]["min"][2], embedded["theta"]["max"][2]
         t3min, t3max = narrowed.get("theta3_min"), narrowed.get("theta3_max")
         if (isinstance(t3min, (int, float)) and isinstance(t3max, (int, float)) and t3min <= lo <= hi <= t3max
-                and _narrowed_as_recorded(narrowed, lo, hi, embedded["theta"]["max"][0])):
+                and _narrowed_as_recorded(narrowed, lo, hi, embedded["theta"]["max"][0],
+                                          embedded["theta"]["min"][0])):
             embedded["theta"]["min"][2], embedded["theta"]["max"][2] = t3min, t3max
     return embedded
 
@@ -63,17 +64,21 @@ def _undo_payload_narrowing(embedded: dict[str, Any]) -> None:
     bounds["payload_range"], bounds["mass_range"] = dpay, dmass
 
 
-def _narrowed_as_recorded(narrowed: Mapping[str, Any], lo: float, hi: float, theta1_max: float) -> bool:
+def _narrowed_as_recorded(narrowed: Mapping[str, Any], lo: float, hi: float, theta1_max: float,
+                          theta1_min: float) -> bool:
     """The narrowed theta3 box is the one tune recorded as a force range (``narrowed_force_range``,
-    theta3 x the lightest mass 1/theta1_max), so that a box shrunk further by hand inside the
-    narrowing is not taken for tune's; a record without the force range is taken as it is."""
+    the force the box admits at every mass, :func:`commission.scenarios.force_range`), so that a box
+    shrunk further by hand inside the narrowing is not taken for tune's; a record without the force
+    range is taken as it is."""
+    from commission.scenarios.box import forces_of_theta3
+
     rec = narrowed.get("narrowed_force_range")
     if rec is None:
         return True
     if not (isinstance(rec, list) and len(rec) == 2 and all(isinstance(x, (int, float)) for x in rec)):
         return False
-    m_light = 1.0 / theta1_max
-    return all(math.isclose(r, v * m_light, rel_tol=1e-9, abs_tol=1e-300) for r, v in zip(rec, (lo, hi)))
+    forces = forces_of_theta3(lo, hi, 1.0 / theta1_max, 1.0 / theta1_min)
+    return all(math.isclose(r, f, rel_tol=1e-9, abs_tol=1e-300) for r, f in zip(rec, forces))
 
 
 def check_provenance(tuning: Tuning, tuning_path: str) -> None:
