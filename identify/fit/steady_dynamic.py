@@ -18,16 +18,24 @@ from commission.identify.fit.result import _friction_force, _ripple_params
 #: Alternations of the friction-map / mass steps.
 N_ALTERNATIONS = 3
 
+#: Where rows near reversals are cut from the mass fit, in multiples of the map's Stribeck speed vs
+#: (the knee :func:`_stribeck_knee` is 3 vs), tried in turn while M is not identified.  3 vs keeps
+#: the fit away from the Stribeck dip, whose shape the map extrapolates below its slowest leg; on an
+#: axis whose dip reaches a good part of the moves' speeds (a high vs against a slow envelope) that
+#: leaves too few accelerating rows, and M is refused although the legs pin the curve down to a few
+#: tenths of a percent.  At 1 vs the map's own curve, fitted on legs at those speeds, carries the
+#: friction of the rows kept; the fit says so in a warning.
+REVERSAL_CUTS = (3.0, 1.0)
+
 
 def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
                 ripple_pitch: float | tuple[float, ...] | None,
                 reversal_speed: float | None, warnings: list[str],
                 mass: float | None = None) -> tuple[dict[str, tuple[float, float]], np.ndarray, float]:
     """Friction from the legs, mass (and ripple) from the dynamics; ``mass`` given: M is known, not fitted."""
-    M = 0.0 if mass is None else mass  # the legs' mean acceleration is ~0; the first map fit needs no mass
+    # M starts at 0 in each alternation: the legs' mean acceleration is ~0; the first map fit needs no mass
     pitches = ripple_pitches(ripple_pitch)
     n_r = 2 * len(pitches)  # ripple coefficients: (sin, cos) per pitch
-    ripple_ab = np.zeros(max(n_r, 2))
     if pitches:
         sc = [f(2.0 * np.pi * pp.q / pitch) for pitch in pitches for f in (np.sin, np.cos)]
         seg_sc = np.column_stack([segs.mean_over(c) for c in sc])
@@ -53,35 +61,59 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
                 "(need dynamic motion at speed for the mass)")
         return rows
 
-    # Pass 0 fits a Coulomb line (robust, never refused) to get provisional M and ripple:
-    # a requested Stribeck fit needs the ripple removed from the slow legs first, which
-    # sit on a short stretch of travel where the ripple does not average out.
-    # Passes 1..N fit the requested model.
-    for it in range(N_ALTERNATIONS + 1):
-        F = segs.command - M * segs.acceleration - seg_sc @ ripple_ab
-        model: FrictionModel = "coulomb" if it == 0 else friction
-        # Keep the warnings of the last pass only: the earlier ones saw a provisional M.
-        fr = _map_fit(segs.velocity, F, model, warnings if it == N_ALTERNATIONS else [])
-        p = {k: v[0] for k, v in fr.items()}
-        if it <= 1:
-            v_ex = reversal_speed
-            if v_ex is None:
-                if "vs" in p:
-                    v_ex = 3.0 * p["vs"]
-                else:
-                    knee = _stribeck_knee(segs.velocity, F)
-                    v_ex = knee if knee is not None else 0.05 * float(np.max(np.abs(segs.velocity)))
-            rows = usable_rows(v_ex)
-            reversal = float(v_ex)
-        y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
-        if X_rip.shape[1] == 0:  # known mass, no ripple: nothing to regress
+    def alternate(cut: float, warnings: list[str]):
+        # Pass 0 fits a Coulomb line (robust, never refused) to get provisional M and ripple:
+        # a requested Stribeck fit needs the ripple removed from the slow legs first, which
+        # sit on a short stretch of travel where the ripple does not average out.
+        # Passes 1..N fit the requested model.
+        M = 0.0 if mass is None else mass
+        ripple_ab = np.zeros(max(n_r, 2))
+        for it in range(N_ALTERNATIONS + 1):
+            F = segs.command - M * segs.acceleration - seg_sc @ ripple_ab
+            model: FrictionModel = "coulomb" if it == 0 else friction
+            # Keep the warnings of the last pass only: the earlier ones saw a provisional M.
+            fr = _map_fit(segs.velocity, F, model, warnings if it == N_ALTERNATIONS else [])
+            p = {k: v[0] for k, v in fr.items()}
+            if it <= 1:
+                v_ex = reversal_speed
+                if v_ex is None:
+                    if "vs" in p:
+                        v_ex = cut * p["vs"]
+                    else:
+                        knee = _stribeck_knee(segs.velocity, F)
+                        v_ex = (knee * cut / 3.0 if knee is not None
+                                else 0.05 * float(np.max(np.abs(segs.velocity))))
+                rows = usable_rows(v_ex)
+                reversal = float(v_ex)
+            y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
+            if X_rip.shape[1] == 0:  # known mass, no ripple: nothing to regress
+                continue
+            res = solve(X_rip[rows], y[rows])
+            if mass is None:
+                M = float(res.theta[0])
+                _check_mass(M, float(res.std[0]), res.condition_number)
+            if pitches:
+                ripple_ab = np.asarray(res.theta[n_m:n_m + n_r])
+        return M, res, fr, F, ripple_ab, reversal
+
+    # A lower cut only where the default one refuses M (and nobody set the cut or the mass).
+    cuts = REVERSAL_CUTS if reversal_speed is None and mass is None else REVERSAL_CUTS[:1]
+    first: MassNotIdentifiableError | None = None
+    for cut in cuts:
+        w: list[str] = []
+        try:
+            M, res, fr, F, ripple_ab, reversal = alternate(cut, w)
+        except MassNotIdentifiableError as exc:
+            first = first or exc
+            if cut == cuts[-1]:
+                raise first from None
             continue
-        res = solve(X_rip[rows], y[rows])
-        if mass is None:
-            M = float(res.theta[0])
-            _check_mass(M, float(res.std[0]), res.condition_number)
-        if pitches:
-            ripple_ab = np.asarray(res.theta[n_m:n_m + n_r])
+        if first is not None:
+            w.append(f"M: fitted on the rows faster than {cut:g} vs = {reversal:.3g} {unit('v')} away from reversals; "
+                     f"cut at {cuts[0]:g} vs, as by default, the rows left did not identify it ({first}); the "
+                     f"friction map's Stribeck curve, fitted on the legs, carries the friction of the slower rows kept")
+        warnings.extend(w)
+        break
     params: dict[str, tuple[float, float]] = {"M": (M, float(res.std[0])) if mass is None else (mass, 0.0)}
     params.update(fr)
     for k in range(len(pitches)):
