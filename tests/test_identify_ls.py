@@ -346,3 +346,7 @@ def test_a_wide_stribeck_dip_lowers_the_reversal_cut_before_refusing_the_mass(tm
     assert m["value"] == pytest.approx(truth.M, rel=0.05) and m["std"] < 0.05 * m["value"]
     assert doc["parameters"]["vs"]["value"] == pytest.approx(truth.vs, rel=0.01)
     assert any("M: fitted on the rows faster than 1 vs" in w and "did not identify it" in w for w in doc["warnings"])
+    # the mass given (identify --fix M) and no ripple: nothing left to regress, the friction map alone
+    fixed = identify_log(str(tmp_path / "log.h5"), fix={"M": 1.3}, ripple_pitch=None, find_ripple=False).ident.to_dict()
+    assert fixed["parameters"]["M"] == {"value": 1.3, "std": 0.0}
+    assert fixed["parameters"]["fs"]["value"] == pytest.approx(truth.fs, rel=0.01)

@@ -68,6 +68,7 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
         # Passes 1..N fit the requested model.
         M = 0.0 if mass is None else mass
         ripple_ab = np.zeros(max(n_r, 2))
+        res = None  # no regression when the mass is given and there is no ripple
         for it in range(N_ALTERNATIONS + 1):
             F = segs.command - M * segs.acceleration - seg_sc @ ripple_ab
             model: FrictionModel = "coulomb" if it == 0 else friction
