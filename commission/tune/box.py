@@ -202,8 +202,8 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
     """
     from commission.controllers.plant import P_M, P_OFFSET
     from commission.errors import SpecError
-    from commission.scenarios import force_range, identified_plant, theta3_range_for_forces
-    from commission.tune.defaults import _axis_units, default_envelope
+    from commission.scenarios import force_range, identified_plant
+    from commission.tune.defaults import _axis_units, default_envelope, narrowed_load_range
 
     bounds = ident.extra.get("bounds")
     if not (isinstance(bounds, dict) and bounds.get("disturbance_bound_defaulted") is True) \
@@ -228,17 +228,7 @@ def fit_force_to_drive(spec: Spec, ident: Identification, given: set[str],
     if not r_max > r_min:
         return ident, ()
 
-    def narrowed(reach: float) -> Identification:
-        lo, hi = theta3_range_for_forces(ident, dn - reach, dn + reach)
-        idn = dataclasses.replace(ident, theta=dataclasses.replace(
-            ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi)))
-        b = dict(bounds)
-        b["narrowed_by_tune"] = {"theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
-                                 "force_range": [d_lo, d_hi], "narrowed_force_range": list(force_range(idn)),
-                                 "u_max": spec.u_max}
-        return dataclasses.replace(idn, extra={**ident.extra, "bounds": b})
-
-    out = narrowed(r_min)
+    out = narrowed_load_range(ident, dn, r_min, spec.u_max)
     if not fits(out):
         return ident, ()
     u = ident.units.get("u", "u-unit")

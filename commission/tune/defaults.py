@@ -270,19 +270,11 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
     reach = allowed - abs(dn)  # half-width of the narrowed force range about d_n
     if not (reach > 0 and allowed >= step and max(abs(d_lo), abs(d_hi)) > allowed):
         return ident, ()  # friction alone is too much: default_envelope refuses, naming u_max
-    lo, hi = theta3_range_for_forces(ident, dn - reach, dn + reach)
-    theta = dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi))
-    f_lo, f_hi = force_range(dataclasses.replace(ident, theta=theta))
+    out = narrowed_load_range(ident, dn, reach, spec.u_max)
+    lo, hi = out.theta.min[2], out.theta.max[2]
+    f_lo, f_hi = out.extra["bounds"]["narrowed_by_tune"]["narrowed_force_range"]
     u = ident.units.get("u", "u-unit")
     old_bound = bounds.get("disturbance_bound")
-    new_bounds = dict(bounds)
-    new_bounds["narrowed_by_tune"] = {
-        "theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
-        "force_range": [d_lo, d_hi], "narrowed_force_range": [f_lo, f_hi],
-        "u_max": spec.u_max}
-    extra = dict(ident.extra)
-    extra["bounds"] = new_bounds
-    out = dataclasses.replace(ident, theta=theta, extra=extra)
     was = f" ({old_bound:.3g} {u}, the default 10 max(fc, fs))" if isinstance(old_bound, (int, float)) else ""
     _, v_unit, a_unit = _axis_units(ident.units)  # theta3 is in q/s², as the acceleration
     note = (f"theta3 box narrowed from [{ident.theta.min[2]:.4g}, {ident.theta.max[2]:.4g}] to [{lo:.4g}, {hi:.4g}] "
@@ -293,6 +285,25 @@ def fit_disturbance_to_drive(spec: Spec, ident: Identification, given: set[str],
             f"{budget:.3g} {u} feedforward budget.  State the real load with commission identify "
             f"--disturbance-bound")
     return out, (note,)
+
+
+def narrowed_load_range(ident: Identification, dn: float, reach: float, u_max: float) -> Identification:
+    """``ident`` with its defaulted load-force range narrowed to ``dn +- reach`` (u-unit), recorded.
+
+    theta3's bounds follow over the box's masses (:func:`commission.scenarios.theta3_range_for_forces`),
+    so they hold the identified theta3 whatever the sign and size of the load; ``bounds.narrowed_by_tune``
+    keeps the box it started from and the force range the narrowed box admits at every mass
+    (:func:`commission.scenarios.force_range`), which validate's provenance check reads back.  Shared by
+    :func:`fit_disturbance_to_drive` and :func:`commission.tune.box.fit_force_to_drive`.
+    """
+    lo, hi = theta3_range_for_forces(ident, dn - reach, dn + reach)
+    out = dataclasses.replace(ident, theta=dataclasses.replace(
+        ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi)))
+    bounds = dict(ident.extra["bounds"])
+    bounds["narrowed_by_tune"] = {"theta3_min": ident.theta.min[2], "theta3_max": ident.theta.max[2],
+                                  "force_range": list(force_range(ident)), "narrowed_force_range": list(force_range(out)),
+                                  "u_max": u_max}
+    return dataclasses.replace(out, extra={**ident.extra, "bounds": bounds})
 
 
 def rate_scaled_envelope(spec: Spec, given: set[str],

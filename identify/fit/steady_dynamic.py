@@ -22,8 +22,8 @@ N_ALTERNATIONS = 3
 #: (the knee :func:`_stribeck_knee` is 3 vs), tried in turn while M is not identified.  3 vs keeps
 #: the fit away from the Stribeck dip, whose shape the map extrapolates below its slowest leg; on an
 #: axis whose dip reaches a good part of the moves' speeds (a high vs against a slow envelope) that
-#: leaves too few accelerating rows, and M is refused although the legs pin the curve down to a few
-#: tenths of a percent.  At 1 vs the map's own curve, fitted on legs at those speeds, carries the
+#: leaves too few accelerating rows, and M is refused although the legs determine the curve well.
+#: At 1 vs the map's own curve, fitted on legs at those speeds, carries the
 #: friction of the rows kept; the fit says so in a warning.
 REVERSAL_CUTS = (3.0, 1.0)
 
@@ -78,12 +78,12 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
             if it <= 1:
                 v_ex = reversal_speed
                 if v_ex is None:
-                    if "vs" in p:
-                        v_ex = cut * p["vs"]
+                    knee = 3.0 * p["vs"] if "vs" in p else _stribeck_knee(segs.velocity, F)
+                    if knee is not None:
+                        v_ex = knee * cut / 3.0
+                        scaled.add(it)
                     else:
-                        knee = _stribeck_knee(segs.velocity, F)
-                        v_ex = (knee * cut / 3.0 if knee is not None
-                                else 0.05 * float(np.max(np.abs(segs.velocity))))
+                        v_ex = 0.05 * float(np.max(np.abs(segs.velocity)))
                 rows = usable_rows(v_ex)
                 reversal = float(v_ex)
             y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
@@ -100,13 +100,14 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
     # A lower cut only where the default one refuses M (and nobody set the cut or the mass).
     cuts = REVERSAL_CUTS if reversal_speed is None and mass is None else REVERSAL_CUTS[:1]
     first: MassNotIdentifiableError | None = None
+    scaled: set[int] = set()  # the passes whose row cut followed ``cut`` (a Stribeck speed was known)
     for cut in cuts:
         w: list[str] = []
         try:
             M, res, fr, F, ripple_ab, reversal = alternate(cut, w)
         except MassNotIdentifiableError as exc:
             first = first or exc
-            if cut == cuts[-1]:
+            if cut == cuts[-1] or not scaled:  # a lower cut would select the same rows
                 raise first from None
             continue
         if first is not None:
