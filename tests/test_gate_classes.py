@@ -163,12 +163,11 @@ def test_theta3_range_for_forces_inverts_force_range(f_lo, width, m_light, ratio
         ident.theta, min=(1.0 / (m_light * ratio), ident.theta.min[1], -1e9),
         max=(1.0 / m_light, ident.theta.max[1], 1e9), nominal=(1.0 / (m_light * math.sqrt(ratio)),
                                                              ident.theta.nominal[1], 0.0)))
-    m_nominal = m_light * math.sqrt(ratio)  # the identified force, mid-range, at the nominal mass
-    ident = dataclasses.replace(ident, theta=dataclasses.replace(
-        ident.theta, nominal=(*ident.theta.nominal[:2], (f_lo + 0.5 * width) / m_nominal)))
     lo, hi = theta3_range_for_forces(ident, f_lo, f_lo + width)
-    out = dataclasses.replace(ident, theta=dataclasses.replace(ident.theta, min=(*ident.theta.min[:2], lo),
-                                                                max=(*ident.theta.max[:2], hi)))
+    # the narrowed box's nominal within it (what the force range is does not depend on the nominal)
+    out = dataclasses.replace(ident, theta=dataclasses.replace(
+        ident.theta, min=(*ident.theta.min[:2], lo), max=(*ident.theta.max[:2], hi),
+        nominal=(*ident.theta.nominal[:2], 0.5 * (lo + hi))))
     assert force_range(out) == pytest.approx((f_lo, f_lo + width), rel=1e-12, abs=1e-15)
 
 
