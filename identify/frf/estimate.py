@@ -16,7 +16,8 @@ from scipy import signal
 
 from commission.identify.frf.settings import (BAND_COHERENCE, BAND_GAIN_TOL, BAND_PHASE_TOL_DEG, BLOCK_S,
                                               BROADBAND_FACTOR, BROADBAND_FACTOR_LONG, BROADBAND_FRACTION,
-                                              BROADBAND_LONG_BLOCK, FIT_COHERENCE, MIN_SEGMENT_S)
+                                              BROADBAND_LONG_BLOCK, FIT_COHERENCE, MEASURABLE_SNR,
+                                              MIN_SEGMENT_S)
 
 
 def _weighted_rms(H: np.ndarray, Hm: np.ndarray | None, coh: np.ndarray) -> float | None:
@@ -75,8 +76,14 @@ def broadband_segments(u: np.ndarray, fs: float) -> list[tuple[int, int]]:
 
 
 def estimate(q: np.ndarray, u: np.ndarray, fs: float, ranges: list[tuple[int, int]],
-             nperseg: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+             nperseg: int, noise_floor: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Welch H1 estimate of u -> q averaged over the sample ranges.
+
+    With ``noise_floor`` (one-sided PSD of the encoder's white measurement error, m^2/Hz), a bin
+    whose position PSD stays below :data:`MEASURABLE_SNR` times it gets coherence 0: the
+    reading there is the noise and the command the loop's answer to it, coherent with each
+    other through the controller and not through the plant (settings), so the bin measures
+    nothing of the plant and no step after this one (band, fit, measured margins) may use it.
 
     Returns
     -------
@@ -85,6 +92,7 @@ def estimate(q: np.ndarray, u: np.ndarray, fs: float, ranges: list[tuple[int, in
     H : ndarray, complex
         m per u-unit.
     coherence : ndarray
+        Magnitude-squared coherence, 0 where the position is at the noise floor (above).
     n_averages : int
     """
     step = nperseg - nperseg // 2
@@ -113,6 +121,8 @@ def estimate(q: np.ndarray, u: np.ndarray, fs: float, ranges: list[tuple[int, in
         H = Puq / Puu
         coh = np.abs(Puq) ** 2 / (Puu * Pqq)
     coh = np.nan_to_num(np.clip(coh, 0.0, 1.0))
+    if noise_floor is not None and noise_floor > 0:
+        coh = np.where(Pqq / n_avg >= MEASURABLE_SNR * noise_floor, coh, 0.0)  # Pqq sums n_avg windows
     H = np.where(np.isfinite(H), H, 0.0)
     return f[keep], H, coh, n_avg
 

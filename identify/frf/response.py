@@ -19,6 +19,7 @@ from commission.identify.frf.settings import (BAND_GAIN_TOL, FIT_COHERENCE, MAX_
                                               WHOLE_LOG_RESOLUTION_HZ)
 from commission.identify.frf.estimate import backed_band, broadband_segments, estimate
 from commission.identify.frf.model import StructureFit
+from commission.identify.frf.noise import encoder_noise
 from commission.identify.frf.modes import _keep_modes, _on_edge, _one_more_mode, _starts, plant_fit
 from commission.identify.frf.result import FrequencyResponse
 from commission.identify.frf.structfit import departures, fit_structure, mirrors_in_reach
@@ -55,6 +56,19 @@ def _ranges_and_resolution(u: np.ndarray, fs: float, ranges: list[tuple[int, int
     return segs, ranges, nperseg, whole_nperseg, source
 
 
+def _noise_floor(q: np.ndarray, u: np.ndarray, fs: float, M: float, B: float,
+                 segments: list[tuple[int, int]]) -> float | None:
+    """One-sided PSD of the encoder's white measurement error, m^2/Hz (None: the log is too short).
+
+    :func:`~commission.identify.frf.noise.encoder_noise` with the rigid body taking out the
+    command's effect (the modes are not known yet; near Nyquist, where the floor is read, the
+    rigid body's motion is far below it anyway): ``total_rms^2 / (fs / 2)``.
+    """
+    Ts = 1.0 / fs
+    noise = encoder_noise(q, u, fs, lambda f: rigid_frequency_response(M, B, Ts, f), None, segments)
+    return None if noise is None else noise.total_rms ** 2 * 2.0 / fs
+
+
 def _measured(q: np.ndarray, u: np.ndarray, fs: float, M: float, B: float, ranges: list[tuple[int, int]],
               nperseg: int, whole_nperseg: int, source: str) -> tuple[Any, ...]:
     """The estimate, the rigid model's response, their ratio and the backed band (steps 2-3).
@@ -64,13 +78,14 @@ def _measured(q: np.ndarray, u: np.ndarray, fs: float, M: float, B: float, range
     extended down where the whole log's band reaches into it.
     """
     Ts = 1.0 / fs
-    f, H, coh, n_avg = estimate(q, u, fs, ranges, nperseg)
+    floor = _noise_floor(q, u, fs, M, B, ranges if source == "broadband" else [])
+    f, H, coh, n_avg = estimate(q, u, fs, ranges, nperseg, floor)
     H_rigid = rigid_frequency_response(M, B, Ts, f)
     with np.errstate(divide="ignore", invalid="ignore"):
         R = np.where(np.abs(H) > 0, H / H_rigid, 1e-300)
     band = backed_band(f, R, coh)
     if source == "broadband" and band is not None:
-        fw, Hw, cw, _ = estimate(q, u, fs, [(0, u.size)], whole_nperseg)
+        fw, Hw, cw, _ = estimate(q, u, fs, [(0, u.size)], whole_nperseg, floor)
         with np.errstate(divide="ignore", invalid="ignore"):
             Rw = np.where(np.abs(Hw) > 0, Hw / rigid_frequency_response(M, B, Ts, fw), 1e-300)
         wb = backed_band(fw, Rw, cw)

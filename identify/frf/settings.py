@@ -35,6 +35,12 @@ BAND_COHERENCE = 0.8
 BAND_GAIN_TOL = 1.25
 #: ... and its phase within this many degrees.
 BAND_PHASE_TOL_DEG = 30.0
+#: A bin is a measurement of the plant only where the position's PSD stands at least this many times
+#: above the encoder's white measurement-error floor (motion at least as strong as the noise).  Below it
+#: the reading is the noise, the command is the loop's answer to it, and the two are coherent because the
+#: controller makes one from the other: H1 there tends to minus the controller's inverse, with a coherence
+#: that the plant has no part in (near Nyquist on a fast, fine encoder, 10^4 times the plant).
+MEASURABLE_SNR = 2.0
 #: Coherence a bin needs to enter the fit.
 FIT_COHERENCE = 0.5
 #: Cap of gamma^2 in the weights (a perfect bin would weigh infinitely).
