@@ -258,6 +258,52 @@ def test_h1_estimate_recovers_a_known_filter_and_its_coherence():
     assert np.median(np.abs(coh - coh_true)) < 0.02
 
 
+def test_bins_at_the_encoder_noise_floor_measure_nothing_of_the_plant():
+    # A loop whose command answers the encoder's noise: q = G r + n, u = r + 500 D^2 n (D: first difference),
+    # G(z) = 0.01 z^-1 / (1 - 0.99 z^-1).  Above ~300 Hz the motion G r is below the noise n
+    # (|G|^2 S_rr < S_nn), so q is the noise and u the loop's answer to it: H1 there reads
+    # 1 / (500 (1 - z^-1)^2), not G, with a high coherence.  Given the noise's floor, those bins
+    # get coherence 0; the bins where the motion dominates keep theirs and read G.
+    from scipy import signal
+
+    from commission.identify.frf import estimate
+
+    rng = np.random.default_rng(1)
+    fs, n, sigma = 1000.0, 200_000, 0.01
+    r = rng.normal(size=n)
+    noise = rng.normal(scale=sigma, size=n)
+    q = signal.lfilter([0.0, 0.01], [1.0, -0.99], r) + noise
+    u = r + 500.0 * np.diff(noise, n=2, prepend=[0.0, 0.0])
+    f, H, coh, _ = estimate(q, u, fs, [(0, n)], 256)
+    z = np.exp(-2j * np.pi * f / fs)
+    G = 0.01 * z / (1 - 0.99 * z)
+    high, low = f > 300.0, (f > 10.0) & (f < 30.0)
+    assert np.median(coh[high]) > 0.5  # the noise's feedback is coherent ...
+    assert np.median(np.abs(H[high] * 500.0 * (1 - z[high]) ** 2 - 1)) < 0.1  # ... and reads the loop, not G
+    f2, H2, coh2, _ = estimate(q, u, fs, [(0, n)], 256, noise_floor=sigma ** 2 * 2.0 / fs)
+    assert np.array_equal(f2, f) and np.array_equal(H2, H)
+    assert np.all(coh2[high] == 0.0)
+    assert np.array_equal(coh2[low], coh[low]) and np.all(coh2[low] > 0.9)
+    assert np.median(np.abs(H2[low] / G[low] - 1)) < 0.05
+
+
+def test_a_load_side_mode_on_a_fast_fine_encoder_is_fitted_from_the_bins_above_the_noise_floor(tmp_path):
+    # Random axis 1427 (20 kHz, 0.61-um encoder, 0.28 counts of noise; a load-side mode at 1196 Hz
+    # damped 0.02; 1.29 samples of delay).  Its holding loop's answer to the noise made the bins
+    # from 1.5 kHz to Nyquist coherent at 10^4 times the plant's response; fitted, they turned the
+    # mode into a motor-side pair at 1116 Hz behind 5.3 samples of delay.
+    from commission.synth import random_axis, record_random_axis_log
+
+    truth = random_axis(np.random.default_rng(1427))
+    rec = record_random_axis_log(1427, tmp_path / "log.h5")
+    assert rec.log == "excite", rec.note
+    fr = identify_log(str(tmp_path / "log.h5")).ident.to_dict()["frequency_response"]
+    assert fr["fit_quality"]["structure"] == "load_side_mode" and fr["fit_quality"]["n_modes"] == 1, fr["fit_quality"]
+    (res,) = [m for m in fr["modes"] if m["kind"] == "resonance"]
+    assert res["frequency_hz"] == pytest.approx(truth.mode_hz, rel=0.02)
+    assert fr["delay_samples"] == pytest.approx(truth.delay * truth.sample_rate, abs=0.3)
+
+
 def test_backed_band_ends_at_two_consecutive_disagreeing_coherent_bins():
     from commission.identify.frf import backed_band
 
