@@ -11,6 +11,7 @@ import numpy as np
 from commission.excite.limits import ExciteSpec
 from commission.excite.plan import Plan, loop_gains_for, mass_bracket
 from commission.excite.plan_files import injection_ranges
+from commission.identify.frf.settings import MEASURABLE_SNR
 
 #: Encoder assumed when ``[axis] encoder_step`` is not given: a 1 um (or 1 urad) scale, q-unit.
 ASSUMED_ENCODER_STEP = 1e-6
@@ -147,7 +148,9 @@ def expected_coherence(f_hz: np.ndarray, psd_inject: np.ndarray, floor_psd: floa
     ``gamma^2 = |P Pii - conj(C) Pnn|^2 / ((Pii + |C|^2 Pnn)(|P|^2 Pii + Pnn))``: the loop's answer to
     the noise is in ``u`` too, which lowers the coherence below the open-loop SNR / (1 + SNR).  The
     Welch estimate over ``n_averages`` windows is biased up by about ``(1 - gamma^2)^2 / n`` (Carter,
-    Knapp & Nuttall 1973): the only place where the injection's duration enters.
+    Knapp & Nuttall 1973): the only place where the injection's duration enters.  A bin whose
+    position PSD ``|S|^2 (|P|^2 Pii + Pnn)`` stays below ``MEASURABLE_SNR`` times ``Pnn`` gets 0, as
+    identify's estimate gives it (:func:`commission.identify.frf.estimate`).
     """
     from commission.controllers.linear import rigid_frequency_response
 
@@ -162,10 +165,16 @@ def expected_coherence(f_hz: np.ndarray, psd_inject: np.ndarray, floor_psd: floa
     with np.errstate(divide="ignore", invalid="ignore"):
         g2 = np.where(den > 0, num / den, 0.0)
     g2 = np.clip(np.nan_to_num(g2), 0.0, 1.0)
+    # identify's estimate zeroes a bin whose position PSD |S|^2 (|P|^2 Pii + Pnn) stays below
+    # MEASURABLE_SNR times the floor (the reading is the noise there); so does the prediction.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Pqq = (np.abs(P) ** 2 * Pii + Pnn) / np.abs(1.0 + C * P) ** 2
+    measurable = np.nan_to_num(Pqq) >= MEASURABLE_SNR * Pnn
     with np.errstate(divide="ignore", invalid="ignore"):
         R = (P * Pii - np.conj(C) * Pnn) / ((Pii + np.abs(C) ** 2 * Pnn) * P)
     R = np.where(np.isfinite(R), R, 0.0)
-    return np.clip(g2 + (1.0 - g2) ** 2 / max(int(n_averages), 1), 0.0, 1.0), R
+    g2 = np.clip(g2 + (1.0 - g2) ** 2 / max(int(n_averages), 1), 0.0, 1.0)
+    return np.where(measurable, g2, 0.0), R
 
 
 def predict_band(plan: Plan) -> BandPrediction:

@@ -328,7 +328,7 @@ frequency_response.fit_quality           | any        | -                       
 frequency_response.departures            | any        | -                       | -
     where the measured response departs from the fitted model beyond its uncertainty
 frequency_response.measured              | any        | -                       | -
-    the measured response thinned for reports: frequency, magnitude, phase, coherence (null: no broadband segment)
+    the measured response thinned for reports: frequency, magnitude, phase, coherence (0 where the position reading is at the encoder's noise floor; null: no broadband segment)
 frequency_response.units                 | any        | -                       | -
     the unit of each of these fields
 frequency_response.plan                  | any        | -                       | -
