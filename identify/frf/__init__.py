@@ -22,7 +22,10 @@ Method
    below the segments' first bins.  In a closed loop H1 is unbiased where the injection
    dominates the command; where the feedback of encoder noise dominates it
    tends to minus the controller's inverse, which is why the segments are
-   chosen by the command's broadband level and not by coherence alone.
+   chosen by the command's broadband level and not by coherence alone, and
+   why a bin whose position density stays below ``MEASURABLE_SNR`` times the
+   encoder's white floor (read near Nyquist as :func:`encoder_noise` reads it,
+   the rigid body taken out) gets coherence 0: the reading there is the noise.
 3. **Compare.**  ``R = H / H_rigid`` with ``H_rigid`` the identified rigid
    body ``1 / (M s^2 + B s)`` sampled behind the zero-order hold
    (:func:`commission.controllers.linear.rigid_frequency_response`).  The band
