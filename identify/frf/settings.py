@@ -39,7 +39,7 @@ BAND_PHASE_TOL_DEG = 30.0
 #: above the encoder's white measurement-error floor (motion at least as strong as the noise).  Below it
 #: the reading is the noise, the command is the loop's answer to it, and the two are coherent because the
 #: controller makes one from the other: H1 there tends to minus the controller's inverse, with a coherence
-#: that the plant has no part in (near Nyquist on a fast, fine encoder, 10^4 times the plant).
+#: that the plant has no part in (docs/robustness.md, "Bins at the encoder's noise floor").
 MEASURABLE_SNR = 2.0
 #: Coherence a bin needs to enter the fit.
 FIT_COHERENCE = 0.5
