@@ -60,7 +60,8 @@ where the evidence is.
 
 from commission.formats.gate_toml import MARGIN_KEYS
 from commission.gate.check import CRITERIA, Check
-from commission.gate.comparison import (ARC_VS_PID_QUANTILES, COMPARISON_CRITERIA, NOMINAL_COMPARISON_VARIANTS,
+from commission.gate.comparison import (ARC_VS_PID_QUANTILES, BEYOND_EVIDENCE, COMPARISON_CRITERIA,
+                                        NOMINAL_COMPARISON_VARIANTS,
                                         arc_vs_pid_nominal_checks, arc_vs_pid_quantile_checks, required_factor,
                                         scenario_group)
 from commission.gate.floors import FLOORS, GATED_PLANT, Floor, FloorContext, box_checks, check_floors, margin_checks
@@ -81,7 +82,7 @@ __all__ = ["ABSOLUTE_FIXED", "ABSOLUTE_REPORTED", "ABSOLUTE_YARDSTICK", "ARC_VS_
            "FloorContext", "GATED_PLANT", "GateLimits", "GateSpec", "GateVerdict", "MARGIN_KEYS",
            "NOMINAL_COMPARISON_VARIANTS", "PERFORMANCE_VARIANTS", "SAFETY_CRITERIA", "SATURATION_TOL",
            "SEARCH_FEASIBLE", "SEARCH_GATE_MISSED", "SEARCH_STABILITY_MISSED", "TARGET_FACTOR", "absolute_mode",
-           "arc_vs_pid_nominal_checks", "arc_vs_pid_quantile_checks", "box_checks", "check_floors",
+           "arc_vs_pid_nominal_checks", "BEYOND_EVIDENCE", "arc_vs_pid_quantile_checks", "box_checks", "check_floors",
            "comparison_reported",
            "evaluate_gate", "gate_from_mapping", "load_gate", "margin_checks", "performance_scenarios",
            "required_factor", "resolve_gate", "safe_not_better", "safety_failures", "scenario_error_limit",

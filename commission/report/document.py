@@ -24,7 +24,7 @@ from commission.report.margins import margins_markdown
 from commission.report.tables import (gate_table_markdown, monte_carlo_markdown, table1_markdown,
                                       theta_estimates_markdown)
 from commission.report.text import md_code, md_text, num, vec
-from commission.report.verdict import (failure_lines, not_better_lines, robustness_lines, unseen_stribeck_checked,
+from commission.report.verdict import (failure_lines, lost_beyond_evidence, not_better_lines, robustness_lines, unseen_stribeck_checked,
                                        validity_lines)
 from commission.scenarios.matrix import UNSEEN_STRIBECK
 from commission.scenarios.trajectories import case_names, horizon_notes
@@ -70,7 +70,8 @@ def evidence_markdown(result: Any, tuning: Tuning) -> list[str]:
     lines = evidence_lines(ev, getattr(result, "evidence_rows", ()))
     out = [f"**Evidence.** {md_text(lines[0][len('evidence: '):])}", ""]
     out += [f"- {md_text(x)}" for x in lines[1:]]
-    if ev.source != "broadband" or not all(r.holds for r in getattr(result, "evidence_rows", ())):
+    if (ev.source != "broadband" or not all(r.holds for r in getattr(result, "evidence_rows", ()))
+            or lost_beyond_evidence(result)):
         out += ["", f"To raise it, record the run that `{excite_command()}` plans (a broadband injection "
                 "while the axis moves slowly), with this `limits.toml` (the spec's envelope and the log's "
                 "rate; check the holding loop's `bandwidth_hz`, an assumption):", "", "```toml",

@@ -10,10 +10,10 @@ own refusal, a refusal for want of evidence), the payload range tune narrowed
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable, Mapping
 
-from commission.evidence import evidence_limited_line
-from commission.gate import safe_not_better, search_infeasible_line
+from commission.evidence import evidence_limited_line, excite_command
+from commission.gate import BEYOND_EVIDENCE, safe_not_better, search_infeasible_line
 from commission.controllers.metrics import INDEX_ROWS
 from commission.report.text import index_cell, md_text, scaled
 from commission.tuning import Tuning
@@ -95,7 +95,29 @@ def not_better_lines(result: Any, tuning: Tuning, *, markdown: bool = False) -> 
         f"validated PID yardstick, Kp = {p.Kp:.4g} {unit}/{q}, Ki = {p.Ki:.4g} {unit}/({q}·s), Kd = {p.Kd:.4g} "
         f"{unit}·s/{q} with M_hat = {p.M_hat:.4g}, B_hat = {p.B_hat:.4g}, exported by "
         f"{code('commission export controller_not_better.json --controller pid --tuning tuning.json --target c --out-dir DIR')}.",
-    ]
+    ] + _beyond_evidence_lines(result, ys, code, b)
+
+
+def _beyond_evidence_lines(result: Any, ys: Mapping[str, Any], code: Callable[[str], str], b: str) -> list[str]:
+    """The sentence for an ARC that lost to the PID beyond the evidence (:func:`lost_beyond_evidence`):
+    what held it, and the recording that lifts it."""
+    lost = lost_beyond_evidence(result)
+    ub = ys.get("unbacked_pid") or {}
+    if not lost or not ub:
+        return []
+    ev = getattr(result, "evidence", None)
+    band = f"the log backs the model only up to {ev.top_hz:.3g} Hz" if ev is not None and ev.applies else \
+        "the log backs only part of the band"
+    return [f"{b}Missing evidence:{b} {band}, and the yardstick was slowed to that band. The identified plant admits "
+            f"a PID at pole {float(ub['pole']):.4g} rad/s beyond it, the one a drive's auto-tuner would deliver, and "
+            f"the ARC, held within the evidence, does not beat it on the identified plant "
+            f"({', '.join(c.scenario for c in lost)}). To certify a faster ARC, record the run "
+            f"{code(excite_command())} plans, and run again on that log."]
+
+
+def lost_beyond_evidence(result: Any) -> list[Any]:
+    """The failed ``<case>/beyond_evidence`` checks of a validation (:func:`commission.gate.arc_vs_pid_nominal_checks`)."""
+    return [c for c in result.verdict.failures if c.scenario.endswith("/" + BEYOND_EVIDENCE)]
 
 
 def refusal_lines(result: Any, tuning: Tuning) -> list[str]:

@@ -247,6 +247,12 @@ class YardstickChoice:
         plant allows a PID of (57).  The chosen pole sits below it when the gate's c_u (the
         encoder's noise in the command) held the PID down.  None for the other methods and in
         records written before it was kept.
+    unbacked : (float, PidGains) or None
+        Where only the evidence bound held the yardstick down (:func:`unbacked_pid`): the pole
+        (rad/s) and gains of the fastest PID the identified plant admits (floors, +1 sample, c_u)
+        that the log does not back.  Validate's gate holds the ARC to beat it on the identified
+        plant too (:func:`commission.gate.arc_vs_pid_nominal_checks`): a drive's auto-tuner does
+        not stop at the band the log backs.  None otherwise and in older records.
     """
 
     method: str
@@ -258,6 +264,7 @@ class YardstickChoice:
     radius_plus_one: float
     violations: tuple[str, ...] = ()
     fastest_admissible: float | None = None
+    unbacked: tuple[float, PidGains] | None = None
 
     @property
     def is_yardstick(self) -> bool:
@@ -270,7 +277,9 @@ class YardstickChoice:
                 "margins": self.margins.to_dict(), "radius_plus_one_sample": float(self.radius_plus_one),
                 "violations": list(self.violations), "is_yardstick": self.is_yardstick,
                 **({} if self.fastest_admissible is None
-                   else {"fastest_admissible_pole": float(self.fastest_admissible)})}
+                   else {"fastest_admissible_pole": float(self.fastest_admissible)}),
+                **({} if self.unbacked is None
+                   else {"unbacked_pid": {"pole": float(self.unbacked[0]), "gains": _gains_dict(self.unbacked[1])}})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "YardstickChoice":
@@ -281,7 +290,20 @@ class YardstickChoice:
                    radius_plus_one=float(d["radius_plus_one_sample"]),
                    violations=tuple(str(v) for v in d.get("violations", ())),
                    fastest_admissible=(None if d.get("fastest_admissible_pole") is None
-                                       else float(d["fastest_admissible_pole"])))
+                                       else float(d["fastest_admissible_pole"])),
+                   unbacked=(None if d.get("unbacked_pid") is None
+                             else (float(d["unbacked_pid"]["pole"]), pid_gains_of(d["unbacked_pid"]["gains"]))))
+
+
+def _gains_dict(g: PidGains) -> dict[str, float | None]:
+    """PidGains as JSON numbers (null for an infinite limit), in field order."""
+    return {f.name: (float(getattr(g, f.name)) if math.isfinite(getattr(g, f.name)) else None)
+            for f in dataclasses.fields(g)}
+
+
+def pid_gains_of(d: Mapping[str, Any]) -> PidGains:
+    """PidGains from :func:`_gains_dict`'s record (null: infinite); every field required."""
+    return PidGains(**{f.name: (math.inf if d[f.name] is None else float(d[f.name])) for f in dataclasses.fields(PidGains)})
 
 
 def bandwidth_factor(choice: YardstickChoice, spec: Spec, settings: TuneSettings = DEFAULT_SETTINGS) -> float:
@@ -454,9 +476,10 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
         for c, g, sc in zip(batch, gains, scores):
             tried.append((c, g, list(sc)))
             if _within_c_u(sc, c_u_limit):
+                ub = unbacked_pid(on_model, c.pole, ok[0].pole, ident, spec, ev, c_u_limit)
                 return (PidBaseline(g, c.pole, m_min, list(sc)),
                         YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins,
-                                        c.radius_plus_one, fastest_admissible=ok[0].pole))
+                                        c.radius_plus_one, fastest_admissible=ok[0].pole, unbacked=ub))
     # None of the fastest is within c_u: a chattering PID is no yardstick, the ARC being held to the same
     # c_u.  The fastest admissible pole within it is looked for further down, on the grid and below it.
     slowest = min(c.pole for c in ok)
@@ -469,13 +492,41 @@ def pid_yardstick(ident: Identification, spec: Spec, ev: Evaluator, c_u_limit: f
     simulated += hit.simulated
     if hit.index is not None:
         c = pool[hit.index]
+        ub = unbacked_pid(on_model, c.pole, ok[0].pole, ident, spec, ev, c_u_limit)
         return (PidBaseline(_pid_at(ident, spec, c.pole), c.pole, m_min, hit.scores),
                 YardstickChoice("margin_search", c.pole, len(cands) + len(below), len(ok) + len(low_ok), simulated,
-                                c.margins, c.radius_plus_one, fastest_admissible=ok[0].pole))
+                                c.margins, c.radius_plus_one, fastest_admissible=ok[0].pole, unbacked=ub))
     c, g, sc = tried[-1]
     return (PidBaseline(g, c.pole, m_min, sc),
             YardstickChoice("margin_search", c.pole, len(cands), len(ok), simulated, c.margins, c.radius_plus_one,
                             fastest_admissible=ok[0].pole))
+
+
+def unbacked_pid(on_model: Sequence[PidCandidate], chosen: float, fastest_backed: float, ident: Identification,
+                 spec: Spec, ev: Evaluator, c_u_limit: float) -> tuple[float, PidGains] | None:
+    """The fastest PID the identified plant admits beyond the evidence, where only the evidence held the yardstick.
+
+    When the yardstick is the fastest pole that holds the evidence bound (``chosen ==
+    fastest_backed``: neither the floors nor the c_u held it lower) and faster poles keep every
+    floor on the identified plant and +1 sample (``on_model``, :func:`pid_candidates`), only the
+    band the log backs excluded them.  A drive vendor's auto-tuner knows nothing of that band: it
+    would deliver one of those faster PIDs, and an ARC held within the evidence that loses to it
+    is no better than what the user already has.  Of those poles the fastest whose simulated PID
+    stays within ``c_u_limit`` and bounded on every tuning scenario is returned with its gains
+    (:func:`_fastest_within_c_u`), None when there is none or the yardstick was not held by the
+    evidence.
+    """
+    if chosen < fastest_backed:
+        return None
+    faster = sorted((c for c in on_model if c.admissible and c.pole > chosen), key=lambda c: -c.pole)
+    if not faster:
+        return None
+    hit = _fastest_within_c_u(faster, lambda c: ev.scores(KIND_PID, [pid_pack(_pid_at(ident, spec, c.pole))])[0],
+                              c_u_limit)
+    if hit.index is None:
+        return None
+    pole = faster[hit.index].pole
+    return float(pole), _pid_at(ident, spec, pole)
 
 
 @dataclass(frozen=True)

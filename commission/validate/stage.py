@@ -22,8 +22,9 @@ from commission.controllers.simulate import KIND_ARC, KIND_PID, SimResult, simul
 from commission.controllers.trajectory import Trajectory
 from commission.errors import UsageError
 from commission.infra.executor import Executor, LocalExecutor
-from commission.gate import (MARGIN_KEYS, FloorContext, GateLimits, GateSpec, GateVerdict, evaluate_gate, box_checks,
-                             margin_checks, resolve_gate, safety_failures)
+from commission.gate import (MARGIN_KEYS, NOMINAL_COMPARISON_VARIANTS, FloorContext, GateLimits, GateSpec, GateVerdict,
+                             arc_vs_pid_nominal_checks, evaluate_gate, box_checks, margin_checks, resolve_gate,
+                             safety_failures)
 from commission.montecarlo import MonteCarloSummary
 from commission.evidence import evidence_checks, evidence_table
 from commission.robustness import (BoxArcCheck, MarginFloors, margin_table, identified_performance, nominal_loops,
@@ -95,8 +96,8 @@ def _simulate_one(ctx: _SimContext, s: Any, kind: int) -> _Outcome:
     return _outcome(ctx, kind, r.score(), r.n_steps, r.diverged, _zero_from(r), final, r)  # type: ignore[arg-type]
 
 
-def _simulate_together(ctx: _SimContext, group: Sequence[Any],
-                       dists: Sequence[np.ndarray | None]) -> list[tuple[_Outcome, _Outcome]]:
+def _simulate_together(ctx: _SimContext, group: Sequence[Any], dists: Sequence[np.ndarray | None],
+                       kinds: tuple[int, ...] = (KIND_ARC, KIND_PID)) -> list[tuple[_Outcome, ...]]:
     """ARC and PID on scenarios that share a trajectory, a start, an encoder and which signals they
     carry (``dists``: each one's disturbance, all None or none), each controller as one
     :func:`commission.controllers.simulate.simulate_batch` on this task's thread (scores only).
@@ -112,7 +113,7 @@ def _simulate_together(ctx: _SimContext, group: Sequence[Any],
     dist = None if dists[0] is None else np.stack(dists)  # type: ignore[arg-type]
     noise = None if noises[0] is None else np.stack(noises)  # type: ignore[arg-type]
     per_kind = []
-    for kind in (KIND_ARC, KIND_PID):
+    for kind in kinds:
         r = simulate_batch(plants, kind, ctx.ctrl[kind], ref, substeps=plant_substeps(1.0 / ctx.Ts),
                            quant=s0.quantization, disturbance=dist, noise=noise, y0=s0.y0, u_sat=ctx.u_sat,
                            e_abort=ctx.e_abort, workers=1)
@@ -286,10 +287,11 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
     with axis_units_context(tuning.identification.units.get("q", "m")):  # the failures' details in q's unit
         gated = evaluate_gate(limits, [(r.name, r.arc, r.pid, r.arc_t_abort) for r in runs], floors,
                               performance=performance_set(runs, tuning.identification), compare_nominal=True)
+        beyond = beyond_evidence_checks(ex, ctx, scenarios, runs, tuning, limits)
     # The whole box (theta_hat at each plant's theta: the floors; theta_hat anywhere: stability).
     box = BoxArcCheck(tuning.identification, spec)(arc)
     evidence, evidence_rows = evidence_table(arc, tuning.pid, tuning.identification, spec)
-    verdict = GateVerdict(gated.checks + tuple(margin_checks(margins, gate_floors))
+    verdict = GateVerdict(gated.checks + tuple(beyond) + tuple(margin_checks(margins, gate_floors))
                           + tuple(box_checks(box, gate_floors))
                           + tuple(evidence_checks(evidence_rows, evidence, gate_floors.modulus)), limits)
     # The robustness part of the verdict, for the report: the robustness scenarios and the margins.
@@ -305,6 +307,38 @@ def validate(tuning: Tuning, gate: GateSpec | None = None, *, seed: int = 0,
                             evidence=evidence, evidence_rows=evidence_rows,
                             loops=nominal_loops(arc, tuning.pid, tuning.identification, spec),
                             executor=ex.describe(), monte_carlo_summary=mc_summary, validity=validity)
+
+
+def beyond_evidence_checks(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], runs: Sequence[RunRecord],
+                           tuning: Tuning, limits: GateLimits) -> list[Any]:
+    """The ARC against the PID beyond the evidence on the identified plant (criterion ``arc_vs_pid_nominal``).
+
+    Where only the evidence bound held the PID yardstick down, tune records the faster PID the
+    identified plant admits (tuning.json ``pid_yardstick.unbacked_pid``,
+    :func:`commission.tune.baseline.unbacked_pid`).  That PID is run on the scenarios the nominal
+    comparison sums (:data:`commission.gate.NOMINAL_COMPARISON_VARIANTS`), with the same encoder
+    noise as the ARC's runs, and the ARC must beat it there as it must beat the yardstick
+    (:func:`commission.gate.arc_vs_pid_nominal_checks` with ``beyond``).  A loss is a comparison
+    failure: the ARC is safe and written flagged, and the report says that a log backing a higher
+    band is what a faster ARC needs.  No checks without the record.
+    """
+    from commission.tune.baseline import pid_gains_of  # the record's reader lives with its writer
+
+    ub = (tuning.pid_yardstick or {}).get("unbacked_pid")
+    if not ub:
+        return []
+    arc_of = {r.name: r for r in runs}
+    sel = [s for s in scenarios if "monte_carlo" not in s.tags and "/" in s.name
+           and s.name.rsplit("/", 1)[-1] in NOMINAL_COMPARISON_VARIANTS and s.name in arc_of]
+    fast = dataclasses.replace(ctx, ctrl={**ctx.ctrl, KIND_PID: pid_pack(pid_gains_of(ub["gains"]))})
+    outs = list(ex.map(_simulate_pid, fast, sel))
+    rows = [(s.name, arc_of[s.name].arc, o.score, arc_of[s.name].arc_t_abort) for s, o in zip(sel, outs)]
+    return arc_vs_pid_nominal_checks(limits, rows, beyond=float(ub["pole"]))
+
+
+def _simulate_pid(ctx: _SimContext, s: Any) -> _Outcome:
+    """The PID of ``ctx`` on one scenario, scores only (an executor task)."""
+    return _simulate_together(ctx, [s], [_disturbance(s, ctx.refs[(s.trajectory, s.y0)])], kinds=(KIND_PID,))[0][0]
 
 
 def certify_default_payload(ex: Executor, ctx: _SimContext, scenarios: Sequence[Any], runs: list[RunRecord],
