@@ -15,7 +15,8 @@ from commission.gate import BEYOND_EVIDENCE, GateSpec, safe_not_better
 from commission.paper import reference_identification
 from commission.report import not_better_lines
 from commission.spec import spec_from_mapping
-from commission.tune.baseline import YardstickChoice, pid_baseline, pid_candidates, pid_yardstick
+from commission.tune.baseline import (YardstickChoice, pid_baseline, pid_candidates, pid_gains_dict,
+                                      pid_yardstick)
 from commission.tune.settings import DEFAULT_SETTINGS
 from commission.validate import validate
 from reference_tuning import reference_tuning
@@ -70,10 +71,8 @@ def tuned():
 
 
 def _with_unbacked(tuned, pole, gains):
-    from commission.tune.baseline import _gains_dict
-
     ys = dict(tuned.pid_yardstick or {})
-    ys["unbacked_pid"] = {"pole": pole, "gains": _gains_dict(gains)}
+    ys["unbacked_pid"] = {"pole": pole, "gains": pid_gains_dict(gains)}
     return dataclasses.replace(tuned, pid_yardstick=ys)
 
 
@@ -118,3 +117,26 @@ def test_an_arc_that_loses_to_the_pid_beyond_the_evidence_is_safe_not_better_and
     text = " ".join(not_better_lines(r2, t))
     assert "Missing evidence:" in text and f"{fast:.4g} rad/s" in text and "commission excite" in text
     assert math.isfinite(worst_beyond)
+
+
+def test_a_malformed_unbacked_record_is_refused_by_its_json_path(tuned):
+    """tuning.json is loaded strictly: an unbacked PID whose gains miss a field, or carry a string, names
+    ``$.pid_yardstick``; a well-formed one loads back to the same gains."""
+    import json
+
+    from commission.errors import SchemaError
+    from commission.tuning import Tuning
+
+    t = _with_unbacked(tuned, 2.0 * tuned.pid_pole, tuned.pid)
+    doc = json.loads(json.dumps(t.to_dict()))
+    again = Tuning.from_dict(doc)
+    assert again.pid_yardstick["unbacked_pid"]["gains"] == pid_gains_dict(tuned.pid)
+    for bad in ({"Kp": "fast"}, {"Kd": None, "Ts": None}):
+        d = json.loads(json.dumps(doc))
+        d["pid_yardstick"]["unbacked_pid"]["gains"].update(bad)
+        with pytest.raises(SchemaError, match=r"\$\.pid_yardstick"):
+            Tuning.from_dict(d)
+    d = json.loads(json.dumps(doc))
+    del d["pid_yardstick"]["unbacked_pid"]["gains"]["Ki"]
+    with pytest.raises(SchemaError, match=r"\$\.pid_yardstick"):
+        Tuning.from_dict(d)
