@@ -101,6 +101,8 @@ def _simulate_together(ctx: _SimContext, group: Sequence[Any], dists: Sequence[n
     """ARC and PID on scenarios that share a trajectory, a start, an encoder and which signals they
     carry (``dists``: each one's disturbance, all None or none), each controller as one
     :func:`commission.controllers.simulate.simulate_batch` on this task's thread (scores only).
+    ``kinds``: the controllers of ``ctx`` run, in that order (each tuple of the result follows it;
+    :func:`_simulate_pid` runs the PID alone).
 
     The batch steps two runs whose plants interleave in one loop (its ``interleave``), which
     overlaps them on the core; every run's values are its own :func:`simulate`'s to the last bit,
