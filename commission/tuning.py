@@ -214,7 +214,9 @@ class SearchRecord:
                 **({} if self.other_search is None else {"other_search": dict(self.other_search)})}
 
 
-def _gains_to_dict(g: Any) -> dict[str, Any]:
+def gains_to_dict(g: Any) -> dict[str, Any]:
+    """ArcGains or PidGains as tuning.json holds them: field by field, null for an infinite value (an
+    ArcGains runtime guard only when set)."""
     out: dict[str, Any] = {}
     for f in dataclasses.fields(g):
         v = getattr(g, f.name)
@@ -334,7 +336,7 @@ class Tuning:
         pv = self.provenance
         plant = {name: float(self.plant[i]) for i, name in enumerate(PLANT_NAMES)}
         plant["quantization"] = self.quantization
-        pid = _gains_to_dict(self.pid)
+        pid = gains_to_dict(self.pid)
         pid["pole"] = self.pid_pole
         pid["design_mass"] = self.pid_design_mass
         ob = self.observer
@@ -347,7 +349,7 @@ class Tuning:
             "spec": self.spec.to_dict(),
             "identification": self.identification.to_dict(),
             "plant": plant,
-            "arc": _gains_to_dict(self.arc),
+            "arc": gains_to_dict(self.arc),
             "pid": pid,
             "observer": {"pole": ob.pole, "k1": ob.k1, "k2": ob.k2, "P": [list(r) for r in ob.P],
                          "P_eigenvalues": list(ob.P_eigenvalues), "lyapunov_residual": ob.lyapunov_residual,

@@ -15,8 +15,8 @@ from commission.gate import BEYOND_EVIDENCE, GateSpec, safe_not_better
 from commission.paper import reference_identification
 from commission.report import not_better_lines
 from commission.spec import spec_from_mapping
-from commission.tune.baseline import (YardstickChoice, pid_baseline, pid_candidates, pid_gains_dict,
-                                      pid_yardstick)
+from commission.tune.baseline import YardstickChoice, pid_baseline, pid_candidates, pid_yardstick
+from commission.tuning import gains_to_dict
 from commission.tune.settings import DEFAULT_SETTINGS
 from commission.validate import validate
 from reference_tuning import reference_tuning
@@ -72,7 +72,7 @@ def tuned():
 
 def _with_unbacked(tuned, pole, gains):
     ys = dict(tuned.pid_yardstick or {})
-    ys["unbacked_pid"] = {"pole": pole, "gains": pid_gains_dict(gains)}
+    ys["unbacked_pid"] = {"pole": pole, "gains": gains_to_dict(gains)}
     return dataclasses.replace(tuned, pid_yardstick=ys)
 
 
@@ -130,7 +130,7 @@ def test_a_malformed_unbacked_record_is_refused_by_its_json_path(tuned):
     t = _with_unbacked(tuned, 2.0 * tuned.pid_pole, tuned.pid)
     doc = json.loads(json.dumps(t.to_dict()))
     again = Tuning.from_dict(doc)
-    assert again.pid_yardstick["unbacked_pid"]["gains"] == pid_gains_dict(tuned.pid)
+    assert again.pid_yardstick["unbacked_pid"]["gains"] == gains_to_dict(tuned.pid)
     for bad in ({"Kp": "fast"}, {"Kd": None, "Ts": None}):
         d = json.loads(json.dumps(doc))
         d["pid_yardstick"]["unbacked_pid"]["gains"].update(bad)

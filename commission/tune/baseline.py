@@ -17,7 +17,7 @@ from commission.controllers.pid import PidGains, pid_pack, pid_place_poles
 from commission.spec import Spec
 from commission.scenarios.identified import plant_holds_fit
 from commission.controllers.metrics import Indexes
-from commission.tuning import Tuning
+from commission.tuning import Tuning, gains_to_dict
 from commission.tune.defaults import default_gate_limits
 from commission.tune.objective import Evaluator
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
@@ -279,7 +279,7 @@ class YardstickChoice:
                 **({} if self.fastest_admissible is None
                    else {"fastest_admissible_pole": float(self.fastest_admissible)}),
                 **({} if self.unbacked is None
-                   else {"unbacked_pid": {"pole": float(self.unbacked[0]), "gains": pid_gains_dict(self.unbacked[1])}})}
+                   else {"unbacked_pid": {"pole": float(self.unbacked[0]), "gains": gains_to_dict(self.unbacked[1])}})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "YardstickChoice":
@@ -295,14 +295,8 @@ class YardstickChoice:
                              else (float(d["unbacked_pid"]["pole"]), pid_gains_of(d["unbacked_pid"]["gains"]))))
 
 
-def pid_gains_dict(g: PidGains) -> dict[str, float | None]:
-    """PidGains as JSON numbers (null for an infinite limit), in field order."""
-    return {f.name: (float(getattr(g, f.name)) if math.isfinite(getattr(g, f.name)) else None)
-            for f in dataclasses.fields(g)}
-
-
 def pid_gains_of(d: Mapping[str, Any]) -> PidGains:
-    """PidGains from :func:`pid_gains_dict`'s record (null: infinite); every field required."""
+    """PidGains from :func:`commission.tuning.gains_to_dict`'s record (null: infinite); every field required."""
     return PidGains(**{f.name: (math.inf if d[f.name] is None else float(d[f.name])) for f in dataclasses.fields(PidGains)})
 
 
