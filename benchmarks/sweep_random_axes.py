@@ -20,12 +20,20 @@ PID's) and the seconds it took (wall and this process's CPU) -- then the totals,
 the emitted axes, and how many false refusals and false certifications had a tool yardstick that
 misses the floors or a run on the true plant.
 
+The counts compare each run on one draw of the encoder's noise, as one run on the machine would.
+Each line also gives the ARC/PID ratio of the median e_rms over ``--noise-draws`` draws
+(:func:`commission.true_axis.draws_ratio`, default 5) and the count that ratio gives, and the
+totals say how many axes it moves: where a loop's error is a limit cycle of friction and
+quantisation, one draw can decide the count.  It is a diagnosis; the counts reported are the
+judged draw's.
+
 Seeds 0-29 are the development set.  A held-out set is run once, on final code, by the lead, and
 is no longer held out once a change has been made after seeing its failures: 100-129, 200-229,
 300-329, 400-429, 500-529, 600-629 and 700-729 have been seen so (600-629 was run once before the
 excite change of that session and once after it), 800-829 and 900-929 were each run once on code with
-the same verdict, 1000-1029 once on the code of the ``<case>/stribeck`` scenario (session 15), and
-the next change of the verdict needs seeds nobody has run, 1100-1129 (docs/robustness.md).  Nothing is asserted: the tests run the judging function on known cases
+the same verdict, 1000-1029 once on the code of the ``<case>/stribeck`` scenario (session 15),
+1100-1129 to 1600-1629 once each on the code of their session (docs/robustness.md), and the next
+change of the verdict needs seeds nobody has run, 1700-1729.  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
 Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
@@ -37,7 +45,7 @@ the line says so.  ``--log legacy`` records the commissioning run of issue 30's 
 got, its duration and samples.
 
 Run: ``python benchmarks/sweep_random_axes.py [--seeds 0-5] [--log excite|legacy] [--tune-seed 0]
-[--workers N] [--workdir DIR] [--reuse-logs DIR] [--ripple-pitch-none]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
+[--workers N] [--workdir DIR] [--reuse-logs DIR] [--ripple-pitch-none] [--noise-draws N]`` (``--seeds`` takes ``A-B`` and/or comma lists; ``--workers``: axes in
 parallel processes, each validating on one thread -- the machine's cores are shared, mind
 them; ``--workdir`` keeps each axis's log and run outputs under ``DIR/axisN``; ``--reuse-logs DIR``
 judges the logs a previous ``--workdir`` kept instead of recording new ones, so that a subset re-runs
@@ -58,7 +66,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from commission.identification import IdentifyOptions
 from commission.synth import LOG_KINDS, AxisTruth, random_axis, record_random_axis_log
-from commission.true_axis import Judgement, judge_axis
+from commission.true_axis import NOISE_DRAWS, Judgement, judge_axis
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -97,11 +105,25 @@ def category(j: Judgement) -> str:
     return "no-candidate" + (" (a true-plant PID works)" if j.pid.gains is not None else "")
 
 
+def draws_category(j: Judgement) -> str:
+    """The count an axis with a candidate and a true-plant PID falls in when the comparison is
+    :attr:`Judgement.draws_ratio` below 1 (the runs' c_u, divergence and faults still the judged
+    draw's); ``"-"`` where it was not computed."""
+    if math.isnan(j.draws_ratio):
+        return "-"
+    wins = all(r.ok for r in j.arc_runs) and j.draws_ratio < 1.0
+    if j.emitted:
+        return "works" if wins else "FALSE-CERT"
+    return "FALSE-REFUSAL" if wins else "refused-ok"
+
+
 def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
-               logs_from: str | None = None, no_ripple: bool = False) -> tuple[int, str, str, float, bool, str, str]:
+               logs_from: str | None = None, no_ripple: bool = False,
+               noise_draws: int = NOISE_DRAWS) -> tuple[int, str, str, float, bool, str, str, str]:
     """Judge random axis ``seed`` recorded with ``log``; ``(seed, line, category, ratio, emitted, log written,
-    tool yardstick)``, the last ``"ok"``, ``"floors"`` (misses them on the true plant), ``"runs"`` (a run
-    diverges, chatters or faults) or ``"-"`` (none: refused before tuning).
+    tool yardstick, draws category)``, the tool yardstick ``"ok"``, ``"floors"`` (misses them on the true
+    plant), ``"runs"`` (a run diverges, chatters or faults) or ``"-"`` (none: refused before tuning); the
+    draws category :func:`draws_category`'s.
 
     ``logs_from``: a previous sweep's ``--workdir``; its ``axisN/log.h5`` is judged again (the truth
     re-drawn with :func:`commission.synth.random_axis`) instead of recording a new log.
@@ -123,11 +145,11 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
     t_rec = time.perf_counter() - t0
     try:
         j = judge_axis(truth, log_path, out_dir=d / "out", seed=tune_seed, workers=1,
-                       identify=IdentifyOptions(find_ripple=False) if no_ripple else None)
+                       identify=IdentifyOptions(find_ripple=False) if no_ripple else None, noise_draws=noise_draws)
     except Exception as exc:  # a crash of the tool (not an exit-2 refusal): recorded, the sweep goes on
         dt = time.perf_counter() - t0
         return seed, f"axis {seed:3d}: {describe(truth)} | {how} | CRASH {type(exc).__name__}: {exc} | {dt:.0f} s", \
-            "CRASH", math.nan, False, log if logs_from is None else "reused", "-"
+            "CRASH", math.nan, False, log if logs_from is None else "reused", "-", "-"
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     cat = category(j)
     pid = f"PID {j.pid.pole:.0f} rad/s" if j.pid.gains is not None else "no PID keeps the floors"
@@ -142,9 +164,11 @@ def sweep_axis(seed: int, workdir: str, tune_seed: int, log: str = "excite",
     if j.tool_pid is not None:
         tool = "ok" if j.tool_pid.ok else ("floors" if j.tool_pid.violations else "runs")
         tool_text = f" | {j.tool_pid.describe(j.pid)}"
+    dcat = draws_category(j)
+    draws_text = "" if dcat == "-" else f" | over {noise_draws} noise draws: ARC/PID {j.draws_ratio:.2f} ({dcat})"
     line = (f"axis {seed:3d}: {describe(truth)} | {how} | {j.verdict[:120]} | {cat} | ARC/PID {j.ratio:.2f} ({pid}) "
-            f"| {runs}{tool_text} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
-    return seed, line, cat, j.ratio, j.emitted, log if logs_from is None else "reused", tool
+            f"| {runs}{tool_text}{draws_text} | {dt:.0f} s wall ({t_rec:.0f} s recording), {cpu:.0f} s CPU")
+    return seed, line, cat, j.ratio, j.emitted, log if logs_from is None else "reused", tool, dcat
 
 
 def main() -> None:
@@ -161,6 +185,8 @@ def main() -> None:
                          "recording new ones; --workdir must then be another folder")
     ap.add_argument("--ripple-pitch-none", dest="no_ripple", action="store_true",
                     help="run each axis with --ripple-pitch none (no ripple search; the default searches)")
+    ap.add_argument("--noise-draws", type=int, default=NOISE_DRAWS,
+                    help=f"encoder-noise draws of each line's noise-averaged ratio (default {NOISE_DRAWS}; 1: none)")
     args = ap.parse_args()
     if args.reuse_logs is not None and args.workdir is not None and args.workdir.resolve() == args.reuse_logs.resolve():
         ap.error("--workdir must differ from --reuse-logs (the run outputs would overwrite the kept ones)")
@@ -172,13 +198,15 @@ def main() -> None:
         workdir = str(args.workdir or tmp)
         if args.workers > 1:
             with ProcessPoolExecutor(max_workers=args.workers) as ex:
-                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple) for s in seeds]
+                futs = [ex.submit(sweep_axis, s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple,
+                                  args.noise_draws) for s in seeds]
                 for f in futs:
                     results.append(f.result())
                     print(results[-1][1], flush=True)
         else:
             for s in seeds:
-                results.append(sweep_axis(s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple))
+                results.append(sweep_axis(s, workdir, args.tune_seed, args.log, logs_from, args.no_ripple,
+                                          args.noise_draws))
                 print(results[-1][1], flush=True)
     n = len(results)
     cats = [r[2] for r in results]
@@ -197,6 +225,14 @@ def main() -> None:
             print(f"of the {len(tools)} {label}, the tool's PID yardstick on the true plant: "
                   f"{tools.count('floors')} miss the floors, {tools.count('runs')} keep them but a run diverges, "
                   f"chatters or faults, {tools.count('ok')} run")
+    judged = [r for r in results if r[7] != "-"]
+    if judged:
+        dc = [r[7] for r in judged]
+        moved = [f"{r[0]} ({r[2]} -> {r[7]})" for r in judged if r[7] != r[2]]
+        print(f"over {args.noise_draws} noise draws (median e_rms per run), of the {len(judged)} axes with a candidate "
+              f"and a true-plant PID: {dc.count('works')} work, {dc.count('FALSE-CERT')} false certifications, "
+              f"{dc.count('FALSE-REFUSAL')} false refusals, {dc.count('refused-ok')} refused rightly; "
+              f"moved from the judged draw's count: {', '.join(moved) if moved else 'none'}")
     print(f"{time.perf_counter() - t0:.0f} s wall for {n} axes ({args.workers} worker(s)); logs: --log {args.log}, "
           f"{sum(r[5] == 'excite' for r in results)} excite-planned, {sum(r[5] == 'legacy' for r in results)} legacy")
 

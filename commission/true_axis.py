@@ -48,6 +48,11 @@ same floors, the same four runs.  A false refusal whose tool yardstick misses th
 true plant was refused against a PID the machine could not run (the identified model flattered
 it); one whose tool yardstick runs as well as the true-plant PID was refused by the gate's
 robustness checks, not by its comparison.  It is a diagnosis only: the counts do not read it.
+
+Each run draws the encoder's noise once, as one run on the machine would.  Where a loop's error
+is a limit cycle of friction and quantisation, its e_rms changes from draw to draw by more than
+two controllers differ, so :func:`draws_ratio` (asked with ``noise_draws``) compares the median
+e_rms over several draws: a second diagnosis, not read by the counts either.
 """
 
 from __future__ import annotations
@@ -86,6 +91,8 @@ PID_POLE_STEP = 0.9
 PID_POLE_STEPS = 60
 #: Friction-compensation slope of the true-plant PID, s/m (the paper's (57)).
 PID_FRICTION_SLOPE = 900.0
+#: Encoder-noise draws of the noise-averaged comparison (:func:`draws_ratio`), the judged one included.
+NOISE_DRAWS = 5
 
 
 @dataclass(frozen=True)
@@ -232,6 +239,9 @@ class Judgement:
     tool_pid : ToolYardstick or None
         The PID the tool held the ARC to, on the true plant (a diagnosis; None when not asked or
         refused before tuning).
+    draws_ratio : float
+        :func:`draws_ratio` of the judged ARC and the yardstick (a diagnosis the counts do not read;
+        NaN when not asked, or without both).
     """
 
     emitted: bool
@@ -240,6 +250,7 @@ class Judgement:
     arc_runs: tuple[TrueRun, ...] = ()
     pid: TruePid = field(default_factory=lambda: TruePid(None, math.nan))
     tool_pid: ToolYardstick | None = None
+    draws_ratio: float = math.nan
 
     @property
     def arc_works(self) -> bool:
@@ -269,6 +280,34 @@ class Judgement:
     def ratio(self) -> float:
         """Worst ARC/PID e_rms ratio over the four runs (NaN without both; inf when the ARC diverged)."""
         return worst_ratio(self.arc_runs, self.pid.runs)
+
+
+def draws_ratio(truth: AxisTruth, arc: ArcGains, pid: PidGains, spec: Spec, *, trajectories=None,
+                noise_seed: int = 0, draws: int = NOISE_DRAWS) -> float:
+    """ARC against PID with the encoder's noise averaged out: the worst, over the four runs, of the
+    median ARC e_rms over the median PID e_rms across ``draws`` noise draws.
+
+    The judgement (:attr:`Judgement.arc_works`) compares one draw of the encoder's noise, as one
+    run on the machine would.  Where a loop's error is a limit cycle of friction and quantisation,
+    its e_rms varies from draw to draw by more than the two controllers differ, and one draw can
+    decide the count; this figure says whether the ARC wins on the typical draw.  Draws use the
+    noise seeds ``noise_seed .. noise_seed + draws - 1`` (the judged one first).  ``inf`` where the
+    ARC diverged in a draw; NaN where the PID diverged in every draw of a run.
+    """
+    trajs = trajectories if trajectories is not None else _trajectories(spec, truth.period)
+    a_runs = [true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed + k)
+              for k in range(draws)]
+    p_runs = [true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajs, noise_seed=noise_seed + k)
+              for k in range(draws)]
+    worst = -math.inf
+    for j in range(len(a_runs[0])):
+        if any(r[j].diverged for r in a_runs):
+            return math.inf
+        p = [r[j].e_rms for r in p_runs if not r[j].diverged]
+        if not p:
+            return math.nan
+        worst = max(worst, float(np.median([r[j].e_rms for r in a_runs])) / float(np.median(p)))
+    return worst
 
 
 def _trajectories(spec: Spec, Ts: float):
@@ -394,7 +433,7 @@ def true_pid(truth: AxisTruth, spec: Spec, *, floors: MarginFloors | None = None
 
 def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, verdict: str,
                 noise_seed: int = 0, feedforward: Feedforward | None = None,
-                tool_pid: tuple[PidGains, float] | None = None) -> Judgement:
+                tool_pid: tuple[PidGains, float] | None = None, noise_draws: int = 1) -> Judgement:
     """Judge ARC gains (emitted or forced through) on the true axis against :func:`true_pid`.
 
     Parameters
@@ -413,6 +452,8 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
         The yardstick's (default: the truth's).
     tool_pid : (PidGains, float), optional
         The tool's PID yardstick and its pole, rad/s: judged too (:attr:`Judgement.tool_pid`).
+    noise_draws : int
+        More than 1: :attr:`Judgement.draws_ratio` over that many noise draws.
 
     Returns
     -------
@@ -425,11 +466,15 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
     pid = true_pid(truth, spec, trajectories=trajs, noise_seed=noise_seed, feedforward=feedforward)
     tool = (None if tool_pid is None else
             tool_yardstick(truth, tool_pid[0], tool_pid[1], spec, trajectories=trajs, noise_seed=noise_seed))
-    return Judgement(emitted=emitted, verdict=verdict, candidate=True, arc_runs=runs, pid=pid, tool_pid=tool)
+    dr = (draws_ratio(truth, arc, pid.gains, spec, trajectories=trajs, noise_seed=noise_seed, draws=noise_draws)
+          if noise_draws > 1 and pid.gains is not None else math.nan)
+    return Judgement(emitted=emitted, verdict=verdict, candidate=True, arc_runs=runs, pid=pid, tool_pid=tool,
+                     draws_ratio=dr)
 
 
 def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: str | os.PathLike[str] | None = None,
-               seed: int = 0, workers: int | None = 1, identify: "IdentifyOptions | None" = None) -> Judgement:
+               seed: int = 0, workers: int | None = 1, identify: "IdentifyOptions | None" = None,
+               noise_draws: int = 1) -> Judgement:
     """``commission run`` on ``log_path`` with its defaults, then :func:`judge_gains` on the truth.
 
     The one thing told beyond the log is the drive's rail when it is not the default 10
@@ -449,6 +494,8 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
         validate's threads.
     identify : IdentifyOptions, optional
         ``run``'s identify flags (default: none, as a user who gives none).
+    noise_draws : int
+        As :func:`judge_gains`.
 
     Returns
     -------
@@ -482,12 +529,13 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
         if vo.controller is not None:
             gains = load_controller(vo.controller).config.gains
             return judge_gains(truth, gains, spec, emitted=True, verdict="emitted", noise_seed=seed, feedforward=ff,
-                               tool_pid=tool)
+                               tool_pid=tool, noise_draws=noise_draws)
         fails = vo.result.verdict.failures
         first = f"{fails[0].scenario} {fails[0].criterion}" if fails else "gate"
         return judge_gains(truth, vo.result.arc_gains, spec, emitted=False, verdict=f"refused: {first}",
-                           noise_seed=seed, feedforward=ff, tool_pid=tool)
+                           noise_seed=seed, feedforward=ff, tool_pid=tool, noise_draws=noise_draws)
 
 
-__all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid", "true_pid_gains", "judge_gains",
-           "judge_axis", "worst_ratio", "runs_beat", "EXTRA_DELAYS"]
+__all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid",
+           "true_pid_gains", "judge_gains", "judge_axis", "worst_ratio", "runs_beat", "draws_ratio", "EXTRA_DELAYS",
+           "NOISE_DRAWS"]

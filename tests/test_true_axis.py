@@ -15,15 +15,16 @@ import math
 import numpy as np
 import pytest
 
-from commission.controllers.arc import paper_gains_implementable
+from commission.controllers.arc import arc_pack, paper_gains_implementable
 from commission.controllers.linear import sampled_plant
 from commission.controllers.margins import linearize_pid, loop_margins
 from commission.controllers.pid import pid_pack
+from commission.controllers.simulate import KIND_ARC, KIND_PID
 from commission.robustness import MarginFloors, floor_violations
 from commission.spec import default_spec
 from commission.synth import AxisTruth
-from commission.true_axis import (PID_POLE_STEP, Judgement, TruePid, TrueRun, judge_gains, runs_beat, true_pid,
-                                  true_pid_gains, worst_ratio)
+from commission.true_axis import (PID_POLE_STEP, Judgement, TruePid, TrueRun, draws_ratio, judge_gains, runs_beat,
+                                  true_pid, true_pid_gains, true_runs, worst_ratio)
 
 #: The CONTRACT §5 reference plant (1 um encoder, 2.5 kHz, no delay).
 RIGID = AxisTruth(M=0.027, B=0.273, fc=0.10, fs=0.12, vs=0.01, xi=2.0, offset=0.0, ripple_amp=0.01,
@@ -150,3 +151,21 @@ def test_the_tool_yardstick_is_judged_on_the_true_plant_as_the_true_pid_is():
     assert (mode.works, mode.false_certification) == (dataclasses.replace(mode, tool_pid=None).works,
                                                       dataclasses.replace(mode, tool_pid=None).false_certification)
     assert tool_yardstick(MODE, *tool, SPEC).violations == mode.tool_pid.violations
+
+
+def test_the_noise_averaged_ratio_is_the_worst_run_of_median_errors_over_the_draws():
+    """draws_ratio: per run, the median ARC e_rms over the median PID e_rms across the draws (noise
+    seeds 0 .. n-1, simulated again here), the worst of the four runs; over one draw it is the
+    judgement's own ratio; a judgement not asked for it carries NaN."""
+    noisy = dataclasses.replace(RIGID, noise_std=0.5e-6)
+    g = paper_gains_implementable(SPEC.period)
+    j = judge_gains(noisy, g, SPEC, emitted=True, verdict="emitted", noise_draws=3)
+    pid = j.pid.gains
+    a = [true_runs(noisy, KIND_ARC, arc_pack(g), SPEC, noise_seed=k) for k in range(3)]
+    p = [true_runs(noisy, KIND_PID, pid_pack(pid), SPEC, noise_seed=k) for k in range(3)]
+    assert a[0] != a[1] and p[0] != p[2]  # the draws differ
+    expected = max(float(np.median([r[i].e_rms for r in a])) / float(np.median([r[i].e_rms for r in p]))
+                   for i in range(4))
+    assert j.draws_ratio == pytest.approx(expected, rel=1e-12)
+    assert draws_ratio(noisy, g, pid, SPEC, draws=1) == pytest.approx(j.ratio, rel=1e-12)
+    assert math.isnan(judge_gains(noisy, g, SPEC, emitted=True, verdict="emitted").draws_ratio)
