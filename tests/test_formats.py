@@ -98,9 +98,9 @@ def test_changing_a_default_in_the_table_changes_help_docs_and_schema():
     model = build_model("SpecToml", changed, "modified")
     budget_schema = json_schema(model, "x", 1)["$defs"]["SpecToml_tune"]["properties"]["budget"]
     assert budget_schema["default"] == 200
-    assert "  tune.budget = 200; a defaulted one" in help_text(changed)
-    assert "  tune.budget = 144; a defaulted one" in help_text(SPEC_KEYS)
-    assert "| `tune.budget` | integer | 200; a defaulted one" in markdown_table(changed)
+    assert "  tune.budget = 200" in help_text(changed).splitlines()
+    assert "  tune.budget = 144" in help_text(SPEC_KEYS).splitlines()
+    assert "| `tune.budget` | integer | 200 |" in markdown_table(changed)
     assert formats.fill_markdown(INTERFACE.read_text(), {"spec.toml keys": markdown_table(changed)}) != \
         INTERFACE.read_text()
     # a derived default follows its rule: a new fraction shows in all three as well

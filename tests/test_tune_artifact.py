@@ -20,12 +20,10 @@ from commission.errors import SchemaError
 from commission.jsonio import sha256_file, write_json_atomic
 from commission.paper import reference_identification
 from commission.controllers.simulate import KIND_ARC, KIND_PID
-from commission.scenarios import (case1_trajectory, case2_trajectory, plant_substeps, scenario_matrix,
-                                  screening_indices, tuning_scenarios)
+from commission.scenarios import case1_trajectory, scenario_matrix, screening_indices, tuning_scenarios
 from commission.spec import default_spec, spec_from_mapping
 from commission.tune.api import load_tune_inputs, resolve_spec, tune
 from commission.tune.baseline import PidChatter, deployable_pid, pid_baseline, pid_chatter, pid_pole_note
-from commission.tune.budget import candidate_work, work_scale
 from commission.tune.candidate import FEASIBLE, GATE_MISSED, STABILITY_MISSED, Candidate, SearchResult
 from commission.tune.constraints import margin_violation
 from commission.tune.gains import apply_free, base_arc_gains
@@ -197,30 +195,20 @@ def test_theta_hat1_0_outside_the_box_is_refused(tmp_path):
         load_tune_inputs(tmp_path / "ident.json", spec_path=tmp_path / "spec.toml")
 
 
-def test_default_budgets_shrink_with_the_work_of_a_candidate():
+def test_a_defaulted_budget_is_kept_however_slow_a_candidate_is_to_simulate():
+    """The paper's axis at 4 kHz on a 0.2 m/s, 4 m/s^2 envelope: one candidate simulates several times
+    the paper axis' work, and the search still evaluates the default budget, without a note about it
+    (a starved search certifies weak gains); a budget the spec gives is kept as given."""
     ident = ref_ident()
-    # closed form of the work: 20 scenarios on each trajectory (12 fixed, one more sample of delay, 16 corners,
-    # 4 offsets, 6 payloads; the reference plant has no mode), every sample one ARC step plus the plant's sub-steps
-    slow = spec_from_mapping({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}})
-    n1 = round(case1_trajectory(slow).duration * 4000.0)
-    n2 = round(case2_trajectory(slow).duration * 4000.0)
-    work = 20 * (n1 + n2) * (DEFAULT_SETTINGS.arc_step_work + plant_substeps(4000.0))
-    assert candidate_work(ident, slow) == pytest.approx(work, rel=1e-12)
-    scale = DEFAULT_SETTINGS.work_cap / work
-    assert 0.3 < scale < 1.0 and work_scale(ident, slow) == pytest.approx(scale, rel=1e-12)
-    # a defaulted budget shrinks to whole generations, with a note naming the key; a given one is kept
-    rs = resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}},
-                      "s.toml", ident)
+    data = {"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}}
+    slow = spec_from_mapping(data)
+    paper = spec_from_mapping({})
+    assert case1_trajectory(slow).duration * 4000.0 > 3 * case1_trajectory(paper).duration * paper.sample_rate
     n0 = default_spec().budget
-    pop = DEFAULT_SETTINGS.population
-    assert rs.spec.budget == pop * round(n0 * scale / pop) < n0
-    assert any(n.startswith(f"tune.budget defaulted to {rs.spec.budget} instead of {n0}") for n in rs.notes)
-    kept = resolve_spec({"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0},
-                         "tune": {"budget": n0}}, "s.toml", ident)
-    assert kept.spec.budget == n0 and not any("tune.budget" in n for n in kept.notes)
-    # the paper's axis on the default envelope is within the cap: nothing changes
-    rs = resolve_spec({}, "s.toml", ident)
-    assert work_scale(ident, rs.spec) == 1.0 and rs.spec.budget == n0
+    rs = resolve_spec(data, "s.toml", ident)
+    assert rs.spec.budget == n0 and not any("tune.budget" in n for n in rs.notes)
+    given = resolve_spec({**data, "tune": {"budget": 40}}, "s.toml", ident)
+    assert given.spec.budget == 40
 
 
 @pytest.mark.slow  # a whole tune (tens of seconds): in `pytest -m slow`

@@ -16,10 +16,6 @@ import pathlib
 import pytest
 
 import commission.tune as tune_pkg
-from commission.paper import reference_identification
-from commission.spec import spec_from_mapping
-from commission.tune.api import resolve_spec
-from commission.tune.budget import candidate_work
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
 
 #: Upper-case names a tune module may define that are not knobs: the paper's reference axis, the
@@ -53,20 +49,5 @@ def test_settings_are_frozen():
         DEFAULT_SETTINGS.population = 4  # type: ignore[misc]
 
 
-def test_a_changed_work_cap_resizes_the_defaulted_budget_in_whole_generations():
-    """``work_scaled_budget`` through ``resolve_spec``: budget = population x round(n0 x cap / work /
-    population), at least ``min_budget``; the default settings leave the paper's axis untouched."""
-    ident = reference_identification(delta_d=0.5)
-    data = {"controller": {"sample_rate": 4000.0}, "trajectory": {"v_max": 0.2, "a_max": 4.0}}
-    spec = spec_from_mapping(data)
-    n0 = spec.budget
-    for cap_share, pop, floor in ((0.5, 8, 8), (0.5, 4, 8), (0.01, 8, 24)):
-        st = dataclasses.replace(DEFAULT_SETTINGS, population=pop, min_budget=floor)
-        work = candidate_work(ident, resolve_spec(data, "s.toml", ident, settings=st).spec, st)
-        st = dataclasses.replace(st, work_cap=cap_share * work)
-        rs = resolve_spec(data, "s.toml", ident, settings=st)
-        want = max(floor, pop * round(n0 * cap_share / pop))
-        assert rs.spec.budget == want < n0, (cap_share, pop, floor)
-        assert any(n.startswith(f"tune.budget defaulted to {want} instead of {n0}") for n in rs.notes)
-    assert resolve_spec({}, "s.toml", ident).spec.budget == n0
+def test_the_last_matched_start_scale_is_the_low_cap():
     assert math.isclose(DEFAULT_SETTINGS.match_scales[-1], DEFAULT_SETTINGS.cap_low)

@@ -75,8 +75,7 @@ SPEC_KEYS: tuple[Key, ...] = (
     Key("pid", "pole", float, None, (1e-3, _W), "rad/s", "triple closed-loop pole of the PID baseline (56) at M_min",
         rule=Scaled(PID_POLE_FRACTION, "controller.sample_rate"), attr="pid_pole"),
     # [tune]
-    Key("tune", "budget", int, 144, (1, 10_000), "", "candidate gain sets the search evaluates",
-        rule="{default}; a defaulted one is lowered where one candidate is slow to simulate"),
+    Key("tune", "budget", int, 144, (1, 10_000), "", "candidate gain sets the search evaluates"),
     Key("tune", "monte_carlo", int, 0, (0, 1_000), "", "Monte-Carlo plants from the theta box added to tuning"),
     Key("tune", "margin", float, 0.01, (1e-6, 0.5), "",
         "discrete feasibility: spectral radius below 1 - margin at every theta-box corner"),

@@ -52,7 +52,6 @@ from commission.tune.gains import base_arc_gains, free_gains
 from commission.tune.objective import Progress, Evaluator, HoldoutGate, cost
 from commission.tune.baseline import (bandwidth_factor, noise_bandwidth_factor, pid_candidates, pid_within_evidence,
                                       pid_yardstick)
-from commission.tune.budget import work_scaled_budget
 from commission.tune.candidate import SearchResult
 from commission.tune.optimiser import HoldoutChoice, Problem, search, select_on_holdout
 from commission.tune.settings import DEFAULT_SETTINGS, TuneSettings
@@ -342,9 +341,6 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     spec, notes = default_envelope(spec, ident, given, spec_name, settings=settings)
     spec, ref_notes = reference_envelope(spec, ident, given, spec_name, settings=settings)
     notes = notes + ref_notes
-    tune_keys = spec_data.get("tune")
-    budget_given = isinstance(tune_keys, dict) and "budget" in tune_keys
-    spec, budget_notes = work_scaled_budget(spec, ident, budget_given, settings)
     check_spec_against_ident(spec, ident, spec_name, settings=settings)
     check_run_length(spec, spec_name)  # the envelope may have been lowered, lengthening the runs
     try:
@@ -357,7 +353,7 @@ def resolve_spec(spec_data: dict, spec_name: str, ident: Identification, *,
     pid_free = not (isinstance(pid, dict) and "pole" in pid)
     # A defaulted payload range the search's start points cannot certify is narrowed to one they can.
     ident, payload_notes = narrow_default_payload(ident, spec, settings)
-    return ResolvedSpec(spec, ident, rate_notes + box_notes + drive_notes + notes + budget_notes + horizon_notes(spec)
+    return ResolvedSpec(spec, ident, rate_notes + box_notes + drive_notes + notes + horizon_notes(spec)
                         + payload_notes, observer_free, pid_free)
 
 

@@ -117,15 +117,6 @@ class TuneSettings:
     #: Monte-Carlo plants of the hold-out sample (drawn from tune's Generator, not validate's).
     holdout_plants: int = 32
 
-    # ---- the budget sized to the work (commission.tune.budget)
-    #: Simulation work of one candidate (:func:`commission.tune.budget.candidate_work`, plant
-    #: sub-steps) above which a *defaulted* budget shrinks in proportion.
-    work_cap: float = 22e6
-    #: Cost of one ARC step, plant sub-steps.
-    arc_step_work: int = 4
-    #: Floor of a work-scaled budget, candidates (six generations).
-    min_budget: int = 48
-
     # ---- the objective's penalties (commission.tune.objective.cost)
     #: Penalty weight of the accuracy target in :func:`commission.tune.objective.cost` (per
     #: scenario, in units of ln e_rms, as every ``w_*``).
