@@ -9,7 +9,8 @@ axis of a sweep's ``--workdir`` (``axisN/out/controller.json`` and ``tuning.json
 the same gains against the same true-plant PID (its pole chosen as the sweep chooses it, seed 0)
 over ``--noise-seeds`` realisations and prints, per axis: the worst-run ARC/PID ratio of each
 realisation, how many realisations call it working, and the ratio of the per-run medians (the
-judgement of the median realisation).  Nothing in the tool or the sweep changes.
+judgement of the median realisation, :func:`commission.true_axis.median_ratio`, as the sweep
+prints it over its ``--noise-draws``).  Nothing in the tool or the sweep changes.
 
 Run: ``python benchmarks/judge_noise.py DIR [--noise-seeds 6]``.  Prints figures; asserts nothing.
 """
@@ -28,7 +29,7 @@ from commission.controllers.design import KIND_ARC, KIND_PID
 from commission.controllers.pid import pid_pack
 from commission.runtime import load_controller
 from commission.synth import random_axis
-from commission.true_axis import Feedforward, runs_beat, true_pid, true_runs, worst_ratio
+from commission.true_axis import Feedforward, median_ratio, runs_beat, true_pid, true_runs, worst_ratio
 from commission.tuning import Tuning
 
 
@@ -52,15 +53,15 @@ def main() -> None:
         if ref.gains is None:
             print(f"axis {seed}: no true-plant PID keeps the floors")
             continue
-        ratios, works, arc_e, pid_e = [], 0, [], []
+        ratios, works, arcs, pids = [], 0, [], []
         for ns in range(args.noise_seeds):
             a = true_runs(truth, KIND_ARC, arc_pack(gains), spec, noise_seed=ns)
             p = true_runs(truth, KIND_PID, pid_pack(ref.gains), spec, noise_seed=ns)
             ratios.append(worst_ratio(a, p))
             works += runs_beat(a, p)
-            arc_e.append([x.e_rms for x in a])
-            pid_e.append([y.e_rms for y in p])
-        med = float(np.max(np.median(np.array(arc_e), 0) / np.median(np.array(pid_e), 0)))
+            arcs.append(a)
+            pids.append(p)
+        med = median_ratio(arcs, pids)
         judged += 1
         flips += 0 < works < args.noise_seeds
         print(f"axis {seed}: worst-run ARC/PID per realisation "

@@ -282,32 +282,40 @@ class Judgement:
         return worst_ratio(self.arc_runs, self.pid.runs)
 
 
+def median_ratio(arc_draws: Sequence[Sequence[TrueRun]], pid_draws: Sequence[Sequence[TrueRun]]) -> float:
+    """The worst, over the runs, of the median ARC e_rms over the median PID e_rms across noise draws.
+
+    ``arc_draws[k][j]`` is run ``j`` of draw ``k`` (:func:`true_runs` order), ``pid_draws`` alike.
+    ``inf`` where the ARC diverged in a draw; NaN where the PID diverged in every draw of a run.
+    """
+    worst = -math.inf
+    for j in range(len(arc_draws[0])):
+        if any(r[j].diverged for r in arc_draws):
+            return math.inf
+        p = [r[j].e_rms for r in pid_draws if not r[j].diverged]
+        if not p:
+            return math.nan
+        worst = max(worst, float(np.median([r[j].e_rms for r in arc_draws])) / float(np.median(p)))
+    return worst
+
+
 def draws_ratio(truth: AxisTruth, arc: ArcGains, pid: PidGains, spec: Spec, *, trajectories=None,
                 noise_seed: int = 0, draws: int = NOISE_DRAWS) -> float:
-    """ARC against PID with the encoder's noise averaged out: the worst, over the four runs, of the
-    median ARC e_rms over the median PID e_rms across ``draws`` noise draws.
+    """ARC against PID with the encoder's noise averaged out: :func:`median_ratio` over ``draws``
+    noise draws.
 
     The judgement (:attr:`Judgement.arc_works`) compares one draw of the encoder's noise, as one
     run on the machine would.  Where a loop's error is a limit cycle of friction and quantisation,
     its e_rms varies from draw to draw by more than the two controllers differ, and one draw can
     decide the count; this figure says whether the ARC wins on the typical draw.  Draws use the
-    noise seeds ``noise_seed .. noise_seed + draws - 1`` (the judged one first).  ``inf`` where the
-    ARC diverged in a draw; NaN where the PID diverged in every draw of a run.
+    noise seeds ``noise_seed .. noise_seed + draws - 1`` (the judged one first).
     """
     trajs = trajectories if trajectories is not None else _trajectories(spec, truth.period)
-    a_runs = [true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed + k)
-              for k in range(draws)]
-    p_runs = [true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajs, noise_seed=noise_seed + k)
-              for k in range(draws)]
-    worst = -math.inf
-    for j in range(len(a_runs[0])):
-        if any(r[j].diverged for r in a_runs):
-            return math.inf
-        p = [r[j].e_rms for r in p_runs if not r[j].diverged]
-        if not p:
-            return math.nan
-        worst = max(worst, float(np.median([r[j].e_rms for r in a_runs])) / float(np.median(p)))
-    return worst
+    return median_ratio(
+        [true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed + k)
+         for k in range(draws)],
+        [true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajs, noise_seed=noise_seed + k)
+         for k in range(draws)])
 
 
 def _trajectories(spec: Spec, Ts: float):
@@ -537,5 +545,5 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
 
 
 __all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid",
-           "true_pid_gains", "judge_gains", "judge_axis", "worst_ratio", "runs_beat", "draws_ratio", "EXTRA_DELAYS",
+           "true_pid_gains", "judge_gains", "judge_axis", "worst_ratio", "runs_beat", "median_ratio", "draws_ratio", "EXTRA_DELAYS",
            "NOISE_DRAWS"]
