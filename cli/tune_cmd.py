@@ -41,7 +41,8 @@ below the paper's rate and lowered to what the drive can feed forward on the box
 plant; the theta3 box is narrowed instead when identify's defaulted load-force bound leaves no room;
 the observer pole is a coordinate of the search; pid.pole is lowered when that PID chatters beyond
 validate's c_u limit.  tune.budget is kept whatever a candidate costs to simulate (a starved
-search certifies weak gains: docs/robustness.md).  Values you set are checked, not changed.  Ranges: docs/interface.md section 6.
+search certifies weak gains: docs/robustness.md).  Values you set are checked, not changed.
+Ranges: docs/interface.md section 6.
 A requested bandwidth w (rad/s) needs w / sample_rate <= {MAX_OMEGA_T:g}.
 A bad spec (unknown key, negative rate, too low a sample rate) exits 2 naming the key.
 """

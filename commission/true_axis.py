@@ -545,5 +545,5 @@ def judge_axis(truth: AxisTruth, log_path: str | os.PathLike[str], *, out_dir: s
 
 
 __all__ = ["TrueRun", "TruePid", "ToolYardstick", "tool_yardstick", "Judgement", "Feedforward", "true_runs", "true_pid",
-           "true_pid_gains", "judge_gains", "judge_axis", "worst_ratio", "runs_beat", "median_ratio", "draws_ratio", "EXTRA_DELAYS",
-           "NOISE_DRAWS"]
+           "true_pid_gains", "judge_gains", "judge_axis", "worst_ratio", "runs_beat", "median_ratio", "draws_ratio",
+           "EXTRA_DELAYS", "NOISE_DRAWS"]
