@@ -300,7 +300,8 @@ def median_ratio(arc_draws: Sequence[Sequence[TrueRun]], pid_draws: Sequence[Seq
 
 
 def draws_ratio(truth: AxisTruth, arc: ArcGains, pid: PidGains, spec: Spec, *, trajectories=None,
-                noise_seed: int = 0, draws: int = NOISE_DRAWS) -> float:
+                noise_seed: int = 0, draws: int = NOISE_DRAWS,
+                judged: tuple[Sequence[TrueRun], Sequence[TrueRun]] | None = None) -> float:
     """ARC against PID with the encoder's noise averaged out: :func:`median_ratio` over ``draws``
     noise draws.
 
@@ -308,14 +309,18 @@ def draws_ratio(truth: AxisTruth, arc: ArcGains, pid: PidGains, spec: Spec, *, t
     run on the machine would.  Where a loop's error is a limit cycle of friction and quantisation,
     its e_rms varies from draw to draw by more than the two controllers differ, and one draw can
     decide the count; this figure says whether the ARC wins on the typical draw.  Draws use the
-    noise seeds ``noise_seed .. noise_seed + draws - 1`` (the judged one first).
+    noise seeds ``noise_seed .. noise_seed + draws - 1`` (the judged one first); ``judged``, the ARC's
+    and the PID's runs of the first draw when already simulated, spares simulating it again.
     """
     trajs = trajectories if trajectories is not None else _trajectories(spec, truth.period)
-    return median_ratio(
-        [true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed + k)
-         for k in range(draws)],
-        [true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajs, noise_seed=noise_seed + k)
-         for k in range(draws)])
+    first = 0 if judged is None else 1
+    arcs = [true_runs(truth, KIND_ARC, arc_pack(arc), spec, trajectories=trajs, noise_seed=noise_seed + k)
+            for k in range(first, draws)]
+    pids = [true_runs(truth, KIND_PID, pid_pack(pid), spec, trajectories=trajs, noise_seed=noise_seed + k)
+            for k in range(first, draws)]
+    if judged is not None:
+        arcs, pids = [judged[0], *arcs], [judged[1], *pids]
+    return median_ratio(arcs, pids)
 
 
 def _trajectories(spec: Spec, Ts: float):
@@ -474,7 +479,8 @@ def judge_gains(truth: AxisTruth, arc: ArcGains, spec: Spec, *, emitted: bool, v
     pid = true_pid(truth, spec, trajectories=trajs, noise_seed=noise_seed, feedforward=feedforward)
     tool = (None if tool_pid is None else
             tool_yardstick(truth, tool_pid[0], tool_pid[1], spec, trajectories=trajs, noise_seed=noise_seed))
-    dr = (draws_ratio(truth, arc, pid.gains, spec, trajectories=trajs, noise_seed=noise_seed, draws=noise_draws)
+    dr = (draws_ratio(truth, arc, pid.gains, spec, trajectories=trajs, noise_seed=noise_seed, draws=noise_draws,
+                      judged=(runs, pid.runs))
           if noise_draws > 1 and pid.gains is not None else math.nan)
     return Judgement(emitted=emitted, verdict=verdict, candidate=True, arc_runs=runs, pid=pid, tool_pid=tool,
                      draws_ratio=dr)
