@@ -37,7 +37,8 @@ Defaults, and why:
 
 ``delta_d`` is the ``quantile`` (0.999) of ``|r - mean(r)|/M`` over the decimated
 inverse-dynamics residuals ``r`` of the identification log (``mean(r)`` is the part
-of ``d_n`` the offset missed).  It covers what the identified model does not
+of ``d_n`` the offset missed), on the rows the mass was fitted on when the friction came
+from constant-velocity legs (away from reversals, :attr:`AxisFit.model_rows`).  It covers what the identified model does not
 explain (noise, unmodelled dynamics, misfit of the friction curve); it does not
 include the error of the atan friction compensation, which the tuner may add
 (:attr:`commission.identify.friction.FrictionCompensation.rms_error`).
@@ -99,10 +100,15 @@ class ThetaBounds:
 def theta_bounds(fit: AxisFit, **kwargs: Any) -> ThetaBounds:
     """Nominal ``theta`` and the Assumption-1 box of an :class:`AxisFit`.
 
-    :func:`theta_bounds_from` with the fit's parameters and residuals; keyword
-    arguments as there.
+    :func:`theta_bounds_from` with the fit's parameters and its residuals on the rows the
+    rigid-body model describes (:attr:`AxisFit.model_rows`: away from reversals, where the mass
+    was fitted); keyword arguments as there.  The rows at reversals carry the filtered friction
+    column's error and the stiction phases, which the holding force (static friction) and the
+    friction compensation's own error cover; counted in ``delta_d`` they would ask the drive to
+    hold a load step of about the friction level again at every moment.
     """
-    return theta_bounds_from(fit.parameters, fit.residuals, **kwargs)
+    r = fit.residuals if fit.model_rows is None else fit.residuals[fit.model_rows]
+    return theta_bounds_from(fit.parameters, r, **kwargs)
 
 
 def theta_bounds_from(parameters: Mapping[str, tuple[float, float]], residuals: np.ndarray, *,

@@ -87,6 +87,9 @@ class AxisFit:
     not_identified : dict of str to str
         Parameters the log carries no information on, with the reason (``M`` of a log
         without usable acceleration, when allowed); they are absent from ``parameters``.
+    model_rows : ndarray of bool or None
+        The decimated rows the rigid-body model describes: those the mass fit used, away from
+        reversals (``reversal_speed``).  None: every row (the ``"dynamic"`` method).
     """
 
     friction: FrictionModel
@@ -113,6 +116,7 @@ class AxisFit:
     reversal_speed: float
     warnings: tuple[str, ...]
     not_identified: dict[str, str] = field(default_factory=dict)
+    model_rows: np.ndarray | None = field(default=None, repr=False)
 
     def value(self, name: str) -> float:
         """Value of a parameter."""

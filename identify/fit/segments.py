@@ -21,7 +21,7 @@ from commission.identify.fit.checks import _check_excitation
 from commission.identify.fit.dynamic import _dynamic_fit
 from commission.identify.fit.friction_map import _usable_map
 from commission.identify.fit.result import AxisFit, Method, _ordered, _param_values, model_force
-from commission.identify.fit.steady_dynamic import _steady_fit
+from commission.identify.fit.steady_dynamic import _steady_fit, moving_rows
 
 
 def _velocity_resolution(q_raws: list[np.ndarray], pp: Preprocessed, quant: float | None) -> float:
@@ -141,6 +141,13 @@ def _fit_parameters(pp: Preprocessed, segs: SteadySegments | None, friction: Fri
     return _ordered(params), fmap, rev, not_identified
 
 
+def _frozen(mask: np.ndarray) -> np.ndarray:
+    """A boolean mask that cannot be written (a frozen dataclass's field)."""
+    mask = np.array(mask, dtype=bool, copy=True)
+    mask.flags.writeable = False
+    return mask
+
+
 def _assembled(pp: Preprocessed, params: dict[str, tuple[float, float]], fmap: np.ndarray, rev: float, *,
                friction: FrictionModel, method: Method, ripple_pitch: float | tuple[float, ...] | None,
                mass_fitted: bool, quant: float | None, v_res: float, bandwidth_hz: float, warnings: list[str],
@@ -166,7 +173,8 @@ def _assembled(pp: Preprocessed, params: dict[str, tuple[float, float]], fmap: n
                    v_max=float(np.max(np.abs(pp.qd))), sample_rate=pp.sample_rate, bandwidth_hz=float(bandwidth_hz),
                    cutoff_hz=pp.cutoff_hz, decimation=pp.decimation, trim_start=pp.trim_start,
                    ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings),
-                   not_identified=not_identified)
+                   not_identified=not_identified,
+                   model_rows=_frozen(moving_rows(pp, rev)) if rev > 0 else None)
 
 
 def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tuple, *, friction: FrictionModel,

@@ -28,6 +28,32 @@ N_ALTERNATIONS = 3
 REVERSAL_CUTS = (3.0, 1.0)
 
 
+def moving_rows(pp: Preprocessed, v_ex: float) -> np.ndarray:
+    """The decimated rows away from reversals: no sample within the anti-alias filter's reach slower than ``v_ex``.
+
+    A row whose filter window saw a reversal or a stiction phase carries the filtered ``sign(qd)``
+    column's error (the filtered velocity crosses zero at other times than the true one, and the
+    axis sticks): the rigid-body model does not describe it.  The mass fit uses these rows only,
+    and the Assumption-1 bound ``delta_d`` is taken over them (:attr:`AxisFit.model_rows`).
+
+    Parameters
+    ----------
+    pp : Preprocessed
+    v_ex : float
+        Speed below which a sample counts as a reversal, m/s (<= 0: every row).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        One entry per decimated row.
+    """
+    if not v_ex > 0:
+        return np.ones(pp.t_dec.shape[0], dtype=bool)
+    slow = (np.abs(pp.qd) < v_ex).astype(np.uint8)
+    low = ndimage.maximum_filter1d(slow, 4 * pp.decimation + 1, mode="nearest").astype(bool)
+    return ~pp.decimate_mask(low)
+
+
 def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
                 ripple_pitch: float | tuple[float, ...] | None,
                 reversal_speed: float | None, warnings: list[str],
@@ -47,13 +73,9 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
     if mass is not None:
         X_rip = X_rip[:, 1:]
     y_u = pp.decimate(pp.u)
-    speed = np.abs(pp.qd)
-    reach = 4 * pp.decimation + 1
 
     def usable_rows(v_ex: float) -> np.ndarray:
-        # A row is unusable if any sample within the anti-alias filter's reach was slow.
-        low = ndimage.maximum_filter1d((speed < v_ex).astype(np.uint8), reach, mode="nearest").astype(bool)
-        rows = ~pp.decimate_mask(low)
+        rows = moving_rows(pp, v_ex)
         n_rows = int(rows.sum())
         if n_rows < 10 * X_rip.shape[1]:
             raise MassNotIdentifiableError(
