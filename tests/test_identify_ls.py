@@ -268,7 +268,9 @@ def test_theta_bounds_closed_form():
     # M in [2, 6], B = 15, d in [0.4 - 1, 0.4 + 1]
     assert b.theta_min == pytest.approx((1 / 6, 15 / 6, -0.6 / 2))
     assert b.theta_max == pytest.approx((0.5, 7.5, 1.4 / 2))
-    r = np.asarray(exact.residuals)
+    # delta_d: the residuals' 0.999 quantile over M, on the rows away from reversals
+    r = np.asarray(exact.residuals)[exact.model_rows]
+    assert 0 < r.size < np.asarray(exact.residuals).size
     assert b.delta_d == pytest.approx(np.quantile(np.abs(r - r.mean()), 0.999) / 2.0)
     # with the statistical and model margins: the k-sigma box around M, B, offset
     b3 = theta_bounds(exact, k_sigma=3.0, model_margin=0.1, payload_max=0.0, disturbance_bound=0.0)

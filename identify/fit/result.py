@@ -88,8 +88,10 @@ class AxisFit:
         Parameters the log carries no information on, with the reason (``M`` of a log
         without usable acceleration, when allowed); they are absent from ``parameters``.
     model_rows : ndarray of bool or None
-        The decimated rows the rigid-body model describes: those the mass fit used, away from
-        reversals (``reversal_speed``).  None: every row (the ``"dynamic"`` method).
+        The decimated rows the rigid-body model describes, away from reversals: those the mass
+        fit used (``reversal_speed``), or for the ``"dynamic"`` method those faster than 5 % of
+        the log's top speed within the anti-alias filter's reach.  None: every row (too few
+        left).
     """
 
     friction: FrictionModel

@@ -21,7 +21,7 @@ from commission.identify.fit.checks import _check_excitation
 from commission.identify.fit.dynamic import _dynamic_fit
 from commission.identify.fit.friction_map import _usable_map
 from commission.identify.fit.result import AxisFit, Method, _ordered, _param_values, model_force
-from commission.identify.fit.steady_dynamic import _steady_fit, moving_rows
+from commission.identify.fit.steady_dynamic import MIN_MODEL_ROWS, REVERSAL_FRACTION, _steady_fit, moving_rows
 
 
 def _velocity_resolution(q_raws: list[np.ndarray], pp: Preprocessed, quant: float | None) -> float:
@@ -141,9 +141,17 @@ def _fit_parameters(pp: Preprocessed, segs: SteadySegments | None, friction: Fri
     return _ordered(params), fmap, rev, not_identified
 
 
-def _frozen(mask: np.ndarray) -> np.ndarray:
-    """A boolean mask that cannot be written (a frozen dataclass's field)."""
-    mask = np.array(mask, dtype=bool, copy=True)
+def _model_rows(pp: Preprocessed, rev: float) -> np.ndarray | None:
+    """:attr:`AxisFit.model_rows`: the rows away from reversals, read-only (None: too few to take a quantile over).
+
+    ``rev`` is the mass fit's reversal speed (steady+dynamic); the whole-log method (``rev`` 0) has
+    none, and its rows at reversals carry the same error of the filtered friction column: it cuts
+    at :data:`REVERSAL_FRACTION` of the log's top filtered speed.
+    """
+    v_ex = rev if rev > 0 else REVERSAL_FRACTION * float(np.max(np.abs(pp.qd)))
+    mask = np.array(moving_rows(pp, v_ex), dtype=bool, copy=True)
+    if int(mask.sum()) < MIN_MODEL_ROWS:
+        return None
     mask.flags.writeable = False
     return mask
 
@@ -174,7 +182,7 @@ def _assembled(pp: Preprocessed, params: dict[str, tuple[float, float]], fmap: n
                    cutoff_hz=pp.cutoff_hz, decimation=pp.decimation, trim_start=pp.trim_start,
                    ripple_pitch=ripple_pitch, reversal_speed=rev, warnings=tuple(warnings),
                    not_identified=not_identified,
-                   model_rows=_frozen(moving_rows(pp, rev)) if rev > 0 else None)
+                   model_rows=_model_rows(pp, rev))
 
 
 def fit_segments(segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | tuple, *, friction: FrictionModel,

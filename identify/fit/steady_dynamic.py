@@ -26,6 +26,11 @@ N_ALTERNATIONS = 3
 #: At 1 vs the map's own curve, fitted on legs at those speeds, carries the
 #: friction of the rows kept; the fit says so in a warning.
 REVERSAL_CUTS = (3.0, 1.0)
+#: Where rows near reversals are cut when the friction curve gives no Stribeck speed: this fraction of
+#: the top speed (of the legs for the mass fit; of the log for the whole-log method's delta_d).
+REVERSAL_FRACTION = 0.05
+#: Least number of rows away from reversals that delta_d is taken over (fewer: every row).
+MIN_MODEL_ROWS = 100
 
 
 def moving_rows(pp: Preprocessed, v_ex: float) -> np.ndarray:
@@ -105,7 +110,7 @@ def _steady_fit(pp: Preprocessed, segs: SteadySegments, friction: FrictionModel,
                         v_ex = knee * cut / 3.0
                         scaled.add(it)
                     else:
-                        v_ex = 0.05 * float(np.max(np.abs(segs.velocity)))
+                        v_ex = REVERSAL_FRACTION * float(np.max(np.abs(segs.velocity)))
                 rows = usable_rows(v_ex)
                 reversal = float(v_ex)
             y = y_u - pp.decimate(_friction_force(p, pp.qd)) - (0.0 if mass is None else mass * pp.decimate(pp.qdd))
