@@ -37,9 +37,11 @@ Defaults, and why:
 
 ``delta_d`` is the ``quantile`` (0.999) of ``|r - mean(r)|/M`` over the decimated
 inverse-dynamics residuals ``r`` of the identification log (``mean(r)`` is the part
-of ``d_n`` the offset missed), on the rows the mass was fitted on when the friction came
-from constant-velocity legs (away from reversals, :attr:`AxisFit.model_rows`).  It covers what the identified model does not
-explain (noise, unmodelled dynamics, misfit of the friction curve); it does not
+of ``d_n`` the offset missed), on the rows away from reversals (:attr:`AxisFit.model_rows`:
+with a friction ladder the rows the mass was fitted on; stiction at a reversal is friction,
+which the friction scenarios and the holding force count).  It covers what the identified
+model does not explain while moving (noise, unmodelled dynamics, misfit of the friction
+curve); it does not
 include the error of the atan friction compensation, which the tuner may add
 (:attr:`commission.identify.friction.FrictionCompensation.rms_error`).
 """
