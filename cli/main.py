@@ -22,7 +22,8 @@ imported only when that command runs or its own help is asked for
   the command is done as far as the files go: a signal arriving from then on (or
   during the final move, which holds it) is noted on stderr and the command ends
   with its own code, 0 or 1.  The exit code thus always tells the truth: 130/143
-  means nothing in place, 0/1 the complete set.
+  means nothing in place, 0/1 the complete set.  A signal that arrives while compiled
+  numba code runs is taken once that code has returned (:mod:`commission.cli.interrupts`).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from typer._click.exceptions import ClickException, UsageError  # noqa: E402
 
 from commission import __version__  # noqa: E402
 from commission.cli import commands  # noqa: E402
+from commission.cli import interrupts  # noqa: E402
 from commission.cli import verbosity  # noqa: E402
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
@@ -233,6 +235,9 @@ def run(argv: list[str] | None = None) -> int:
         # After: the files are complete and the command's own exit code is the truthful one.
         if ended or files.committed_outputs():
             late.append(signum)
+            return
+        if interrupts.in_compiled_code(frame):  # raising here would crash the kernel, not stop the command
+            interrupts.redeliver(signum)
             return
         raise KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
 

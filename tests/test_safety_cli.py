@@ -322,6 +322,35 @@ def _validate_argv(tuned, out):
     return ["validate", tuned, "--out-dir", out, "--monte-carlo", 2, "--workers", 1, "--force"]
 
 
+_KERNEL_INTERRUPTED = """
+import os, signal, sys, threading
+import numpy as np
+from commission.cli.main import run
+from commission.identify import ripple
+
+kernel = ripple._powers
+def search_hit_by_ctrl_c(k, *rest):
+    # Ctrl-C lands while the compiled ripple search runs: the grid is made 40 x finer so that
+    # the kernel is busy for about a second and the signal arrives 0.3 s into it.
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    return kernel(np.linspace(k[0], k[-1], 40 * k.size), *rest)
+ripple._powers = search_hit_by_ctrl_c
+sys.exit(run(["identify", sys.argv[1], "--out", sys.argv[2]]))
+"""
+
+
+def test_ctrl_c_while_a_compiled_kernel_runs_is_clean(tmp_path):
+    """A signal that arrives inside compiled numba code is taken when the kernel has returned: raising
+    it in the kernel's call back into Python (boxing its result) killed the process with SIGSEGV and
+    left the staged output and the lock behind."""
+    p = subprocess.run([sys.executable, "-c", _KERNEL_INTERRUPTED, str(SAMPLE), str(tmp_path / "i.json")],
+                       capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert p.returncode == 130, (p.returncode, p.stderr[-2000:])
+    assert "Traceback" not in p.stderr and "Fatal Python error" not in p.stderr, p.stderr
+    assert p.stderr.strip().splitlines()[-1] == "interrupted: no output written or replaced"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_two_concurrent_validations_into_one_folder_exactly_one_proceeds(tuned, tmp_path):
     out = tmp_path / "v"
     procs = [_commission(*_validate_argv(tuned, out), cwd=tmp_path) for _ in range(2)]
