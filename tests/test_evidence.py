@@ -247,8 +247,8 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     with its gains' signs flipped and scaled down (Kp x 1e-3, Ki x 1e-6, Kd x 0.03) is unstable on the
     reference plant (closed-loop eigenvalues), yet its |W T| on the grid is below 1 (its |T| is large
     only at low frequency, where |W| is small): the gate's rows (evidence_table)
-    give it no bound, the check fails and says why, and the report's evidence line says UNSTABLE; the
-    stable PID's row is the grid's peak either way."""
+    give it no bound, an emitted loop's check fails and says why, and the report's evidence line says
+    UNSTABLE; the stable PID's row is the grid's peak either way.  The PID's row is reported, not gated."""
     from commission.controllers.margins import closed_loop_radius
     from commission.evidence import evidence_lines, evidence_table
 
@@ -264,8 +264,16 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     row = rows[-1]
     assert row.controller == "pid" and math.isinf(row.peak) and not row.holds
     assert row.to_dict()["peak_wt"] is None and row.to_dict()["holds"] is False
-    check = evidence_checks(rows, evidence, 0.5)[-1]
-    assert check.scenario == "evidence/nominal/pid" and not check.passed and "UNSTABLE" in check.detail
+    # The yardstick's row is reported, not gated: the checks are the ARC's alone, and the same with
+    # either PID (held out axis 1821 was refused on its default-pole PID's row alone).
+    checks = evidence_checks(rows, evidence, 0.5)
+    assert checks and all(c.scenario.startswith(("evidence/nominal/arc", "measured/nominal/arc")) for c in checks)
+    assert checks == evidence_checks(evidence_table(tuning.arc, pid, ident, SPEC)[1], evidence, 0.5)
+    # An emitted loop unstable on the model is gated: the check fails and says why.
+    unstable = b.row(linearize_pid(pid_pack(flipped)), "arc", "initial", stability=True)
+    check = evidence_checks([unstable], evidence, 0.5)[0]
+    assert check.scenario == "evidence/nominal/arc(theta_hat initial)" and not check.passed
+    assert "UNSTABLE" in check.detail
     assert any(line.startswith("PID: closed loop UNSTABLE") for line in evidence_lines(evidence, rows))
     stable = evidence_table(tuning.arc, pid, ident, SPEC)[1][-1]
     assert stable.peak == b.pid_row(pid).peak
