@@ -329,11 +329,14 @@ from commission.cli.main import run
 from commission.identify import ripple
 
 kernel = ripple._powers
+calls = []
 def search_hit_by_ctrl_c(k, *rest):
-    # Ctrl-C lands while the compiled ripple search runs: the grid is made 10 x finer so that
-    # the kernel is busy for seconds and the signal arrives 0.3 s into it (or, in a fresh
+    # One Ctrl-C, landing while the compiled ripple search runs: the grid is made 10 x finer so
+    # that the kernel is busy for seconds and the signal arrives 0.3 s into it (or, in a fresh
     # install, while numba compiles it: it is then taken once the compiler is done).
-    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    if not calls:
+        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    calls.append(k.size)
     return kernel(np.linspace(k[0], k[-1], 10 * k.size), *rest)
 ripple._powers = search_hit_by_ctrl_c
 sys.exit(run(["identify", sys.argv[1], "--out", sys.argv[2]]))
