@@ -32,8 +32,8 @@ is no longer held out once a change has been made after seeing its failures: 100
 300-329, 400-429, 500-529, 600-629 and 700-729 have been seen so (600-629 was run once before the
 excite change of that session and once after it), 800-829 and 900-929 were each run once on code with
 the same verdict, 1000-1029 once on the code of the ``<case>/stribeck`` scenario (session 15),
-1100-1129 to 1800-1829 once each on the code of their session (docs/robustness.md), and the next
-change of the verdict needs seeds nobody has run, 1900-1929.  Nothing is asserted: the tests run the judging function on known cases
+1100-1129 to 1900-1929 once each on the code of their session (docs/robustness.md), and the next
+change of the verdict needs seeds nobody has run, 2000-2029.  Nothing is asserted: the tests run the judging function on known cases
 (``tests/test_true_axis.py``).
 
 Each axis is recorded as the tool tells users to record it (``--log excite``, the default):
