@@ -540,6 +540,8 @@ def evidence_lines(evidence: Evidence, rows: tuple[RobustStability, ...] | list[
                   f"{r.measured_modulus:.3g}")
             if math.isfinite(r.measured_phase_deg):
                 s += f", phase margin {r.measured_phase_deg:.3g} deg"
+        if r.controller != "arc" and not r.holds:
+            s += "; the yardstick's bound: reported, not gated (only the emitted ARC's is)"
         out.append(s)
     return out
 

@@ -274,7 +274,8 @@ def test_a_loop_unstable_on_the_model_holds_no_bound_in_the_gate_and_the_report(
     check = evidence_checks([unstable], evidence, 0.5)[0]
     assert check.scenario == "evidence/nominal/arc(theta_hat initial)" and not check.passed
     assert "UNSTABLE" in check.detail
-    assert any(line.startswith("PID: closed loop UNSTABLE") for line in evidence_lines(evidence, rows))
+    pid_line = next(line for line in evidence_lines(evidence, rows) if line.startswith("PID: "))
+    assert pid_line.startswith("PID: closed loop UNSTABLE") and pid_line.endswith("reported, not gated (only the emitted ARC's is)")
     stable = evidence_table(tuning.arc, pid, ident, SPEC)[1][-1]
     assert stable.peak == b.pid_row(pid).peak
     # The ARC's adaptation leaves neutral modes on the unit circle (spectral radius 1 + ~1e-10 here):
